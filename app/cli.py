@@ -1,0 +1,33 @@
+"""Subcommand dispatch shared by ``python -m app``, ``python -m study`` and ``python -m analysis``.
+
+Each subcommand lives in its own module exposing ``add_arguments(parser)`` and
+``main(args) -> int``; modules are imported only when their command runs, so ``--help`` stays
+fast and one broken command never hides the others.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Mapping, Sequence
+
+
+def dispatch(
+    prog: str, description: str, commands: Mapping[str, tuple[str, str]], argv: Sequence[str] | None
+) -> int:
+    """Parse ``argv`` and run the chosen command.
+
+    ``commands`` maps a command name to ``(module path, one-line help)``.
+    """
+    parser = argparse.ArgumentParser(prog=prog, description=description)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    args_list = list(sys.argv[1:] if argv is None else argv)
+    chosen = next((a for a in args_list if not a.startswith("-")), None)
+    for name, (module_path, help_text) in commands.items():
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        if name == chosen:
+            importlib.import_module(module_path).add_arguments(p)
+    args = parser.parse_args(args_list)
+    module = importlib.import_module(commands[args.command][0])
+    return int(module.main(args) or 0)

@@ -1,0 +1,1 @@
+"""The study engine: protocols, counterbalanced schedules, sessions, the store, simulated users."""

@@ -1,0 +1,17 @@
+"""``python -m study COMMAND``: schedules, headless sessions, simulation and export."""
+
+from __future__ import annotations
+
+import sys
+
+from app.cli import dispatch
+
+COMMANDS = {
+    "schedule": ("study.cli.schedule", "Print the counterbalanced trial schedule."),
+    "run": ("study.cli.run", "Run one whole session headless with a scripted participant."),
+    "simulate": ("study.cli.simulate", "Run simulated participants through the whole study."),
+    "export": ("study.cli.export", "Export a store to tidy CSV + Parquet files with a codebook."),
+}
+
+if __name__ == "__main__":
+    sys.exit(dispatch("python -m study", __doc__ or "", COMMANDS, None))
