@@ -1,0 +1,23 @@
+"""Typed errors of the robot layer: a missing model, a bad scene, an unreachable object."""
+
+from __future__ import annotations
+
+
+class RobotError(Exception):
+    """Base class of every error raised by ``app.robot``."""
+
+
+class ModelNotFoundError(RobotError, FileNotFoundError):
+    """The Panda model files are not installed where ``example-robot-data`` puts them."""
+
+
+class SceneError(RobotError, ValueError):
+    """A scene description is invalid; the message names the key path (``scenes.easy.objects``)."""
+
+
+class UnreachableError(SceneError):
+    """Inverse kinematics found no configuration for an object's grasp pose."""
+
+    def __init__(self, message: str, *, object_name: str) -> None:
+        super().__init__(message)
+        self.object_name = object_name

@@ -1,0 +1,253 @@
+"""A scene as plain, validated data: table, objects, target, start configuration, reach region.
+
+``SceneSpec.from_dict(d, where="scenes.easy")`` reads one ``[scenes.*]`` table of a protocol;
+every error names the key path and says what to change. Geometry that needs the arm (grasp
+poses, goal configurations by IK, reachability) is checked later by ``build_scene``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from app.robot.errors import SceneError
+
+# Names reach the participant's browser: they must not reveal the condition (blinding).
+CONDITION_WORDS = ("right", "wrong", "easy", "hard", "timid", "aggressive")
+SHAPES = {
+    "cylinder": 2,
+    "box": 3,
+}  # shape -> number of size entries (radius, half-height) / half-extents
+_NAME = re.compile(r"^[a-z][a-z0-9_-]{0,31}$")
+ARM_DOF = 7
+
+
+@dataclass(frozen=True)
+class ObjectSpec:
+    """A graspable object resting on the table.
+
+    ``size``: cylinder ``(radius, half_height)``, box ``(hx, hy, hz)`` half-extents, metres.
+    ``position``: centre of the object in the world frame; ``yaw`` about world z, radians.
+    """
+
+    name: str
+    shape: str
+    size: tuple[float, ...]
+    position: tuple[float, float, float]
+    yaw: float = 0.0
+    mass: float = 0.1
+    rgba: tuple[float, float, float, float] = (0.2, 0.5, 0.8, 1.0)
+
+    @property
+    def half_height(self) -> float:
+        return self.size[1] if self.shape == "cylinder" else self.size[2]
+
+    @property
+    def footprint_radius(self) -> float:
+        """Radius of a circle on the table that contains the object's footprint."""
+        if self.shape == "cylinder":
+            return self.size[0]
+        return math.hypot(self.size[0], self.size[1])
+
+    @property
+    def grasp_width(self) -> float:
+        """Width across the gripper's closing direction when grasped (gripper along world y)."""
+        return (
+            2.0 * self.size[0]
+            if self.shape == "cylinder"
+            else 2.0 * min(self.size[0], self.size[1])
+        )
+
+
+@dataclass(frozen=True)
+class TableSpec:
+    """A box table whose top is at ``top_z``; ``center``/``half_size`` in the xy plane."""
+
+    center: tuple[float, float] = (0.55, 0.0)
+    half_size: tuple[float, float] = (0.4, 0.6)
+    top_z: float = 0.0
+    thickness: float = 0.04
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """Everything needed to build a scene: objects, which one is the target, where the arm starts.
+
+    ``reach_lo``/``reach_hi`` bound the region the interface lets the user point at (an
+    axis-aligned box, world frame); ``start_q`` is the arm's initial configuration (7,).
+    """
+
+    name: str
+    target: str
+    start_q: tuple[float, ...]
+    reach_lo: tuple[float, float, float]
+    reach_hi: tuple[float, float, float]
+    objects: tuple[ObjectSpec, ...]
+    table: TableSpec = field(default_factory=TableSpec)
+    gripper_open: float = 0.04
+
+    @property
+    def object_names(self) -> tuple[str, ...]:
+        return tuple(o.name for o in self.objects)
+
+    def object(self, name: str) -> ObjectSpec:
+        for o in self.objects:
+            if o.name == name:
+                return o
+        raise SceneError(
+            f"scene {self.name!r} has no object {name!r}; objects: {self.object_names}"
+        )
+
+    @property
+    def target_index(self) -> int:
+        return self.object_names.index(self.target)
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any], *, where: str = "scene") -> SceneSpec:
+        """Validate one ``[scenes.NAME]`` table; ``where`` is its key path for error messages."""
+        if not isinstance(d, Mapping):
+            raise SceneError(f"{where}: expected a table, got {type(d).__name__}")
+        known = {"target", "start_q", "reach", "objects", "table", "gripper_open", "name"}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise SceneError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(known)}")
+        for key in ("target", "start_q", "reach", "objects"):
+            if key not in d:
+                raise SceneError(f"{where}.{key}: missing (required)")
+        name = str(d.get("name", where.rsplit(".", 1)[-1]))
+        start_q = _floats(d["start_q"], f"{where}.start_q", n=ARM_DOF)
+        reach = d["reach"]
+        if not isinstance(reach, Mapping) or set(reach) != {"min", "max"}:
+            raise SceneError(f"{where}.reach: expected {{ min = [x, y, z], max = [x, y, z] }}")
+        lo = _floats(reach["min"], f"{where}.reach.min", n=3)
+        hi = _floats(reach["max"], f"{where}.reach.max", n=3)
+        if any(a >= b for a, b in zip(lo, hi, strict=True)):
+            raise SceneError(f"{where}.reach: min {lo} must be below max {hi} on every axis")
+        raw_objects = d["objects"]
+        if not isinstance(raw_objects, Sequence) or isinstance(raw_objects, str) or not raw_objects:
+            raise SceneError(f"{where}.objects: expected a non-empty list of object tables")
+        objects = tuple(_object(o, f"{where}.objects[{i}]") for i, o in enumerate(raw_objects))
+        names = [o.name for o in objects]
+        dupes = sorted({n for n in names if names.count(n) > 1})
+        if dupes:
+            raise SceneError(f"{where}.objects: duplicate object name(s) {dupes}")
+        target = d["target"]
+        if target not in names:
+            raise SceneError(f"{where}.target: {target!r} is not one of the objects {names}")
+        table = _table(d.get("table", {}), f"{where}.table")
+        gripper_open = float(d.get("gripper_open", 0.04))
+        if not 0.0 < gripper_open <= 0.04:
+            raise SceneError(f"{where}.gripper_open: {gripper_open} outside (0, 0.04] m")
+        spec = cls(
+            name=name,
+            target=str(target),
+            start_q=start_q,
+            reach_lo=lo,  # type: ignore[arg-type]
+            reach_hi=hi,  # type: ignore[arg-type]
+            objects=objects,
+            table=table,
+            gripper_open=gripper_open,
+        )
+        spec._check_layout(where)
+        return spec
+
+    def _check_layout(self, where: str) -> None:
+        t = self.table
+        for i, o in enumerate(self.objects):
+            bottom = o.position[2] - o.half_height
+            if abs(bottom - t.top_z) > 0.005:
+                raise SceneError(
+                    f"{where}.objects[{i}] ({o.name!r}): bottom at z={bottom:.3f} m, but the table"
+                    f" top is at z={t.top_z:.3f} m; set position z = {t.top_z + o.half_height:.3f}"
+                )
+            for axis in (0, 1):
+                if abs(o.position[axis] - t.center[axis]) + o.footprint_radius > t.half_size[axis]:
+                    raise SceneError(f"{where}.objects[{i}] ({o.name!r}): not on the table")
+            if o.grasp_width >= 2 * self.gripper_open - 0.005:
+                raise SceneError(
+                    f"{where}.objects[{i}] ({o.name!r}): {o.grasp_width * 1000:.0f} mm wide, the"
+                    f" open gripper spans {2000 * self.gripper_open:.0f} mm; make it narrower"
+                )
+        for i, a in enumerate(self.objects):
+            for j in range(i + 1, len(self.objects)):
+                b = self.objects[j]
+                gap = math.dist(a.position[:2], b.position[:2])
+                if gap < a.footprint_radius + b.footprint_radius + 0.02:
+                    raise SceneError(
+                        f"{where}.objects: {a.name!r} and {b.name!r} overlap or touch (centres"
+                        f" {gap * 100:.1f} cm apart); move them at least 2 cm apart"
+                    )
+
+
+def _floats(value: Any, where: str, *, n: int) -> tuple[float, ...]:
+    if isinstance(value, str) or not isinstance(value, Sequence) or len(value) != n:
+        raise SceneError(f"{where}: expected a list of {n} numbers, got {value!r}")
+    out = []
+    for i, v in enumerate(value):
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise SceneError(f"{where}[{i}]: expected a finite number, got {v!r}")
+        out.append(float(v))
+    return tuple(out)
+
+
+def _object(d: Any, where: str) -> ObjectSpec:
+    if not isinstance(d, Mapping):
+        raise SceneError(f"{where}: expected a table {{ name, shape, size, position }}")
+    known = {"name", "shape", "size", "position", "yaw", "mass", "rgba"}
+    unknown = sorted(set(d) - known)
+    if unknown:
+        raise SceneError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(known)}")
+    for key in ("name", "shape", "size", "position"):
+        if key not in d:
+            raise SceneError(f"{where}.{key}: missing (required)")
+    name = d["name"]
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise SceneError(
+            f"{where}.name: {name!r} must be lower-case letters, digits, '_' or '-' (max 32)"
+        )
+    for word in CONDITION_WORDS:
+        if word in name:
+            raise SceneError(
+                f"{where}.name: {name!r} contains the condition word {word!r}; object names"
+                " reach the participant's browser, choose a neutral name (e.g. 'bottle')"
+            )
+    shape = d["shape"]
+    if shape not in SHAPES:
+        raise SceneError(f"{where}.shape: {shape!r} is not one of {sorted(SHAPES)}")
+    size = _floats(d["size"], f"{where}.size", n=SHAPES[shape])
+    if any(s <= 0.0 or s > 0.5 for s in size):
+        raise SceneError(f"{where}.size: every entry must lie in (0, 0.5] m, got {size}")
+    position = _floats(d["position"], f"{where}.position", n=3)
+    yaw = float(d.get("yaw", 0.0))
+    mass = float(d.get("mass", 0.1))
+    if not 0.005 <= mass <= 2.0:
+        raise SceneError(f"{where}.mass: {mass} kg outside [0.005, 2] kg")
+    rgba = _floats(d.get("rgba", (0.2, 0.5, 0.8, 1.0)), f"{where}.rgba", n=4)
+    return ObjectSpec(
+        name=name,
+        shape=shape,
+        size=size,
+        position=position,  # type: ignore[arg-type]
+        yaw=yaw,
+        mass=mass,
+        rgba=rgba,  # type: ignore[arg-type]
+    )
+
+
+def _table(d: Any, where: str) -> TableSpec:
+    if not isinstance(d, Mapping):
+        raise SceneError(f"{where}: expected a table {{ center, half_size, top_z }}")
+    unknown = sorted(set(d) - {"center", "half_size", "top_z", "thickness"})
+    if unknown:
+        raise SceneError(f"{where}: unknown key(s) {unknown}")
+    default = TableSpec()
+    center = _floats(d.get("center", default.center), f"{where}.center", n=2)
+    half = _floats(d.get("half_size", default.half_size), f"{where}.half_size", n=2)
+    if min(half) <= 0:
+        raise SceneError(f"{where}.half_size: must be positive, got {half}")
+    top_z = float(d.get("top_z", default.top_z))
+    thickness = float(d.get("thickness", default.thickness))
+    return TableSpec(center=center, half_size=half, top_z=top_z, thickness=thickness)  # type: ignore[arg-type]

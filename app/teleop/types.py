@@ -1,0 +1,60 @@
+"""What an input source sees each tick and what it answers.
+
+An ``InputSource`` (browser gizmo, keyboard, scripted or simulated user) is asked once per control
+tick: ``command(obs) -> TeleopCommand``. The command is an absolute end-effector *target*
+(world frame, metres) plus whether the gripper should be closed; the trial clamps the target to
+the interface's reach and turns it into ``U`` by a velocity-limited IK step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from app.teleop.reach import ReachRegion
+
+
+@dataclass(frozen=True)
+class TeleopCommand:
+    """The user's wish this tick: end-effector ``target`` (3,) and ``grasp`` (True = close)."""
+
+    target: np.ndarray
+    grasp: bool = False
+
+
+@dataclass(frozen=True)
+class TrialObservation:
+    """The state an input source may look at (server side only; never sent to a browser as is).
+
+    ``q``: arm configuration (7,); ``ee``: end-effector (tool centre point) position (3,);
+    ``user_target``: last clamped target (3,); ``goal_positions``: (n, 3) grasp points in the
+    order of ``goal_names``; ``target_index``: which goal the participant was asked to pick up;
+    ``alpha``/``predicted``: the last arbitration value and predicted goal index.
+    """
+
+    t: float
+    q: np.ndarray
+    ee: np.ndarray
+    gripper_closed: bool
+    user_target: np.ndarray
+    reach: ReachRegion
+    goal_names: tuple[str, ...]
+    goal_positions: np.ndarray
+    target_index: int
+    alpha: float = 0.0
+    predicted: int = -1
+    grasped: str | None = None
+    rate_hz: float = 100.0
+
+
+@runtime_checkable
+class InputSource(Protocol):
+    """Anything that turns an observation into a ``TeleopCommand`` once per control tick.
+
+    Implementations must be cheap (called at the control rate) and, when fed from another
+    thread (a UI callback), lock their own state.
+    """
+
+    def command(self, obs: TrialObservation) -> TeleopCommand: ...
