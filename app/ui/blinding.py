@@ -1,0 +1,146 @@
+"""Blinding guard: no condition name ever reaches the participant's browser.
+
+Every message a viser server queues for its clients passes through an ``AsyncMessageBuffer``
+(the broadcast buffer or one per client). :func:`install` wraps ``AsyncMessageBuffer.push``
+once per process; pushes made on the event loop of a guarded server are checked by that
+server's :class:`BlindingGuard`, which walks every string in the message (values, dict keys,
+tuple items) and, if one contains a forbidden word (case-insensitive substring, so
+"bright" counts as well as "right"), drops the message and logs it. Other servers (the
+experimenter's) pass through untouched.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import threading
+from collections.abc import Iterable, Iterator
+from typing import Any
+
+import numpy as np
+import viser
+from viser.infra._async_message_buffer import AsyncMessageBuffer
+
+LOGGER = logging.getLogger("app.ui.blinding")
+
+CONDITION_WORDS: tuple[str, ...] = ("timid", "aggressive", "right", "wrong", "easy", "hard")
+"""Words that name a study condition (factor levels and modes); never sent to a participant."""
+
+
+class BlindingViolation(RuntimeError):
+    """A participant-facing string names a condition. Rephrase the text without the word."""
+
+
+def find_condition_words(text: str, *, words: Iterable[str] = CONDITION_WORDS) -> list[str]:
+    """Return the forbidden words occurring in ``text`` (case-insensitive substrings)."""
+    low = text.lower()
+    return [w for w in words if w in low]
+
+
+def check_text(text: str, *, words: Iterable[str] = CONDITION_WORDS) -> str:
+    """Return ``text`` unchanged, or raise :class:`BlindingViolation` naming the word found."""
+    found = find_condition_words(text, words=words)
+    if found:
+        raise BlindingViolation(
+            f"participant text {text[:80]!r} contains condition word(s) {found}; rephrase it"
+        )
+    return text
+
+
+def iter_strings(obj: Any, *, _depth: int = 0) -> Iterator[str]:
+    """Yield every string inside a viser message (dataclass fields, mappings, sequences)."""
+    if _depth > 12 or obj is None:
+        return
+    if isinstance(obj, str):
+        yield obj
+    elif isinstance(obj, (bytes, bytearray, memoryview, np.ndarray, int, float, bool)):
+        return
+    elif dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        for field in dataclasses.fields(obj):
+            yield from iter_strings(getattr(obj, field.name), _depth=_depth + 1)
+    elif isinstance(obj, dict):
+        for key, value in obj.items():
+            if isinstance(key, str):
+                yield key
+            yield from iter_strings(value, _depth=_depth + 1)
+    elif isinstance(obj, (list, tuple, set, frozenset)):
+        for item in obj:
+            yield from iter_strings(item, _depth=_depth + 1)
+
+
+@dataclasses.dataclass
+class Violation:
+    """One blocked message: its type, the offending string (shortened) and the words found."""
+
+    message_type: str
+    text: str
+    words: tuple[str, ...]
+
+
+class BlindingGuard:
+    """Checks every outgoing message of one viser server; blocks and records violations."""
+
+    def __init__(self, *, words: Iterable[str] = CONDITION_WORDS, block: bool = True) -> None:
+        self.words = tuple(w.lower() for w in words)
+        self.block = block
+        self.violations: list[Violation] = []
+        self.checked = 0
+        self._lock = threading.Lock()
+
+    def inspect(self, message: Any) -> Violation | None:
+        """Return the first violation in ``message``, or ``None`` when it is clean."""
+        for text in iter_strings(message):
+            found = find_condition_words(text, words=self.words)
+            if found:
+                return Violation(type(message).__name__, text[:120], tuple(found))
+        return None
+
+    def allow(self, message: Any) -> bool:
+        """Record the check; return False when the message must not be sent."""
+        violation = self.inspect(message)
+        with self._lock:
+            self.checked += 1
+            if violation is not None:
+                self.violations.append(violation)
+        if violation is None:
+            return True
+        LOGGER.error(
+            "blinding: %s %s carrying %r (words %s)",
+            "blocked" if self.block else "saw",
+            violation.message_type,
+            violation.text,
+            list(violation.words),
+        )
+        return not self.block
+
+
+_GUARDS: dict[int, BlindingGuard] = {}
+_INSTALL_LOCK = threading.Lock()
+_ORIGINAL_PUSH = AsyncMessageBuffer.push
+
+
+def _guarded_push(self: AsyncMessageBuffer, message: Any) -> None:
+    guard = _GUARDS.get(id(self.event_loop))
+    if guard is not None and not guard.allow(message):
+        return
+    _ORIGINAL_PUSH(self, message)
+
+
+def install(server: viser.ViserServer, guard: BlindingGuard | None = None) -> BlindingGuard:
+    """Guard every message ``server`` sends from now on; return the guard."""
+    loop = server._websock_server._background_event_loop
+    if loop is None:  # pragma: no cover - viser starts its loop in the constructor
+        raise RuntimeError("the viser server has no event loop yet; install after it starts")
+    guard = guard or BlindingGuard()
+    with _INSTALL_LOCK:
+        if AsyncMessageBuffer.push is not _guarded_push:
+            AsyncMessageBuffer.push = _guarded_push  # type: ignore[method-assign]
+        _GUARDS[id(loop)] = guard
+    return guard
+
+
+def uninstall(server: viser.ViserServer) -> None:
+    """Stop guarding ``server`` (call when it stops)."""
+    loop = server._websock_server._background_event_loop
+    with _INSTALL_LOCK:
+        _GUARDS.pop(id(loop), None)

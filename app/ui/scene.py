@@ -1,0 +1,111 @@
+"""The 3D scene a participant sees: a MuJoCo model rendered by mjviser with batched meshes.
+
+mjviser names scene nodes after MuJoCo bodies and geoms (``panda_rightfinger`` ...). Node
+names reach the browser, so :class:`NeutralNames` rewrites every path component to an opaque
+id (``/n7/n12``) before viser sees it: no model name, hence no condition word, is sent.
+
+Poses come from the control thread as snapshots ``(xpos (nbody,3), xmat (nbody,9))``;
+:meth:`SceneView.render` sends one frame (about 0.6 ms) and is called at up to 60 Hz by a
+:class:`app.ui.loop.PacedLoop`, independent of the control rate.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from typing import Any
+
+import mujoco
+import numpy as np
+import viser
+from mjviser import ViserMujocoScene
+
+_KEEP = frozenset({"", "fixed_bodies", "bodies"})
+
+
+class NeutralNames:
+    """Maps scene-node path components to opaque ids, the same component to the same id."""
+
+    def __init__(self, prefix: str = "n") -> None:
+        self._prefix = prefix
+        self._ids: dict[str, str] = {}
+        self._lock = threading.Lock()
+
+    def __call__(self, path: str) -> str:
+        parts = path.split("/")
+        with self._lock:
+            out = [
+                p if p in _KEEP else self._ids.setdefault(p, f"{self._prefix}{len(self._ids)}")
+                for p in parts
+            ]
+        return "/".join(out)
+
+
+class _NeutralSceneApi:
+    """Proxy of a viser ``SceneApi`` whose ``add_*`` methods get neutral node names."""
+
+    def __init__(self, scene: Any, names: NeutralNames) -> None:
+        self._scene = scene
+        self._names = names
+
+    def __getattr__(self, attr: str) -> Any:
+        value = getattr(self._scene, attr)
+        if not attr.startswith("add_") or not callable(value):
+            return value
+
+        def add(name: str, *args: Any, **kwargs: Any) -> Any:
+            return value(self._names(name), *args, **kwargs)
+
+        return add
+
+
+class _NeutralTarget:
+    """What mjviser needs of a ``ViserServer``: ``scene``, ``atomic()``, ``flush()``."""
+
+    def __init__(self, target: viser.ViserServer | viser.ClientHandle, names: NeutralNames):
+        self.scene = _NeutralSceneApi(target.scene, names)
+        self.atomic = target.atomic
+        self.flush = target.flush
+        self.gui = target.gui
+
+
+def frame_task(
+    camera: viser.CameraHandle,
+    *,
+    look_at: np.ndarray,
+    distance: float = 1.6,
+    azimuth_deg: float = 205.0,
+    elevation_deg: float = 35.0,
+) -> None:
+    """Point ``camera`` at ``look_at`` from behind-and-above the robot base, z up."""
+    az, el = np.radians(azimuth_deg), np.radians(elevation_deg)
+    offset = distance * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    camera.up_direction = (0.0, 0.0, 1.0)
+    camera.position = tuple(np.asarray(look_at, float) + offset)
+    camera.look_at = tuple(np.asarray(look_at, float))
+
+
+class SceneView:
+    """One participant's view of one simulated scene (per-client nodes, neutral names)."""
+
+    def __init__(
+        self,
+        target: viser.ViserServer | viser.ClientHandle,
+        model: mujoco.MjModel,
+        *,
+        on_frame: Callable[[], None] | None = None,
+    ) -> None:
+        self.names = NeutralNames()
+        self._scene = ViserMujocoScene(_NeutralTarget(target, self.names), model, num_envs=1)  # type: ignore[arg-type]
+        self._scene.camera_tracking_enabled = False
+        self._on_frame = on_frame
+        self.frames_sent = 0
+
+    def render(self, xpos: np.ndarray, xmat: np.ndarray) -> None:
+        """Send one frame with body poses ``xpos (nbody,3)``, ``xmat (nbody,9)``."""
+        self._scene.update_from_arrays(
+            np.asarray(xpos, float)[None], np.asarray(xmat, float).reshape(1, -1, 3, 3)
+        )
+        self.frames_sent += 1
+        if self._on_frame is not None:
+            self._on_frame()
