@@ -1,0 +1,222 @@
+"""Policy blending: ``command = (1 - alpha) U + alpha P`` behind one object per control tick.
+
+Per tick :meth:`PolicyBlender.step` takes the robot configuration ``Q`` and the user's next
+configuration ``U`` (and optionally the user's input ``x`` in the predictor's space), and runs
+predict (``P(G | xi)``, ``G*``) -> confidence -> arbitration (``alpha``) -> policy (``P``) ->
+blend, returning a :class:`BlendRecord` for logging.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from .arbitration import Arbitration
+from .confidence import Confidence
+from .errors import BlendingError, InvalidInputError
+from .goals import GoalSet
+from .policy import Policy
+from .prediction.base import GoalPrediction, Predictor
+
+__all__ = ["BlendRecord", "PolicyBlender", "blend"]
+
+
+def blend(u: np.ndarray, p: np.ndarray, alpha: float) -> np.ndarray:
+    """``(1 - alpha) U + alpha P`` (a new array)."""
+    if not 0.0 <= alpha <= 1.0:
+        raise InvalidInputError(f"alpha: must be in [0, 1], got {alpha!r}")
+    out = np.multiply(u, 1.0 - alpha)
+    out += alpha * np.asarray(p)
+    return out
+
+
+class BlendRecord(NamedTuple):
+    """One tick, for the robot and for logging.
+
+    command: ``(1 - alpha) U + alpha P``; P: the policy's next configuration; alpha;
+    confidence; distance: ``d`` from ``x`` to the predicted goal (predictor space);
+    probabilities: ``P(G | xi)`` (a copy); predicted: index of G*; agreement: cosine of
+    ``P - Q`` and ``U - Q`` (the robot's policy against the user's input direction, Fig. 15:
+    near -1 when the user fights the robot, the "aggressive and wrong" signal; 0 when either
+    velocity is zero).
+    """
+
+    command: np.ndarray
+    P: np.ndarray
+    alpha: float
+    confidence: float
+    distance: float
+    probabilities: np.ndarray
+    predicted: int
+    agreement: float
+
+
+class PolicyBlender:
+    """Prediction, confidence, arbitration and policy joined per tick.
+
+    Args:
+        goals: the goal set.
+        predictor: a goal predictor over the goals in ``space``.
+        confidence: ``(prediction, distance) -> [0, 1]``.
+        arbitration: ``c -> alpha``.
+        policy: ``step(Q, target) -> P``; its ``target_space`` picks goal configurations or
+            positions.
+        feature: ``U -> x``, maps the user's configuration into the predictor's space (e.g.
+            forward kinematics); ``None`` means ``x = U``.
+        space: the predictor's space, ``"workspace"`` or ``"configuration"``; default
+            ``"workspace"`` when ``feature`` is given, else ``"configuration"``.
+    """
+
+    def __init__(
+        self,
+        *,
+        goals: GoalSet,
+        predictor: Predictor,
+        confidence: Confidence,
+        arbitration: Arbitration | Callable[[float], float],
+        policy: Policy,
+        feature: Callable[[np.ndarray], Any] | None = None,
+        space: str | None = None,
+    ) -> None:
+        if not isinstance(goals, GoalSet):
+            raise InvalidInputError(f"goals: expected a GoalSet, got {type(goals).__name__}")
+        if not isinstance(predictor, Predictor):
+            raise InvalidInputError(
+                f"predictor: needs n_goals, reset(start) and update(x), got {predictor!r}"
+            )
+        for name, obj in (("confidence", confidence), ("arbitration", arbitration)):
+            if not callable(obj):
+                raise InvalidInputError(f"{name}: expected a callable, got {obj!r}")
+        if not isinstance(policy, Policy):
+            raise InvalidInputError(f"policy: needs step(q, target) and target_space, got {policy!r}")
+        if feature is not None and not callable(feature):
+            raise InvalidInputError(f"feature: expected a callable U -> x, got {feature!r}")
+        if space is None:
+            space = "workspace" if feature is not None else "configuration"
+        if space not in ("workspace", "configuration"):
+            raise InvalidInputError(f"space: must be 'workspace' or 'configuration', got {space!r}")
+        self.space = space
+        self.predictor = predictor
+        self.confidence = confidence
+        self.arbitration = arbitration
+        self.policy = policy
+        self.feature = feature
+        self._update: Callable[[np.ndarray], GoalPrediction] = getattr(
+            predictor, "_update", predictor.update
+        )
+        self._started = False
+        self.dof: int | None = None
+        self._install_goals(goals)
+
+    def _install_goals(self, goals: GoalSet) -> None:
+        points = goals.points(self.space)
+        targets = goals.points(self.policy.target_space)
+        if self.predictor.n_goals != len(goals):
+            raise InvalidInputError(
+                f"predictor: predicts over {self.predictor.n_goals} goals, the goal set has "
+                f"{len(goals)}"
+            )
+        pred_points = getattr(self.predictor, "points", None)
+        if pred_points is not None and pred_points.shape[1] != points.shape[1]:
+            raise InvalidInputError(
+                f"predictor: works in {pred_points.shape[1]}-D, the goals' {self.space} points "
+                f"are {points.shape[1]}-D"
+            )
+        dof = goals.configurations.shape[1] if goals.configurations is not None else None
+        if self.dof is not None and dof is not None and dof != self.dof:
+            raise InvalidInputError(
+                f"goals: configurations are {dof}-D, the robot is {self.dof}-D"
+            )
+        self.goals = goals
+        self._points = points
+        self._targets = targets
+        self.xdim = points.shape[1]
+        if dof is not None:
+            self.dof = dof
+
+    def set_goals(self, goals: GoalSet, *, predictor: Predictor | None = None) -> None:
+        """Change the goals at run time (number and place). Without ``predictor`` the current
+        predictor takes the new points (memory-based prediction keeps its trajectory)."""
+        if not isinstance(goals, GoalSet):
+            raise InvalidInputError(f"goals: expected a GoalSet, got {type(goals).__name__}")
+        if predictor is None:
+            set_points = getattr(self.predictor, "set_points", None)
+            if set_points is None:
+                raise InvalidInputError(
+                    "predictor: cannot take new goals (no set_points); pass predictor="
+                )
+            set_points(goals.points(self.space))
+        else:
+            if not isinstance(predictor, Predictor):
+                raise InvalidInputError(f"predictor: not a predictor: {predictor!r}")
+            self.predictor = predictor
+            self._update = getattr(predictor, "_update", predictor.update)
+            self._started = False
+        self._install_goals(goals)
+
+    def reset(self, start_x: Any) -> None:
+        """Start a trajectory at ``S``, the user's first input in the predictor's space."""
+        s = np.asarray(start_x, dtype=np.float64)
+        if s.shape != (self.xdim,):
+            raise InvalidInputError(f"start_x: expected shape ({self.xdim},), got {s.shape}")
+        if not np.isfinite(s).all():
+            raise InvalidInputError(f"start_x: contains NaN or infinite values: {s!r}")
+        self.predictor.reset(s)
+        self._started = True
+
+    def _bad_input(self, q: np.ndarray, u: np.ndarray, x: np.ndarray) -> BlendingError:
+        for name, arr in (("Q", q), ("U", u), ("x", x)):
+            if not np.isfinite(arr).all():
+                return InvalidInputError(f"{name}: contains NaN or infinite values: {arr!r}")
+        return InvalidInputError("inputs: not finite")  # pragma: no cover
+
+    def step(self, Q: Any, U: Any, *, x: Any = None) -> BlendRecord:
+        """One tick; ``x`` defaults to ``feature(U)`` (or ``U``)."""
+        if not self._started:
+            raise InvalidInputError("reset(start_x) must be called before step(Q, U)")
+        q = np.asarray(Q, dtype=np.float64)
+        u = np.asarray(U, dtype=np.float64)
+        dof = self.dof
+        if dof is None:
+            if q.ndim != 1:
+                raise InvalidInputError(f"Q: expected a 1-D configuration, got shape {q.shape}")
+            dof = self.dof = q.shape[0]
+        if q.shape != (dof,):
+            raise InvalidInputError(f"Q: expected shape ({dof},), got {q.shape}")
+        if u.shape != (dof,):
+            raise InvalidInputError(f"U: expected shape ({dof},), got {u.shape}")
+        if x is None:
+            x = u if self.feature is None else np.asarray(self.feature(u), dtype=np.float64)
+        else:
+            x = np.asarray(x, dtype=np.float64)
+        if x.shape != (self.xdim,):
+            raise InvalidInputError(
+                f"x: expected shape ({self.xdim},) in {self.space} space, got {x.shape}"
+            )
+        if not np.isfinite(np.concatenate((q, u, x))).all():
+            raise self._bad_input(q, u, x)
+
+        pred = self._update(x)
+        i = pred.index
+        diff = x - self._points[i]
+        distance = math.sqrt(diff.dot(diff))
+        c = float(self.confidence(pred, distance))
+        if not 0.0 <= c <= 1.0:
+            raise BlendingError(f"confidence: returned {c!r}, outside [0, 1]")
+        alpha = float(self.arbitration(c))
+        if not 0.0 <= alpha <= 1.0:
+            raise BlendingError(f"arbitration: returned alpha = {alpha!r}, outside [0, 1]")
+        p = self.policy.step(q, self._targets[i])
+        if not np.isfinite(p).all():
+            raise BlendingError(f"policy: returned a non-finite P {p!r}")
+        cmd = u * (1.0 - alpha)
+        cmd += alpha * p
+        pv = p - q
+        uv = u - q
+        nn = math.sqrt(pv.dot(pv) * uv.dot(uv))
+        agreement = float(pv.dot(uv)) / nn if nn > 0.0 else 0.0
+        agreement = 1.0 if agreement > 1.0 else (-1.0 if agreement < -1.0 else agreement)
+        return BlendRecord(cmd, p, alpha, c, distance, pred.probabilities.copy(), i, agreement)

@@ -1,0 +1,25 @@
+"""Typed errors of the blending formalism.
+
+Every error is a ``ValueError`` (so generic callers can catch it) and names the argument or
+configuration key that was wrong, what was wrong with it, and what to do about it.
+"""
+
+from __future__ import annotations
+
+__all__ = ["BlendingError", "ConfigError", "InvalidArbitrationError", "InvalidInputError"]
+
+
+class BlendingError(ValueError):
+    """Base class of every error raised by :mod:`app.blending`."""
+
+
+class InvalidInputError(BlendingError):
+    """An argument is unusable: NaN or infinite values, wrong shape, empty goal set, bad range."""
+
+
+class InvalidArbitrationError(BlendingError):
+    """An arbitration function leaves [0, 1] or decreases with confidence."""
+
+
+class ConfigError(BlendingError):
+    """A plain-dict configuration (protocol table) is invalid; the message names the key path."""

@@ -1,0 +1,63 @@
+"""What every goal predictor returns and shares.
+
+A predictor turns the user's inputs ``xi_{S->U}`` (points in the predictor's space: workspace
+positions or configurations) into a probability vector over the goals,
+``P(G | xi_{S->U})``, and its argmax ``G* = argmax_G P(G | xi_{S->U})``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple, Protocol, runtime_checkable
+
+import numpy as np
+
+from ..errors import InvalidInputError
+
+__all__ = ["GoalPrediction", "Predictor", "softmax"]
+
+
+class GoalPrediction(NamedTuple):
+    """``probabilities``: ``(n,)``, non-negative, summing to 1; ``index``: their argmax."""
+
+    probabilities: np.ndarray
+    index: int
+
+
+@runtime_checkable
+class Predictor(Protocol):
+    """Goal predictor: ``reset(start)`` at the user's first input S, then ``update(x)`` per tick."""
+
+    @property
+    def n_goals(self) -> int: ...
+
+    def reset(self, start: np.ndarray) -> None: ...
+
+    def update(self, x: np.ndarray) -> GoalPrediction: ...
+
+
+def softmax(logits: np.ndarray) -> GoalPrediction:
+    """``p_i = exp(l_i - max l) / sum_j exp(l_j - max l)``: normalisation in log space.
+
+    ``logits`` is consumed (overwritten) to save an allocation per tick. Ties go to the lowest
+    index.
+    """
+    k = int(logits.argmax())
+    top = logits[k]
+    if not np.isfinite(top):
+        raise InvalidInputError(
+            "logits: no goal has a finite log-probability (check the prior and the inputs)"
+        )
+    logits -= top
+    np.exp(logits, out=logits)
+    logits /= logits.sum()
+    return GoalPrediction(logits, k)
+
+
+def check_x(x: object, dim: int, name: str = "x") -> np.ndarray:
+    """Per-tick check of one input point: shape ``(dim,)`` and finite (cheap)."""
+    arr = np.asarray(x, dtype=np.float64)
+    if arr.shape != (dim,):
+        raise InvalidInputError(f"{name}: expected shape ({dim},), got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise InvalidInputError(f"{name}: contains NaN or infinite values: {arr!r}")
+    return arr
