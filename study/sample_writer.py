@@ -1,0 +1,177 @@
+"""``SampleWriter``: batches control-tick records into the store off the control thread.
+
+The control loop calls ``add(trial_id, tick, record)``, which only converts the record to a row
+tuple and appends it to a buffer under a short lock (a few microseconds). A background thread
+commits the buffer with one ``executemany`` every ``flush_interval_s`` (at most 250 ms), so a
+killed process loses at most the last batch. ``flush()`` commits synchronously (the session
+calls it before marking a trial completed). A failed commit keeps the rows buffered and makes
+the next ``add``/``flush`` raise, so samples are never dropped silently.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from study.store import DOF, SampleFormatError, Store, StoreError
+
+MAX_FLUSH_INTERVAL_S = 0.25
+
+
+class TickLike(Protocol):
+    """The fields of ``app.trial.TickRecord`` that are stored per sample."""
+
+    t: float
+    q: Any
+    u: Any
+    p: Any
+    command: Any
+    alpha: float
+    confidence: float
+    probabilities: Any
+    predicted: int
+    user_target: Any
+    ee: Any
+    gripper: float
+    events: Sequence[str]
+
+
+def _vector(value: Any, n: int, name: str) -> list[float]:
+    values = value.tolist() if hasattr(value, "tolist") else list(value)
+    if len(values) != n:
+        raise SampleFormatError(
+            f"tick record field {name!r} has {len(values)} values, expected {n}"
+        )
+    return values
+
+
+def sample_row(trial_id: int, tick: int, record: TickLike) -> tuple[Any, ...]:
+    """The ``samples`` row (``SAMPLE_COLUMNS`` order) for one tick record."""
+    try:
+        probabilities = record.probabilities
+        probs = probabilities.tolist() if hasattr(probabilities, "tolist") else list(probabilities)
+        events = record.events
+        return (
+            trial_id,
+            tick,
+            float(record.t),
+            *_vector(record.q, DOF, "q"),
+            *_vector(record.u, DOF, "u"),
+            *_vector(record.p, DOF, "p"),
+            *_vector(record.command, DOF, "command"),
+            float(record.alpha),
+            float(record.confidence),
+            None if record.predicted is None else int(record.predicted),
+            json.dumps(probs),
+            *_vector(record.user_target, 3, "user_target"),
+            *_vector(record.ee, 3, "ee"),
+            float(record.gripper),
+            json.dumps(list(events)) if events else "[]",
+        )
+    except (AttributeError, TypeError, ValueError) as exc:
+        if isinstance(exc, SampleFormatError):
+            raise
+        raise SampleFormatError(f"tick {tick} cannot be stored as a sample: {exc}") from exc
+
+
+@dataclass
+class WriterStats:
+    """What the writer did: rows and batches committed, seconds spent in commits."""
+
+    rows: int = 0
+    batches: int = 0
+    commit_s: list[float] = field(default_factory=list)
+
+    @property
+    def max_commit_s(self) -> float:
+        return max(self.commit_s, default=0.0)
+
+
+class SampleWriter:
+    """Batching sample writer (see module docstring). Thread-safe: ``add``, ``flush`` and
+    ``close`` may be called from any thread."""
+
+    def __init__(self, store: Store, *, flush_interval_s: float = 0.1) -> None:
+        if not 0 < flush_interval_s <= MAX_FLUSH_INTERVAL_S:
+            raise StoreError(
+                f"flush_interval_s must be in (0, {MAX_FLUSH_INTERVAL_S}] s, not {flush_interval_s}"
+            )
+        self._store = store
+        self._interval = flush_interval_s
+        self._buffer: list[tuple[Any, ...]] = []
+        self._buffer_lock = threading.Lock()
+        self._flush_lock = threading.Lock()
+        self._error: BaseException | None = None
+        self._stop = threading.Event()
+        self.stats = WriterStats()
+        self._thread = threading.Thread(target=self._run, name="sample-writer", daemon=True)
+        self._thread.start()
+
+    def add(self, trial_id: int, tick: int, record: TickLike) -> None:
+        """Queue one tick's record (converted now, so a malformed record fails here)."""
+        self._raise_pending()
+        row = sample_row(trial_id, tick, record)
+        with self._buffer_lock:
+            self._buffer.append(row)
+
+    def add_row(self, row: tuple[Any, ...]) -> None:
+        """Queue an already converted row (``SAMPLE_COLUMNS`` order)."""
+        self._raise_pending()
+        with self._buffer_lock:
+            self._buffer.append(row)
+
+    @property
+    def pending(self) -> int:
+        with self._buffer_lock:
+            return len(self._buffer)
+
+    def flush(self) -> int:
+        """Commit everything queued so far; returns the number of rows written."""
+        with self._flush_lock:
+            with self._buffer_lock:
+                rows, self._buffer = self._buffer, []
+            if not rows:
+                self._raise_pending()
+                return 0
+            start = time.perf_counter()
+            try:
+                self._store.insert_samples(rows)
+            except BaseException as exc:
+                with self._buffer_lock:
+                    self._buffer[:0] = rows
+                self._error = exc
+                raise StoreError(f"could not commit {len(rows)} samples: {exc}") from exc
+            self._error = None
+            self.stats.commit_s.append(time.perf_counter() - start)
+            self.stats.rows += len(rows)
+            self.stats.batches += 1
+            return len(rows)
+
+    def close(self) -> None:
+        """Stop the thread and commit what is left."""
+        self._stop.set()
+        if self._thread.is_alive() and self._thread is not threading.current_thread():
+            self._thread.join()
+        self.flush()
+
+    def _raise_pending(self) -> None:
+        if self._error is not None:
+            raise StoreError(
+                f"samples are not reaching the store ({self._error}); "
+                f"{self.pending} rows are held in memory"
+            )
+
+    def _run(self) -> None:
+        while not self._stop.wait(self._interval):
+            try:
+                self.flush()
+            except StoreError:
+                # Kept in the buffer and reported by the next add()/flush(); retry next period.
+                continue
+            except BaseException:  # pragma: no cover - a store closed under us
+                return
+

@@ -1,0 +1,60 @@
+"""The study store: one SQLite file (WAL, versioned schema) per study.
+
+``Store.open(path, protocol_id=, protocol_hash=)`` for sessions, ``Store.open_readonly(path)``
+for export and analysis. Tables: participants, demographics (apart from trial data), sessions,
+assignments (the schedule), leases, trials, samples (one row per control tick), ratings, events.
+"""
+
+from study.store.errors import (
+    DuplicateParticipantError,
+    InvalidParticipantIdError,
+    NotAStoreError,
+    ProtocolMismatchError,
+    ReadOnlyStoreError,
+    SampleFormatError,
+    SchemaVersionError,
+    SessionLockedError,
+    StoreError,
+    UnknownParticipantError,
+)
+from study.store.records import (
+    AssignmentRecord,
+    EventRecord,
+    Lease,
+    ParticipantRecord,
+    RatingRecord,
+    SessionRecord,
+    StoreMeta,
+    TrialRecord,
+)
+from study.store.schema import DOF, SAMPLE_COLUMNS, SCHEMA_VERSION, TABLES
+from study.store.store import Store, Transaction, check_participant_id, now_iso
+
+__all__ = [
+    "DOF",
+    "SAMPLE_COLUMNS",
+    "SCHEMA_VERSION",
+    "TABLES",
+    "AssignmentRecord",
+    "DuplicateParticipantError",
+    "EventRecord",
+    "InvalidParticipantIdError",
+    "Lease",
+    "NotAStoreError",
+    "ParticipantRecord",
+    "ProtocolMismatchError",
+    "RatingRecord",
+    "ReadOnlyStoreError",
+    "SampleFormatError",
+    "SchemaVersionError",
+    "SessionLockedError",
+    "SessionRecord",
+    "Store",
+    "StoreError",
+    "StoreMeta",
+    "Transaction",
+    "TrialRecord",
+    "UnknownParticipantError",
+    "check_participant_id",
+    "now_iso",
+]

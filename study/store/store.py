@@ -1,0 +1,666 @@
+"""``Store``: the study's SQLite database (WAL, versioned schema, one file per study).
+
+Thread-safety: every public method of ``Store`` and ``Transaction`` is thread-safe. The store
+owns one connection guarded by a re-entrant lock; a ``with store.transaction()`` block holds the
+lock from ``BEGIN IMMEDIATE`` to ``COMMIT``, so writes from the session (viser callback threads)
+and the sample writer thread serialise, and other processes wait on SQLite's own lock
+(``busy_timeout``). Nothing here blocks a control loop that only hands rows to a
+``SampleWriter``.
+
+Opening never alters a file it refuses: the schema version and the protocol (study id + content
+hash) are checked read-only before any pragma that writes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import re
+import sqlite3
+import threading
+import time
+import uuid
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from study.store import lease as lease_mod
+from study.store.errors import (
+    DuplicateParticipantError,
+    InvalidParticipantIdError,
+    NotAStoreError,
+    ProtocolMismatchError,
+    ReadOnlyStoreError,
+    SchemaVersionError,
+    SessionLockedError,
+    StoreError,
+    UnknownParticipantError,
+)
+from study.store.records import (
+    AssignmentRecord,
+    EventRecord,
+    Lease,
+    ParticipantRecord,
+    RatingRecord,
+    SessionRecord,
+    StoreMeta,
+    TrialRecord,
+)
+from study.store.schema import DDL, SAMPLE_COLUMNS, SCHEMA_VERSION, TABLES
+
+PARTICIPANT_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,31}$")
+SESSION_STATUSES = ("enrolled", "running", "completed", "withdrawn", "ended")
+TRIAL_STATUSES = ("running", "completed", "redone", "skipped", "interrupted")
+_INSERT_SAMPLE = (
+    f"INSERT INTO samples ({', '.join(SAMPLE_COLUMNS)}) "
+    f"VALUES ({', '.join('?' for _ in SAMPLE_COLUMNS)})"
+)
+
+
+def now_iso() -> str:
+    """The current UTC time, ISO 8601 with microseconds (the store's timestamp format)."""
+    return datetime.now(UTC).isoformat(timespec="microseconds")
+
+
+def check_participant_id(participant: str) -> str:
+    """Return ``participant`` if it is a valid pseudonym, else raise ``InvalidParticipantIdError``."""
+    if not isinstance(participant, str) or not PARTICIPANT_ID.match(participant):
+        raise InvalidParticipantIdError(
+            f"participant ID {participant!r} is not a pseudonym: use 1-32 letters, digits, '-' "
+            "or '_', starting with a letter or digit (e.g. 'P01'); never a name or e-mail"
+        )
+    return participant
+
+
+class Store:
+    """A study database. Open with ``Store.open`` (read-write, protocol checked) or
+    ``Store.open_readonly`` (export and analysis; any protocol)."""
+
+    def __init__(
+        self, conn: sqlite3.Connection, *, path: Path, meta: StoreMeta, readonly: bool
+    ) -> None:
+        self._conn = conn
+        self._lock = threading.RLock()
+        self.path = path
+        self.meta = meta
+        self.readonly = readonly
+
+    # ---- opening --------------------------------------------------------------------------
+    @classmethod
+    def open(
+        cls,
+        path: str | os.PathLike[str],
+        *,
+        protocol_id: str,
+        protocol_hash: str,
+        protocol_version: str = "",
+        synchronous: str = "FULL",
+        busy_timeout_s: float = 10.0,
+    ) -> Store:
+        """Open (or create) the store at ``path`` for the protocol ``protocol_id``/``protocol_hash``.
+
+        Raises ``SchemaVersionError`` or ``ProtocolMismatchError`` if the file was written by
+        another schema or protocol, ``NotAStoreError`` if it is not a study store. The file is
+        only read before these checks pass. ``synchronous`` is SQLite's durability level
+        (``FULL``: every commit survives power loss; ``NORMAL``: survives a killed process).
+        """
+        if synchronous not in ("FULL", "NORMAL"):
+            raise StoreError(f"synchronous must be 'FULL' or 'NORMAL', not {synchronous!r}")
+        p = Path(path)
+        if p.parent and not p.parent.exists():
+            raise StoreError(f"cannot create store {p}: directory {p.parent} does not exist")
+        conn = _connect(p, readonly=False, busy_timeout_s=busy_timeout_s)
+        try:
+            meta = _read_meta(conn, p)
+            if meta is None:
+                meta = _create(conn, p, protocol_id, protocol_version, protocol_hash)
+            _check_protocol(meta, p, protocol_id, protocol_hash, protocol_version)
+            conn.execute("PRAGMA journal_mode=WAL")
+            conn.execute(f"PRAGMA synchronous={synchronous}")
+            conn.execute("PRAGMA foreign_keys=ON")
+        except BaseException:
+            conn.close()
+            raise
+        return cls(conn, path=p, meta=meta, readonly=False)
+
+    @classmethod
+    def open_readonly(cls, path: str | os.PathLike[str]) -> Store:
+        """Open an existing store for reading only (any protocol; the schema version must match)."""
+        p = Path(path)
+        if not p.exists():
+            raise StoreError(f"no store at {p}: check the --db path")
+        conn = _connect(p, readonly=True, busy_timeout_s=10.0)
+        try:
+            meta = _read_meta(conn, p)
+            if meta is None:
+                raise NotAStoreError(f"{p} is an empty SQLite file, not a study store")
+        except BaseException:
+            conn.close()
+            raise
+        return cls(conn, path=p, meta=meta, readonly=True)
+
+    def close(self) -> None:
+        """Close the connection (idempotent)."""
+        with self._lock:
+            if self._conn is not None:
+                self._conn.close()
+                self._conn = None  # type: ignore[assignment]
+
+    def __enter__(self) -> Store:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def conn(self) -> sqlite3.Connection:
+        if self._conn is None:
+            raise StoreError(f"store {self.path} is closed")
+        return self._conn
+
+    # ---- writing ----------------------------------------------------------------------------
+    @contextmanager
+    def transaction(self) -> Iterator[Transaction]:
+        """``with store.transaction() as tx:`` one atomic write (``BEGIN IMMEDIATE`` .. ``COMMIT``).
+
+        Any exception rolls everything back and propagates."""
+        if self.readonly:
+            raise ReadOnlyStoreError(f"store {self.path} was opened read-only")
+        with self._lock:
+            conn = self.conn
+            conn.execute("BEGIN IMMEDIATE")
+            try:
+                yield Transaction(conn)
+            except BaseException:
+                conn.execute("ROLLBACK")
+                raise
+            conn.execute("COMMIT")
+
+    def insert_samples(self, rows: Sequence[Sequence[Any]]) -> None:
+        """Insert sample rows (``SAMPLE_COLUMNS`` order) in one transaction with ``executemany``."""
+        if not rows:
+            return
+        with self.transaction() as tx:
+            tx.cur.executemany(_INSERT_SAMPLE, rows)
+
+    # ---- leases -------------------------------------------------------------------------------
+    def acquire_lease(self, participant: str, *, stale_after_s: float = 15.0) -> Lease:
+        """Claim ``participant``'s session for this process.
+
+        Raises ``SessionLockedError`` while a live process (or another session object in this
+        process) holds it. A lease left by a dead process is taken over; ``Lease.took_over``
+        then describes it."""
+        token = uuid.uuid4().hex
+        pid = os.getpid()
+        with self.transaction() as tx:
+            tx.require_participant(participant)
+            row = tx.cur.execute(
+                "SELECT token, pid, host, process_start, acquired_at, heartbeat_at FROM leases "
+                "WHERE participant = ?",
+                (participant,),
+            ).fetchone()
+            took_over = None
+            if row is not None:
+                _, holder_pid, host, started, acquired_at, heartbeat_at = row
+                age = time.time() - heartbeat_at
+                if (host == lease_mod.HOST and holder_pid == pid) or lease_mod.holder_is_live(
+                    pid=holder_pid,
+                    host=host,
+                    started=started,
+                    heartbeat_age_s=age,
+                    stale_after_s=stale_after_s,
+                ):
+                    where = "this process" if holder_pid == pid else f"process {holder_pid}"
+                    raise SessionLockedError(
+                        f"participant {participant}'s session is already open in {where} on "
+                        f"{host} (since {acquired_at}, last heartbeat {age:.1f} s ago); close it "
+                        "there first, or wait for that process to exit"
+                    )
+                took_over = {"pid": holder_pid, "host": host, "acquired_at": acquired_at}
+            tx.cur.execute(
+                "INSERT OR REPLACE INTO leases VALUES (?, ?, ?, ?, ?, ?, ?)",
+                (
+                    participant,
+                    token,
+                    pid,
+                    lease_mod.HOST,
+                    lease_mod.process_start(pid),
+                    now_iso(),
+                    time.time(),
+                ),
+            )
+        return Lease(participant=participant, token=token, pid=pid, took_over=took_over)
+
+    def heartbeat(self, lease: Lease) -> None:
+        """Refresh ``lease``; raises ``SessionLockedError`` if another process took it over."""
+        with self.transaction() as tx:
+            tx.cur.execute(
+                "UPDATE leases SET heartbeat_at = ? WHERE participant = ? AND token = ?",
+                (time.time(), lease.participant, lease.token),
+            )
+            if tx.cur.rowcount != 1:
+                raise SessionLockedError(
+                    f"participant {lease.participant}'s session lease was taken over by another "
+                    "process; this process must stop writing"
+                )
+
+    def release_lease(self, lease: Lease) -> None:
+        """Give the session back (no error if it was already released)."""
+        with self.transaction() as tx:
+            tx.cur.execute(
+                "DELETE FROM leases WHERE participant = ? AND token = ?",
+                (lease.participant, lease.token),
+            )
+
+    # ---- reading -------------------------------------------------------------------------------
+    def _query(self, sql: str, params: Sequence[Any] = ()) -> list[tuple[Any, ...]]:
+        with self._lock:
+            return self.conn.execute(sql, params).fetchall()
+
+    def participants(self) -> list[ParticipantRecord]:
+        return [ParticipantRecord(*r) for r in self._query("SELECT * FROM participants ORDER BY 2")]
+
+    def participant(self, participant: str) -> ParticipantRecord:
+        """The participant's row; ``UnknownParticipantError`` if not enrolled."""
+        rows = self._query("SELECT * FROM participants WHERE participant = ?", (participant,))
+        if not rows:
+            raise UnknownParticipantError(_unknown(participant, self.path))
+        return ParticipantRecord(*rows[0])
+
+    def has_participant(self, participant: str) -> bool:
+        return bool(self._query("SELECT 1 FROM participants WHERE participant = ?", (participant,)))
+
+    def demographics(self, participant: str) -> dict[str, Any] | None:
+        rows = self._query("SELECT data FROM demographics WHERE participant = ?", (participant,))
+        return json.loads(rows[0][0]) if rows else None
+
+    def session(self, participant: str) -> SessionRecord:
+        """The participant's session; ``UnknownParticipantError`` if not enrolled."""
+        rows = self._query("SELECT * FROM sessions WHERE participant = ?", (participant,))
+        if not rows:
+            raise UnknownParticipantError(_unknown(participant, self.path))
+        return SessionRecord(*rows[0])
+
+    def sessions(self) -> list[SessionRecord]:
+        return [SessionRecord(*r) for r in self._query("SELECT * FROM sessions ORDER BY 1")]
+
+    def assignments(self, participant: str) -> list[AssignmentRecord]:
+        rows = self._query(
+            "SELECT * FROM assignments WHERE participant = ? ORDER BY position", (participant,)
+        )
+        return [AssignmentRecord(*r) for r in rows]
+
+    def trials(
+        self, *, participant: str | None = None, session_id: int | None = None
+    ) -> list[TrialRecord]:
+        """Trial attempts in the order they started (optionally of one participant/session)."""
+        sql, params = _where("SELECT * FROM trials", participant=participant, session_id=session_id)
+        return [_trial(r) for r in self._query(sql + " ORDER BY trial_id", params)]
+
+    def trial(self, trial_id: int) -> TrialRecord:
+        rows = self._query("SELECT * FROM trials WHERE trial_id = ?", (trial_id,))
+        if not rows:
+            raise StoreError(f"no trial with id {trial_id} in {self.path}")
+        return _trial(rows[0])
+
+    def sample_count(self, trial_id: int) -> int:
+        return int(
+            self._query("SELECT count(*) FROM samples WHERE trial_id = ?", (trial_id,))[0][0]
+        )
+
+    def samples(self, trial_id: int | None = None) -> pd.DataFrame:
+        """Sample rows (``SAMPLE_COLUMNS``) ordered by trial and tick; ``probabilities`` and
+        ``events`` stay JSON text (expand them with ``json.loads``)."""
+        sql = f"SELECT {', '.join(SAMPLE_COLUMNS)} FROM samples"
+        params: tuple[Any, ...] = ()
+        if trial_id is not None:
+            sql += " WHERE trial_id = ?"
+            params = (trial_id,)
+        with self._lock:
+            return pd.read_sql_query(sql + " ORDER BY trial_id, tick", self.conn, params=params)
+
+    def ratings(
+        self, *, participant: str | None = None, session_id: int | None = None
+    ) -> list[RatingRecord]:
+        sql, params = _where(
+            "SELECT * FROM ratings", participant=participant, session_id=session_id
+        )
+        return [RatingRecord(*r) for r in self._query(sql + " ORDER BY rating_id", params)]
+
+    def events(
+        self, *, participant: str | None = None, session_id: int | None = None
+    ) -> list[EventRecord]:
+        sql, params = _where("SELECT * FROM events", participant=participant, session_id=session_id)
+        rows = self._query(sql + " ORDER BY event_id", params)
+        return [EventRecord(*r[:5], detail=json.loads(r[5])) for r in rows]
+
+    def frame(self, table: str) -> pd.DataFrame:
+        """A whole table as a DataFrame (for export; ``leases`` included for diagnostics)."""
+        if table not in TABLES:
+            raise StoreError(f"unknown table {table!r}; tables are {', '.join(TABLES)}")
+        with self._lock:
+            return pd.read_sql_query(f"SELECT * FROM {table}", self.conn)
+
+    def integrity_check(self) -> str:
+        """SQLite's ``PRAGMA integrity_check`` result (``"ok"`` for a healthy file)."""
+        return "\n".join(r[0] for r in self._query("PRAGMA integrity_check"))
+
+
+class Transaction:
+    """Writes inside one ``Store.transaction()``; each method is one or two SQL statements."""
+
+    def __init__(self, conn: sqlite3.Connection) -> None:
+        self.cur = conn.cursor()
+
+    def require_participant(self, participant: str) -> None:
+        row = self.cur.execute(
+            "SELECT 1 FROM participants WHERE participant = ?", (participant,)
+        ).fetchone()
+        if row is None:
+            raise UnknownParticipantError(_unknown(participant, None))
+
+    def require_lease(self, lease: Lease) -> None:
+        """Raise ``SessionLockedError`` unless ``lease`` is still the participant's lease."""
+        row = self.cur.execute(
+            "SELECT token, pid FROM leases WHERE participant = ?", (lease.participant,)
+        ).fetchone()
+        if row is None or row[0] != lease.token:
+            holder = f"process {row[1]}" if row else "nobody"
+            raise SessionLockedError(
+                f"participant {lease.participant}'s session lease is now held by {holder}; this "
+                "session object must stop writing (reopen it with resume)"
+            )
+
+    def enrol(
+        self,
+        participant: str,
+        *,
+        schedule_row: int,
+        assignments: Sequence[tuple[int, str, str, str]],
+        seed: int,
+        demographics: Mapping[str, Any] | None = None,
+    ) -> int:
+        """Add a participant, their demographics (own table), schedule and session; returns the
+        session id. ``assignments`` rows are ``(position, task, run, mode)``."""
+        check_participant_id(participant)
+        if self.cur.execute(
+            "SELECT 1 FROM participants WHERE participant = ?", (participant,)
+        ).fetchone():
+            raise DuplicateParticipantError(
+                f"participant {participant} is already enrolled; choose a new ID, or resume "
+                "their session (--resume)"
+            )
+        at = now_iso()
+        self.cur.execute(
+            "INSERT INTO participants VALUES (?, ?, ?)", (participant, at, schedule_row)
+        )
+        if demographics:
+            self.cur.execute(
+                "INSERT INTO demographics VALUES (?, ?, ?)",
+                (participant, at, json.dumps(dict(demographics), sort_keys=True)),
+            )
+        self.cur.executemany(
+            "INSERT INTO assignments VALUES (?, ?, ?, ?, ?, ?)",
+            [
+                (participant, pos, task, run, mode, schedule_row)
+                for pos, task, run, mode in assignments
+            ],
+        )
+        self.cur.execute(
+            "INSERT INTO sessions (participant, created_at, status, cursor, seed) "
+            "VALUES (?, ?, 'enrolled', 0, ?)",
+            (participant, at, seed),
+        )
+        return int(self.cur.lastrowid or 0)
+
+    def event(
+        self, session_id: int | None, participant: str | None, kind: str, detail: Mapping[str, Any]
+    ) -> None:
+        self.cur.execute(
+            "INSERT INTO events (session_id, participant, at, kind, detail) VALUES (?, ?, ?, ?, ?)",
+            (session_id, participant, now_iso(), kind, json.dumps(dict(detail), sort_keys=True)),
+        )
+
+    def update_session(
+        self, session_id: int, *, cursor: int | None = None, status: str | None = None
+    ) -> None:
+        """Move the session's cursor and/or status; a final status also stamps ``ended_at``."""
+        if status is not None:
+            if status not in SESSION_STATUSES:
+                raise StoreError(f"session status {status!r} is not one of {SESSION_STATUSES}")
+            ended = now_iso() if status in ("completed", "withdrawn", "ended") else None
+            self.cur.execute(
+                "UPDATE sessions SET status = ?, ended_at = ? WHERE session_id = ?",
+                (status, ended, session_id),
+            )
+        if cursor is not None:
+            self.cur.execute(
+                "UPDATE sessions SET cursor = ? WHERE session_id = ?", (cursor, session_id)
+            )
+
+    def insert_trial(self, **fields: Any) -> int:
+        """Insert a trial attempt with status ``running``; returns its ``trial_id``."""
+        fields = dict(fields)
+        fields.setdefault("status", "running")
+        fields.setdefault("started_at", now_iso())
+        for key in ("goal_names", "goal_positions"):
+            fields[key] = json.dumps(fields.get(key, []))
+        cols = ", ".join(fields)
+        marks = ", ".join("?" for _ in fields)
+        self.cur.execute(f"INSERT INTO trials ({cols}) VALUES ({marks})", tuple(fields.values()))
+        return int(self.cur.lastrowid or 0)
+
+    def end_trial(
+        self,
+        trial_id: int,
+        *,
+        status: str,
+        outcome: str | None,
+        success: bool | None,
+        duration_s: float | None,
+        ticks: int,
+        note: str | None = None,
+    ) -> None:
+        if status not in TRIAL_STATUSES:
+            raise StoreError(f"trial status {status!r} is not one of {TRIAL_STATUSES}")
+        self.cur.execute(
+            "UPDATE trials SET status = ?, outcome = ?, success = ?, duration_s = ?, ticks = ?, "
+            "ended_at = ?, note = coalesce(?, note) WHERE trial_id = ?",
+            (
+                status,
+                outcome,
+                None if success is None else int(success),
+                duration_s,
+                ticks,
+                now_iso(),
+                note,
+                trial_id,
+            ),
+        )
+
+    def set_trial_status(self, trial_id: int, status: str, *, note: str | None = None) -> None:
+        if status not in TRIAL_STATUSES:
+            raise StoreError(f"trial status {status!r} is not one of {TRIAL_STATUSES}")
+        self.cur.execute(
+            "UPDATE trials SET status = ?, note = coalesce(?, note) WHERE trial_id = ?",
+            (status, note, trial_id),
+        )
+
+    def interrupt_running_trials(self, session_id: int) -> list[int]:
+        """Mark this session's ``running`` trials (left by a crash) ``interrupted``; their
+        ``ticks`` become the number of samples that reached the file."""
+        ids = [
+            r[0]
+            for r in self.cur.execute(
+                "SELECT trial_id FROM trials WHERE session_id = ? AND status = 'running'",
+                (session_id,),
+            ).fetchall()
+        ]
+        for trial_id in ids:
+            n, last_t = self.cur.execute(
+                "SELECT count(*), max(t) FROM samples WHERE trial_id = ?", (trial_id,)
+            ).fetchone()
+            self.cur.execute(
+                "UPDATE trials SET status = 'interrupted', outcome = 'interrupted', success = 0, "
+                "ticks = ?, duration_s = ?, ended_at = ?, "
+                "note = coalesce(note, 'process ended during the trial') WHERE trial_id = ?",
+                (n, last_t, now_iso(), trial_id),
+            )
+        return ids
+
+    def add_rating(
+        self,
+        *,
+        session_id: int,
+        participant: str,
+        step: int,
+        phase: str,
+        task: str | None,
+        mode: str | None,
+        run: str | None,
+        trial_id: int | None,
+        item: str,
+        value: int,
+    ) -> None:
+        self.cur.execute(
+            "INSERT INTO ratings (session_id, participant, step, phase, task, mode, run, trial_id, "
+            "item, value, answered_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+            (
+                session_id,
+                participant,
+                step,
+                phase,
+                task,
+                mode,
+                run,
+                trial_id,
+                item,
+                value,
+                now_iso(),
+            ),
+        )
+
+
+# ---- helpers ------------------------------------------------------------------------------------
+def _connect(path: Path, *, readonly: bool, busy_timeout_s: float) -> sqlite3.Connection:
+    uri = f"file:{path.resolve()}?mode={'ro' if readonly else 'rwc'}"
+    try:
+        conn = sqlite3.connect(
+            uri, uri=True, isolation_level=None, check_same_thread=False, timeout=busy_timeout_s
+        )
+    except sqlite3.Error as exc:
+        raise StoreError(f"cannot open store {path}: {exc}") from exc
+    return conn
+
+
+def _read_meta(conn: sqlite3.Connection, path: Path) -> StoreMeta | None:
+    """The file's ``schema_version`` row, ``None`` for an empty file; errors for anything else."""
+    try:
+        names = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+    except sqlite3.DatabaseError as exc:
+        raise NotAStoreError(
+            f"{path} is not a SQLite database ({exc}); choose another --db path"
+        ) from exc
+    if not names:
+        return None
+    if "schema_version" not in names:
+        raise NotAStoreError(
+            f"{path} is a SQLite database but not a study store (no schema_version table); "
+            "choose another --db path"
+        )
+    row = conn.execute("SELECT * FROM schema_version").fetchone()
+    if row is None:
+        raise NotAStoreError(f"{path} has an empty schema_version table; it is not a usable store")
+    try:
+        meta = StoreMeta(*row)
+    except TypeError as exc:
+        raise SchemaVersionError(
+            f"{path} has a schema_version table of another layout; it was written by other code"
+        ) from exc
+    if meta.version != SCHEMA_VERSION:
+        raise SchemaVersionError(
+            f"{path} uses store schema version {meta.version}, this code reads version "
+            f"{SCHEMA_VERSION}; open it with the matching version of the platform (data untouched)"
+        )
+    return meta
+
+
+def _create(
+    conn: sqlite3.Connection,
+    path: Path,
+    protocol_id: str,
+    protocol_version: str,
+    protocol_hash: str,
+) -> StoreMeta:
+    conn.execute("PRAGMA journal_mode=WAL")
+    conn.execute("BEGIN IMMEDIATE")
+    try:
+        existing = conn.execute("SELECT count(*) FROM sqlite_master").fetchone()[0]
+        if existing:  # another process created it between our check and our lock
+            conn.execute("ROLLBACK")
+            meta = _read_meta(conn, path)
+            assert meta is not None
+            return meta
+        for statement in DDL.split(";"):
+            if statement.strip():
+                conn.execute(statement)
+        meta = StoreMeta(SCHEMA_VERSION, protocol_id, protocol_version, protocol_hash, now_iso())
+        conn.execute(
+            "INSERT INTO schema_version VALUES (?, ?, ?, ?, ?)",
+            (meta.version, meta.protocol_id, meta.protocol_version, protocol_hash, meta.created_at),
+        )
+        conn.execute("COMMIT")
+    except BaseException:
+        if conn.in_transaction:
+            conn.execute("ROLLBACK")
+        raise
+    return meta
+
+
+def _check_protocol(
+    meta: StoreMeta, path: Path, protocol_id: str, protocol_hash: str, protocol_version: str
+) -> None:
+    if meta.protocol_id != protocol_id or meta.protocol_hash != protocol_hash:
+        raise ProtocolMismatchError(
+            f"{path} was written by protocol {meta.protocol_id!r} version "
+            f"{meta.protocol_version or '?'} (content hash {meta.protocol_hash[:12]}), not by "
+            f"{protocol_id!r} version {protocol_version or '?'} (hash {protocol_hash[:12]}); use "
+            "the protocol file the study started with, or a new --db (data untouched)"
+        )
+
+
+def _unknown(participant: str, path: Path | None) -> str:
+    where = f" in {path}" if path else ""
+    return (
+        f"participant {participant} is not enrolled{where}; check the ID, or start a new "
+        "session without --resume to enrol them"
+    )
+
+
+def _where(
+    sql: str, *, participant: str | None, session_id: int | None
+) -> tuple[str, tuple[Any, ...]]:
+    clauses, params = [], []
+    if participant is not None:
+        clauses.append("participant = ?")
+        params.append(participant)
+    if session_id is not None:
+        clauses.append("session_id = ?")
+        params.append(session_id)
+    if clauses:
+        sql += " WHERE " + " AND ".join(clauses)
+    return sql, tuple(params)
+
+
+def _trial(row: Sequence[Any]) -> TrialRecord:
+    values = list(row)
+    data = dict(zip([f.name for f in dataclasses.fields(TrialRecord)], values, strict=True))
+    data["success"] = None if data["success"] is None else bool(data["success"])
+    data["goal_names"] = json.loads(data["goal_names"])
+    data["goal_positions"] = json.loads(data["goal_positions"])
+    return TrialRecord(**data)

@@ -1,0 +1,265 @@
+"""The SQLite store: schema and protocol checks, enrolment, leases, samples, read-back."""
+
+from __future__ import annotations
+
+import hashlib
+import sqlite3
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from study.sample_writer import MAX_FLUSH_INTERVAL_S, SampleWriter, sample_row
+from study.store import (
+    SAMPLE_COLUMNS,
+    DuplicateParticipantError,
+    InvalidParticipantIdError,
+    NotAStoreError,
+    ProtocolMismatchError,
+    ReadOnlyStoreError,
+    SampleFormatError,
+    SchemaVersionError,
+    SessionLockedError,
+    Store,
+    StoreError,
+    UnknownParticipantError,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+HASH = hashlib.sha256(b"protocol").hexdigest()
+
+
+def open_store(path: Path, **kw: object) -> Store:
+    return Store.open(path, protocol_id="demo", protocol_hash=HASH, protocol_version="1", **kw)
+
+
+def enrol(store: Store, participant: str = "P01") -> int:
+    with store.transaction() as tx:
+        return tx.enrol(
+            participant,
+            schedule_row=0,
+            assignments=[(1, "easy-right", "first", "timid"), (2, "easy-right", "second", "aggr")],
+            seed=7,
+            demographics={"age": 31, "gender": "f"},
+        )
+
+
+def tick(i: int) -> SimpleNamespace:
+    v = np.arange(7, dtype=float) + i
+    return SimpleNamespace(
+        t=i * 0.01,
+        q=v,
+        u=v + 0.1,
+        p=v + 0.2,
+        command=v + 0.3,
+        alpha=0.5,
+        confidence=0.25,
+        probabilities=np.array([0.2, 0.8]),
+        predicted=1,
+        user_target=np.array([0.5, 0.1, 0.2]),
+        ee=np.array([0.4, 0.0, 0.3]),
+        gripper=0.0,
+        events=("grasp",) if i == 3 else (),
+    )
+
+
+def new_trial(store: Store, session_id: int, *, step: int = 1, attempt: int = 1) -> int:
+    with store.transaction() as tx:
+        return tx.insert_trial(
+            session_id=session_id,
+            participant="P01",
+            step=step,
+            trial_number=1,
+            phase="training",
+            mode="none",
+            attempt=attempt,
+            seed=1,
+            goal_names=["mug"],
+            goal_positions=[[0.5, 0, 0]],
+        )
+
+
+def test_create_reopen_and_read_back(tmp_path: Path) -> None:
+    db = tmp_path / "s.db"
+    with open_store(db) as store:
+        sid = enrol(store)
+        assert store.meta.protocol_hash == HASH
+        assert store.conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+    with open_store(db) as store:
+        assert [p.participant for p in store.participants()] == ["P01"]
+        assert store.session("P01").session_id == sid
+        assert store.session("P01").status == "enrolled"
+        assert [a.mode for a in store.assignments("P01")] == ["timid", "aggr"]
+        # demographics live in their own table, not in participants or trials
+        assert store.demographics("P01") == {"age": 31, "gender": "f"}
+        cols = {r[1] for r in store.conn.execute("PRAGMA table_info(participants)")}
+        assert "age" not in cols and "data" not in cols
+
+
+def test_other_schema_version_or_protocol_is_refused_untouched(tmp_path: Path) -> None:
+    db = tmp_path / "s.db"
+    open_store(db).close()
+    with pytest.raises(ProtocolMismatchError, match="written by protocol 'demo'"):
+        Store.open(db, protocol_id="demo", protocol_hash="0" * 64)
+    with pytest.raises(ProtocolMismatchError):
+        Store.open(db, protocol_id="other", protocol_hash=HASH)
+    conn = sqlite3.connect(db)
+    conn.execute("UPDATE schema_version SET version = 99")
+    conn.commit()
+    conn.close()
+    before = db.read_bytes()
+    with pytest.raises(SchemaVersionError, match="version 99"):
+        open_store(db)
+    with pytest.raises(SchemaVersionError):
+        Store.open_readonly(db)
+    assert db.read_bytes() == before
+
+
+def test_not_a_store(tmp_path: Path) -> None:
+    junk = tmp_path / "junk.db"
+    junk.write_bytes(b"hello, not sqlite" * 100)
+    with pytest.raises(NotAStoreError, match="not a SQLite database"):
+        open_store(junk)
+    other = tmp_path / "other.db"
+    conn = sqlite3.connect(other)
+    conn.execute("CREATE TABLE x (a)")
+    conn.commit()
+    conn.close()
+    with pytest.raises(NotAStoreError, match="no schema_version"):
+        open_store(other)
+    with pytest.raises(StoreError, match="does not exist"):
+        open_store(tmp_path / "missing" / "s.db")
+
+
+def test_participant_ids(tmp_path: Path) -> None:
+    with open_store(tmp_path / "s.db") as store:
+        enrol(store)
+        with pytest.raises(DuplicateParticipantError, match="P01 is already enrolled"):
+            enrol(store)
+        for bad in ("", "jane.doe@example.org", "Jane Doe", "x" * 40):
+            with pytest.raises(InvalidParticipantIdError, match="pseudonym"):
+                enrol(store, bad)
+        with pytest.raises(UnknownParticipantError, match="P02 is not enrolled"):
+            store.session("P02")
+        with pytest.raises(UnknownParticipantError):
+            store.acquire_lease("P02")
+        assert len(store.participants()) == 1  # failed enrolments rolled back
+
+
+def test_readonly_store_refuses_writes(tmp_path: Path) -> None:
+    db = tmp_path / "s.db"
+    with open_store(db) as store:
+        enrol(store)
+    with Store.open_readonly(db) as ro:
+        assert ro.session("P01").participant == "P01"
+        with pytest.raises(ReadOnlyStoreError):
+            enrol(ro, "P02")
+
+
+def test_lease_same_process_and_release(tmp_path: Path) -> None:
+    with open_store(tmp_path / "s.db") as store:
+        enrol(store)
+        lease = store.acquire_lease("P01")
+        with pytest.raises(SessionLockedError, match="already open in this process"):
+            store.acquire_lease("P01")
+        store.heartbeat(lease)
+        store.release_lease(lease)
+        again = store.acquire_lease("P01")
+        assert again.took_over is None
+        with pytest.raises(SessionLockedError, match="taken over"):
+            store.heartbeat(lease)
+
+
+HOLDER = textwrap.dedent(
+    """
+    import sys, time
+    sys.path.insert(0, {root!r})
+    from study.store import Store
+    store = Store.open({db!r}, protocol_id="demo", protocol_hash={h!r}, protocol_version="1")
+    store.acquire_lease("P01")
+    print("held", flush=True)
+    time.sleep(60)
+    """
+)
+
+
+def test_lease_held_by_live_process_then_taken_over_when_dead(tmp_path: Path) -> None:
+    db = tmp_path / "s.db"
+    with open_store(db) as store:
+        enrol(store)
+    code = HOLDER.format(root=str(ROOT), db=str(db), h=HASH)
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().strip() == "held"
+        with open_store(db) as store:
+            with pytest.raises(SessionLockedError, match=f"process {proc.pid}"):
+                store.acquire_lease("P01")
+            proc.kill()
+            proc.wait()
+            lease = store.acquire_lease("P01")
+            assert lease.took_over is not None and lease.took_over["pid"] == proc.pid
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def test_samples_round_trip(tmp_path: Path) -> None:
+    with open_store(tmp_path / "s.db") as store:
+        sid = enrol(store)
+        tid = new_trial(store, sid)
+        store.insert_samples([sample_row(tid, i, tick(i)) for i in range(5)])
+        df = store.samples(tid)
+        assert list(df.columns) == list(SAMPLE_COLUMNS)
+        assert df["tick"].tolist() == [0, 1, 2, 3, 4]
+        assert df.loc[2, "q7"] == pytest.approx(8.0)
+        assert df.loc[2, "cmd1"] == pytest.approx(2.3)
+        assert df.loc[3, "events"] == '["grasp"]'
+        assert df.loc[0, "probabilities"] == "[0.2, 0.8]"
+        assert store.sample_count(tid) == 5
+        bad = tick(0)
+        bad.q = np.zeros(6)
+        with pytest.raises(SampleFormatError, match="'q' has 6 values, expected 7"):
+            sample_row(tid, 9, bad)
+
+
+def test_sample_writer_batches_within_250ms_and_flushes(tmp_path: Path) -> None:
+    with open_store(tmp_path / "s.db") as store:
+        sid = enrol(store)
+        tid = new_trial(store, sid)
+        with pytest.raises(StoreError, match="flush_interval_s"):
+            SampleWriter(store, flush_interval_s=MAX_FLUSH_INTERVAL_S + 0.01)
+        writer = SampleWriter(store, flush_interval_s=0.05)
+        for i in range(10):
+            writer.add(tid, i, tick(i))
+        deadline = time.monotonic() + 2.0
+        while store.sample_count(tid) < 10 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert store.sample_count(tid) == 10  # committed by the thread without flush()
+        for i in range(10, 20):
+            writer.add(tid, i, tick(i))
+        writer.flush()
+        assert store.sample_count(tid) == 20
+        writer.close()
+        assert writer.stats.rows == 20
+
+
+def test_sample_writer_keeps_rows_when_a_commit_fails(tmp_path: Path) -> None:
+    with open_store(tmp_path / "s.db") as store:
+        sid = enrol(store)
+        tid = new_trial(store, sid)
+        writer = SampleWriter(store, flush_interval_s=0.25)
+        writer.add(tid, 0, tick(0))
+        writer.add(tid, 0, tick(0))  # duplicate (trial_id, tick): the batch is refused
+        with pytest.raises(StoreError, match="could not commit 2 samples"):
+            writer.flush()
+        assert writer.pending == 2 and store.sample_count(tid) == 0
+        with pytest.raises(StoreError, match="not reaching the store"):
+            writer.add(tid, 1, tick(1))
+        with pytest.raises(StoreError, match="could not commit"):
+            writer.close()  # the thread stops; the rows are still reported, not dropped
