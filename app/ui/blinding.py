@@ -1,16 +1,25 @@
 """Blinding guard: no condition name ever reaches the participant's browser.
 
-Every message a viser server queues for its clients passes through an ``AsyncMessageBuffer``
-(the broadcast buffer or one per client). :func:`install` wraps ``AsyncMessageBuffer.push``
-once per process; pushes made on the event loop of a guarded server are checked by that
-server's :class:`BlindingGuard`, which walks every string in the message (values, dict keys,
-tuple items) and, if one contains a forbidden word (case-insensitive substring, so
-"bright" counts as well as "right"), drops the message and logs it. Other servers (the
-experimenter's) pass through untouched.
+Two layers, both installed by :func:`install` for one viser server (the participant's):
+
+1. Queue: every message a viser server queues passes through an ``AsyncMessageBuffer`` (the
+   broadcast buffer or one per client). ``AsyncMessageBuffer.push`` is wrapped once per
+   process; a push on the event loop of a guarded server is checked by that server's
+   :class:`BlindingGuard`, which walks every string in the message (values, dict keys, tuple
+   items). A message containing a forbidden word (case-insensitive substring, so "bright"
+   counts as well as "right") is dropped and logged.
+2. Wire: viser mutates the props of already-queued messages in place (a markdown's content
+   update also rewrites its creation message), so the queue check alone can be bypassed.
+   ``Message.as_serializable_dict``, which viser's sender calls for every message on the
+   server's own event loop just before encoding, is wrapped too: any string still carrying a
+   forbidden word is blanked in the outgoing dict and the violation logged.
+
+Other servers (the experimenter's) pass through untouched.
 """
 
 from __future__ import annotations
 
+import asyncio
 import dataclasses
 import logging
 import threading
@@ -20,6 +29,7 @@ from typing import Any
 import numpy as np
 import viser
 from viser.infra._async_message_buffer import AsyncMessageBuffer
+from viser.infra._messages import Message as _WireMessage
 
 LOGGER = logging.getLogger("app.ui.blinding")
 
@@ -49,7 +59,7 @@ def check_text(text: str, *, words: Iterable[str] = CONDITION_WORDS) -> str:
 
 def iter_strings(obj: Any, *, _depth: int = 0) -> Iterator[str]:
     """Yield every string inside a viser message (dataclass fields, mappings, sequences)."""
-    if _depth > 12 or obj is None:
+    if _depth > 32 or obj is None:
         return
     if isinstance(obj, str):
         yield obj
@@ -85,6 +95,8 @@ class BlindingGuard:
         self.block = block
         self.violations: list[Violation] = []
         self.checked = 0
+        self.serialized = 0
+        self.redacted = 0
         self._lock = threading.Lock()
 
     def inspect(self, message: Any) -> Violation | None:
@@ -113,10 +125,33 @@ class BlindingGuard:
         )
         return not self.block
 
+    def redact(self, obj: Any, *, message_type: str) -> Any:
+        """``obj`` (a serialisable dict tree) with every string naming a condition blanked."""
+        if isinstance(obj, str):
+            found = find_condition_words(obj, words=self.words)
+            if not found:
+                return obj
+            violation = Violation(message_type, obj[:120], tuple(found))
+            with self._lock:
+                self.violations.append(violation)
+                self.redacted += 1
+            LOGGER.error("blinding: blanked %r in outgoing %s", violation.text, message_type)
+            return ""
+        if isinstance(obj, dict):
+            return {
+                k: self.redact(v, message_type=message_type)
+                for k, v in obj.items()
+                if not (isinstance(k, str) and find_condition_words(k, words=self.words))
+            }
+        if isinstance(obj, list | tuple):
+            return type(obj)(self.redact(v, message_type=message_type) for v in obj)
+        return obj
+
 
 _GUARDS: dict[int, BlindingGuard] = {}
 _INSTALL_LOCK = threading.Lock()
 _ORIGINAL_PUSH = AsyncMessageBuffer.push
+_ORIGINAL_SERIALIZE = _WireMessage.as_serializable_dict
 
 
 def _guarded_push(self: AsyncMessageBuffer, message: Any) -> None:
@@ -124,6 +159,22 @@ def _guarded_push(self: AsyncMessageBuffer, message: Any) -> None:
     if guard is not None and not guard.allow(message):
         return
     _ORIGINAL_PUSH(self, message)
+
+
+def _guarded_serialize(self: Any, binary_buffers: Any = None) -> dict[str, Any]:
+    out = _ORIGINAL_SERIALIZE(self, binary_buffers)
+    try:
+        loop = asyncio.get_running_loop()
+    except RuntimeError:
+        return out
+    guard = _GUARDS.get(id(loop))
+    if guard is None:
+        return out
+    with guard._lock:
+        guard.serialized += 1
+    if any(find_condition_words(t, words=guard.words) for t in iter_strings(out)):
+        out = guard.redact(out, message_type=type(self).__name__)
+    return out
 
 
 def install(server: viser.ViserServer, guard: BlindingGuard | None = None) -> BlindingGuard:
@@ -135,6 +186,8 @@ def install(server: viser.ViserServer, guard: BlindingGuard | None = None) -> Bl
     with _INSTALL_LOCK:
         if AsyncMessageBuffer.push is not _guarded_push:
             AsyncMessageBuffer.push = _guarded_push  # type: ignore[method-assign]
+        if _WireMessage.as_serializable_dict is not _guarded_serialize:
+            _WireMessage.as_serializable_dict = _guarded_serialize  # type: ignore[method-assign]
         _GUARDS[id(loop)] = guard
     return guard
 
