@@ -1,0 +1,221 @@
+"""Tidy study tables from a SQLite store, an export directory, or DataFrames in memory.
+
+The tables and their columns are the team contract's (``study.export.tidy_tables``): trials,
+samples, ratings, events. Loading normalises types (participant ids as text, JSON columns as
+Python lists, ``success`` as bool) and checks the columns the analyses need, so every later
+step can trust them. ``task_cells`` then gives one row per participant, task and mode.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from analysis.design import require_columns
+from analysis.errors import SchemaError, SourceError
+
+TABLES = ("trials", "samples", "ratings", "events")
+TRIAL_COLUMNS = (
+    "participant", "phase", "task", "difficulty", "correctness", "mode", "status", "duration_s",
+)
+COVARIATES = ("training_time_s", "baseline_rating", "tasks_completed")
+RATING_ITEMS = ("helpful", "matched", "teammate")
+SAMPLE_COLUMNS = ("trial_id", "t", "target_x", "target_y", "target_z")
+
+
+@dataclass(frozen=True)
+class StudyTables:
+    """The tidy tables of one study and where they came from."""
+
+    trials: pd.DataFrame
+    samples: pd.DataFrame
+    ratings: pd.DataFrame
+    events: pd.DataFrame
+    source: str
+    protocol_hash: str | None = None
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+
+def _json_list(value: Any) -> Any:
+    if isinstance(value, str):
+        try:
+            return json.loads(value)
+        except json.JSONDecodeError as e:
+            raise SchemaError(f"cannot parse JSON list {value[:60]!r}: {e}; the goal_names and "
+                              "goal_positions columns must hold JSON lists") from e
+    if isinstance(value, np.ndarray):
+        return [_json_list(v) for v in value.tolist()] if value.dtype == object else value.tolist()
+    if isinstance(value, list | tuple):
+        return [_json_list(v) if isinstance(v, np.ndarray) else v for v in value]
+    return value
+
+
+def _as_bool(s: pd.Series) -> pd.Series:
+    if pd.api.types.is_bool_dtype(s):
+        return s
+    mapping = {"true": True, "false": False, "1": True, "0": False, "1.0": True, "0.0": False}
+    return s.map(lambda v: mapping.get(str(v).strip().lower(), bool(v) if v == v else False))
+
+
+def normalise_trials(trials: pd.DataFrame) -> pd.DataFrame:
+    """Check the trial columns the analysis needs and normalise their types."""
+    require_columns(trials, TRIAL_COLUMNS, what="the trials table")
+    t = trials.copy()
+    t["participant"] = t["participant"].astype(str)
+    for c in ("phase", "task", "difficulty", "correctness", "mode", "status"):
+        t[c] = t[c].astype("string").fillna("").astype(str)
+    for c in ("goal_names", "goal_positions"):
+        if c in t.columns:
+            t[c] = t[c].map(_json_list)
+    if "success" in t.columns:
+        t["success"] = _as_bool(t["success"])
+    for c in ("duration_s", *COVARIATES, *RATING_ITEMS, "preference", "preference_aggressive",
+              "position", "attempt"):
+        if c in t.columns:
+            t[c] = pd.to_numeric(t[c], errors="coerce")
+    return t
+
+
+def normalise_samples(samples: pd.DataFrame) -> pd.DataFrame:
+    if samples.empty and not len(samples.columns):
+        return pd.DataFrame(columns=list(SAMPLE_COLUMNS))
+    require_columns(samples, SAMPLE_COLUMNS, what="the samples table")
+    return samples
+
+
+def from_frames(
+    trials: pd.DataFrame,
+    samples: pd.DataFrame | None = None,
+    ratings: pd.DataFrame | None = None,
+    events: pd.DataFrame | None = None,
+    *,
+    source: str = "in-memory tables",
+    protocol_hash: str | None = None,
+) -> StudyTables:
+    """Wrap tables already in memory (e.g. ``study.export.tidy_tables(...)``'s result)."""
+    empty = pd.DataFrame()
+    return StudyTables(
+        trials=normalise_trials(trials),
+        samples=normalise_samples(samples if samples is not None else empty),
+        ratings=ratings if ratings is not None else empty,
+        events=events if events is not None else empty,
+        source=source,
+        protocol_hash=protocol_hash,
+    )
+
+
+def from_store(path: str | Path) -> StudyTables:
+    """Read a study's SQLite store through ``study.export.tidy_tables`` (read-only)."""
+    p = Path(path)
+    if not p.exists():
+        raise SourceError(f"no study store at {p}; check the --db path")
+    try:
+        from study.export import tidy_tables
+    except ImportError as e:
+        raise SourceError(f"cannot read {p}: study.export.tidy_tables is not available ({e}); "
+                          "export the store with `python -m study export` and pass "
+                          "--export-dir instead") from e
+    try:
+        tables = tidy_tables(p)
+    except Exception as e:  # the store's own typed errors say what is wrong
+        raise SourceError(f"cannot read the study store {p}: {e}") from e
+    missing = [t for t in ("trials",) if t not in tables]
+    if missing:
+        raise SourceError(f"tidy_tables({p}) returned no {missing} table")
+    return from_frames(
+        tables["trials"], tables.get("samples"), tables.get("ratings"), tables.get("events"),
+        source=str(p), protocol_hash=_store_protocol_hash(p),
+    )
+
+
+def _store_protocol_hash(path: Path) -> str | None:
+    try:
+        from study.store import Store
+
+        with Store.open_readonly(path) as store:
+            return str(store.meta.protocol_hash)
+    except Exception:  # the hash is informative; the data were already read
+        return None
+
+
+def _read_table(directory: Path, name: str) -> pd.DataFrame | None:
+    for suffix, reader in ((".parquet", pd.read_parquet), (".csv", pd.read_csv)):
+        f = directory / f"{name}{suffix}"
+        if f.exists():
+            try:
+                return reader(f)
+            except Exception as e:
+                raise SourceError(f"cannot read {f}: {e}") from e
+    return None
+
+
+def from_export(directory: str | Path) -> StudyTables:
+    """Read ``trials``/``samples``/``ratings``/``events`` as Parquet (preferred) or CSV files."""
+    d = Path(directory)
+    if not d.is_dir():
+        raise SourceError(f"{d} is not a directory; pass the folder `python -m study export` "
+                          "wrote")
+    tables = {name: _read_table(d, name) for name in TABLES}
+    if tables["trials"] is None:
+        raise SourceError(f"{d} holds no trials.parquet or trials.csv; pass the folder "
+                          "`python -m study export` wrote")
+    return from_frames(
+        tables["trials"], tables["samples"], tables["ratings"], tables["events"],
+        source=str(d), protocol_hash=_export_protocol_hash(d),
+    )
+
+
+def _export_protocol_hash(directory: Path) -> str | None:
+    for f in sorted(directory.glob("*.json")):
+        try:
+            meta = json.loads(f.read_text())
+        except (OSError, ValueError):
+            continue
+        if isinstance(meta, dict):
+            for key in ("protocol_hash", "content_hash"):
+                if isinstance(meta.get(key), str):
+                    return meta[key]
+            inner = meta.get("protocol")
+            if isinstance(inner, dict) and isinstance(inner.get("hash"), str):
+                return inner["hash"]
+    return None
+
+
+def load_tables(*, db: str | Path | None = None,
+                export_dir: str | Path | None = None) -> StudyTables:
+    """Tidy tables from exactly one of a store (``db``) or an export directory."""
+    if (db is None) == (export_dir is None):
+        raise SourceError("give exactly one source: a study store (--db) or an export "
+                          "directory (--export-dir)")
+    return from_store(db) if db is not None else from_export(export_dir)  # type: ignore[arg-type]
+
+
+def task_cells(trials: pd.DataFrame) -> tuple[pd.DataFrame, tuple[str, ...]]:
+    """One row per participant, task and mode: the completed task trial of each cell.
+
+    Training runs, redone, skipped and interrupted attempts are left out. A cell completed
+    more than once is averaged (numeric columns) with a note.
+    """
+    t = trials
+    notes: list[str] = []
+    done = t[(t["phase"] == "task") & (t["status"] == "completed")]
+    other = t[(t["phase"] == "task") & (t["status"] != "completed")]
+    if len(other):
+        counts = other["status"].value_counts().to_dict()
+        notes.append("task attempts left out: " + ", ".join(f"{v} {k}" for k, v in counts.items()))
+    keys = ["participant", "task", "difficulty", "correctness", "mode"]
+    dup = done.duplicated(keys, keep=False)
+    if dup.any():
+        notes.append(f"{int(dup.sum())} completed trials share a participant/task/mode cell; "
+                     "their values were averaged")
+        numeric = [c for c in done.columns if c not in keys
+                   and pd.api.types.is_numeric_dtype(done[c])]
+        first = done.groupby(keys, as_index=False, sort=False).first()
+        means = done.groupby(keys, as_index=False, sort=False)[numeric].mean()
+        done = first.drop(columns=numeric).merge(means, on=keys)
+    return done.reset_index(drop=True), tuple(notes)

@@ -1,0 +1,186 @@
+"""Offline evaluation of goal prediction on logged trajectories (section 5.2).
+
+Every logged task trajectory of user targets ``x_0..x_T`` is replayed, tick by tick, through
+the same ``app.blending`` predictors the study runs (``reset(x_0)``, then ``update(x_t)``):
+
+- success rate = share of the ticks at which ``argmax_G P(G | xi_{S->x_t})`` is the target;
+- time to the first lasting correct prediction = ``t`` (from the trial's first tick) from which
+  the prediction stays correct to the end (NaN when the last prediction is wrong).
+
+The factorial ANOVA on predictor x difficulty x correctness x mode (OLS, sum-to-zero, type III)
+has 128 - 16 = 112 residual df with 8 participants, as in the paper.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from analysis.anova import FactorialAnovaResult, factorial_anova
+from analysis.design import require_columns
+from analysis.errors import DataError, SchemaError
+
+PREDICTORS: dict[str, dict[str, Any]] = {
+    "amnesic": {"kind": "amnesic", "temperature": 0.05},
+    "memory": {"kind": "memory", "cost": "squared_velocity"},
+}
+"""The paper's two predictors: amnesic (nearest goal) and memory-based with the workspace sum
+of squared velocities (eq. 9); configs for ``app.blending.predictor_from_config``."""
+
+TARGET_COLUMNS = ("target_x", "target_y", "target_z")
+EVAL_COLUMNS = ["trial_id", "participant", "task", "difficulty", "correctness", "mode",
+                "predictor", "n_ticks", "success_rate", "time_to_correct_s",
+                "fraction_to_correct", "duration_s"]
+
+
+@dataclass(frozen=True)
+class Replay:
+    """Per-tick replay of one trajectory through one predictor."""
+
+    t: np.ndarray              # (T,) seconds from the first tick
+    points: np.ndarray         # (T, d) the inputs replayed
+    probabilities: np.ndarray  # (T, n_goals)
+    predicted: np.ndarray      # (T,) goal index
+    correct: np.ndarray | None  # (T,) predicted == target, when the target is known
+
+
+def make_predictor(config: Mapping[str, Any], points: np.ndarray) -> Any:
+    """A predictor from ``app.blending`` built from a plain config table over ``points``."""
+    from app.blending import BlendingError, predictor_from_config
+
+    try:
+        return predictor_from_config(dict(config), points=points, where="predictor")
+    except BlendingError as e:
+        raise DataError(f"cannot build the predictor: {e}") from e
+
+
+def replay(points: np.ndarray, trajectory: np.ndarray, predictor: Any, *,
+           t: np.ndarray | None = None, target: int | None = None) -> Replay:
+    """Feed ``trajectory`` (T, d) to ``predictor`` over goals ``points`` (n, d), tick by tick."""
+    from app.blending import BlendingError
+
+    traj = np.ascontiguousarray(trajectory, dtype=float)
+    if traj.ndim != 2 or traj.shape[0] == 0:
+        raise DataError(f"a trajectory must be a non-empty (T, d) array, got shape {traj.shape}")
+    if traj.shape[1] != points.shape[1]:
+        raise DataError(f"trajectory points have {traj.shape[1]} coordinates but the goals "
+                        f"have {points.shape[1]}; give both in the same space")
+    bad = ~np.isfinite(traj).all(axis=1)
+    if bad.any():
+        raise DataError(f"the trajectory has {int(bad.sum())} row(s) with missing or infinite "
+                        f"coordinates (first at row {int(np.flatnonzero(bad)[0])}); "
+                        "remove or fill them")
+    n_ticks, n_goals = traj.shape[0], points.shape[0]
+    probs = np.empty((n_ticks, n_goals))
+    pred = np.empty(n_ticks, dtype=int)
+    try:
+        predictor.reset(traj[0])
+        update = predictor.update
+        for i in range(n_ticks):
+            g = update(traj[i])
+            probs[i] = g.probabilities
+            pred[i] = g.index
+    except BlendingError as e:
+        raise DataError(f"the predictor rejected the trajectory: {e}") from e
+    tt = np.arange(n_ticks, dtype=float) if t is None else np.asarray(t, dtype=float) - t[0]
+    correct = None if target is None else pred == target
+    return Replay(t=tt, points=traj, probabilities=probs, predicted=pred, correct=correct)
+
+
+def first_lasting_correct(correct: np.ndarray) -> int | None:
+    """Index from which ``correct`` stays True to the end; None if the last entry is False."""
+    if len(correct) == 0 or not correct[-1]:
+        return None
+    wrong = np.flatnonzero(~correct)
+    return int(wrong[-1] + 1) if len(wrong) else 0
+
+
+def trial_goals(row: Mapping[str, Any]) -> tuple[list[str], np.ndarray, int]:
+    """Goal names, positions (n, 3) and the target's index of one trial row."""
+    names, positions, target = row.get("goal_names"), row.get("goal_positions"), row.get("target")
+    tid = row.get("trial_id")
+    if not isinstance(names, list) or not isinstance(positions, list) or len(names) < 1:
+        raise SchemaError(f"trial {tid}: goal_names/goal_positions must be JSON lists, got "
+                          f"{names!r} / {positions!r}")
+    pts = np.asarray(positions, dtype=float)
+    if pts.shape != (len(names), 3):
+        raise SchemaError(f"trial {tid}: goal_positions must be {len(names)} [x, y, z] "
+                          f"triples, got shape {pts.shape}")
+    if target not in names:
+        raise SchemaError(f"trial {tid}: target {target!r} is not among the goals {names}")
+    return list(names), pts, names.index(target)
+
+
+def _trajectories(samples: pd.DataFrame) -> dict[Any, tuple[np.ndarray, np.ndarray]]:
+    require_columns(samples, ["trial_id", "t", *TARGET_COLUMNS], what="the samples table")
+    order = ["trial_id", "tick"] if "tick" in samples.columns else ["trial_id", "t"]
+    s = samples.sort_values(order, kind="stable")
+    ids = s["trial_id"].to_numpy()
+    xyz = s[list(TARGET_COLUMNS)].to_numpy(dtype=float)
+    t = s["t"].to_numpy(dtype=float)
+    if len(ids) == 0:
+        return {}
+    cuts = np.flatnonzero(ids[1:] != ids[:-1]) + 1
+    starts, ends = np.r_[0, cuts], np.r_[cuts, len(ids)]
+    return {ids[a]: (t[a:b], xyz[a:b]) for a, b in zip(starts, ends, strict=True)}
+
+
+def evaluate_predictions(
+    cells: pd.DataFrame,
+    samples: pd.DataFrame,
+    *,
+    predictors: Mapping[str, Mapping[str, Any]] = PREDICTORS,
+    progress: Callable[[int, int], None] | None = None,
+) -> tuple[pd.DataFrame, tuple[str, ...]]:
+    """Replay every trial of ``cells`` (task_cells output) that has samples, per predictor.
+
+    Returns one row per trial and predictor (``EVAL_COLUMNS``) and notes (trials without
+    samples).
+    """
+    require_columns(cells, ["trial_id", "goal_names", "goal_positions", "target"],
+                    what="the trials table")
+    trajs = _trajectories(samples)
+    rows, notes, missing = [], [], []
+    for k, (_, row) in enumerate(cells.iterrows()):
+        tid = row["trial_id"]
+        if tid not in trajs:
+            missing.append(str(tid))
+            continue
+        _, pts, target = trial_goals(row)
+        t, xyz = trajs[tid]
+        for name, cfg in predictors.items():
+            rep = replay(pts, xyz, make_predictor(cfg, pts), t=t, target=target)
+            assert rep.correct is not None
+            first = first_lasting_correct(rep.correct)
+            span = rep.t[-1] if rep.t[-1] > 0 else np.nan
+            rows.append({
+                "trial_id": tid, "participant": row["participant"], "task": row["task"],
+                "difficulty": row["difficulty"], "correctness": row["correctness"],
+                "mode": row["mode"], "predictor": name, "n_ticks": len(t),
+                "success_rate": float(rep.correct.mean()),
+                "time_to_correct_s": float(rep.t[first]) if first is not None else np.nan,
+                "fraction_to_correct": float(rep.t[first] / span) if first is not None
+                else np.nan,
+                "duration_s": row.get("duration_s", np.nan),
+            })
+        if progress is not None:
+            progress(k + 1, len(cells))
+    if missing:
+        notes.append(f"{len(missing)} task trial(s) have no samples and were not replayed "
+                     f"(trial_id {', '.join(missing[:10])}{' ...' if len(missing) > 10 else ''})")
+    return pd.DataFrame(rows, columns=EVAL_COLUMNS), tuple(notes)
+
+
+def prediction_anova(evals: pd.DataFrame, *, dv: str = "success_rate") -> FactorialAnovaResult:
+    """Factorial ANOVA of ``dv`` on predictor x difficulty x correctness x mode (type III)."""
+    data = evals.copy()
+    orders = {"predictor": list(dict.fromkeys(evals["predictor"])),
+              "difficulty": ["easy", "hard"], "correctness": ["right", "wrong"],
+              "mode": ["timid", "aggressive"]}
+    for f, lv in orders.items():
+        data[f] = pd.Categorical(data[f], categories=lv)
+    return factorial_anova(data, dv=dv, factors=list(orders))
