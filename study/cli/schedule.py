@@ -1,0 +1,57 @@
+"""``python -m study schedule``: print the counterbalanced schedule of task trials.
+
+One row per trial (training excluded) with columns ``participant, position, task, mode``::
+
+    python -m study schedule --protocol protocols/dragan2013.toml --participants 8 --format csv
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import os
+import sys
+from pathlib import Path
+
+from study.protocol import ProtocolError, load_protocol
+from study.schedule import ScheduleError, schedule
+
+DEFAULT_PROTOCOL = Path("protocols/dragan2013.toml")
+COLUMNS = ("participant", "position", "task", "mode")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--protocol", type=Path, default=DEFAULT_PROTOCOL,
+        help=f"protocol TOML file (default {DEFAULT_PROTOCOL})",
+    )
+    parser.add_argument(
+        "--participants", type=int, required=True, help="number of participants (>= 1)"
+    )
+    parser.add_argument("--format", choices=("csv", "json"), default="csv", help="output format")
+
+
+def main(args: argparse.Namespace) -> int:
+    try:
+        protocol = load_protocol(args.protocol)
+        trials = schedule(protocol, participants=args.participants)
+    except (ProtocolError, ScheduleError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    records = [{c: getattr(t, c) for c in COLUMNS} for t in trials]
+    if args.format == "json":
+        text = json.dumps(records, indent=1) + "\n"
+    else:
+        buffer = io.StringIO()
+        writer = csv.DictWriter(buffer, fieldnames=COLUMNS, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(records)
+        text = buffer.getvalue()
+    try:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    except BrokenPipeError:  # e.g. piped into `head`: the reader has all it wanted
+        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - silence the flush at exit
+    return 0

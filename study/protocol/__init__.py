@@ -1,0 +1,55 @@
+"""Protocols: a study defined in TOML, validated on load.
+
+    from study.protocol import load_protocol
+    protocol = load_protocol("protocols/dragan2013.toml")
+    protocol.tasks, protocol.modes
+    protocol.trial_config("hard-right", "aggressive")   # -> app.trial.TrialConfig
+    protocol.describe_trial("hard-right")               # participant-facing, no condition word
+"""
+
+from study.protocol.errors import (
+    AnswerError,
+    BlindingError,
+    ConditionError,
+    MissingKeyError,
+    ProtocolError,
+    ProtocolSyntaxError,
+    ProtocolTypeError,
+    ProtocolValueError,
+    ScaleMismatchError,
+    UndefinedReferenceError,
+    UnknownKeyError,
+)
+from study.protocol.loader import content_hash, load_protocol, parse_protocol
+from study.protocol.model import Control, Mode, StudyInfo, Task, Texts, Training
+from study.protocol.protocol import TRAINING_MODE, Protocol
+from study.protocol.questionnaire import PHASES, LikertItem, Questionnaire, Scale
+
+__all__ = [
+    "PHASES",
+    "TRAINING_MODE",
+    "AnswerError",
+    "BlindingError",
+    "ConditionError",
+    "Control",
+    "LikertItem",
+    "MissingKeyError",
+    "Mode",
+    "Protocol",
+    "ProtocolError",
+    "ProtocolSyntaxError",
+    "ProtocolTypeError",
+    "ProtocolValueError",
+    "Questionnaire",
+    "Scale",
+    "ScaleMismatchError",
+    "StudyInfo",
+    "Task",
+    "Texts",
+    "Training",
+    "UndefinedReferenceError",
+    "UnknownKeyError",
+    "content_hash",
+    "load_protocol",
+    "parse_protocol",
+]

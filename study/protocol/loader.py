@@ -1,0 +1,448 @@
+"""``load_protocol(path) -> Protocol``: read a TOML study definition and validate all of it.
+
+Checks, each failing with a typed :class:`~study.protocol.errors.ProtocolError` that names the
+file, the key path and the problem: TOML syntax and duplicate keys; unknown keys at every level;
+types and ranges; references (a task's scene, a factor level, a questionnaire item or scale);
+the full crossing of difficulty x correctness; one prediction table per correctness level and
+one mode table per mode level; anchors matching the questionnaire's number of points; and
+blinding (no participant-facing text contains a condition word).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import string
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from study.protocol.components import component
+from study.protocol.errors import (
+    BlindingError,
+    ProtocolError,
+    ProtocolSyntaxError,
+    ProtocolValueError,
+    ScaleMismatchError,
+    UndefinedReferenceError,
+)
+from study.protocol.fields import Table, join_key
+from study.protocol.model import Control, Mode, StudyInfo, Task, Texts, Training
+from study.protocol.protocol import TRAINING_MODE, Protocol
+from study.protocol.questionnaire import LikertItem, Questionnaire, Scale
+
+SCHEMA = 1
+_NAME = re.compile(r"^[a-z][a-z0-9_-]{0,31}$")
+_TOP_LEVEL = (
+    "schema", "study", "control", "factors", "tasks", "prediction", "confidence", "policy",
+    "modes", "training", "scenes", "consent", "debrief", "instructions", "questionnaire",
+)
+_INSTRUCTIONS_REQUIRED = ("welcome", "training", "task", "rating")
+_INSTRUCTIONS_OPTIONAL = ("preference", "pause")
+_PLACEHOLDERS = {"training": {"target"}, "task": {"target"}}
+
+
+def load_protocol(path: str | Path) -> Protocol:
+    """Load and validate the protocol at ``path``; raises a ``ProtocolError`` subclass."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as e:
+        raise ProtocolError(f"cannot read the file ({e.strerror or e})", file=path, key="") from e
+    return parse_protocol(text, path=path)
+
+
+def parse_protocol(text: str, *, path: str | Path = "<string>") -> Protocol:
+    """Validate protocol ``text``; ``path`` is used in error messages and kept on the result."""
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise _syntax_error(e, text, path) from None
+    return _Loader(raw, Path(path)).protocol()
+
+
+def content_hash(raw: Mapping[str, Any]) -> str:
+    """sha256 of the canonical JSON form of a parsed protocol (sorted keys, no whitespace)."""
+    canonical = json.dumps(raw, sort_keys=True, separators=(",", ":"), ensure_ascii=False,
+                           default=str)
+    return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
+
+
+def _syntax_error(e: tomllib.TOMLDecodeError, text: str, path: str | Path) -> ProtocolSyntaxError:
+    message = str(e)
+    m = re.search(r"\(at line (\d+), column \d+\)", message)
+    key = ""
+    if m:
+        line_no = int(m.group(1))
+        lines = text.splitlines()
+        line = lines[line_no - 1].strip() if 0 < line_no <= len(lines) else ""
+        key = f"line {line_no}"
+        name = line.split("=", 1)[0].strip().strip("[]").strip() if line else ""
+        if name:
+            key += f" ({name})"
+    if "overwrite" in message or "twice" in message:
+        problem = f"a key or table is defined twice; remove the duplicate ({message})"
+    else:
+        problem = f"invalid TOML: {message}"
+    return ProtocolSyntaxError(problem, file=path, key=key)
+
+
+class _Loader:
+    def __init__(self, raw: dict[str, Any], path: Path) -> None:
+        self.raw = raw
+        self.path = path
+        self.root = Table(raw, file=path)
+
+    def error(self, cls: type[ProtocolError], key: str, problem: str) -> ProtocolError:
+        return cls(problem, file=self.path, key=key)
+
+    def protocol(self) -> Protocol:
+        import app
+
+        root = self.root
+        root.only(*_TOP_LEVEL)
+        schema = root.integer("schema")
+        if schema != SCHEMA:
+            raise root.value_error("schema", f"this software reads schema {SCHEMA}, got {schema}")
+        study = self._study(root.table("study"))
+        control = self._control(root.table("control"))
+        factors = root.table("factors")
+        difficulty = self._levels(factors, "difficulty")
+        correctness = self._levels(factors, "correctness")
+        mode_levels = self._levels(factors, "mode")
+        if TRAINING_MODE in mode_levels:
+            raise factors.value_error("mode", f"{TRAINING_MODE!r} is reserved for training runs")
+        factors.close(allowed="difficulty, correctness, mode")
+        scenes = self._scenes(root.table("scenes"))
+        tasks = self._tasks(root.table("tasks"), difficulty, correctness, scenes, control)
+        prediction = self._prediction(root.table("prediction"), correctness)
+        confidence = component(root.table("confidence"), "confidence")
+        policy = component(root.table("policy"), "policy")
+        modes = self._modes(root.table("modes"), mode_levels)
+        training = self._training(root.table("training"), scenes, control)
+        questionnaire = self._questionnaire(root.table("questionnaire"), len(modes))
+        texts = self._texts(root, questionnaire)
+        root.close(allowed=", ".join(_TOP_LEVEL))
+        protocol = Protocol(
+            path=self.path,
+            schema=schema,
+            study=study,
+            control=control,
+            difficulty_levels=difficulty,
+            correctness_levels=correctness,
+            tasks=tasks,
+            modes=modes,
+            prediction=MappingProxyType(prediction),
+            confidence=MappingProxyType(confidence),
+            policy=MappingProxyType(policy),
+            training=training,
+            scenes=MappingProxyType(scenes),
+            questionnaire=questionnaire,
+            texts=texts,
+            content_hash=content_hash(self.raw),
+            software_version=app.__version__,
+        )
+        self._check_blinding(protocol)
+        return protocol
+
+    # -- sections ---------------------------------------------------------------------------
+    def _study(self, t: Table) -> StudyInfo:
+        t.only("id", "title", "version", "description")
+        info = StudyInfo(
+            id=self._name(t, "id"),
+            title=t.string("title"),
+            version=t.string("version"),
+            description=t.string("description", "", nonempty=False),
+        )
+        t.close(allowed="id, title, version, description")
+        return info
+
+    def _control(self, t: Table) -> Control:
+        t.only("rate_hz", "physics_dt", "time_limit_s", "lift_height_m")
+        control = Control(
+            rate_hz=t.number("rate_hz", minimum=10.0, maximum=1000.0),
+            physics_dt=t.number("physics_dt", minimum=1e-4, maximum=0.01),
+            time_limit_s=t.number("time_limit_s", minimum=1.0, maximum=3600.0),
+            lift_height_m=t.number("lift_height_m", minimum=0.005, maximum=0.3),
+        )
+        t.close(allowed="rate_hz, physics_dt, time_limit_s, lift_height_m")
+        ratio = 1.0 / (control.rate_hz * control.physics_dt)
+        if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
+            raise t.value_error(
+                "physics_dt",
+                f"{control.physics_dt} s must divide the control period 1/rate_hz ="
+                f" {1.0 / control.rate_hz} s a whole number of times",
+            )
+        return control
+
+    def _name(self, t: Table, key: str) -> str:
+        value = t.string(key)
+        if not _NAME.match(value):
+            raise t.value_error(key, f"{value!r} must be lower-case letters, digits, '_' or '-'")
+        return value
+
+    def _levels(self, t: Table, key: str) -> tuple[str, ...]:
+        levels = t.strings(key)
+        for i, level in enumerate(levels):
+            if not _NAME.match(level):
+                raise self.error(
+                    ProtocolValueError, join_key(t.where(key), i),
+                    f"{level!r} must be lower-case letters, digits, '_' or '-'",
+                )
+        return levels
+
+    def _scenes(self, t: Table) -> dict[str, Any]:
+        from app.robot.errors import SceneError
+        from app.robot.scene_spec import SceneSpec
+
+        scenes: dict[str, Any] = {}
+        for name, sub in t.tables():
+            where = sub.where()
+            try:
+                scenes[name] = SceneSpec.from_dict(sub.data, where=where)
+            except SceneError as e:
+                key, _, problem = str(e).partition(": ")
+                if not problem:
+                    key, problem = where, str(e)
+                raise self.error(ProtocolValueError, key, problem) from None
+        if not scenes:
+            raise t.value_error("", "define at least one scene")
+        return scenes
+
+    def _scene_ref(self, t: Table, key: str, scenes: Mapping[str, Any]) -> str:
+        name = t.string(key)
+        if name not in scenes:
+            raise self.error(
+                UndefinedReferenceError, t.where(key),
+                f"scene {name!r} is not defined; defined scenes: {', '.join(scenes)}",
+            )
+        return name
+
+    def _level_ref(self, t: Table, key: str, levels: tuple[str, ...]) -> str:
+        value = t.string(key)
+        if value not in levels:
+            raise self.error(
+                UndefinedReferenceError, t.where(key),
+                f"{value!r} is not a level of factors.{key} ({', '.join(levels)})",
+            )
+        return value
+
+    def _tasks(
+        self, t: Table, difficulty: tuple[str, ...], correctness: tuple[str, ...],
+        scenes: Mapping[str, Any], control: Control,
+    ) -> tuple[Task, ...]:
+        tasks: list[Task] = []
+        cells: dict[tuple[str, str], str] = {}
+        for name, sub in t.tables():
+            if not _NAME.match(name):
+                raise t.value_error(name, "task names must be lower-case letters, digits, '_', '-'")
+            sub.only("difficulty", "correctness", "scene", "time_limit_s")
+            task = Task(
+                name=name,
+                difficulty=self._level_ref(sub, "difficulty", difficulty),
+                correctness=self._level_ref(sub, "correctness", correctness),
+                scene=self._scene_ref(sub, "scene", scenes),
+                time_limit_s=sub.number(
+                    "time_limit_s", control.time_limit_s, minimum=1.0, maximum=3600.0
+                ),
+            )
+            sub.close(allowed="difficulty, correctness, scene, time_limit_s")
+            cell = (task.difficulty, task.correctness)
+            if cell in cells:
+                raise t.value_error(
+                    name, f"same difficulty and correctness as task {cells[cell]!r}; each"
+                    " combination is one task",
+                )
+            cells[cell] = name
+            tasks.append(task)
+        for d in difficulty:
+            for c in correctness:
+                if (d, c) not in cells:
+                    raise self.error(
+                        UndefinedReferenceError, t.where(),
+                        f"no task has difficulty = {d!r} and correctness = {c!r}; the design"
+                        " crosses every difficulty with every correctness level",
+                    )
+        return tuple(tasks)
+
+    def _prediction(self, t: Table, correctness: tuple[str, ...]) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for level in correctness:
+            if level not in t:
+                raise self.error(
+                    UndefinedReferenceError, t.where(level),
+                    f"missing: correctness level {level!r} needs a [prediction.{level}] table",
+                )
+            out[level] = MappingProxyType(component(t.table(level), "prediction"))
+        t.close(allowed=f"the correctness levels {', '.join(correctness)}")
+        return out
+
+    def _modes(self, t: Table, levels: tuple[str, ...]) -> tuple[Mode, ...]:
+        modes: list[Mode] = []
+        for level in levels:
+            if level not in t:
+                raise self.error(
+                    UndefinedReferenceError, t.where(level),
+                    f"missing: mode {level!r} (factors.mode) needs a [modes.{level}] table",
+                )
+            sub = t.table(level)
+            sub.only("arbitration", "confidence")
+            arbitration = component(sub.table("arbitration"), "arbitration")
+            confidence = (
+                component(sub.table("confidence"), "confidence") if "confidence" in sub else None
+            )
+            sub.close(allowed="arbitration, confidence")
+            modes.append(
+                Mode(
+                    name=level,
+                    arbitration=None if arbitration["kind"] == "none"
+                    else MappingProxyType(arbitration),
+                    confidence=None if confidence is None else MappingProxyType(confidence),
+                )
+            )
+        t.close(allowed=f"the mode levels {', '.join(levels)}")
+        return tuple(modes)
+
+    def _training(self, t: Table, scenes: Mapping[str, Any], control: Control) -> Training:
+        t.only("runs", "scene", "time_limit_s", "prediction")
+        prediction = (
+            component(t.table("prediction"), "prediction") if "prediction" in t
+            else {"kind": "oracle"}
+        )
+        training = Training(
+            runs=t.integer("runs", minimum=1, maximum=20),
+            scene=self._scene_ref(t, "scene", scenes),
+            time_limit_s=t.number(
+                "time_limit_s", control.time_limit_s, minimum=1.0, maximum=3600.0
+            ),
+            prediction=MappingProxyType(prediction),
+        )
+        t.close(allowed="runs, scene, time_limit_s, prediction")
+        return training
+
+    def _questionnaire(self, t: Table, n_modes: int) -> Questionnaire:
+        t.only("points", "scales", "items", "after_training", "after_run", "after_task")
+        points = t.integer("points", minimum=2, maximum=11)
+        scales: dict[str, Scale] = {}
+        for name, sub in t.table("scales").tables():
+            sub.only("anchors")
+            anchors = sub.strings("anchors", unique=True)
+            if len(anchors) != points:
+                raise self.error(
+                    ScaleMismatchError, sub.where("anchors"),
+                    f"{len(anchors)} anchors for a {points}-point questionnaire"
+                    f" (questionnaire.points = {points}); give one anchor per point",
+                )
+            sub.close(allowed="anchors")
+            scales[name] = Scale(name=name, anchors=anchors)
+        items: dict[str, LikertItem] = {}
+        items_table = t.table("items")
+        for item_id, sub in items_table.tables():
+            if not re.match(r"^[a-z][a-z0-9_]{0,31}$", item_id):
+                raise items_table.value_error(
+                    item_id, "item ids name data columns: lower-case letters, digits and '_'"
+                )
+            sub.only("prompt", "scale")
+            scale_name = sub.string("scale")
+            if scale_name not in scales:
+                raise self.error(
+                    UndefinedReferenceError, sub.where("scale"),
+                    f"scale {scale_name!r} is not defined in questionnaire.scales"
+                    f" ({', '.join(scales) or 'none'})",
+                )
+            items[item_id] = LikertItem(
+                id=item_id, prompt=sub.string("prompt"), scale=scales[scale_name]
+            )
+            sub.close(allowed="prompt, scale")
+        asked: dict[str, tuple[LikertItem, ...]] = {}
+        for phase in ("after_training", "after_run", "after_task"):
+            ids = t.strings(phase, [], nonempty=False)
+            for i, item_id in enumerate(ids):
+                if item_id not in items:
+                    raise self.error(
+                        UndefinedReferenceError, join_key(t.where(phase), i),
+                        f"item {item_id!r} is not defined in questionnaire.items",
+                    )
+            asked[phase] = tuple(items[i] for i in ids)
+        if asked["after_task"] and n_modes != 2:
+            raise t.value_error(
+                "after_task",
+                f"a preference between a task's two runs needs exactly 2 modes, this protocol"
+                f" has {n_modes}; leave after_task empty",
+            )
+        t.close(allowed="points, scales, items, after_training, after_run, after_task")
+        return Questionnaire(points=points, items=MappingProxyType(items), **asked)
+
+    def _texts(self, root: Table, questionnaire: Questionnaire) -> Texts:
+        consent = root.table("consent")
+        debrief = root.table("debrief")
+        consent.only("text", "agree")
+        debrief.only("text")
+        texts_consent = consent.string("text")
+        agree = consent.string("agree")
+        consent.close(allowed="text, agree")
+        texts_debrief = debrief.string("text")
+        debrief.close(allowed="text")
+        t = root.table("instructions")
+        t.only(*_INSTRUCTIONS_REQUIRED, *_INSTRUCTIONS_OPTIONAL)
+        instructions: dict[str, str] = {}
+        for phase in _INSTRUCTIONS_REQUIRED + _INSTRUCTIONS_OPTIONAL:
+            required = phase in _INSTRUCTIONS_REQUIRED or (
+                phase == "preference" and questionnaire.after_task
+            )
+            if not required and phase not in t:
+                continue
+            text = t.string(phase)
+            self._check_placeholders(t, phase, text)
+            instructions[phase] = text
+        t.close(allowed=", ".join(_INSTRUCTIONS_REQUIRED + _INSTRUCTIONS_OPTIONAL))
+        return Texts(
+            consent=texts_consent,
+            consent_agree=agree,
+            debrief=texts_debrief,
+            instructions=MappingProxyType(instructions),
+        )
+
+    def _check_placeholders(self, t: Table, phase: str, text: str) -> None:
+        allowed = _PLACEHOLDERS.get(phase, set())
+        try:
+            fields = [f for _, f, _, _ in string.Formatter().parse(text) if f is not None]
+        except ValueError as e:
+            raise t.value_error(
+                phase, f"bad braces ({e}); write {{{{ and }}}} for literal braces"
+            ) from None
+        for f in fields:
+            if f not in allowed:
+                hint = f"allowed: {{{', '.join(sorted(allowed))}}}" if allowed else "none allowed"
+                raise t.value_error(phase, f"unknown placeholder {{{f}}} ({hint})")
+
+    # -- blinding ---------------------------------------------------------------------------
+    def _check_blinding(self, p: Protocol) -> None:
+        words = p.condition_words
+        texts: list[tuple[str, str]] = [
+            ("consent.text", p.texts.consent),
+            ("consent.agree", p.texts.consent_agree),
+            ("debrief.text", p.texts.debrief),
+        ]
+        texts += [(f"instructions.{k}", v) for k, v in p.texts.instructions.items()]
+        for item in p.questionnaire.items.values():
+            texts.append((f"questionnaire.items.{item.id}.prompt", item.prompt))
+        for item in p.questionnaire.items.values():
+            for i, anchor in enumerate(item.scale.anchors):
+                texts.append((f"questionnaire.scales.{item.scale.name}.anchors[{i}]", anchor))
+        for task in p.tasks:
+            texts.append((f"tasks.{task.name}.scene (its target)", p.describe_trial(task.name)))
+            for obj in p.scenes[task.scene].object_names:
+                texts.append((f"scenes.{task.scene}.objects ({obj})", obj))
+        texts.append(("training.scene (its target)", p.describe_training()))
+        for key, text in texts:
+            found = [w for w in words if w in text.lower()]
+            if found:
+                raise self.error(
+                    BlindingError, key,
+                    f"participant-facing text contains the condition word(s) {found} (as a"
+                    f" word or inside one, e.g. 'bright' holds 'right'); rephrase: {text[:60]!r}",
+                )

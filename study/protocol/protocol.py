@@ -1,0 +1,185 @@
+"""``Protocol``: one validated study definition, and what the engine, server and analysis ask of it.
+
+Built by :func:`study.protocol.load_protocol`; immutable. Condition names (task, difficulty,
+correctness and mode levels) are for the experimenter and the data only: participant-facing text
+comes from :meth:`Protocol.describe_trial`, :meth:`Protocol.describe_training` and
+:attr:`Protocol.texts`, which are checked on load never to contain a condition word.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from study.protocol.errors import ConditionError
+from study.protocol.model import Control, Mode, StudyInfo, Task, Texts, Training
+from study.protocol.questionnaire import Questionnaire
+
+if TYPE_CHECKING:
+    from app.robot.scene_spec import SceneSpec
+    from app.trial.config import TrialConfig
+
+TRAINING_MODE = "none"
+"""The ``mode`` recorded for unassisted training runs."""
+
+
+@dataclass(frozen=True, eq=False)
+class Protocol:
+    """A study: factors, tasks, modes, blending settings, scenes, questionnaire and texts.
+
+    ``content_hash`` is the sha256 of the file's canonical content (key order and formatting do
+    not matter); ``software_version`` is ``app.__version__`` at load time. Both are stored with
+    every session so results can be traced to the exact study definition and code.
+    """
+
+    path: Path
+    schema: int
+    study: StudyInfo
+    control: Control
+    difficulty_levels: tuple[str, ...]
+    correctness_levels: tuple[str, ...]
+    tasks: tuple[Task, ...]
+    modes: tuple[Mode, ...]
+    prediction: Mapping[str, Mapping[str, Any]]  # correctness level -> predictor table
+    confidence: Mapping[str, Any]
+    policy: Mapping[str, Any]
+    training: Training
+    scenes: Mapping[str, SceneSpec]
+    questionnaire: Questionnaire
+    texts: Texts
+    content_hash: str
+    software_version: str
+
+    # -- lookups ---------------------------------------------------------------------------
+    @property
+    def id(self) -> str:
+        return self.study.id
+
+    @property
+    def task_names(self) -> tuple[str, ...]:
+        return tuple(t.name for t in self.tasks)
+
+    @property
+    def mode_names(self) -> tuple[str, ...]:
+        return tuple(m.name for m in self.modes)
+
+    @property
+    def factors(self) -> dict[str, tuple[str, ...]]:
+        """Factor -> levels, in file order: ``difficulty``, ``correctness``, ``mode``."""
+        return {
+            "difficulty": self.difficulty_levels,
+            "correctness": self.correctness_levels,
+            "mode": self.mode_names,
+        }
+
+    @property
+    def condition_words(self) -> tuple[str, ...]:
+        """Every word that would reveal a condition to the participant (all factor levels)."""
+        words: list[str] = []
+        for levels in self.factors.values():
+            words.extend(w.lower() for w in levels if w.lower() not in words)
+        return tuple(words)
+
+    def task(self, name: str) -> Task:
+        for t in self.tasks:
+            if t.name == name:
+                return t
+        raise ConditionError(f"protocol {self.id!r} has no task {name!r}; tasks: {self.task_names}")
+
+    def mode(self, name: str) -> Mode:
+        for m in self.modes:
+            if m.name == name:
+                return m
+        raise ConditionError(f"protocol {self.id!r} has no mode {name!r}; modes: {self.mode_names}")
+
+    def scene_for(self, task: str) -> SceneSpec:
+        return self.scenes[self.task(task).scene]
+
+    def goal_names(self, task: str) -> tuple[str, ...]:
+        """The objects of the task's scene in goal order (index k of the probability vector)."""
+        return self.scene_for(task).object_names
+
+    @property
+    def consent_text(self) -> str:
+        return self.texts.consent
+
+    @property
+    def debrief_text(self) -> str:
+        return self.texts.debrief
+
+    def instructions(self, phase: str) -> str:
+        """Participant-facing instructions for ``phase`` (``{target}`` left unfilled)."""
+        try:
+            return self.texts.instructions[phase]
+        except KeyError:
+            raise ConditionError(
+                f"protocol {self.id!r} has no instructions for {phase!r};"
+                f" phases: {tuple(self.texts.instructions)}"
+            ) from None
+
+    # -- participant-facing descriptions ------------------------------------------------------
+    def describe_trial(self, task: str) -> str:
+        """What the participant is told before a task trial, e.g. "Pick up the bottle ...".
+
+        Depends only on the scene's target, never on the condition (checked on load).
+        """
+        return _fill(self.texts.instructions["task"], self.scene_for(task).target)
+
+    def describe_training(self) -> str:
+        """What the participant is told before each training run."""
+        return _fill(self.texts.instructions["training"], self.scenes[self.training.scene].target)
+
+    # -- trial configurations -----------------------------------------------------------------
+    def trial_config(self, task: str, mode: str) -> TrialConfig:
+        """The :class:`app.trial.TrialConfig` of one condition: ``task`` done in ``mode``."""
+        from app.trial.config import TrialConfig
+
+        t = self.task(task)
+        m = self.mode(mode)
+        return TrialConfig(
+            scene=self.scenes[t.scene],
+            prediction=self.prediction[t.correctness],
+            confidence=m.confidence if m.confidence is not None else self.confidence,
+            arbitration=m.arbitration,
+            policy=self.policy,
+            rate_hz=self.control.rate_hz,
+            physics_dt=self.control.physics_dt,
+            time_limit_s=t.time_limit_s,
+            lift_height_m=self.control.lift_height_m,
+            task=t.name,
+            mode=m.name,
+            extra=self._extra(difficulty=t.difficulty, correctness=t.correctness, phase="task"),
+        )
+
+    def training_config(self) -> TrialConfig:
+        """The unassisted training run (arbitration ``None``, mode ``"none"``)."""
+        from app.trial.config import TrialConfig
+
+        return TrialConfig(
+            scene=self.scenes[self.training.scene],
+            prediction=self.training.prediction,
+            confidence=self.confidence,
+            arbitration=None,
+            policy=self.policy,
+            rate_hz=self.control.rate_hz,
+            physics_dt=self.control.physics_dt,
+            time_limit_s=self.training.time_limit_s,
+            lift_height_m=self.control.lift_height_m,
+            task="training",
+            mode=TRAINING_MODE,
+            extra=self._extra(difficulty="", correctness="", phase="training"),
+        )
+
+    def _extra(self, **fields: str) -> dict[str, str]:
+        return {
+            "protocol": self.id,
+            "protocol_version": self.study.version,
+            "content_hash": self.content_hash,
+            **fields,
+        }
+
+
+def _fill(template: str, target: str) -> str:
+    return template.format(target=target.replace("_", " "))

@@ -1,0 +1,222 @@
+"""Counterbalanced schedules: Williams Latin squares over task types, balanced mode orders.
+
+A Williams square of ``n`` conditions is a Latin square (each condition once in every position)
+that is also balanced for first-order carry-over: every condition immediately follows every
+other one equally often. For even ``n`` one square of ``n`` rows does it; for odd ``n`` the square
+and its mirror image (each row reversed) together do, ``2n`` rows.
+
+Construction: first row ``0, 1, n-1, 2, n-2, 3, ...``; row ``i`` adds ``i`` to every entry mod n.
+
+A participant's *design row* ``r`` fixes their whole schedule: the task order is Williams row
+``r mod R`` (``R`` task rows), and within task ``t`` the modes are done in the order of the
+Williams square over the modes, row ``(r div R + t) mod M``. After ``R * M`` participants (one
+*cycle*, 8 for the paper's 4 tasks x 2 modes) every task is in every position equally often and
+every task is done first in each mode equally often. Rows are handed out in enrollment order; a
+withdrawn participant's row is given to the next enrollment (:func:`next_row`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from study.protocol import Protocol
+
+
+class ScheduleError(ValueError):
+    """A schedule cannot be built from the given tasks, modes or enrollment history."""
+
+
+def williams_square(n: int) -> tuple[tuple[int, ...], ...]:
+    """Rows of a Williams design over conditions ``0..n-1`` (``n`` rows if even, ``2n`` if odd)."""
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ScheduleError(f"williams_square: need a positive number of conditions, got {n!r}")
+    first = [0]
+    lo, hi = 1, n - 1
+    take_lo = True
+    while len(first) < n:
+        if take_lo:
+            first.append(lo)
+            lo += 1
+        else:
+            first.append(hi)
+            hi -= 1
+        take_lo = not take_lo
+    rows = [tuple((c + i) % n for c in first) for i in range(n)]
+    if n % 2 == 1 and n > 1:
+        rows += [tuple(reversed(r)) for r in rows]
+    return tuple(rows)
+
+
+@dataclass(frozen=True)
+class ScheduledTrial:
+    """One task trial of a participant's schedule.
+
+    ``position`` is 1-based among the participant's task trials (training excluded); ``run`` is
+    1-based among the runs of the same task (1 = first run, 2 = second ...).
+    """
+
+    participant: str
+    row: int
+    position: int
+    task: str
+    mode: str
+    run: int
+
+
+@dataclass(frozen=True)
+class Design:
+    """Task orders x mode orders for ``tasks`` and ``modes`` (names, in protocol order)."""
+
+    tasks: tuple[str, ...]
+    modes: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        for label, names in (("tasks", self.tasks), ("modes", self.modes)):
+            if not names:
+                raise ScheduleError(f"Design: need at least one of {label}")
+            if len(set(names)) != len(names):
+                raise ScheduleError(f"Design: {label} must be distinct, got {names}")
+
+    @classmethod
+    def from_protocol(cls, protocol: Protocol) -> Design:
+        return cls(tasks=protocol.task_names, modes=protocol.mode_names)
+
+    @property
+    def task_orders(self) -> tuple[tuple[int, ...], ...]:
+        return williams_square(len(self.tasks))
+
+    @property
+    def mode_orders(self) -> tuple[tuple[int, ...], ...]:
+        return williams_square(len(self.modes))
+
+    @property
+    def cycle(self) -> int:
+        """Participants in one fully balanced cycle: task rows x mode rows."""
+        return len(self.task_orders) * len(self.mode_orders)
+
+    @property
+    def trials_per_participant(self) -> int:
+        return len(self.tasks) * len(self.modes)
+
+    def task_order(self, row: int) -> tuple[str, ...]:
+        """Task names in the order design row ``row`` does them."""
+        _check_row(row)
+        orders = self.task_orders
+        return tuple(self.tasks[i] for i in orders[row % len(orders)])
+
+    def mode_order(self, row: int, task: str) -> tuple[str, ...]:
+        """Mode names in the order design row ``row`` does them within ``task``."""
+        _check_row(row)
+        if task not in self.tasks:
+            raise ScheduleError(f"no task {task!r}; tasks: {self.tasks}")
+        replicate = row // len(self.task_orders)
+        orders = self.mode_orders
+        order = orders[(replicate + self.tasks.index(task)) % len(orders)]
+        return tuple(self.modes[i] for i in order)
+
+    def row_trials(self, row: int, *, participant: str = "") -> tuple[ScheduledTrial, ...]:
+        """Every task trial of design row ``row``, in order: each task's runs back to back."""
+        trials: list[ScheduledTrial] = []
+        for task in self.task_order(row):
+            for run, mode in enumerate(self.mode_order(row, task), start=1):
+                trials.append(
+                    ScheduledTrial(
+                        participant=participant,
+                        row=row,
+                        position=len(trials) + 1,
+                        task=task,
+                        mode=mode,
+                        run=run,
+                    )
+                )
+        return tuple(trials)
+
+
+def _check_row(row: int) -> None:
+    if isinstance(row, bool) or not isinstance(row, int) or row < 0:
+        raise ScheduleError(f"design rows are integers >= 0, got {row!r}")
+
+
+def participant_label(index: int, *, total: int) -> str:
+    """``P01`` ... : 1-based, zero-padded to the width of ``total`` (at least two digits)."""
+    return f"P{index:0{max(2, len(str(total)))}d}"
+
+
+def schedule(
+    design: Design | Protocol, *, participants: int, rows: Sequence[int] | None = None
+) -> list[ScheduledTrial]:
+    """The task trials of ``participants`` participants, enrolled in order, none withdrawn.
+
+    ``rows`` gives each participant's design row (default ``0, 1, 2, ...``).
+    """
+    if not isinstance(design, Design):
+        design = Design.from_protocol(design)
+    if isinstance(participants, bool) or not isinstance(participants, int) or participants < 1:
+        raise ScheduleError(f"participants must be a positive integer, got {participants!r}")
+    if rows is None:
+        rows = range(participants)
+    if len(rows) != participants:
+        raise ScheduleError(f"{participants} participants but {len(rows)} rows")
+    out: list[ScheduledTrial] = []
+    for i, row in enumerate(rows, start=1):
+        out.extend(design.row_trials(row, participant=participant_label(i, total=participants)))
+    return out
+
+
+@dataclass(frozen=True)
+class Enrollment:
+    """One enrolled participant, in enrollment order: ``row`` None = not recorded (replayed)."""
+
+    participant: str
+    withdrawn: bool = False
+    row: int | None = None
+
+
+def assign_rows(history: Iterable[Enrollment | tuple[str, bool]]) -> list[int]:
+    """The design row of every enrollment in ``history`` (in order).
+
+    A recorded ``row`` is kept. An unrecorded one is replayed under the rule of
+    :func:`next_row`, assuming sessions ran one after another (a participant who withdrew did so
+    before the next one enrolled).
+    """
+    rows: list[int] = []
+    seen: list[Enrollment] = []
+    participants: set[str] = set()
+    for entry in history:
+        e = entry if isinstance(entry, Enrollment) else Enrollment(entry[0], bool(entry[1]))
+        if e.participant in participants:
+            raise ScheduleError(f"participant {e.participant!r} enrolled twice in the history")
+        participants.add(e.participant)
+        if e.row is not None:
+            _check_row(e.row)
+        row = e.row if e.row is not None else _next(seen, rows)
+        if row in {r for s, r in zip(seen, rows, strict=True) if not s.withdrawn}:
+            raise ScheduleError(
+                f"participant {e.participant!r}: row {row} is held by an active participant"
+            )
+        rows.append(row)
+        seen.append(e)
+    return rows
+
+
+def next_row(history: Iterable[Enrollment | tuple[str, bool]]) -> int:
+    """The design row for the next enrollment, given everyone enrolled so far (in order).
+
+    ``history`` holds :class:`Enrollment` values or ``(participant, withdrawn)`` pairs. Rows are
+    handed out 0, 1, 2, ...; the lowest row whose holder withdrew and that no active participant
+    has taken since goes first, so withdrawals do not unbalance the design.
+    """
+    entries = [e if isinstance(e, Enrollment) else Enrollment(e[0], bool(e[1])) for e in history]
+    rows = assign_rows(entries)
+    return _next(entries, rows)
+
+
+def _next(entries: Sequence[Enrollment], rows: Sequence[int]) -> int:
+    active = {r for e, r in zip(entries, rows, strict=True) if not e.withdrawn}
+    freed = sorted({r for e, r in zip(entries, rows, strict=True) if e.withdrawn} - active)
+    if freed:
+        return freed[0]
+    return max(rows, default=-1) + 1
