@@ -20,7 +20,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from study.protocol.components import component
+from study.protocol.components import build_check, component
 from study.protocol.errors import (
     BlindingError,
     ProtocolError,
@@ -124,6 +124,7 @@ class _Loader:
         modes = self._modes(root.table("modes"), mode_levels)
         training = self._training(root.table("training"), scenes, control)
         questionnaire = self._questionnaire(root.table("questionnaire"), len(modes))
+        self._build_checks(tasks, scenes, prediction, confidence, policy, modes, training, control)
         texts = self._texts(root, questionnaire)
         root.close(allowed=", ".join(_TOP_LEVEL))
         protocol = Protocol(
@@ -305,6 +306,33 @@ class _Loader:
             )
         t.close(allowed=f"the mode levels {', '.join(levels)}")
         return tuple(modes)
+
+    def _build_checks(
+        self, tasks: tuple[Task, ...], scenes: Mapping[str, Any], prediction: Mapping[str, Any],
+        confidence: Mapping[str, Any], policy: Mapping[str, Any], modes: tuple[Mode, ...],
+        training: Training, control: Control,
+    ) -> None:
+        """Build every blending table once with app.blending, in the scenes it will run in."""
+        file = str(self.path)
+        runs = [(f"prediction.{t.correctness}", prediction[t.correctness], t.scene) for t in tasks]
+        runs.append(("training.prediction", training.prediction, training.scene))
+        for where, cfg, scene_name in runs:
+            scene = scenes[scene_name]
+            build_check(
+                "prediction", cfg, where=where, file=file, goals=len(scene.objects),
+                target=scene.target_index,
+            )
+        build_check("confidence", confidence, where="confidence", file=file)
+        build_check("policy", policy, where="policy", file=file, rate_hz=control.rate_hz)
+        for m in modes:
+            if m.arbitration is not None:
+                build_check(
+                    "arbitration", m.arbitration, where=f"modes.{m.name}.arbitration", file=file
+                )
+            if m.confidence is not None:
+                build_check(
+                    "confidence", m.confidence, where=f"modes.{m.name}.confidence", file=file
+                )
 
     def _training(self, t: Table, scenes: Mapping[str, Any], control: Control) -> Training:
         t.only("runs", "scene", "time_limit_s", "prediction")
