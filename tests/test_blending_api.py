@@ -272,3 +272,10 @@ def test_factory_errors_name_the_key_path(factory, cfg, message) -> None:
     with pytest.raises(ConfigError) as info:
         factory(cfg, **kwargs)
     assert str(info.value).startswith(message), str(info.value)
+
+
+def test_absurd_magnitudes_are_rejected_by_name() -> None:
+    b = make_blender(two_goals())
+    b.reset([0.0, 0.0, 0.1])
+    with pytest.raises(InvalidInputError, match="U: values of magnitude"):
+        b.step(np.zeros(7), np.full(7, 1e200), x=[0.0, 0.0, 0.0])

@@ -169,3 +169,33 @@ def test_command_is_a_convex_combination(q, u, x, arb) -> None:
     np.testing.assert_allclose(rec.command, (1 - rec.alpha) * u + rec.alpha * rec.P)
     assert -1.0 <= rec.agreement <= 1.0
     assert np.linalg.norm(rec.P - q) <= 0.05 + 1e-12
+
+
+big = st.floats(-1e300, 1e300, allow_nan=False, allow_infinity=False)
+
+
+@SETTINGS
+@given(
+    arrays(np.float64, 7, elements=big),
+    arrays(np.float64, 7, elements=big),
+    arrays(np.float64, 3, elements=big),
+    st.sampled_from(["amnesic", "memory"]),
+)
+def test_extreme_finite_inputs_never_give_a_nan_command(q, u, x, kind) -> None:
+    """Whatever finite input: a finite command or a typed BlendingError, never a NaN."""
+    from app.blending import BlendingError
+
+    goals = GoalSet(["a", "b"], [[0.5, 0, 0], [0, 0.5, 0]],
+                    configurations=[[0.3] * 7, [-0.3] * 7])
+    pred = (AmnesicPredictor(goals.positions, temperature=0.05) if kind == "amnesic"
+            else MemoryPredictor(goals.positions, rationality=5))
+    b = PolicyBlender(goals=goals, predictor=pred, confidence=DistanceHinge(0.4),
+                      arbitration=Aggressive(0.4, 0.9), policy=StraightLinePolicy(0.05),
+                      space="workspace")
+    b.reset(np.zeros(3))
+    try:
+        rec = b.step(q, u, x=x)
+    except BlendingError:
+        return
+    assert np.isfinite(rec.command).all() and np.isfinite(rec.probabilities).all()
+    assert np.isfinite([rec.alpha, rec.confidence, rec.agreement]).all()

@@ -23,6 +23,10 @@ from .prediction.base import GoalPrediction, Predictor
 
 __all__ = ["BlendRecord", "PolicyBlender", "blend"]
 
+MAX_ABS_INPUT = 1e100
+"""Per-tick inputs (Q, U, x) must be finite and below this in magnitude: no configuration or
+position is anywhere near it, and the bound keeps squared distances from overflowing."""
+
 
 def blend(u: np.ndarray, p: np.ndarray, alpha: float) -> np.ndarray:
     """``(1 - alpha) U + alpha P`` (a new array)."""
@@ -171,6 +175,11 @@ class PolicyBlender:
         for name, arr in (("Q", q), ("U", u), ("x", x)):
             if not np.isfinite(arr).all():
                 return InvalidInputError(f"{name}: contains NaN or infinite values: {arr!r}")
+            if (np.abs(arr) >= MAX_ABS_INPUT).any():
+                return InvalidInputError(
+                    f"{name}: values of magnitude >= {MAX_ABS_INPUT:g} are not a configuration "
+                    f"or position: {arr!r}"
+                )
         return InvalidInputError("inputs: not finite")  # pragma: no cover
 
     def step(self, Q: Any, U: Any, *, x: Any = None) -> BlendRecord:
@@ -196,7 +205,8 @@ class PolicyBlender:
             raise InvalidInputError(
                 f"x: expected shape ({self.xdim},) in {self.space} space, got {x.shape}"
             )
-        if not np.isfinite(np.concatenate((q, u, x))).all():
+        # one cheap check: NaN compares False, so this rejects NaN, inf and absurd magnitudes
+        if not np.abs(np.concatenate((q, u, x))).max() < MAX_ABS_INPUT:
             raise self._bad_input(q, u, x)
 
         pred = self._update(x)

@@ -80,7 +80,7 @@ class AmnesicPredictor:
         return self._update(check_x(x, self.dim))
 
     def _update(self, x: np.ndarray) -> GoalPrediction:
-        d = self.metric(x, self.points)
+        d = np.asarray(self.metric(x, self.points), dtype=np.float64)
         if d.shape != (self.points.shape[0],):
             raise InvalidInputError(
                 f"metric: returned shape {d.shape}, expected ({self.points.shape[0]},)"

@@ -45,7 +45,8 @@ def softmax(logits: np.ndarray) -> GoalPrediction:
     top = logits[k]
     if not np.isfinite(top):
         raise InvalidInputError(
-            "logits: no goal has a finite log-probability (check the prior and the inputs)"
+            "logits: no goal has a finite log-probability, or one is NaN (inputs too large, "
+            "a zero prior everywhere, or a metric/cost returning NaN)"
         )
     logits -= top
     np.exp(logits, out=logits)
