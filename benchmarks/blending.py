@@ -3,7 +3,8 @@
 7-D configuration space, memory-based prediction (eq. 9, path-length cost) over 2, 10 and 100
 goals, distance-hinge confidence, timid arbitration, straight-line policy, through
 ``PolicyBlender.step``. Each tick is timed on its own (``perf_counter_ns``) at trajectory step
-~10 (ticks 10..59 after a reset, repeated) and at step ~10,000 (ticks 10,000..12,999).
+~10 (ticks 10..59 after a reset, repeated) and at step ~10,000 (ticks 10,000..14,999), the two
+in alternation so that both see the same load on the shared machine.
 
 Prints a table, then as its last line one JSON object:
 ``{"tick_us": {"2": {"median": .., "p99": ..}, ...}, "length_ratio": ..}`` with
@@ -61,43 +62,49 @@ def walk(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     return q, u
 
 
-def time_ticks(b: PolicyBlender, q: np.ndarray, u: np.ndarray) -> np.ndarray:
-    out = np.empty(len(q))
-    clock = time.perf_counter_ns
-    step = b.step
-    for k in range(len(q)):
-        t0 = clock()
-        step(q[k], u[k])
-        out[k] = clock() - t0
-    return out / 1000.0
-
-
 def run_steps(b: PolicyBlender, q: np.ndarray, u: np.ndarray) -> None:
     for k in range(len(q)):
         b.step(q[k], u[k])
 
 
-def bench(n_goals: int, *, reps: int, window: int, long_steps: int, long_window: int,
+def bench(n_goals: int, *, samples: int, window: int, long_steps: int,
           seed: int) -> dict[str, np.ndarray]:
+    """Two blenders on the same goals, timed in alternation so both see the same machine load:
+    ``short`` is reset every ``window`` ticks and timed at steps 10 .. 10 + window; ``long``
+    was driven ``long_steps`` ticks first and is timed at steps long_steps .. + samples."""
     rng = np.random.default_rng(seed)
-    b = make_blender(n_goals, rng)
-    q, u = walk(long_steps + long_window, rng)
-    b.reset(u[0])
-    run_steps(b, q[:200], u[:200])  # warm-up
+    short_b = make_blender(n_goals, rng)
+    long_b = make_blender(n_goals, np.random.default_rng(seed))
+    q, u = walk(long_steps + samples, rng)
+    long_b.reset(u[0])
+    run_steps(long_b, q[:long_steps], u[:long_steps])
+    short_b.reset(u[0])
+    run_steps(short_b, q[:200], u[:200])  # warm-up
+    t_short = np.empty(samples)
+    t_long = np.empty(samples)
+    clock = time.perf_counter_ns
     gc.collect()
     gc.disable()
     try:
-        short = []
-        for _ in range(reps):
-            b.reset(u[0])
-            run_steps(b, q[:10], u[:10])
-            short.append(time_ticks(b, q[10:10 + window], u[10:10 + window]))
-        b.reset(u[0])
-        run_steps(b, q[:long_steps], u[:long_steps])
-        long = time_ticks(b, q[long_steps:], u[long_steps:])
+        k_short = window  # forces a reset on the first tick
+        for k in range(samples):
+            if k_short >= 10 + window:
+                short_b.reset(u[0])
+                run_steps(short_b, q[:10], u[:10])
+                k_short = 10
+            qs, us = q[k_short], u[k_short]
+            ql, ul = q[long_steps + k], u[long_steps + k]
+            t0 = clock()
+            short_b.step(qs, us)
+            t1 = clock()
+            long_b.step(ql, ul)
+            t2 = clock()
+            t_short[k] = t1 - t0
+            t_long[k] = t2 - t1
+            k_short += 1
     finally:
         gc.enable()
-    return {"10": np.concatenate(short), str(long_steps): long}
+    return {"10": t_short / 1000.0, str(long_steps): t_long / 1000.0}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -105,15 +112,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="fewer samples (smoke run)")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
-    reps, window, long_window = (6, 50, 300) if args.quick else (60, 50, 3000)
+    samples = 300 if args.quick else 5000
     long_steps = 10_000
 
     result: dict[str, dict[str, float]] = {}
     ratios = []
     print(f"{'goals':>6} {'step':>7} {'median us':>10} {'p99 us':>10} {'n':>6}")
     for n_goals in (2, 10, 100):
-        times = bench(n_goals, reps=reps, window=window, long_steps=long_steps,
-                      long_window=long_window, seed=args.seed)
+        times = bench(n_goals, samples=samples, window=50, long_steps=long_steps,
+                      seed=args.seed)
         med = {}
         for step, t in times.items():
             med[step] = float(np.median(t))

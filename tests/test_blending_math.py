@@ -354,3 +354,13 @@ def test_blend_hand_computed() -> None:
     np.testing.assert_allclose(out, [0.75, 0.25])
     with pytest.raises(InvalidInputError, match="alpha"):
         blend(np.zeros(2), np.zeros(2), 1.5)
+
+
+def test_zero_prior_excludes_a_goal() -> None:
+    pred = MemoryPredictor([[1.0, 0.0], [0.0, 2.0]], prior=[0.0, 1.0])
+    pred.reset([0.0, 0.0])
+    out = pred.update([0.9, 0.0])  # right next to goal 0, which the prior rules out
+    assert out.index == 1
+    np.testing.assert_array_equal(out.probabilities, [0.0, 1.0])
+    with pytest.raises(InvalidInputError, match="prior: weights must be >= 0 with a positive"):
+        MemoryPredictor([[1.0, 0.0], [0.0, 2.0]], prior=[0.0, 0.0])

@@ -2,6 +2,25 @@
 
 Per control tick: goal prediction ``P(G | xi_{S->U})`` -> confidence ``c`` -> arbitration
 ``alpha(c)`` -> trajectory prediction ``P`` -> ``command = (1 - alpha) U + alpha P``.
+
+Example (the study's "wrong" condition, timid mode)::
+
+    goals = GoalSet(["box", "bottle"], positions, configurations=goal_qs)
+    blender = PolicyBlender(
+        goals=goals,
+        predictor=predictor_from_config({"kind": "amnesic", "space": "workspace"}, points=goals),
+        confidence=confidence_from_config({"kind": "distance", "D": 0.4}),
+        arbitration=arbitration_from_config({"kind": "timid", "alpha_max": 0.5,
+                                             "saturation": 0.7}),
+        policy=policy_from_config({"kind": "straight_line", "max_speed": 1.0}, rate_hz=100),
+        space="workspace",
+    )
+    blender.reset(start_target)                      # S, in the predictor's space
+    record = blender.step(q, u, x=user_target)       # per tick; record.command -> actuators
+
+Modules: goals, prediction/ (base, amnesic, memory, laplace, oracle, costs), confidence,
+arbitration, policy, blend, config (factories from protocol tables), errors, reference (exact
+soft value iteration on a 2-D grid, to test eq. 9 against).
 """
 
 from .arbitration import (
