@@ -279,3 +279,24 @@ def test_absurd_magnitudes_are_rejected_by_name() -> None:
     b.reset([0.0, 0.0, 0.1])
     with pytest.raises(InvalidInputError, match="U: values of magnitude"):
         b.step(np.zeros(7), np.full(7, 1e200), x=[0.0, 0.0, 0.0])
+
+
+def test_configuration_policy_needs_goal_configurations() -> None:
+    g = GoalSet(["a", "b"], [[0.4, 0, 0.1], [0.8, 0, 0.1]])
+    with pytest.raises(InvalidInputError, match="StraightLinePolicy steers toward goal conf"):
+        make_blender(g)
+
+
+def test_workspace_policy_runs_without_goal_configurations() -> None:
+    from app.blending import WorkspaceLinePolicy
+
+    g = GoalSet(["a", "b"], [[0.4, 0, 0.1], [0.8, 0, 0.1]])
+    a = np.hstack([np.eye(3), np.zeros((3, 4))])
+    pol = WorkspaceLinePolicy(fk=lambda q: a @ q, jacobian=lambda q: a, max_step=0.01,
+                              damping=0.0)
+    b = make_blender(g, policy=pol, feature=lambda q: a @ q)
+    b.reset([0.0, 0.0, 0.1])
+    q = np.array([0.3, 0.0, 0.1, 0, 0, 0, 0])
+    rec = b.step(q, q)
+    assert rec.predicted == 0
+    np.testing.assert_allclose(rec.P[:3] - q[:3], [0.01, 0.0, 0.0], atol=1e-12)

@@ -117,6 +117,11 @@ class PolicyBlender:
 
     def _install_goals(self, goals: GoalSet) -> None:
         points = goals.points(self.space)
+        if self.policy.target_space == "configuration" and goals.configurations is None:
+            raise InvalidInputError(
+                f"goals: {type(self.policy).__name__} steers toward goal configurations; give "
+                "the GoalSet configurations (or use a workspace policy)"
+            )
         targets = goals.points(self.policy.target_space)
         if self.predictor.n_goals != len(goals):
             raise InvalidInputError(
