@@ -48,13 +48,22 @@ class InputRejected(ValueError):
 
 @dataclass(frozen=True)
 class LikertItem:
-    """A 7-point item: ``key`` stays on the server; ``prompt`` and anchors are shown."""
+    """A k-point item: ``key`` stays on the server; ``prompt`` and ``anchors`` (answer ``j``
+    means ``anchors[j - 1]``) are shown."""
 
     key: str
     prompt: str
-    low: str
-    high: str
-    points: int = 7
+    anchors: tuple[str, ...]
+
+    @property
+    def points(self) -> int:
+        return len(self.anchors)
+
+    def anchor_text(self) -> str:
+        """The two end anchors, and the middle one when the scale has an odd length."""
+        k = self.points
+        marks = [1, k] if k % 2 == 0 else [1, (k + 1) // 2, k]
+        return " · ".join(f"{j} = {self.anchors[j - 1]}" for j in marks)
 
 
 def parse_answer(value: object, *, points: int) -> int:
@@ -92,6 +101,7 @@ class ParticipantPage:
         self._gizmo: viser.TransformControlsHandle | None = None
         self._commands: list[object] = []
         self.rejected: list[str] = []
+        self.asks_code = False
 
     # -- plumbing ----------------------------------------------------------------------------
     def _new_screen(self, name: str) -> int:
@@ -162,6 +172,7 @@ class ParticipantPage:
         """Waiting for a session; with several running, ask for the join code."""
         with self._lock:
             screen = self._new_screen("join")
+            self.asks_code = ask_code
             self._header(None)
             if not ask_code:
                 self._md("**Welcome.**\n\nPlease wait: the experimenter will start your session.")
@@ -198,7 +209,7 @@ class ParticipantPage:
             answers: dict[str, int] = {}
             submit = None
             for index, item in enumerate(items, 1):
-                self._md(f"**{item.prompt}**\n\n1 = {item.low} · {item.points} = {item.high}")
+                self._md(f"**{item.prompt}**\n\n{item.anchor_text()}")
                 group = self.client.gui.add_button_group(
                     f"Answer {index}",
                     [str(k) for k in range(1, item.points + 1)],

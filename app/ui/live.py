@@ -1,0 +1,448 @@
+"""One live study session on the server: the session engine, its participant tab, its threads.
+
+``study.session.Session`` decides what happens (the state machine, the store); this object
+connects it to the browser and to time:
+
+* it renders the session's blind ``Screen`` on the bound participant tab whenever the session
+  changes (a listener wakes a page thread), and turns clicks into session calls (agree, start
+  trial, answers, finish); bad input is rejected with a message, never raised into viser;
+* while a trial runs, a :class:`~app.ui.loop.PacedLoop` ticks the session's ``TrialRun`` at
+  the protocol's control rate in its own thread, and a second loop sends the scene to the
+  tab at up to ``render_hz`` from snapshots of the simulation taken after each tick;
+* a lost tab pauses the running trial (a ``pause`` event, the paused time excluded from the
+  trial's time) and the participant resumes it from the next tab with "Continue".
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import secrets
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+from app.teleop.errors import TeleopError
+from app.ui.experimenter import SessionDetail, SessionSummary
+from app.ui.inputs import ParticipantInput
+from app.ui.loop import PacedLoop
+from app.ui.participant import LikertItem, ParticipantPage
+from app.ui.scene import SceneView
+
+LOGGER = logging.getLogger("app.ui.live")
+
+PLOT_WINDOW = 1500
+"""Ticks kept for the console's live plots (15 s at 100 Hz)."""
+
+PARTICIPANT_ACTIONS = ("agree", "start_trial", "answer", "finish")
+
+
+class LiveSession:
+    """A ``study.session.Session`` served to one participant tab at a time."""
+
+    def __init__(self, session: Any, *, code: str, title: str, render_hz: float = 60.0) -> None:
+        self.session = session
+        self.participant: str = session.participant
+        self.code = code
+        self.title = title
+        self.render_hz = render_hz
+        self.page: ParticipantPage | None = None
+        self.on_closed: Callable[[], None] | None = None
+        self.opened_at = time.monotonic()
+        self.log: deque[str] = deque(maxlen=20)
+        self._lock = threading.RLock()
+        self._disconnect_paused = False
+        self._shown: tuple[Any, ...] | None = None
+        # trial machinery
+        self._run: Any = None
+        self._input: ParticipantInput | None = None
+        self._control: PacedLoop | None = None
+        self._render: PacedLoop | None = None
+        self._view: SceneView | None = None
+        self._view_key: tuple[int, str] | None = None
+        self._snapshot: tuple[int, np.ndarray, np.ndarray] | None = None
+        self._rendered_seq = -1
+        self._plot_lock = threading.Lock()
+        self._plot: deque[tuple[float, float, float, np.ndarray]] = deque(maxlen=PLOT_WINDOW)
+        self.goal_names: tuple[str, ...] = ()
+        # page thread: re-render on every session change
+        self._dirty = threading.Event()
+        self._stop = threading.Event()
+        self._closed_notified = False
+        session.add_listener(lambda _screen: self._dirty.set())
+        self._page_thread = threading.Thread(
+            target=self._page_loop, name=f"page-{code}", daemon=True
+        )
+        self._page_thread.start()
+
+    # -- state ---------------------------------------------------------------------------------
+    @property
+    def closed(self) -> bool:
+        """True once the session is completed, withdrawn or ended (no tab binds to it)."""
+        return bool(self.session.finished)
+
+    @property
+    def control_loop(self) -> PacedLoop | None:
+        return self._control
+
+    @property
+    def participant_input(self) -> ParticipantInput | None:
+        return self._input
+
+    @property
+    def scene_view(self) -> SceneView | None:
+        return self._view
+
+    def _event(self, kind: str, detail: Mapping[str, Any]) -> None:
+        """Append an event to the store (UI events: tabs, refusals, rejected input)."""
+        self.log.append(f"{time.strftime('%H:%M:%S')} {kind}")
+        try:
+            with self.session.store.transaction() as tx:
+                tx.event(self.session.session_id, self.participant, kind, dict(detail))
+        except Exception:
+            LOGGER.exception("could not record event %s", kind)
+
+    # -- tabs ----------------------------------------------------------------------------------
+    def attach(self, page: ParticipantPage) -> None:
+        with self._lock:
+            self.page = page
+            self._shown = None
+        self._event("participant_connected", {"client": page.client.client_id})
+        with self._lock:
+            if self._run is not None and not self._run.over:
+                self._show_trial_scene(page)
+        self._dirty.set()
+
+    def detach(self, page: ParticipantPage) -> None:
+        with self._lock:
+            if self.page is not page:
+                return
+            self.page = None
+            self._view = None
+            self._view_key = None
+            run = self._run
+            running = run is not None and not run.over
+        self._event("participant_disconnected", {"client": page.client.client_id})
+        if running and not self.session.finished:
+            try:
+                if not run.paused:
+                    self.session.pause()
+                    self._disconnect_paused = True
+            except Exception as exc:
+                LOGGER.warning("could not pause after disconnect: %s", exc)
+
+    def refuse(self, page: ParticipantPage) -> None:
+        """A second tab for a session that already has one: view-only notice, logged."""
+        self._event("second_tab_refused", {"client": page.client.client_id})
+        page.show_message(
+            "Already open",
+            "This session is already open in another tab or window. Please use that one.",
+        )
+
+    # -- participant actions -------------------------------------------------------------------
+    def _participant(self, action: str, call: Callable[[], Any]) -> None:
+        page = self.page
+        try:
+            call()
+        except Exception as exc:  # a stale click or bad answer: tell, log, keep running
+            self._event("input_rejected", {"action": action, "problem": str(exc)[:200]})
+            if page is not None:
+                page.reject(f"{action}: {exc}")
+                self._shown = None
+                self._dirty.set()
+
+    def _start_trial(self) -> None:
+        def start() -> None:
+            with self._lock:
+                if self._run is not None and not self._run.over:
+                    return
+                source = ParticipantInput()
+                run = self.session.start_trial(input_source=source)
+                self._begin_run(run, source)
+
+        self._participant("start_trial", start)
+
+    def _answer(self, answers: dict[str, int]) -> None:
+        self._participant("answer", lambda: self.session.answer(answers))
+
+    def _continue_after_disconnect(self) -> None:
+        def resume() -> None:
+            self._disconnect_paused = False
+            self.session.resume()
+
+        self._participant("resume", resume)
+
+    def _grasp(self) -> None:
+        source = self._input
+        if source is not None:
+            source.request_grasp()
+
+    def _on_target(self, target: np.ndarray) -> None:
+        source = self._input
+        if source is None:
+            return
+        try:
+            source.set_target(target)
+        except TeleopError as exc:
+            page = self.page
+            self._event("input_rejected", {"action": "target", "problem": str(exc)[:200]})
+            if page is not None:
+                page.reject(str(exc))
+
+    def _on_nudge(self, delta: np.ndarray) -> None:
+        source = self._input
+        if source is not None:
+            source.nudge(delta)
+
+    # -- the trial -----------------------------------------------------------------------------
+    def _begin_run(self, run: Any, source: ParticipantInput) -> None:
+        """Start ticking ``run`` (called with ``self._lock`` held)."""
+        self._run, self._input = run, source
+        trial = run.trial
+        self.goal_names = tuple(trial.scene.object_names)
+        with self._plot_lock:
+            self._plot.clear()
+        self._snap(trial)
+        self._control = PacedLoop(
+            lambda: self._tick(run), rate_hz=run.config.rate_hz, name=f"control-{self.code}"
+        ).start()
+        if self._render is None:
+            self._render = PacedLoop(
+                self._render_step, rate_hz=self.render_hz, name=f"render-{self.code}"
+            ).start()
+        if self.page is not None:
+            self._show_trial_scene(self.page)
+
+    def _snap(self, trial: Any) -> None:
+        data = trial.sim.data
+        seq = 0 if self._snapshot is None else self._snapshot[0] + 1
+        self._snapshot = (seq, data.xpos.copy(), data.xmat.copy())
+
+    def _tick(self, run: Any) -> bool:
+        record = run.tick()
+        if record is not None:
+            self._snap(run.trial)
+            with self._plot_lock:
+                self._plot.append(
+                    (
+                        float(record.t),
+                        float(record.alpha),
+                        float(record.confidence),
+                        np.asarray(record.probabilities, float),
+                    )
+                )
+        return not run.over
+
+    def _show_trial_scene(self, page: ParticipantPage) -> None:
+        """Scene, gizmo and keys on ``page`` for the current run (``self._lock`` held)."""
+        run, source = self._run, self._input
+        if run is None or source is None:
+            return
+        trial = run.trial
+        key = (page.client.client_id, str(trial.scene.name))
+        if self._view_key != key:
+            page.client.scene.reset()
+            self._view = SceneView(page.client, trial.sim.model)
+            self._view_key = key
+            self._rendered_seq = -1
+        start = source.last_target if source.last_target is not None else trial.user_target
+        page.add_gizmo(np.asarray(start, float), on_target=self._on_target)
+        page.add_keys(on_nudge=self._on_nudge, on_grasp=self._grasp)
+
+    def _render_step(self) -> None:
+        view, snap, page, source = self._view, self._snapshot, self.page, self._input
+        if view is not None and snap is not None and snap[0] != self._rendered_seq:
+            self._rendered_seq = snap[0]
+            try:
+                view.render(snap[1], snap[2])
+            except Exception:  # a tab closing mid-frame; the next frame goes to the next tab
+                LOGGER.debug("render failed", exc_info=True)
+        if page is not None and source is not None and source.key_moved.is_set():
+            source.key_moved.clear()
+            if source.last_target is not None:
+                page.move_gizmo(source.last_target)
+
+    def _end_run(self) -> None:
+        with self._lock:
+            if self._control is not None:
+                self._control.stop()
+            self._control = None
+            page = self.page
+        if page is not None:
+            page.remove_gizmo()
+            page.remove_keys()
+
+    # -- the page --------------------------------------------------------------------------------
+    def _page_loop(self) -> None:
+        while not self._stop.is_set():
+            self._dirty.wait(timeout=0.25)
+            self._dirty.clear()
+            if self._stop.is_set():
+                return
+            try:
+                self._sync()
+            except Exception:
+                LOGGER.exception("session %s: page update failed", self.code)
+
+    def _sync(self) -> None:
+        run = self._run
+        if run is not None and run.over and self._control is not None:
+            self._end_run()
+        if self.closed and not self._closed_notified:
+            self._closed_notified = True
+            if self.on_closed is not None:
+                self.on_closed()
+        page = self.page
+        if page is None:
+            return
+        screen = self.session.screen()
+        key = (page.client.client_id, screen.revision, self._disconnect_paused, screen.paused)
+        if key == self._shown:
+            return
+        self._shown = key
+        self._show(page, screen)
+
+    def _show(self, page: ParticipantPage, screen: Any) -> None:
+        progress = screen.progress.text if screen.progress.of else None
+        title, text = screen.title, screen.text
+        if screen.paused and self._disconnect_paused:
+            page.show_message(
+                "Paused",
+                "Your run was paused while this page was away. Press Continue when you are ready.",
+                progress=progress,
+                button="Continue",
+                on_button=self._continue_after_disconnect,
+            )
+        elif screen.paused:
+            page.show_message("Paused", text or "The session is paused.", progress=progress)
+        elif screen.phase == "consent":
+            page.show_consent(text, on_agree=lambda: self._participant("agree", self.session.agree))
+        elif screen.phase == "ready":
+            page.show_message(
+                title, text, progress=progress, button="Start", on_button=self._start_trial
+            )
+        elif screen.phase == "running":
+            page.show_trial(
+                heading=title, instruction=text, progress=progress, on_grasp=self._grasp
+            )
+        elif screen.phase == "questions":
+            items = [
+                LikertItem(key=i.id, prompt=i.prompt, anchors=tuple(i.anchors))
+                for i in screen.items
+            ]
+            page.show_questions(title, text, items, progress=progress, on_submit=self._answer)
+        elif screen.phase == "debrief":
+            page.show_message(
+                title,
+                text,
+                progress=progress,
+                button="Finish",
+                on_button=lambda: self._participant("finish", self.session.finish),
+            )
+        elif screen.phase == "done":
+            page.show_message(title or "Done", text or "Thank you. You may close this page now.")
+        else:  # waiting
+            page.show_message(title, text or "Please wait: the experimenter will start soon.")
+
+    # -- experimenter --------------------------------------------------------------------------
+    def act(self, action: str, *, reason: str = "") -> str:
+        """Run an experimenter action; returns a line for the console (errors raise)."""
+        s = self.session
+        if action in ("redo", "skip", "withdraw", "end"):
+            getattr(s, action)(reason=reason or f"{action} by the experimenter")
+        elif action in ("start", "pause", "resume"):
+            if action == "resume":
+                self._disconnect_paused = False
+            getattr(s, action)()
+        else:
+            raise ValueError(f"unknown action {action!r}; use one of start, pause, resume, ...")
+        self._dirty.set()
+        return f"{action}: done"
+
+    def summary(self) -> SessionSummary:
+        o = self.session.overview()
+        return SessionSummary(
+            code=self.code,
+            participant=self.participant,
+            state=o.status + (" (paused)" if o.paused else "") + f" / {o.phase}",
+            position=f"{min(o.step + 1, o.steps)}/{o.steps}",
+            connected=self.page is not None,
+            elapsed_s=time.monotonic() - self.opened_at,
+        )
+
+    def detail(self) -> SessionDetail:
+        o = self.session.overview()
+        schedule = [
+            (
+                f"{s.kind} ({s.phase})" + (f" #{s.trial_number}" if s.trial_number else ""),
+                s.task or "-",
+                (s.mode or "-") + (f", {s.run} run" if s.run else ""),
+            )
+            for s in self.session.plan.steps
+        ]
+        if o.task:
+            condition = (
+                f"{o.training_or_task}: {o.task} ({o.difficulty}, {o.correctness}),"
+                f" mode {o.mode}, {o.run} run, attempt {o.attempt}"
+            )
+        elif o.step_kind == "trial":
+            condition = f"training, mode {o.mode}, attempt {o.attempt}"
+        else:
+            condition = o.step_kind or o.phase
+        run = self._run
+        with self._plot_lock:
+            rows = list(self._plot)
+        n = len(self.goal_names)
+        if rows and all(len(r[3]) == n for r in rows):
+            t = np.array([r[0] for r in rows])
+            alpha = np.array([r[1] for r in rows])
+            conf = np.array([r[2] for r in rows])
+            probs = np.stack([r[3] for r in rows])
+        else:
+            t = alpha = conf = np.zeros(0)
+            probs = np.zeros((0, n))
+        return SessionDetail(
+            summary=self.summary(),
+            schedule=schedule,
+            cursor=o.step,
+            condition=condition,
+            trial_elapsed_s=float(run.duration_s()) if run is not None else 0.0,
+            paused=o.paused,
+            t=t,
+            alpha=alpha,
+            confidence=conf,
+            probabilities=probs,
+            goal_names=self.goal_names,
+            log=tuple(self.log),
+        )
+
+    def close(self) -> None:
+        """Stop the threads and release the session (a running trial is marked interrupted)."""
+        self._stop.set()
+        self._dirty.set()
+        for loop in (self._control, self._render):
+            if loop is not None:
+                loop.stop()
+        with contextlib.suppress(Exception):
+            self.session.close()
+
+
+SessionFactory = Callable[..., LiveSession]
+
+
+def session_factory(store: Any, protocol: Any) -> SessionFactory:
+    """Open ``participant``'s session: enrol a new ID, or reopen an unfinished one."""
+    from study.session import Session
+
+    def make(participant: str, *, code: str, title: str, render_hz: float) -> LiveSession:
+        if store.has_participant(participant):
+            session = Session.reopen(store, protocol, participant)
+        else:
+            session = Session.enrol(store, protocol, participant, seed=secrets.randbelow(2**31))
+        return LiveSession(session, code=code, title=title, render_hz=render_hz)
+
+    return make

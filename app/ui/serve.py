@@ -1,0 +1,78 @@
+"""``python -m app serve``: start the study server (participant view on the LAN, experimenter
+view on 127.0.0.1) and print both URLs. Stop with Ctrl-C; running trials are then marked
+interrupted and every session can be continued by enrolling the same participant ID again."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--protocol",
+        type=Path,
+        default=Path("protocols/dragan2013.toml"),
+        help="study protocol (TOML); default: %(default)s",
+    )
+    parser.add_argument(
+        "--db", type=Path, default=Path("data/study.db"), help="study store; default: %(default)s"
+    )
+    parser.add_argument(
+        "--host", default="0.0.0.0", help="participant view address (LAN); default: %(default)s"
+    )
+    parser.add_argument("--port", type=int, default=8080, help="participant view port")
+    parser.add_argument(
+        "--experimenter-port",
+        type=int,
+        default=8081,
+        help="experimenter view port (always bound to 127.0.0.1); default: %(default)s",
+    )
+    parser.add_argument(
+        "--render-hz", type=float, default=60.0, help="scene updates per second (max 60)"
+    )
+    parser.add_argument("--verbose", action="store_true", help="log viser connections")
+
+
+def main(args: argparse.Namespace) -> int:
+    from app.ui.live import session_factory
+    from app.ui.server import StudyServer
+    from study.protocol import load_protocol
+    from study.session import open_store
+
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
+    try:
+        protocol = load_protocol(args.protocol)
+    except Exception as exc:  # a typed ProtocolError naming file, key and problem
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    args.db.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        store = open_store(args.db, protocol)
+    except Exception as exc:
+        print(f"error: cannot open the store {args.db}: {exc}", file=sys.stderr)
+        return 2
+    server = StudyServer(
+        session_factory(store, protocol),
+        host=args.host,
+        port=args.port,
+        experimenter_port=args.experimenter_port,
+        render_hz=min(args.render_hz, 60.0),
+        verbose=args.verbose,
+    )
+    participant_url, experimenter_url = server.urls()
+    print(f"participant view:  {participant_url}", flush=True)
+    print(f"experimenter view: {experimenter_url}  (this machine only)", flush=True)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    try:
+        stop.wait()
+    finally:
+        server.stop()
+        store.close()
+    return 0
