@@ -1,0 +1,42 @@
+"""Simulated participants: population parameters, the user model, questionnaire answers, and a
+runner that drives them through the real session engine.
+
+- :func:`load_population` / :class:`Population`: parameter distributions (protocols/population.toml)
+  and seeded per-participant draws (:class:`ParticipantParams`).
+- :class:`SimulatedUser`: an ``app.teleop.InputSource`` for one trial (goal-directed minimum-jerk
+  input, reaction delay, noise, steering against a wrong robot, relaxing when helped, grasping).
+- :class:`QuestionnaireModel`: Likert ratings and preferences from a run's experience.
+"""
+
+from study.simulated.errors import (
+    ObservationError,
+    PopulationError,
+    SimulationError,
+    SimulationRunError,
+)
+from study.simulated.experience import ExperienceLog, RunExperience
+from study.simulated.population import (
+    DEFAULT_POPULATION_PATH,
+    ParticipantParams,
+    Population,
+    load_population,
+    participant_rng,
+)
+from study.simulated.questionnaire import QuestionnaireModel
+from study.simulated.user_model import SimulatedUser
+
+__all__ = [
+    "DEFAULT_POPULATION_PATH",
+    "ExperienceLog",
+    "ObservationError",
+    "ParticipantParams",
+    "Population",
+    "PopulationError",
+    "QuestionnaireModel",
+    "RunExperience",
+    "SimulatedUser",
+    "SimulationError",
+    "SimulationRunError",
+    "load_population",
+    "participant_rng",
+]

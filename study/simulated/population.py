@@ -1,0 +1,191 @@
+"""A population of simulated participants: parameter distributions and per-participant draws.
+
+A population file (``protocols/population.toml``) has four tables, ``[motor]``, ``[reaction]``,
+``[grasp]`` and ``[questionnaire]``; each key is one parameter of :class:`ParticipantParams`
+and holds a distribution (see :mod:`study.simulated.distributions`). Participant ``i`` of a run
+with seed ``s`` is drawn from ``Generator(PCG64(SeedSequence([s, i])))``: the same participant
+gets the same parameters whatever the number of participants or workers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from study.simulated.distributions import Distribution
+from study.simulated.errors import PopulationError
+
+DEFAULT_POPULATION_PATH = Path(__file__).resolve().parents[2] / "protocols" / "population.toml"
+
+
+@dataclass(frozen=True)
+class MotorParams:
+    """Goal-directed movement of the gizmo target (see :mod:`study.simulated.user_model`)."""
+
+    reaction_delay_s: float  # tau: the user acts on what they saw tau seconds ago
+    fitts_a_s: float  # movement time T = a + b log2(1 + D / W)
+    fitts_b_s_per_bit: float
+    fitts_width_m: float  # W
+    noise_sd_m: float  # stationary sd of the Ornstein-Uhlenbeck hand noise
+    noise_tau_s: float  # its correlation time
+    follow_lag_s: float  # how the user expects the gripper to trail their target (training)
+    feedback_gain_per_s: float  # k: dc/dt = k (m - ee) outside the dead zone
+    feedback_deadzone_m: float
+    correction_leak_s: float  # corrections fade back to the plan: dc/dt -= c / leak
+    wait_lag_m: float  # robot this far behind the expected position: the plan waits for it
+    max_gain_per_s: float  # cap on k (1 + f) (1 - rho), keeps the delayed loop stable
+
+
+@dataclass(frozen=True)
+class ReactionParams:
+    """Reaction to the robot: steering against it (Figs. 14-15), relaxing when helped (Fig. 12)."""
+
+    opposition_angle_deg: float  # robot motion more than this off the goal direction = opposing
+    opposition_speed_m_s: float  # slower robot motion is not noticed
+    opposition_deviation_m: float  # the robot this far from where expected = full opposition
+    fight_rate_per_s: float  # df/dt = rate * o while opposed
+    fight_decay_s: float  # df/dt = -f / decay once it stops
+    fight_max: float
+    fight_push_m: float  # hand displacement against the robot per unit of f
+    relaxer: float  # 1 if this participant lets the robot finish when it helps, else 0
+    relax_depth: float  # how far a relaxer lets go, rho -> depth
+    relax_time_s: float  # time constant of rho
+    relax_lead_m: float  # robot this far ahead of the hand = full help
+    careless_noise_gain: float  # noise sd multiplied by (1 + gain * rho)
+
+
+@dataclass(frozen=True)
+class GraspParams:
+    """When the gripper is closed, lifted, and how it goes wrong."""
+
+    grasp_radius_m: float  # close when the seen gripper is this near the grasp point ...
+    settle_speed_m_s: float  # ... and moving slower than this
+    early_grasp_p: float  # per attempt: close already at early_radius_m
+    early_radius_m: float
+    miss_p: float  # per attempt: aim at a point miss_offset_m beside the object
+    miss_offset_m: float
+    close_wait_s: float  # wait with the gripper closed before lifting
+    lift_m: float  # how high the target is raised after closing
+    check_after_s: float  # after this long lifting, a slipped/missed object is noticed
+    retry_pause_s: float  # pause with the gripper open before reaching again
+    stall_radius_m: float  # the gripper stopped getting nearer while within this ...
+    stall_time_s: float  # ... for this long: close anyway ("as near as it gets")
+
+
+@dataclass(frozen=True)
+class QuestionnaireParams:
+    """Answers (see :mod:`study.simulated.questionnaire`)."""
+
+    control_bias: float  # kappa: disagreement weighs (1 + kappa) times as much
+    rating_offset: float  # personal generosity on every item (scale points)
+    time_weight: float  # scale points per unit of log(duration / training duration)
+    disagreement_weight: float  # scale points per unit of mean disagreement in [0, 1]
+    failure_penalty: float  # scale points for a run that did not end in success
+    preference_gain: float  # exaggeration of the preference answer
+    noise_sd: float  # sd of the answer noise (scale points)
+
+
+@dataclass(frozen=True)
+class ParticipantParams:
+    """Everything that makes one simulated participant who they are."""
+
+    index: int
+    seed: int
+    motor: MotorParams
+    reaction: ReactionParams
+    grasp: GraspParams
+    questionnaire: QuestionnaireParams
+
+
+_SECTIONS: dict[str, type] = {
+    "motor": MotorParams,
+    "reaction": ReactionParams,
+    "grasp": GraspParams,
+    "questionnaire": QuestionnaireParams,
+}
+
+
+@dataclass(frozen=True)
+class Population:
+    """Distributions of every parameter, by section and name."""
+
+    distributions: Mapping[str, Mapping[str, Distribution]]
+    source: str = "<dict>"
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, source: str = "<dict>") -> Population:
+        """Validate a parsed population table; every error names ``source`` and the key path."""
+        unknown = sorted(set(data) - set(_SECTIONS) - {"population"})
+        if unknown:
+            raise PopulationError(
+                f"{source}: unknown table(s) {unknown}; expected {sorted(_SECTIONS)}"
+            )
+        out: dict[str, dict[str, Distribution]] = {}
+        for section, kind in _SECTIONS.items():
+            table = data.get(section)
+            if not isinstance(table, Mapping):
+                raise PopulationError(f"{source}: missing table [{section}]")
+            names = [f.name for f in dataclasses.fields(kind)]
+            extra = sorted(set(table) - set(names))
+            if extra:
+                raise PopulationError(
+                    f"{source}: {section}.{extra[0]} is not a parameter; known: {', '.join(names)}"
+                )
+            missing = [n for n in names if n not in table]
+            if missing:
+                raise PopulationError(
+                    f"{source}: {section} is missing {', '.join(missing)}"
+                    " (every parameter needs a distribution)"
+                )
+            out[section] = {
+                n: Distribution.from_config(table[n], where=f"{source}: {section}.{n}")
+                for n in names
+            }
+        return cls(distributions=out, source=source)
+
+    def draw(self, index: int, *, seed: int) -> ParticipantParams:
+        """Participant ``index``'s parameters under run seed ``seed`` (independent of n)."""
+        if index < 0:
+            raise PopulationError(f"participant index must be >= 0, got {index}")
+        rng = participant_rng(index, seed=seed)
+        sections = {
+            section: kind(**{n: d.sample(rng) for n, d in self.distributions[section].items()})
+            for section, kind in _SECTIONS.items()
+        }
+        return ParticipantParams(index=index, seed=seed, **sections)
+
+    def typical(self, *, index: int = 0, seed: int = 0) -> ParticipantParams:
+        """A participant with every parameter at its distribution's centre (for tests, demos)."""
+        sections = {
+            section: kind(**{n: d.typical for n, d in self.distributions[section].items()})
+            for section, kind in _SECTIONS.items()
+        }
+        return ParticipantParams(index=index, seed=seed, **sections)
+
+    def draw_many(self, n: int, *, seed: int) -> list[ParticipantParams]:
+        return [self.draw(i, seed=seed) for i in range(n)]
+
+
+def participant_rng(index: int, *, seed: int, stream: int = 0) -> np.random.Generator:
+    """The seeded generator of participant ``index``; ``stream`` separates independent uses."""
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, index, stream])))
+
+
+def load_population(path: str | Path = DEFAULT_POPULATION_PATH) -> Population:
+    """Read and validate a population file."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise PopulationError(f"{path}: cannot read population file ({exc.strerror})") from exc
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise PopulationError(f"{path}: not valid TOML ({exc})") from exc
+    return Population.from_dict(data, source=str(path))

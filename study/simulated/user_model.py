@@ -1,0 +1,288 @@
+"""A simulated participant's hand on the gizmo: an ``InputSource`` for one trial.
+
+Each tick the user sets an absolute target (clamped by the interface's reach):
+
+    target = clamp(r(t) + c + push + n)
+
+- ``r``: a minimum-jerk plan from where the hand was to the aim point ``a`` (the target
+  object's grasp point, later the lift point), ``T = a_F + b_F log2(1 + D / W)`` (see
+  :mod:`study.simulated.movement`), progress ``dphi/dt = (1 - rho) w / T`` where
+  ``w = clip(1 - (lag - dz) / wait_lag, 0, 1)``: the user waits for a robot that trails behind.
+- ``c``: correction of what is seen. The user expects the gripper to trail their (reachable)
+  plan like the unassisted robot (an internal forward model ``dm/dt = (clamp(r) - m) / lag``)
+  and corrects the difference they see, ``e = m(t - tau) - ee(t - tau)``, split along the
+  direction to ``a`` (see ``_seen_error``: a robot ahead is help, a robot behind but coming is
+  slow, a robot across or stuck is corrected): ``dc/dt = k_eff dz(e_corr)`` with a dead zone
+  ``dz`` and ``k_eff = min(k_max, k (1 + f) (1 - rho))``, leaking back to the plan with time
+  constant ``leak`` (``- c / leak``: corrections fade once no longer needed); anti-windup keeps ``r + c + push``
+  inside the reach region (the gizmo stops at the reach).
+- ``push``: steering against a robot that works against the goal, ``f`` and ``rho`` from
+  :mod:`study.simulated.reaction` (everything seen is ``tau`` seconds old). Whether the robot
+  is overriding them the user judges against a second forward model, of their own input
+  (``dm_h/dt = (hand - m_h) / lag``), split the same way (a robot ahead is help).
+- ``n``: Ornstein-Uhlenbeck hand noise, sd ``sigma (1 + careless rho)``.
+
+Grasp: closes when the seen gripper is within ``grasp_radius`` of ``a`` and slower than
+``settle_speed`` (or, on an impatient "early" attempt, as soon as it is within
+``early_radius``, still moving; or once it stalls within ``stall_radius``), waits, lifts by ``lift_m``; a missed or slipped object is noticed while
+lifting and the user opens, pauses and reaches again (with a fresh plan).
+
+The user knows which object to pick up (``obs.target_index``, as participants are told "the
+bottle") and sees the robot; they never read ``obs.alpha``, ``obs.predicted`` or conditions.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from app.teleop.types import TeleopCommand, TrialObservation
+from study.simulated.errors import ObservationError
+from study.simulated.experience import ExperienceLog, RunExperience
+from study.simulated.movement import HandNoise, fitts_time, minimum_jerk
+from study.simulated.perception import DelayedView
+from study.simulated.population import ParticipantParams
+from study.simulated.reaction import Reaction
+
+WAIT, REACH, CLOSE, LIFT, OPEN = "wait", "reach", "close", "lift", "open"
+
+
+class SimulatedUser:
+    """One participant's input for one trial (make a new one per trial).
+
+    ``command(obs)`` implements ``app.teleop.InputSource``; ``experience(...)`` summarises the
+    run for the questionnaire; ``phase``, ``reaction``, ``attempts`` are exposed for tests.
+    """
+
+    def __init__(self, params: ParticipantParams, *, rng: np.random.Generator) -> None:
+        self.params = params
+        self.rng = rng
+        self.reaction = Reaction(params.reaction)
+        self.noise = HandNoise(sd=params.motor.noise_sd_m, tau=params.motor.noise_tau_s, rng=rng)
+        self.log = ExperienceLog()
+        self.phase = WAIT
+        self.attempts = 0
+        self.grasp_closed = False
+        self._view: DelayedView | None = None
+        self._t_prev: float | None = None
+        self._phase_t = 0.0
+        self._r0 = np.zeros(3)
+        self._aim = np.zeros(3)
+        self._plan_t = 1.0
+        self._phi = 0.0
+        self._c = np.zeros(3)
+        self._r = np.zeros(3)
+        self._model = np.zeros(3)
+        self._follow = np.zeros(3)
+        self._hand = np.zeros(3)
+        self._offset = np.zeros(3)
+        self._early = False
+        self._best = math.inf
+        self._best_t = 0.0
+
+    # ---- InputSource -----------------------------------------------------------------------
+    def command(self, obs: TrialObservation) -> TeleopCommand:
+        """Next target and gripper wish from the observation (see the module docstring)."""
+        goal = self._goal(obs)
+        if self._view is None:
+            self._start(obs)
+        assert self._view is not None
+        dt = 1.0 / obs.rate_hz if self._t_prev is None else max(obs.t - self._t_prev, 0.0)
+        self._t_prev = obs.t
+        own = np.array(obs.user_target, dtype=float)
+        self._view.push(
+            obs.t, np.array(obs.ee, dtype=float), obs.grasped, self._model, self._follow, own
+        )
+        seen = self._view.seen()
+        m = self.params.motor
+        target_name = obs.goal_names[obs.target_index]
+
+        self._advance_phase(
+            obs.t,
+            seen_t=seen.t,
+            ee=seen.ee,
+            speed=float(np.linalg.norm(seen.velocity)),
+            grasped=seen.grasped,
+            goal=goal,
+            target_name=target_name,
+        )
+
+        self.log.add(t=obs.t, input_velocity=seen.own_velocity, robot_velocity=seen.velocity)
+        if self.phase != WAIT:
+            err, norm, lag = self._seen_error(seen.plan, seen.ee, seen.velocity)
+            self.reaction.update(
+                dt=dt,
+                velocity=seen.velocity,
+                ee=seen.ee,
+                aim=self._aim,
+                own_target=seen.own,
+                commanded=seen.follow,
+                deviation=self._overridden(seen.follow, seen.ee, seen.velocity),
+            )
+            rho = self.reaction.relax
+            wait = min(max(1.0 - (lag - m.feedback_deadzone_m) / m.wait_lag_m, 0.0), 1.0)
+            self._phi = min(1.0, self._phi + dt * (1.0 - rho) * wait / self._plan_t)
+            self._r = self._r0 + (self._aim - self._r0) * minimum_jerk(self._phi)
+            blend = 1.0 - math.exp(-dt / m.follow_lag_s)
+            self._model = self._model + blend * (obs.reach.clamp(self._r) - self._model)
+            if norm > m.feedback_deadzone_m:
+                k = min(
+                    m.max_gain_per_s,
+                    m.feedback_gain_per_s * (1.0 + self.reaction.fight) * (1.0 - rho),
+                )
+                self._c = self._c + dt * k * (1.0 - m.feedback_deadzone_m / norm) * err
+            self._c = self._c * math.exp(-dt / m.correction_leak_s)
+            hand = self._r + self._c + self.reaction.push_offset()
+            clamped = obs.reach.clamp(hand)
+            self._c = self._c + (clamped - hand)  # anti-windup: the gizmo stops at the reach
+            self._hand = clamped
+            self._follow = self._follow + blend * (clamped - self._follow)
+        scale = 1.0 + self.params.reaction.careless_noise_gain * self.reaction.relax
+        target = obs.reach.clamp(self._hand + self.noise.step(dt, scale=scale))
+        return TeleopCommand(target=target, grasp=self.grasp_closed)
+
+    def experience(self, *, duration_s: float | None = None, success: bool) -> RunExperience:
+        """What this run was like for the participant (the questionnaire's input)."""
+        return self.log.finish(duration_s=duration_s, success=success)
+
+    # ---- internals -------------------------------------------------------------------------
+    def _seen_error(
+        self, expected: np.ndarray, ee: np.ndarray, velocity: np.ndarray
+    ) -> tuple[np.ndarray, float, float]:
+        """Split the seen error ``e = m - ee`` by the direction ``d`` to the aim.
+
+        Returns ``(e_corr, deviation, lag)``. Along ``d``: the robot ahead (``e.d < 0``) is help
+        and ignored; behind but moving toward the aim (``v.d > v_min``) it is merely slow: that
+        ``lag`` slows the user's plan but is not corrected; behind and not progressing, it is
+        stuck or pulled away and corrected. Across ``d``: always corrected. ``deviation`` is the
+        size of the corrected part (what counts as opposition).
+        """
+        err = expected - ee
+        to_aim = self._aim - ee
+        dist = float(np.linalg.norm(to_aim))
+        if dist < 1e-9:
+            return err, float(np.linalg.norm(err)), 0.0
+        d = to_aim / dist
+        along = float(err @ d)
+        lag = 0.0
+        if along < 0.0 or float(velocity @ d) > self.params.reaction.opposition_speed_m_s:
+            err = err - along * d
+            lag = max(along, 0.0)
+        return err, float(np.linalg.norm(err)), lag
+
+    def _overridden(self, commanded: np.ndarray, ee: np.ndarray, velocity: np.ndarray) -> float:
+        """How far the robot is from where the user's input should have put it, not counting
+        a robot ahead toward the aim (help) or one on its way there (moving within the
+        opposition angle of the commanded point)."""
+        err = commanded - ee
+        to_aim = self._aim - ee
+        dist = float(np.linalg.norm(to_aim))
+        if dist > 1e-9:
+            along = float(err @ to_aim) / dist
+            if along < 0.0:
+                err = err - (along / dist) * to_aim
+        gap = float(np.linalg.norm(err))
+        speed = float(np.linalg.norm(velocity))
+        r = self.params.reaction
+        coming = (
+            gap > 1e-9
+            and speed > r.opposition_speed_m_s
+            and float(velocity @ err) / (speed * gap)
+            > math.cos(math.radians(r.opposition_angle_deg))
+        )
+        if coming:
+            return 0.0  # on its way: slow, not overriding
+        return gap
+
+    def _goal(self, obs: TrialObservation) -> np.ndarray:
+        positions = np.asarray(obs.goal_positions, dtype=float)
+        if not 0 <= obs.target_index < len(positions):
+            raise ObservationError(
+                f"target_index {obs.target_index} does not index the {len(positions)} goals"
+                f" {list(obs.goal_names)}; the trial must say which object to pick up"
+            )
+        goal = positions[obs.target_index]
+        if goal.shape != (3,) or not np.all(np.isfinite(goal)):
+            raise ObservationError(f"target grasp point must be a finite 3-vector, got {goal}")
+        return goal
+
+    def _start(self, obs: TrialObservation) -> None:
+        self._view = DelayedView(tau=self.params.motor.reaction_delay_s, rate_hz=obs.rate_hz)
+        start = np.asarray(obs.user_target, dtype=float)
+        if start.shape != (3,) or not np.all(np.isfinite(start)):
+            start = np.asarray(obs.ee, dtype=float)
+        self._hand = start.copy()
+        self._r = start.copy()
+        self._r0 = start.copy()
+        self._model = start.copy()
+        self._follow = start.copy()
+
+    def _new_plan(self, aim: np.ndarray) -> None:
+        m = self.params.motor
+        self._r0 = self._hand.copy()
+        self._c = np.zeros(3)
+        self._r = self._r0.copy()
+        self._aim = aim
+        self._phi = 0.0
+        dist = float(np.linalg.norm(aim - self._r0))
+        self._plan_t = max(
+            fitts_time(dist, a=m.fitts_a_s, b=m.fitts_b_s_per_bit, width=m.fitts_width_m), 1e-3
+        )
+
+    def _new_attempt(self, goal: np.ndarray, t: float) -> None:
+        g = self.params.grasp
+        self.attempts += 1
+        self._early = bool(self.rng.random() < g.early_grasp_p)
+        offset = np.zeros(3)
+        if self.rng.random() < g.miss_p:  # misjudged depth: aims beside the object
+            angle = self.rng.uniform(0.0, 2.0 * math.pi)
+            offset[:2] = g.miss_offset_m * np.array([math.cos(angle), math.sin(angle)])
+        self._offset = offset
+        self._best = math.inf
+        self._best_t = t
+        self._new_plan(goal + offset)
+
+    def _advance_phase(
+        self,
+        t: float,
+        *,
+        seen_t: float,
+        ee: np.ndarray,
+        speed: float,
+        grasped: str | None,
+        goal: np.ndarray,
+        target_name: str,
+    ) -> None:
+        g = self.params.grasp
+        since = t - self._phase_t
+        if self.phase == WAIT:
+            if t >= self.params.motor.reaction_delay_s:
+                self._enter(REACH, t)
+                self._new_attempt(goal, t)
+            return
+        if self.phase == REACH:
+            dist = float(np.linalg.norm(self._aim - ee))
+            if dist < self._best - 0.003:
+                self._best, self._best_t = dist, t
+            settled = dist < g.grasp_radius_m and speed < g.settle_speed_m_s
+            impatient = self._early and dist < g.early_radius_m  # closes while still moving
+            stalled = dist < g.stall_radius_m and t - self._best_t > g.stall_time_s
+            if settled or impatient or stalled:
+                self.grasp_closed = True
+                self._enter(CLOSE, t)
+        elif self.phase == CLOSE:
+            if since >= g.close_wait_s:
+                self._enter(LIFT, t)
+                self._new_plan(self._aim + np.array([0.0, 0.0, g.lift_m]))
+        elif self.phase == LIFT:
+            if since >= g.check_after_s and seen_t >= self._phase_t and grasped != target_name:
+                self.grasp_closed = False
+                self._enter(OPEN, t)
+        elif self.phase == OPEN and since >= g.retry_pause_s:
+            self._enter(REACH, t)
+            self._new_attempt(goal, t)
+
+    def _enter(self, phase: str, t: float) -> None:
+        self.phase = phase
+        self._phase_t = t
