@@ -15,7 +15,7 @@ from scipy import stats
 from analysis.errors import DesignError, SchemaError
 from analysis.load import RATING_ITEMS
 
-COLUMNS = ["measure", "with", "test", "n", "df", "r", "t", "p", "ci_low", "ci_high"]
+COLUMNS = ["measure", "versus", "test", "n", "df", "r", "t", "p", "ci_low", "ci_high"]
 
 
 def pearson(x: Sequence[float], y: Sequence[float]) -> dict[str, float]:
@@ -73,12 +73,12 @@ def preference_correlations(cells: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataF
     Returns the table of correlations and the per participant-task frame they come from.
     """
     frame = preference_frame(cells)
-    rows = [{"measure": "preference_aggressive", "with": "time_advantage_aggressive",
+    rows = [{"measure": "preference_aggressive", "versus": "time_advantage_aggressive",
              "test": "Pearson r",
              **pearson(frame["preference_aggressive"], frame["time_advantage_aggressive"])}]
     for item in RATING_ITEMS:
         col = f"{item}_diff"
         if col in frame.columns:
-            rows.append({"measure": col, "with": "preference_aggressive", "test": "Pearson r",
+            rows.append({"measure": col, "versus": "preference_aggressive", "test": "Pearson r",
                          **pearson(frame[col], frame["preference_aggressive"])})
     return pd.DataFrame(rows, columns=COLUMNS), frame

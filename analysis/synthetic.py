@@ -39,7 +39,7 @@ def _duration(rng: np.random.Generator, skill: float, dif: str, cor: str, mode: 
             (-10.0 if dif == "hard" else -2.0)
     elif cor == "wrong":
         t += 5.0
-    return float(max(6.0, t + rng.normal(0.0, 3.0)))
+    return float(max(6.0, t + rng.normal(0.0, 7.0)))
 
 
 def _trajectory(rng: np.random.Generator, goals: np.ndarray, n: int, noise: float) -> np.ndarray:
@@ -69,7 +69,7 @@ def synthetic_tables(
         pid = f"P{p + 1:02d}"
         session = f"S{p + 1:02d}"
         skill = float(rng.normal(40.0, 8.0))
-        person = float(rng.normal(0.0, 3.0))
+        person = float(rng.normal(0.0, 5.0))
         baseline = float(np.clip(np.round(rng.normal(4.0, 1.0) * 3) / 3, 1, 7))
         row = p % 4
         training = [max(10.0, skill + rng.normal(0, 4)) for _ in range(3)]

@@ -1,0 +1,159 @@
+"""The paper's figures from our data (matplotlib, Agg canvas, no pyplot state).
+
+- Fig. 7: arbitration ``alpha(c)`` of each mode, built by ``app.blending.arbitration_from_config``
+  from the protocol's ``[modes.*].arbitration`` tables.
+- Fig. 8: time per task and mode, and the preference per task, means with standard errors.
+- Fig. 9: prediction success rate per predictor and mode (means +- SE), and one trajectory
+  coloured by whether each predictor was right at each point (green) or wrong (red).
+Every figure is written as PNG and SVG.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from matplotlib import rc_context
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from analysis.prediction_eval import Replay, first_lasting_correct
+
+TASK_ORDER = ["easy-right", "easy-wrong", "hard-right", "hard-wrong"]
+TASK_LABELS = {"easy-right": "Easy&Right", "easy-wrong": "Easy&Wrong",
+               "hard-right": "Hard&Right", "hard-wrong": "Hard&Wrong"}
+MODE_COLORS = {"timid": "#4c72b0", "aggressive": "#dd8452"}
+RIGHT, WRONG = "#2ca02c", "#d62728"
+
+
+@dataclass(frozen=True)
+class SavedFigure:
+    name: str
+    title: str
+    png: Path
+    svg: Path
+
+    def inline_svg(self) -> str:
+        """The SVG without its XML prologue, ready to embed in HTML."""
+        text = self.svg.read_text(encoding="utf-8")
+        text = re.sub(r"<\?xml[^>]*\?>\s*", "", text)
+        return re.sub(r"<!DOCTYPE[^>]*>\s*", "", text)
+
+
+def _new(width: float, height: float) -> Figure:
+    fig = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def save(fig: Figure, out_dir: Path, name: str, title: str) -> SavedFigure:
+    """Write ``name.png`` (150 dpi) and ``name.svg`` into ``out_dir``."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    png, svg = out_dir / f"{name}.png", out_dir / f"{name}.svg"
+    with rc_context({"svg.hashsalt": name, "svg.fonttype": "path"}):
+        fig.savefig(png, dpi=150)
+        buf = io.StringIO()
+        fig.savefig(buf, format="svg", metadata={"Date": None})
+    svg.write_text(buf.getvalue(), encoding="utf-8")
+    return SavedFigure(name=name, title=title, png=png, svg=svg)
+
+
+def arbitration_figure(arbitrations: Mapping[str, Mapping[str, Any]]) -> Figure:
+    """Fig. 7: ``alpha`` against confidence ``c`` for each mode's arbitration table."""
+    from app.blending import arbitration_from_config
+
+    fig = _new(4.5, 3.2)
+    ax = fig.add_subplot()
+    c = np.linspace(0.0, 1.0, 801)
+    for name, table in arbitrations.items():
+        arb = arbitration_from_config(dict(table), where=f"modes.{name}.arbitration")
+        alpha = np.array([arb(float(x)) for x in c])
+        ax.plot(c, alpha, lw=2, label=name, color=MODE_COLORS.get(name))
+    ax.set(xlabel="confidence c", ylabel="arbitration α", xlim=(0, 1), ylim=(-0.02, 1.02),
+           title="Arbitration by mode (Fig. 7)")
+    ax.legend(frameon=False)
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def _bars(ax: Any, table: pd.DataFrame, value: str, err: str, groups: list[str],
+          series: list[str], series_col: str, group_col: str,
+          colors: Mapping[str, str] | None = None) -> None:
+    width = 0.8 / max(1, len(series))
+    x = np.arange(len(groups))
+    for i, s in enumerate(series):
+        sub = table[table[series_col] == s].set_index(group_col).reindex(groups)
+        ax.bar(x + (i - (len(series) - 1) / 2) * width, sub[value], width, yerr=sub[err],
+               capsize=3, label=s, color=(colors or {}).get(s))
+    ax.set_xticks(x, [TASK_LABELS.get(g, g) for g in groups])
+
+
+def timing_preference_figure(summary: pd.DataFrame, preferences: pd.DataFrame) -> Figure:
+    """Fig. 8: (a) mean time per task and mode +- SE; (b) preference for aggressive +- SE."""
+    fig = _new(9.0, 3.4)
+    ax1, ax2 = fig.subplots(1, 2)
+    tasks = [t for t in TASK_ORDER if t in set(summary["task"])] or sorted(set(summary["task"]))
+    _bars(ax1, summary, "mean", "se", tasks, ["timid", "aggressive"], "mode", "task",
+          MODE_COLORS)
+    ax1.set(ylabel="time to complete (s)", title="(a) Time per task and mode")
+    ax1.legend(frameon=False)
+    g = preferences.groupby("task")["preference_aggressive"]
+    pref = pd.DataFrame({"mean": g.mean(), "se": g.std() / np.sqrt(g.count())}).reindex(tasks)
+    ax2.bar(np.arange(len(tasks)), pref["mean"], 0.6, yerr=pref["se"], capsize=3,
+            color="#8172b2")
+    ax2.axhline(0, color="k", lw=0.8)
+    ax2.set_xticks(np.arange(len(tasks)), [TASK_LABELS.get(t, t) for t in tasks])
+    ax2.set(ylim=(-3.2, 3.2), ylabel="← timid   preference   aggressive →",
+            title="(b) Preference per task")
+    return fig
+
+
+def prediction_figure(evals: pd.DataFrame, example: Mapping[str, Replay],
+                      goals: np.ndarray, goal_names: list[str], target: int,
+                      title: str = "") -> Figure:
+    """Fig. 9: (a) success rate by mode and predictor +- SE; (b, c) one trajectory (top view)
+    coloured by correctness of each predictor, an arrow at the first lasting correct point."""
+    fig = _new(11.0, 3.6)
+    axes = fig.subplots(1, 1 + len(example))
+    g = evals.groupby(["predictor", "mode"])["success_rate"]
+    summ = pd.DataFrame({"mean": g.mean(), "se": g.std() / np.sqrt(g.count())}).reset_index()
+    preds = list(dict.fromkeys(evals["predictor"]))
+    modes = [m for m in ("timid", "aggressive") if m in set(summ["mode"])]
+    width = 0.8 / max(1, len(preds))
+    x = np.arange(len(modes))
+    for i, p in enumerate(preds):
+        sub = summ[summ.predictor == p].set_index("mode").reindex(modes)
+        axes[0].bar(x + (i - (len(preds) - 1) / 2) * width, sub["mean"], width, yerr=sub["se"],
+                    capsize=3, label=p)
+    axes[0].set_xticks(x, modes)
+    axes[0].set(ylim=(0, 1.2), ylabel="success rate", title="(a) Prediction success")
+    axes[0].legend(frameon=False, loc="upper left", ncols=2)
+    for ax, (name, rep), letter in zip(axes[1:], example.items(), "bcdefg", strict=False):
+        assert rep.correct is not None
+        pts = rep.points
+        ax.plot(pts[:, 0], pts[:, 1], color="0.8", lw=0.8, zorder=1)
+        step = max(1, len(pts) // 150)
+        idx = np.arange(0, len(pts), step)
+        ax.scatter(pts[idx, 0], pts[idx, 1], s=9, zorder=2,
+                   c=np.where(rep.correct[idx], RIGHT, WRONG))
+        for k, (gx, gy) in enumerate(goals[:, :2]):
+            ax.scatter([gx], [gy], marker="*" if k == target else "s", s=120,
+                       color="k" if k == target else "0.5", zorder=3)
+            ax.annotate(goal_names[k], (gx, gy), textcoords="offset points", xytext=(5, 5))
+        first = first_lasting_correct(rep.correct)
+        if first is not None:
+            fx, fy = pts[first, :2]
+            ax.annotate("", xy=(fx, fy), xytext=(fx - 0.06, fy + 0.06),
+                        arrowprops={"arrowstyle": "->", "lw": 1.5})
+        share = float(rep.correct.mean())
+        ax.set(xlabel="x (m)", ylabel="y (m)", aspect="equal",
+               title=f"({letter}) {name}: correct {share:.0%} of the time")
+    if title:
+        fig.suptitle(title, fontsize=9)
+    return fig

@@ -1,0 +1,416 @@
+"""The study report: HTML (self-contained, figures as inline SVG), Markdown, results.json.
+
+``write_report(tables, out_dir)`` runs :func:`analysis.results.analyse`, draws the figures, and
+writes ``report.html``, ``report.md``, ``results.json`` and ``figures/*.png|svg`` into
+``out_dir``. Every table puts the paper's published value beside ours; the header names the
+data source, the software version and the protocol's content hash.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import html
+import json
+import math
+import platform
+import subprocess
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from analysis import figures as figs
+from analysis.errors import AnalysisError
+from analysis.load import StudyTables
+from analysis.prediction_eval import PREDICTORS, make_predictor, replay, trial_goals
+from analysis.protocol_info import DEFAULT_PROTOCOL, ProtocolInfo, load_protocol_info
+from analysis.results import StudyResults, analyse
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@dataclass
+class Table:
+    title: str
+    frame: pd.DataFrame
+    note: str = ""
+
+
+@dataclass
+class Section:
+    title: str
+    paragraphs: list[str] = field(default_factory=list)
+    tables: list[Table] = field(default_factory=list)
+    figures: list[figs.SavedFigure] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class ReportFiles:
+    html: Path
+    markdown: Path
+    results_json: Path
+    figures: tuple[Path, ...]
+    results: StudyResults
+
+
+def fmt(x: Any, digits: int = 2) -> str:
+    """Numbers for tables: fixed decimals, '' for missing, text unchanged."""
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return ""
+    if isinstance(x, bool | np.bool_):
+        return str(bool(x))
+    if isinstance(x, int | np.integer):
+        return str(int(x))
+    if isinstance(x, float | np.floating):
+        if float(x).is_integer() and abs(x) < 1e6 and digits <= 0:
+            return str(int(x))
+        return f"{x:.{digits}f}"
+    return str(x)
+
+
+def fmt_p(p: Any) -> str:
+    """APA-style p: '< .001' below one in a thousand, else three decimals without the zero."""
+    if p is None or (isinstance(p, float) and math.isnan(p)):
+        return ""
+    if p < 0.001:
+        return "< .001"
+    return f"{p:.3f}".replace("0.", ".", 1) if p < 1 else "1.000"
+
+
+def software_info() -> dict[str, str]:
+    """Package version, git commit and the versions of the numerical stack."""
+    import matplotlib
+    import scipy
+    import statsmodels
+
+    try:
+        version = metadata.version("shared-control-platform")
+    except metadata.PackageNotFoundError:
+        version = "unknown"
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
+                                capture_output=True, text=True, timeout=5).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "analysis"], cwd=ROOT,
+                               capture_output=True, text=True, timeout=5).stdout.strip()
+        commit = (commit + ("+local changes" if dirty else "")) or "unknown"
+    except (OSError, subprocess.SubprocessError):
+        commit = "unknown"
+    return {"package": "shared-control-platform", "version": version, "commit": commit,
+            "python": platform.python_version(), "numpy": np.__version__,
+            "pandas": pd.__version__, "scipy": scipy.__version__,
+            "statsmodels": statsmodels.__version__, "matplotlib": matplotlib.__version__}
+
+
+def _anova_table(table: pd.DataFrame, analysis: str, stats: pd.DataFrame) -> pd.DataFrame:
+    pub = stats[stats.analysis == analysis].set_index("effect")
+    rows = []
+    for r in table.itertuples():
+        paper = pub.loc[r.effect] if r.effect in pub.index else None
+        rows.append({
+            "effect": r.effect, "df": f"{fmt(r.df1, 0)}, {fmt(r.df2, 0)}", "F": fmt(r.F),
+            "p": fmt_p(r.p), "partial η²": fmt(r.np2, 3),
+            "paper F": fmt(paper["paper_value"]) if paper is not None else "",
+            "paper p": fmt(paper["paper_p"]) if paper is not None else "",
+        })
+    return pd.DataFrame(rows)
+
+
+def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure]) -> list[Section]:
+    s = res.statistics
+    out: list[Section] = []
+    cells = res.cells
+    data = Section("Data")
+    if not cells.empty:
+        n_part = cells["participant"].nunique()
+        data.paragraphs.append(
+            f"{n_part} participant(s), {len(cells)} completed task trials "
+            f"({cells.groupby('participant').size().min()}-"
+            f"{cells.groupby('participant').size().max()} per participant). Mean time per task "
+            f"{cells['duration_s'].mean():.1f} s (paper: about 28 s).")
+    out.append(data)
+    if res.timing is not None:
+        t = res.timing
+        sec = Section("Timing (section 5.1)")
+        sec.paragraphs.append(
+            f"Factorial ANOVA with covariates: duration ~ difficulty × correctness × mode, "
+            f"sum-to-zero contrasts, type {t.ancova.ss_type} sums of squares, covariates "
+            f"{', '.join(t.covariates) or 'none'}; N = {t.ancova.n}, residual df = "
+            f"{t.ancova.df_resid}, R² = {t.ancova.r2:.2f} (paper: R² = 0.66 on F(1, 53)). "
+            "Type III tests each effect at the unweighted cell means adjusted for all other "
+            "terms and the covariates (SPSS GLM's default, the form the paper reports).")
+        sec.tables.append(Table("Factorial ANOVA with covariates",
+                                _anova_table(t.ancova.table, "timing_ancova", s)))
+        me = s[s.analysis == "timing_effects"]
+        sec.tables.append(Table("Main effects as mean differences (s)", pd.DataFrame({
+            "factor": me["effect"], "contrast": me["test"].str.replace("mean difference ", "").str.replace(" (s)", ""),
+            "ours": me["statistic"].map(fmt), "paper": me["paper_value"].map(fmt)})))
+        sec.tables.append(Table(f"Repeated-measures ANOVA ({t.rm.n_subjects} participants)",
+                                _anova_table(t.rm.table, "timing_rm", s),
+                                "Subjects as error strata: F(1, n - 1); the paper reports the "
+                                "covariate model above."))
+        c = t.comparisons
+        comp = s[s.analysis.isin(["timing_posthoc", "timing_planned"])].reset_index(drop=True)
+        sec.tables.append(Table("Paired comparisons (Bonferroni within each family)",
+                                pd.DataFrame({
+                                    "family": c["family"], "comparison": c["comparison"],
+                                    "t": [f"t({fmt(d, 0)}) = {fmt(v)}" for d, v in
+                                          zip(c["df"], c["t"], strict=True)],
+                                    "p": c["p"].map(fmt_p), "p (Bonferroni)": c["p_bonf"].map(fmt_p),
+                                    "mean diff (s)": c["mean_diff"].map(fmt),
+                                    "95% CI": [f"[{fmt(a)}, {fmt(b)}]" for a, b in
+                                               zip(c["ci_low"], c["ci_high"], strict=True)],
+                                    "d_z": c["d_z"].map(fmt),
+                                    "paper |t|": comp["paper_value"].map(fmt)}),
+                                "Differences are first minus second; the paper reports |t|."))
+        summ = t.summary.copy()
+        sec.tables.append(Table("Time per task and mode (s)", pd.DataFrame({
+            "task": summ["task"], "mode": summ["mode"], "mean": summ["mean"].map(fmt),
+            "SE": summ["se"].map(fmt), "n": summ["n"]})))
+        sec.figures += [f for k, f in figures.items() if k in ("fig7", "fig8")]
+        out.append(sec)
+    if res.correlations is not None:
+        sec = Section("Preferences")
+        c = res.correlations
+        sec.paragraphs.append(
+            "Preference for the aggressive run (-3..+3) per participant and task against the "
+            "time advantage of aggressive (timid minus aggressive duration), and each rating's "
+            "aggressive-minus-timid difference against the preference.")
+        pub = s[s.analysis == "preference"]["paper_value"].map(fmt).to_numpy()
+        sec.tables.append(Table("Pearson correlations", pd.DataFrame({
+            "measure": c["measure"], "versus": c["versus"],
+            "r": [f"r({fmt(d, 0)}) = {fmt(r)}" for d, r in zip(c["df"], c["r"], strict=True)],
+            "p": c["p"].map(fmt_p),
+            "95% CI": [f"[{fmt(a)}, {fmt(b)}]" for a, b in zip(c["ci_low"], c["ci_high"],
+                                                              strict=True)],
+            "paper r": pub})))
+        out.append(sec)
+    if res.prediction is not None and res.prediction_summary is not None:
+        sec = Section("Prediction (section 5.2)")
+        p = res.prediction
+        sec.paragraphs.append(
+            "Every logged user-target trajectory replayed through app.blending's predictors "
+            f"({', '.join(res.prediction_summary['predictor'].unique())}); success rate = share "
+            "of ticks predicting the target; time to the first lasting correct prediction from "
+            f"the trial's start. Factorial ANOVA (type {p.ss_type} SS): N = {p.n}, residual df "
+            f"= {p.df_resid}, R² = {p.r2:.2f} (paper: R² = 0.9 on F(1, 112)).")
+        ps = res.prediction_summary
+        sec.tables.append(Table("Success rate and time to a lasting correct prediction",
+                                pd.DataFrame({
+                                    "predictor": ps["predictor"], "mode": ps["mode"],
+                                    "success rate": ps["success_rate"].map(lambda v: fmt(v, 3)),
+                                    "SE": ps["success_se"].map(lambda v: fmt(v, 3)),
+                                    "time to lasting correct (s)":
+                                        ps["time_to_correct_s"].map(fmt),
+                                    "never lastingly correct": ps["never_lasting"],
+                                    "trials": ps["n"]})))
+        sec.tables.append(Table("Factorial ANOVA on the success rate",
+                                _anova_table(p.table, "prediction_anova", s)))
+        sec.figures += [f for k, f in figures.items() if k == "fig9"]
+        out.append(sec)
+    if res.notes:
+        out.append(Section("Notes on the data", paragraphs=list(res.notes)))
+    return out
+
+
+def _example_trial(res: StudyResults) -> Any:
+    ev = res.evals
+    if ev is None or ev.empty or ev["predictor"].nunique() < 2:
+        return None
+    w = ev.pivot_table(index="trial_id", columns="predictor", values="success_rate")
+    a, b = list(dict.fromkeys(ev["predictor"]))[:2]
+    tid = (w[b] - w[a]).idxmax()
+    return res.cells[res.cells["trial_id"] == tid].iloc[0]
+
+
+def _figures(res: StudyResults, tables: StudyTables, proto: ProtocolInfo | None,
+             out: Path, predictors: Mapping[str, Mapping[str, Any]]) -> dict[str, figs.SavedFigure]:
+    made: dict[str, figs.SavedFigure] = {}
+    if proto is not None and proto.arbitrations:
+        made["fig7"] = figs.save(figs.arbitration_figure(proto.arbitrations), out,
+                                 "fig7_arbitration", "Fig. 7: arbitration α(c) of each mode")
+    if res.timing is not None and res.preferences is not None:
+        made["fig8"] = figs.save(
+            figs.timing_preference_figure(res.timing.summary, res.preferences), out,
+            "fig8_time_preference", "Fig. 8: time and preference per task (mean ± SE)")
+    row = _example_trial(res)
+    if row is not None and res.evals is not None:
+        names, pts, target = trial_goals(row)
+        smp = tables.samples[tables.samples["trial_id"] == row["trial_id"]]
+        smp = smp.sort_values("tick" if "tick" in smp.columns else "t")
+        xyz = smp[["target_x", "target_y", "target_z"]].to_numpy(dtype=float)
+        t = smp["t"].to_numpy(dtype=float)
+        reps = {name: replay(pts, xyz, make_predictor(cfg, pts), t=t, target=target)
+                for name, cfg in list(predictors.items())[:2]}
+        title = (f"trial {row['trial_id']} ({row['participant']}, {row['task']}, "
+                 f"{row['mode']})")
+        made["fig9"] = figs.save(
+            figs.prediction_figure(res.evals, reps, pts, names, target, title), out,
+            "fig9_prediction", "Fig. 9: prediction success (mean ± SE) and one trajectory "
+            "(green = correct, red = wrong; arrow = first lasting correct point)")
+    return made
+
+
+def _md_table(df: pd.DataFrame) -> str:
+    def cell(v: Any) -> str:
+        return str(v).replace("|", "\\|").replace("\n", " ")
+
+    head = "| " + " | ".join(cell(c) for c in df.columns) + " |"
+    sep = "|" + "|".join("---" for _ in df.columns) + "|"
+    body = ["| " + " | ".join(cell(v) for v in row) + " |" for row in df.itertuples(index=False)]
+    return "\n".join([head, sep, *body])
+
+
+def _html_table(df: pd.DataFrame) -> str:
+    head = "".join(f"<th>{html.escape(str(c))}</th>" for c in df.columns)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in row) + "</tr>"
+                   for row in df.itertuples(index=False))
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def _header(meta: Mapping[str, Any]) -> list[tuple[str, str]]:
+    sw, pr = meta["software"], meta["protocol"]
+    items = [("Data", meta["source"]), ("Generated", meta["generated_at"]),
+             ("Software", f"{sw['package']} {sw['version']} (commit {sw['commit']}); Python "
+                          f"{sw['python']}, numpy {sw['numpy']}, pandas {sw['pandas']}, scipy "
+                          f"{sw['scipy']}, statsmodels {sw['statsmodels']}, matplotlib "
+                          f"{sw['matplotlib']}"),
+             ("Protocol", f"{pr.get('id') or '?'} ({pr.get('path') or 'not given'}), content "
+                          f"hash {pr.get('content_hash') or 'unknown'}")]
+    if pr.get("store_hash"):
+        match = "matches" if pr.get("store_hash") == pr.get("content_hash") else "DIFFERS"
+        items.append(("Protocol hash recorded with the data", f"{pr['store_hash']} ({match})"))
+    return items
+
+
+TITLE = "Shared-control study report (Dragan & Srinivasa 2013 analyses)"
+CSS = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;
+color:#222}table{border-collapse:collapse;margin:.5em 0 1.5em;font-size:.9em}
+td,th{border:1px solid #ccc;padding:.25em .6em;text-align:left}th{background:#f3f3f3}
+figure{margin:1em 0}figure svg{max-width:100%;height:auto}figcaption{font-size:.9em;color:#555}
+.meta td:first-child{font-weight:600}"""
+
+
+def render_markdown(sections: list[Section], meta: Mapping[str, Any]) -> str:
+    lines = [f"# {TITLE}", ""]
+    lines += [f"- **{k}:** {v}" for k, v in _header(meta)] + [""]
+    for sec in sections:
+        lines += [f"## {sec.title}", ""]
+        for p in sec.paragraphs:
+            lines += [p, ""]
+        for t in sec.tables:
+            lines += [f"**{t.title}**", "", _md_table(t.frame), ""]
+            if t.note:
+                lines += [f"_{t.note}_", ""]
+        for f in sec.figures:
+            lines += [f"![{f.title}](figures/{f.png.name})", "", f"_{f.title}_ "
+                      f"([SVG](figures/{f.svg.name}))", ""]
+    return "\n".join(lines)
+
+
+def render_html(sections: list[Section], meta: Mapping[str, Any]) -> str:
+    e = html.escape
+    parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>{e(TITLE)}"
+             f"</title><style>{CSS}</style></head><body><h1>{e(TITLE)}</h1>",
+             "<table class='meta'>" + "".join(f"<tr><td>{e(k)}</td><td>{e(v)}</td></tr>"
+                                               for k, v in _header(meta)) + "</table>"]
+    for sec in sections:
+        parts.append(f"<h2>{e(sec.title)}</h2>")
+        parts += [f"<p>{e(p)}</p>" for p in sec.paragraphs]
+        for t in sec.tables:
+            parts.append(f"<h3>{e(t.title)}</h3>{_html_table(t.frame)}")
+            if t.note:
+                parts.append(f"<p><em>{e(t.note)}</em></p>")
+        for f in sec.figures:
+            parts.append(f"<figure>{f.inline_svg()}<figcaption>{e(f.title)}</figcaption>"
+                         "</figure>")
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def _jsonable(v: Any) -> Any:
+    if isinstance(v, dict):
+        return {str(k): _jsonable(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_jsonable(x) for x in v]
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if v is pd.NA or v is pd.NaT:
+        return None
+    return v
+
+
+def results_document(res: StudyResults, meta: Mapping[str, Any]) -> dict[str, Any]:
+    """Everything results.json holds: metadata, model fits, every statistic, notes."""
+    fits: dict[str, Any] = {}
+    if res.timing is not None:
+        a = res.timing.ancova
+        fits["timing_ancova"] = {"r2": a.r2, "r2_adj": a.r2_adj, "n": a.n,
+                                 "df_resid": a.df_resid, "ss_type": a.ss_type,
+                                 "covariates": list(res.timing.covariates)}
+        fits["timing_rm"] = {"n_subjects": res.timing.rm.n_subjects}
+    if res.prediction is not None:
+        p = res.prediction
+        fits["prediction_anova"] = {"r2": p.r2, "r2_adj": p.r2_adj, "n": p.n,
+                                    "df_resid": p.df_resid, "ss_type": p.ss_type}
+    doc = {**meta, "fits": fits, "statistics": res.statistics.to_dict(orient="records"),
+           "notes": list(res.notes)}
+    if res.prediction_summary is not None:
+        doc["prediction_summary"] = res.prediction_summary.to_dict(orient="records")
+    if res.timing is not None:
+        doc["timing_summary"] = res.timing.summary.to_dict(orient="records")
+    return _jsonable(doc)
+
+
+def write_report(
+    tables: StudyTables,
+    out_dir: str | Path,
+    *,
+    protocol_path: str | Path | None = DEFAULT_PROTOCOL,
+    predictors: Mapping[str, Mapping[str, Any]] = PREDICTORS,
+) -> ReportFiles:
+    """Analyse ``tables`` and write report.html, report.md, results.json and figures/."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    proto: ProtocolInfo | None = None
+    proto_notes: list[str] = []
+    if protocol_path is not None:
+        try:
+            proto = load_protocol_info(protocol_path)
+            proto_notes += list(proto.notes)
+        except AnalysisError as e:
+            proto_notes.append(f"protocol not read (no Fig. 7, no hash): {e}")
+    if proto is not None and "amnesic" in predictors:
+        predictors = {**predictors, "amnesic": {**predictors["amnesic"],
+                                                "temperature": proto.amnesic_temperature}}
+    res = analyse(tables, predictors=predictors)
+    res.notes = proto_notes + res.notes
+    figures = _figures(res, tables, proto, out / "figures", predictors)
+    meta = {
+        "title": TITLE, "source": tables.source,
+        "generated_at": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+        "software": software_info(),
+        "protocol": {"path": proto.path if proto else None,
+                     "id": proto.study_id if proto else None,
+                     "content_hash": proto.content_hash if proto else None,
+                     "store_hash": tables.protocol_hash},
+        "participants": int(res.cells["participant"].nunique()) if not res.cells.empty else 0,
+    }
+    if (tables.protocol_hash and proto and proto.content_hash
+            and tables.protocol_hash != proto.content_hash):
+        res.notes.insert(0, "the protocol file's hash differs from the one recorded with the "
+                            "data: pass the protocol the study ran with (--protocol)")
+    sections = _sections(res, figures)
+    html_path, md_path, json_path = out / "report.html", out / "report.md", out / "results.json"
+    html_path.write_text(render_html(sections, meta), encoding="utf-8")
+    md_path.write_text(render_markdown(sections, meta), encoding="utf-8")
+    json_path.write_text(json.dumps(results_document(res, meta), indent=1, allow_nan=False),
+                         encoding="utf-8")
+    paths = tuple(p for f in figures.values() for p in (f.png, f.svg))
+    return ReportFiles(html=html_path, markdown=md_path, results_json=json_path, figures=paths,
+                       results=res)
