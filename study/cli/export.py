@@ -1,0 +1,50 @@
+"""``python -m study export --db PATH --out DIR``: tidy CSV + Parquet tables and a codebook.
+
+Writes trials, samples, ratings and events (``.csv`` and ``.parquet``) and ``codebook.csv`` /
+``codebook.md`` describing every column. The store is opened read-only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from study.codebook import codebook, write_codebook
+from study.export import ExportError, find_protocol, tidy_tables, write_tables
+from study.protocol import ProtocolError, load_protocol
+from study.store import Store, StoreError
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--db", type=Path, required=True, help="the study's SQLite store")
+    parser.add_argument("--out", type=Path, required=True, help="directory to write into")
+    parser.add_argument(
+        "--protocol", type=Path, default=None,
+        help="protocol the study ran with (default: protocols/<study id>.toml if it matches)",
+    )
+    parser.add_argument(
+        "--format", choices=("both", "csv", "parquet"), default="both", help="file formats"
+    )
+
+
+def main(args: argparse.Namespace) -> int:
+    formats = ("csv", "parquet") if args.format == "both" else (args.format,)
+    try:
+        with Store.open_readonly(args.db) as store:
+            protocol = (
+                load_protocol(args.protocol) if args.protocol else find_protocol(store)
+            )
+            tables = tidy_tables(store, protocol=protocol)
+        book = codebook(tables, protocol=protocol)
+        written = write_tables(tables, args.out, formats=formats)
+        written += write_codebook(book, args.out)
+    except (StoreError, ProtocolError, ExportError, OSError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    summary = {name: len(df) for name, df in tables.items()}
+    summary_line = {"out": str(args.out), "rows": summary, "files": len(written),
+                    "protocol": str(protocol.path) if protocol else None}
+    print(json.dumps(summary_line))
+    return 0

@@ -1,0 +1,173 @@
+"""The codebook: one row per column of every tidy table, saying what it holds.
+
+``codebook(tables, protocol=None)`` describes exactly the columns present (dynamic ones too:
+``prob_<k>``, one column per Likert item, ``preference_<mode>``); with the protocol, Likert
+columns carry their prompt and anchors. ``write_codebook`` writes ``codebook.csv`` and
+``codebook.md``.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import pandas as pd
+
+if TYPE_CHECKING:
+    from study.protocol import Protocol
+
+CODEBOOK_COLUMNS = ("table", "column", "dtype", "description", "values")
+
+_JOINT = {"q": "robot configuration Q", "u": "user's next configuration U",
+          "p": "robot's predicted next configuration P",
+          "cmd": "blended command (1 - alpha) U + alpha P"}
+
+FIXED: dict[str, dict[str, tuple[str, str]]] = {
+    "trials": {
+        "participant": ("participant id (pseudonymous)", ""),
+        "session_id": ("the participant's session in the store", ""),
+        "phase": ("training (unassisted practice) or task", "training | task"),
+        "schedule_row": ("design row of the counterbalanced schedule (study.schedule)", ">= 0"),
+        "position": ("1-based position among the participant's task trials (empty for training)",
+                     "1..tasks x modes"),
+        "task": ("task type (condition id; empty for training)", ""),
+        "difficulty": ("manipulated factor: difficulty of the task", ""),
+        "correctness": ("manipulated factor: prediction correctness", ""),
+        "mode": ("manipulated factor: arbitration mode; none for unassisted training", ""),
+        "run": ("which run of the task this is", "first | second | ..."),
+        "attempt": ("attempt number of this trial step (a redo starts attempt 2)", "1.."),
+        "status": ("what became of the attempt", "completed | redone | skipped | interrupted"),
+        "outcome": ("how the trial ended",
+                    "success | wrong_object | dropped | timeout | aborted | interrupted"),
+        "success": ("the target was lifted", "true | false"),
+        "duration_s": ("time to complete, seconds, pauses excluded", "s"),
+        "ticks": ("control ticks run (rows in samples)", ""),
+        "started_at": ("start time, ISO 8601 UTC", ""),
+        "goal_names": ("JSON list of the scene's goal names; prob_<k> follows this order", ""),
+        "goal_positions": ("JSON list of [x, y, z] goal positions, metres, world frame", "m"),
+        "target": ("the goal the participant was asked to pick up", ""),
+        "training_time_s": ("covariate initial skill: mean duration_s of the participant's"
+                            " completed training runs", "s"),
+        "baseline_rating": ("covariate rating without assistance: mean of the participant's"
+                            " after-training ratings", "1..points"),
+        "tasks_completed": ("covariate learning: task trials completed before this one", "0.."),
+        "trial_id": ("trial attempt id (joins samples and ratings)", ""),
+    },
+    "samples": {
+        "trial_id": ("trial attempt id (joins trials)", ""),
+        "participant": ("participant id", ""),
+        "tick": ("control tick, 0-based", ""),
+        "t": ("trial time at this tick, seconds, pauses excluded", "s"),
+        "alpha": ("arbitration alpha in [0, 1]: weight of the robot's prediction", "0..1"),
+        "confidence": ("the robot's confidence in its predicted goal", "0..1"),
+        "predicted": ("name of the goal the robot predicts", ""),
+        "target_x": ("user target (the interface's absolute end-effector input), x", "m"),
+        "target_y": ("user target, y", "m"),
+        "target_z": ("user target, z", "m"),
+        "ee_x": ("end-effector position, x", "m"),
+        "ee_y": ("end-effector position, y", "m"),
+        "ee_z": ("end-effector position, z", "m"),
+        "gripper": ("gripper opening", "m"),
+        "events": ("JSON list of events at this tick (grasp, release, lifted ...)", ""),
+    },
+    "ratings": {
+        "participant": ("participant id", ""),
+        "session_id": ("the participant's session in the store", ""),
+        "phase": ("training (rating of the unassisted robot) or task", "training | task"),
+        "task": ("task type the rating is about (empty after training)", ""),
+        "mode": ("mode of the rated run; empty for a preference between runs", ""),
+        "run": ("which run of the task was rated; empty for a preference", "first | second"),
+        "item": ("questionnaire item id", ""),
+        "value": ("the answer, 1..points (1 = the first anchor)", "1..points"),
+        "answered_at": ("time of the answer, ISO 8601 UTC", ""),
+        "trial_id": ("the rated trial attempt, if the rating is about one", ""),
+    },
+    "events": {
+        "participant": ("participant id (empty for store-wide events)", ""),
+        "session_id": ("the session the event belongs to (empty for store-wide events)", ""),
+        "at": ("time, ISO 8601 UTC", ""),
+        "kind": ("event kind (enrol, consent, trial_start, trial_end, answer, redo, ...)", ""),
+        "detail": ("JSON object with the event's details", ""),
+    },
+}
+
+
+class CodebookError(ValueError):
+    """A table column has no codebook entry (add one here when adding a column)."""
+
+
+def _describe(
+    table: str, column: str, protocol: Protocol | None, columns: list[str]
+) -> tuple[str, str]:
+    fixed = FIXED.get(table, {})
+    if column in fixed:
+        return fixed[column]
+    m = re.fullmatch(r"(q|u|p|cmd)([1-7])", column)
+    if table == "samples" and m:
+        return f"{_JOINT[m.group(1)]}, joint {m.group(2)}", "rad"
+    m = re.fullmatch(r"prob_(\d+)", column)
+    if table == "samples" and m:
+        return (f"P(goal {m.group(1)} | trajectory so far): the robot's probability of the"
+                f" goal at index {m.group(1)} of the trial's goal_names", "0..1")
+    if table == "trials":
+        return _likert(column, protocol, columns)
+    raise CodebookError(f"no codebook entry for column {column!r} of table {table!r}")
+
+
+def _likert(column: str, protocol: Protocol | None, columns: list[str]) -> tuple[str, str]:
+    """Per-run Likert items, the task preference and its re-centred ``<item>_<mode>`` form."""
+    q = protocol.questionnaire if protocol is not None else None
+    for base in columns:
+        if base != column and column.startswith(base + "_") and base not in FIXED["trials"] \
+                and (q is None or base in q.items):
+            mode = column[len(base) + 1:]
+            half = ((q.items[base].scale.points if q else 7) - 1) / 2
+            return (f"{base} re-centred on mode {mode}: positive = preferred the {mode} run,"
+                    f" negative = preferred the other run, 0 = no preference", f"{-half:g}..{half:+g}")
+    if q is None:
+        return (f"Likert answer to item {column!r}: a rating of this run, or the task's"
+                " preference between its two runs (then on both runs)", "1..7")
+    if column not in q.items:
+        raise CodebookError(f"no codebook entry for column {column!r} of table 'trials'")
+    item = q.items[column]
+    if item in q.after_task:
+        text = f'preference between the task\'s two runs, "{item.prompt}"; raw answer, on both runs'
+    else:
+        text = f'Likert rating of this run, asked after it: "{item.prompt}"'
+    return text, "; ".join(f"{i} = {a}" for i, a in enumerate(item.scale.anchors, 1))
+
+
+def codebook(
+    tables: Mapping[str, pd.DataFrame], *, protocol: Protocol | None = None
+) -> pd.DataFrame:
+    """One row per (table, column) of ``tables``, in table and column order."""
+    rows = []
+    for table, df in tables.items():
+        for column in df.columns:
+            description, values = _describe(table, column, protocol, list(df.columns))
+            rows.append((table, column, str(df[column].dtype), description, values))
+    return pd.DataFrame(rows, columns=list(CODEBOOK_COLUMNS))
+
+
+def write_codebook(book: pd.DataFrame, out: str | os.PathLike[str]) -> list[Path]:
+    """Write ``codebook.csv`` and ``codebook.md`` (one Markdown table per data table)."""
+    out_dir = Path(out)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    csv_path = out_dir / "codebook.csv"
+    book.to_csv(csv_path, index=False)
+    lines = ["# Codebook", "",
+             "Tidy long-format tables exported by `python -m study export`; one row per trial"
+             " attempt (trials), control tick (samples), answer (ratings) or event (events).", ""]
+    for table, group in book.groupby("table", sort=False):
+        lines += [f"## {table}", "", "| column | type | description | values |",
+                  "|---|---|---|---|"]
+        for r in group.itertuples(index=False):
+            cells = [f"`{r.column}`", r.dtype, r.description, r.values]
+            lines.append("| " + " | ".join(str(c).replace("|", "\\|") for c in cells) + " |")
+        lines.append("")
+    md_path = out_dir / "codebook.md"
+    md_path.write_text("\n".join(lines))
+    return [csv_path, md_path]

@@ -1,0 +1,333 @@
+"""Tidy long-format tables from a study store: trials, samples, ratings, events.
+
+``tidy_tables(store_or_path)`` is the one place that defines them (the team contract's "Tidy
+tables"); ``python -m study export`` writes them as CSV and Parquet with a codebook
+(``study.codebook`` describes every column). The store is opened read-only.
+
+Derived columns of ``trials``:
+    training_time_s   mean ``duration_s`` of the participant's completed training runs
+    baseline_rating   mean of the participant's after-training ratings (all items)
+    tasks_completed   task trials with status "completed" that started before this one
+    <item>            per-condition Likert answer about this trial (after_run items)
+    preference        the raw answer to the task's preference item, on every run of the task
+    preference_<m>    the same re-centred on the mode ``m`` (the protocol's last mode, e.g.
+                      aggressive): ``value - mid`` if ``m`` was the second run, ``mid - value``
+                      if it was the first, ``mid = (points + 1) / 2``; positive = preferred m
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pandas as pd
+
+from study.protocol import TRAINING_MODE, ProtocolError, load_protocol
+from study.store import DOF, Store
+
+if TYPE_CHECKING:
+    from study.protocol import Protocol
+
+TABLE_NAMES = ("trials", "samples", "ratings", "events")
+DEFAULT_POINTS = 7
+
+TRIAL_COLUMNS = (
+    "participant", "session_id", "phase", "schedule_row", "position", "task", "difficulty",
+    "correctness", "mode", "run", "attempt", "status", "outcome", "success", "duration_s",
+    "ticks", "started_at", "goal_names", "goal_positions", "target", "training_time_s",
+    "baseline_rating", "tasks_completed",
+)
+"""Fixed leading columns of ``trials``; Likert and preference columns and ``trial_id`` follow."""
+
+VECTORS = ("q", "u", "p", "cmd")
+SAMPLE_HEAD = (
+    "trial_id", "participant", "tick", "t",
+    *(f"{v}{i}" for v in VECTORS for i in range(1, DOF + 1)),
+    "alpha", "confidence", "predicted",
+)
+SAMPLE_TAIL = (
+    "target_x", "target_y", "target_z", "ee_x", "ee_y", "ee_z", "gripper", "events",
+)
+RATING_COLUMNS = (
+    "participant", "session_id", "phase", "task", "mode", "run", "item", "value", "answered_at",
+    "trial_id",
+)
+EVENT_COLUMNS = ("participant", "session_id", "at", "kind", "detail")
+
+
+class ExportError(ValueError):
+    """The store cannot be exported (missing, not a store, inconsistent rows)."""
+
+
+def tidy_tables(
+    store_or_path: Store | str | os.PathLike[str],
+    *,
+    protocol: Protocol | None = None,
+    search: Sequence[Path] | None = None,
+) -> dict[str, pd.DataFrame]:
+    """The tidy tables of a store: ``{"trials", "samples", "ratings", "events"}``.
+
+    ``protocol`` (optional) names the questionnaire's items and scales; without it the protocol
+    file ``<dir>/<study id>.toml`` is used when its content hash matches the store's (``search``:
+    the directories to look in, default ./protocols and the repository's; ``[]`` = none), and
+    otherwise the items are inferred from the data (7-point scale, preference re-centred on
+    ``aggressive`` or on the alphabetically last of two modes).
+    """
+    if isinstance(store_or_path, Store):
+        return _Exporter(store_or_path, protocol, search).tables()
+    with Store.open_readonly(store_or_path) as store:
+        return _Exporter(store, protocol, search).tables()
+
+
+def find_protocol(store: Store, *, search: Sequence[Path] | None = None) -> Protocol | None:
+    """The protocol file that wrote ``store`` (same study id and content hash), if one is found
+    as ``<dir>/<study id>.toml`` in ``search`` (default: ./protocols and the repository's)."""
+    dirs = search if search is not None else (
+        Path("protocols"), Path(__file__).resolve().parents[1] / "protocols"
+    )
+    for d in dirs:
+        path = d / f"{store.meta.protocol_id}.toml"
+        if path.is_file():
+            try:
+                p = load_protocol(path)
+            except ProtocolError:
+                continue
+            if p.content_hash == store.meta.protocol_hash:
+                return p
+    return None
+
+
+class _Exporter:
+    def __init__(
+        self, store: Store, protocol: Protocol | None, search: Sequence[Path] | None
+    ) -> None:
+        self.store = store
+        if protocol is None:
+            protocol = find_protocol(store, search=search)
+        elif protocol.content_hash != store.meta.protocol_hash:
+            raise ExportError(
+                f"{store.path} was written by protocol {store.meta.protocol_id!r} (hash"
+                f" {store.meta.protocol_hash[:12]}), not by {protocol.path} (hash"
+                f" {protocol.content_hash[:12]}); pass the protocol the study ran with"
+            )
+        self.protocol = protocol
+        self.raw_trials = store.frame("trials").sort_values("trial_id", kind="stable")
+        self.raw_ratings = store.frame("ratings").sort_values("rating_id", kind="stable")
+        self.participants = store.frame("participants")
+        self.assignments = store.frame("assignments")
+
+    # -- questionnaire layout ---------------------------------------------------------------
+    def _items(self) -> tuple[list[str], list[str], float, str | None]:
+        """(after_run item ids, after_task item ids, scale midpoint, reference mode)."""
+        if self.protocol is not None:
+            q = self.protocol.questionnaire
+            modes = self.protocol.mode_names
+            after_task = [i.id for i in q.after_task]
+            mid = q.after_task[0].scale.midpoint if q.after_task else (q.points + 1) / 2
+            return [i.id for i in q.after_run], after_task, mid, modes[-1]
+        r = self.raw_ratings
+        task_rows = r[r["phase"] == "task"]
+        after_run = list(dict.fromkeys(task_rows.loc[task_rows["mode"].notna(), "item"]))
+        after_task = list(dict.fromkeys(task_rows.loc[task_rows["mode"].isna(), "item"]))
+        t = self.raw_trials
+        modes = sorted(set(t.loc[t["phase"] == "task", "mode"].dropna()))
+        reference = None
+        if len(modes) == 2:
+            reference = "aggressive" if "aggressive" in modes else modes[-1]
+        return after_run, after_task, (DEFAULT_POINTS + 1) / 2, reference
+
+    def tables(self) -> dict[str, pd.DataFrame]:
+        return {
+            "trials": self.trials(),
+            "samples": self.samples(),
+            "ratings": self.ratings(),
+            "events": self.events(),
+        }
+
+    # -- trials ------------------------------------------------------------------------------
+    def trials(self) -> pd.DataFrame:
+        t = self.raw_trials.copy()
+        rows = self.participants.set_index("participant")["schedule_row"]
+        t["schedule_row"] = t["participant"].map(rows)
+        t["mode"] = t["mode"].where(t["phase"] != "training", TRAINING_MODE)
+        t["success"] = t["success"].map(lambda v: pd.NA if pd.isna(v) else bool(v))
+        t = self._covariates(t)
+        after_run, after_task, mid, reference = self._items()
+        t = self._condition_ratings(t, after_run)
+        t = self._preferences(t, after_task, mid, reference)
+        extra = [*after_run]
+        for item in after_task:
+            extra.append(item)
+            if reference is not None:
+                extra.append(f"{item}_{reference}")
+        out = t[[*TRIAL_COLUMNS, *extra, "trial_id"]].reset_index(drop=True)
+        return _typed(out, ints=("session_id", "schedule_row", "position", "attempt", "ticks",
+                                 "tasks_completed", "trial_id", *after_run, *after_task),
+                      bools=("success",))
+
+    def _covariates(self, t: pd.DataFrame) -> pd.DataFrame:
+        training = t[(t["phase"] == "training") & (t["status"] == "completed")]
+        t["training_time_s"] = t["participant"].map(
+            training.groupby("participant")["duration_s"].mean()
+        )
+        r = self.raw_ratings
+        baseline = r[r["phase"] == "training"].groupby("participant")["value"].mean()
+        t["baseline_rating"] = t["participant"].map(baseline)
+        done = ((t["phase"] == "task") & (t["status"] == "completed")).astype(int)
+        # completed task trials strictly before each trial, per participant (trial_id order)
+        t["tasks_completed"] = done.groupby(t["participant"]).cumsum() - done
+        return t
+
+    def _condition_ratings(self, t: pd.DataFrame, items: list[str]) -> pd.DataFrame:
+        r = self.raw_ratings
+        r = r[(r["phase"] == "task") & r["item"].isin(items)]
+        for item in items:
+            t[item] = pd.NA
+        if r.empty:
+            return t
+        latest = r.drop_duplicates(["participant", "task", "mode", "run", "item"], keep="last")
+        by_trial = r[r["trial_id"].notna()].drop_duplicates(["trial_id", "item"], keep="last")
+        by_trial = by_trial.pivot(index="trial_id", columns="item", values="value")
+        by_cond = latest.pivot_table(
+            index=["participant", "task", "mode", "run"], columns="item", values="value",
+            aggfunc="last",
+        )
+        for item in items:
+            direct = t["trial_id"].map(by_trial[item]) if item in by_trial else None
+            keyed = pd.Series(pd.NA, index=t.index, dtype="object")
+            if item in by_cond:
+                lookup = by_cond[item].to_dict()
+                keyed = pd.Series(
+                    [lookup.get((p, k, m, n), pd.NA) for p, k, m, n in zip(
+                        t["participant"], t["task"], t["mode"], t["run"], strict=True)],
+                    index=t.index, dtype="object",
+                )
+            # Ratings name the trial they are about; older rows fall back to the condition,
+            # which matches only the trial that was completed (not redone / skipped ones).
+            fallback = keyed.where(t["status"] == "completed", pd.NA)
+            value = direct.astype("object") if direct is not None else fallback
+            t[item] = value.where(value.notna(), fallback).where(t["phase"] == "task", pd.NA)
+        return t
+
+    def _preferences(
+        self, t: pd.DataFrame, items: list[str], mid: float, reference: str | None
+    ) -> pd.DataFrame:
+        r = self.raw_ratings
+        r = r[(r["phase"] == "task") & r["item"].isin(items)]
+        a = self.assignments
+        first_mode = {
+            (p, k): m for p, k, m in a.loc[a["run"] == "first", ["participant", "task", "mode"]]
+            .itertuples(index=False)
+        }
+        second_mode = {
+            (p, k): m for p, k, m in a.loc[a["run"] == "second", ["participant", "task", "mode"]]
+            .itertuples(index=False)
+        }
+        for item in items:
+            answers = (
+                r[r["item"] == item].drop_duplicates(["participant", "task"], keep="last")
+                .set_index(["participant", "task"])["value"].to_dict()
+            )
+            keys = list(zip(t["participant"], t["task"], strict=True))
+            raw = [answers.get(k, pd.NA) if ph == "task" else pd.NA
+                   for k, ph in zip(keys, t["phase"], strict=True)]
+            t[item] = pd.Series(raw, index=t.index, dtype="object")
+            if reference is None:
+                continue
+            centred: list[Any] = []
+            for key, v in zip(keys, raw, strict=True):
+                if v is pd.NA:
+                    centred.append(np.nan)
+                elif second_mode.get(key) == reference:
+                    centred.append(float(v) - mid)
+                elif first_mode.get(key) == reference:
+                    centred.append(mid - float(v))
+                else:
+                    centred.append(np.nan)
+            t[f"{item}_{reference}"] = centred
+        return t
+
+    # -- samples -----------------------------------------------------------------------------
+    def samples(self) -> pd.DataFrame:
+        s = self.store.samples()
+        t = self.raw_trials.set_index("trial_id")
+        names = {tid: json.loads(g) for tid, g in t["goal_names"].items()}
+        n_goals = max((len(v) for v in names.values()), default=0)
+        probs = [json.loads(p) for p in s["probabilities"]]
+        n_goals = max([n_goals, *(len(p) for p in probs)])
+        prob_cols = [f"prob_{k}" for k in range(n_goals)]
+        matrix = np.full((len(s), n_goals), np.nan)
+        for i, p in enumerate(probs):
+            matrix[i, : len(p)] = p
+        out = s.copy()
+        out["participant"] = out["trial_id"].map(t["participant"])
+        out["predicted"] = [
+            _goal_name(names.get(tid, []), k)
+            for tid, k in zip(out["trial_id"], out["predicted"], strict=True)
+        ]
+        for k, col in enumerate(prob_cols):
+            out[col] = matrix[:, k]
+        out = out[[*SAMPLE_HEAD, *prob_cols, *SAMPLE_TAIL]].reset_index(drop=True)
+        return _typed(out, ints=("trial_id", "tick"), bools=())
+
+    # -- ratings and events ------------------------------------------------------------------
+    def ratings(self) -> pd.DataFrame:
+        r = self.raw_ratings[list(RATING_COLUMNS)].reset_index(drop=True)
+        return _typed(r, ints=("session_id", "value", "trial_id"), bools=())
+
+    def events(self) -> pd.DataFrame:
+        e = self.store.frame("events").sort_values("event_id", kind="stable")
+        return _typed(e[list(EVENT_COLUMNS)].reset_index(drop=True), ints=("session_id",),
+                      bools=())
+
+
+def _goal_name(names: list[str], index: Any) -> Any:
+    if index is None or pd.isna(index):
+        return pd.NA
+    k = int(index)
+    if not 0 <= k < len(names):
+        raise ExportError(f"a sample predicts goal {k}, but its trial has goals {names}")
+    return names[k]
+
+
+def _typed(
+    df: pd.DataFrame, *, ints: tuple[str, ...], bools: tuple[str, ...]
+) -> pd.DataFrame:
+    """Nullable integer / boolean columns, text columns as pandas strings."""
+    df = df.copy()
+    for c in df.columns:
+        if c in ints:
+            df[c] = pd.array(pd.to_numeric(df[c], errors="raise"), dtype="Int64")
+        elif c in bools:
+            df[c] = df[c].astype("boolean")
+        elif df[c].dtype == object:
+            values = df[c]
+            if values.map(lambda v: v is pd.NA or v is None or isinstance(v, str)).all():
+                df[c] = values.astype("string")
+            else:
+                df[c] = pd.to_numeric(values, errors="raise")
+    return df
+
+
+def write_tables(
+    tables: Mapping[str, pd.DataFrame], out: str | os.PathLike[str], *,
+    formats: tuple[str, ...] = ("csv", "parquet"),
+) -> list[Path]:
+    """Write each table as ``<out>/<name>.csv`` and ``.parquet``; returns the paths written."""
+    out_dir = Path(out)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    for name, df in tables.items():
+        if "csv" in formats:
+            path = out_dir / f"{name}.csv"
+            df.to_csv(path, index=False)
+            written.append(path)
+        if "parquet" in formats:
+            path = out_dir / f"{name}.parquet"
+            df.to_parquet(path, index=False)
+            written.append(path)
+    return written

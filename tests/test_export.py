@@ -1,0 +1,273 @@
+"""Export: a small store written through study.store becomes tidy tables, files and a codebook."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from study.codebook import CodebookError, codebook
+from study.export import ExportError, tidy_tables
+from study.plan import run_label
+from study.protocol import load_protocol
+from study.schedule import Design
+from study.store import SAMPLE_COLUMNS, Store
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "protocols" / "dragan2013.toml"
+
+
+@pytest.fixture(scope="module")
+def protocol():
+    return load_protocol(PAPER)
+
+
+def sample_row(trial_id: int, tick: int, predicted: int, probs: list[float]) -> list:
+    values = {c: 0.0 for c in SAMPLE_COLUMNS}
+    values.update(
+        trial_id=trial_id, tick=tick, t=tick / 100, alpha=0.25, confidence=0.5,
+        predicted=predicted, probabilities=json.dumps(probs), target_x=0.4 + tick / 1000,
+        events=json.dumps(["grasp"] if tick == 2 else []),
+    )
+    values["q3"] = 0.1 * tick
+    return [values[c] for c in SAMPLE_COLUMNS]
+
+
+def build_store(path: Path, protocol) -> dict:
+    """P01: training, one task done twice (a redo first), ratings, preference; P02 withdrew."""
+    design = Design.from_protocol(protocol)
+    store = Store.open(path, protocol_id=protocol.id, protocol_hash=protocol.content_hash,
+                       protocol_version=protocol.study.version)
+    ids: dict = {}
+    with store:
+        with store.transaction() as tx:
+            trials = design.row_trials(0, participant="P01")
+            sid = tx.enrol(
+                "P01", schedule_row=0, seed=1,
+                assignments=[(t.position, t.task, run_label(t.run), t.mode) for t in trials],
+            )
+            tx.event(sid, "P01", "consent", {"agreed": True})
+        training_scene = protocol.scenes[protocol.training.scene]
+        step = 1
+        for duration in (30.0, 40.0, 50.0):
+            with store.transaction() as tx:
+                tid = tx.insert_trial(
+                    session_id=sid, participant="P01", step=step, trial_number=step,
+                    phase="training", position=None, task=None, difficulty=None,
+                    correctness=None, mode="none", run=None, attempt=1, seed=step,
+                    goal_names=list(training_scene.object_names),
+                    goal_positions=[list(o.position) for o in training_scene.objects],
+                    target=training_scene.target,
+                )
+                tx.end_trial(tid, status="completed", outcome="success", success=True,
+                             duration_s=duration, ticks=0)
+            step += 1
+        with store.transaction() as tx:
+            for item, value in (("helpful", 2), ("matched", 3), ("teammate", 4)):
+                tx.add_rating(session_id=sid, participant="P01", step=step, phase="training",
+                              task=None, mode="none", run=None, trial_id=None, item=item,
+                              value=value)
+        step += 1
+        task = trials[0].task
+        scene = protocol.scene_for(task)
+        spec = protocol.task(task)
+        run_ids = []
+        for t, attempts in ((trials[0], ("redone", "completed")), (trials[1], ("completed",))):
+            for attempt, status in enumerate(attempts, start=1):
+                with store.transaction() as tx:
+                    tid = tx.insert_trial(
+                        session_id=sid, participant="P01", step=step, trial_number=step,
+                        phase="task", position=t.position, task=task,
+                        difficulty=spec.difficulty, correctness=spec.correctness, mode=t.mode,
+                        run=run_label(t.run), attempt=attempt, seed=7,
+                        goal_names=list(scene.object_names),
+                        goal_positions=[list(o.position) for o in scene.objects],
+                        target=scene.target,
+                    )
+                    tx.end_trial(tid, status=status, outcome="success" if status == "completed"
+                                 else "aborted", success=status == "completed",
+                                 duration_s=20.0 + 5 * t.run, ticks=3)
+                store.insert_samples([sample_row(tid, k, k % 2, [0.7, 0.3]) for k in range(3)])
+            run_ids.append(tid)
+            with store.transaction() as tx:
+                for item, value in (("helpful", 5 + t.run), ("matched", 4), ("teammate", 3)):
+                    tx.add_rating(session_id=sid, participant="P01", step=step + 1, phase="task",
+                                  task=task, mode=t.mode, run=run_label(t.run), trial_id=tid,
+                                  item=item, value=value)
+            step += 2
+        with store.transaction() as tx:
+            tx.add_rating(session_id=sid, participant="P01", step=step, phase="task", task=task,
+                          mode=None, run=None, trial_id=None, item="preference", value=2)
+        with store.transaction() as tx:
+            sid2 = tx.enrol("P02", schedule_row=1, seed=2, assignments=[
+                (t.position, t.task, run_label(t.run), t.mode)
+                for t in design.row_trials(1, participant="P02")
+            ])
+            tid = tx.insert_trial(
+                session_id=sid2, participant="P02", step=1, trial_number=1, phase="training",
+                position=None, task=None, difficulty=None, correctness=None, mode="none",
+                run=None, attempt=1, seed=3, goal_names=list(training_scene.object_names),
+                goal_positions=[list(o.position) for o in training_scene.objects],
+                target=training_scene.target,
+            )
+            tx.set_trial_status(tid, "interrupted", note="withdrew")
+            tx.update_session(sid2, status="withdrawn")
+            tx.event(sid2, "P02", "withdraw", {"reason": "felt unwell"})
+        ids.update(task=task, first_mode=trials[0].mode, second_mode=trials[1].mode,
+                   run_ids=run_ids)
+    return ids
+
+
+@pytest.fixture(scope="module")
+def store_path(tmp_path_factory, protocol):
+    path = tmp_path_factory.mktemp("store") / "study.sqlite"
+    info = build_store(path, protocol)
+    return path, info
+
+
+def test_trials_table_columns_and_covariates(store_path, protocol) -> None:
+    path, info = store_path
+    tables = tidy_tables(path)
+    assert set(tables) == {"trials", "samples", "ratings", "events"}
+    trials = tables["trials"]
+    contract = ["participant", "session_id", "phase", "schedule_row", "position", "task",
+                "difficulty", "correctness", "mode", "attempt", "status", "outcome", "success",
+                "duration_s", "started_at", "goal_names", "goal_positions", "target",
+                "training_time_s", "baseline_rating", "tasks_completed", "helpful", "matched",
+                "teammate", "preference", "preference_aggressive", "trial_id"]
+    assert [c for c in trials.columns if c in contract] == contract
+    p1 = trials[trials["participant"] == "P01"]
+    assert len(p1) == 3 + 3  # three training runs, one redone and two completed task runs
+    assert (p1["training_time_s"] == 40.0).all()
+    assert (p1["baseline_rating"] == 3.0).all()
+    training = p1[p1["phase"] == "training"]
+    assert (training["mode"] == "none").all() and training["position"].isna().all()
+    tasks = p1[p1["phase"] == "task"].reset_index(drop=True)
+    assert list(tasks["status"]) == ["redone", "completed", "completed"]
+    assert list(tasks["tasks_completed"]) == [0, 0, 1]
+    assert list(tasks["attempt"]) == [1, 2, 1]
+    assert tasks["success"].tolist() == [False, True, True]
+    # per-condition ratings sit on the trial they rate; the redone attempt has none
+    assert tasks["helpful"].isna().tolist() == [True, False, False]
+    assert list(tasks["helpful"][1:]) == [6, 7]
+    assert tasks.loc[1:, "matched"].tolist() == [4, 4]
+    # the preference sits on both runs: 2 = "Preferred the first run"
+    assert (tasks["preference"] == 2).all()
+    expected = 2.0 if info["first_mode"] == "aggressive" else -2.0
+    assert (tasks["preference_aggressive"] == expected).all()
+    assert json.loads(tasks["goal_names"][0]) == list(protocol.goal_names(info["task"]))
+    assert tasks["target"][0] == "bottle"
+    p2 = trials[trials["participant"] == "P02"]
+    assert list(p2["status"]) == ["interrupted"] and p2["training_time_s"].isna().all()
+    assert list(p2["schedule_row"]) == [1]
+
+
+def test_samples_table(store_path, protocol) -> None:
+    path, info = store_path
+    samples = tidy_tables(path)["samples"]
+    assert len(samples) == 9
+    names = protocol.goal_names(info["task"])
+    assert list(samples["predicted"][:3]) == [names[0], names[1], names[0]]
+    assert samples["prob_0"].tolist() == [0.7] * 9 and samples["prob_1"].tolist() == [0.3] * 9
+    assert "prob_2" not in samples.columns
+    assert set(samples["participant"]) == {"P01"}
+    assert samples.loc[2, "q3"] == pytest.approx(0.2)
+    assert json.loads(samples.loc[2, "events"]) == ["grasp"]
+    for c in ("q7", "u1", "p4", "cmd7", "target_x", "ee_z", "gripper", "alpha", "confidence"):
+        assert c in samples.columns
+
+
+def test_ratings_and_events_tables(store_path) -> None:
+    path, _ = store_path
+    tables = tidy_tables(path)
+    ratings = tables["ratings"]
+    assert list(ratings.columns[:9]) == ["participant", "session_id", "phase", "task", "mode",
+                                         "run", "item", "value", "answered_at"]
+    assert len(ratings) == 3 + 6 + 1
+    pref = ratings[ratings["item"] == "preference"]
+    assert pref["run"].isna().all() and pref["mode"].isna().all()
+    events = tables["events"]
+    assert list(events.columns) == ["participant", "session_id", "at", "kind", "detail"]
+    assert "withdraw" in set(events["kind"])
+    assert json.loads(events[events["kind"] == "withdraw"]["detail"].iloc[0]) == {
+        "reason": "felt unwell"}
+
+
+def test_export_without_the_protocol_infers_the_same_tables(store_path) -> None:
+    path, _ = store_path
+    inferred = tidy_tables(path, search=[])  # no protocol file: items inferred from the data
+    known = tidy_tables(path)
+    pd.testing.assert_frame_equal(inferred["trials"], known["trials"])
+    book = codebook(inferred)
+    assert book["column"].tolist()[: len(inferred["trials"].columns)] == list(
+        inferred["trials"].columns
+    )
+
+
+def test_codebook_describes_every_column(store_path, protocol) -> None:
+    path, _ = store_path
+    tables = tidy_tables(path)
+    book = codebook(tables, protocol=protocol)
+    for name, df in tables.items():
+        described = book[book["table"] == name]["column"].tolist()
+        assert described == list(df.columns)
+    assert (book["description"].str.len() > 10).all()
+    helpful = book[(book["table"] == "trials") & (book["column"] == "helpful")].iloc[0]
+    assert "How helpful was the robot?" in helpful["description"]
+    assert "1 = Not at all helpful" in helpful["values"]
+    pref = book[book["column"] == "preference_aggressive"].iloc[0]
+    assert pref["values"] == "-3..+3"
+    with pytest.raises(CodebookError, match="'mystery'"):
+        codebook({"events": pd.DataFrame(columns=["mystery"])})
+
+
+def test_wrong_protocol_is_refused(store_path) -> None:
+    path, _ = store_path
+    other = load_protocol(ROOT / "protocols" / "memory3.toml")
+    with pytest.raises(ExportError, match="not by"):
+        tidy_tables(path, protocol=other)
+
+
+def test_export_cli_writes_csv_parquet_and_codebook(store_path, tmp_path) -> None:
+    path, _ = store_path
+    out = tmp_path / "export"
+    proc = subprocess.run(
+        [sys.executable, "-m", "study", "export", "--db", str(path), "--out", str(out)],
+        cwd=ROOT, capture_output=True, text=True, timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert summary["rows"] == {"trials": 7, "samples": 9, "ratings": 10, "events": 2}
+    tables = tidy_tables(path)
+    for name, df in tables.items():
+        parquet = pd.read_parquet(out / f"{name}.parquet")
+        pd.testing.assert_frame_equal(parquet, df, check_dtype=False)
+        csv = pd.read_csv(out / f"{name}.csv")
+        assert list(csv.columns) == list(df.columns) and len(csv) == len(df)
+    book = pd.read_csv(out / "codebook.csv")
+    assert len(book) == sum(len(df.columns) for df in tables.values())
+    md = (out / "codebook.md").read_text()
+    assert "## trials" in md and "`preference_aggressive`" in md
+
+
+def test_export_cli_reports_a_missing_store(tmp_path) -> None:
+    proc = subprocess.run(
+        [sys.executable, "-m", "study", "export", "--db", str(tmp_path / "none.sqlite"),
+         "--out", str(tmp_path / "out")],
+        cwd=ROOT, capture_output=True, text=True, timeout=120,
+    )
+    assert proc.returncode == 2 and "no store at" in proc.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_empty_store_exports_empty_tables_with_columns(tmp_path, protocol) -> None:
+    path = tmp_path / "empty.sqlite"
+    Store.open(path, protocol_id=protocol.id, protocol_hash=protocol.content_hash).close()
+    tables = tidy_tables(path)
+    assert all(len(df) == 0 for df in tables.values())
+    assert "preference_aggressive" in tables["trials"].columns
+    assert "trial_id" in tables["samples"].columns
