@@ -173,6 +173,10 @@ class Store:
             raise ReadOnlyStoreError(f"store {self.path} was opened read-only")
         with self._lock:
             conn = self.conn
+            if conn.in_transaction:
+                raise StoreError(
+                    "store transactions do not nest: commit the open one before starting another"
+                )
             conn.execute("BEGIN IMMEDIATE")
             try:
                 yield Transaction(conn)
@@ -375,6 +379,17 @@ class Transaction:
                 f"participant {lease.participant}'s session lease is now held by {holder}; this "
                 "session object must stop writing (reopen it with resume)"
             )
+
+    def enrolment_history(self) -> list[tuple[str, int, str]]:
+        """``(participant, schedule_row, session status)`` in enrolment order (read inside the
+        enrolling transaction, so two enrolments cannot take the same schedule row)."""
+        return [
+            (p, int(r), s)
+            for p, r, s in self.cur.execute(
+                "SELECT p.participant, p.schedule_row, s.status FROM participants p "
+                "JOIN sessions s USING (participant) ORDER BY s.session_id"
+            ).fetchall()
+        ]
 
     def enrol(
         self,

@@ -1,0 +1,72 @@
+"""Scripted answers for headless sessions: a fixed, seeded rule from what the participant lived.
+
+The rule sees only what a participant sees - the screen and how their own runs went (time and
+whether they picked the object up) - never the condition:
+
+- ratings (after a run, and after training): ``1 + 6 (1 - T / T_limit)`` for a success, 2 for
+  a failure, plus uniform noise in ``[-noise, noise]``, clipped to the scale;
+- preference (after both runs of a task): ``4 + 3 (c1 - c2) / max(c1, c2)`` with ``c`` the run's
+  time (1.5 ``T_limit`` for a failure), so a faster second run pulls towards "second run".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from study.screen import Screen
+from study.trial_run import TrialSummary
+
+
+@dataclass(frozen=True)
+class RunExperience:
+    """One run as the participant lived it."""
+
+    success: bool
+    duration_s: float
+    time_limit_s: float
+
+    @property
+    def cost(self) -> float:
+        return self.duration_s if self.success else 1.5 * self.time_limit_s
+
+
+class ScriptedAnswers:
+    """The rule of the module docstring, seeded."""
+
+    def __init__(self, *, seed: int = 0, noise: int = 1) -> None:
+        self.rng = np.random.default_rng(seed)
+        self.noise = noise
+        self.runs: list[RunExperience] = []
+
+    def observe(self, summary: TrialSummary | None, *, time_limit_s: float) -> None:
+        """Remember a finished run (``None``: aborted, not experienced to the end)."""
+        if summary is not None:
+            self.runs.append(RunExperience(summary.success, summary.duration_s, time_limit_s))
+
+    def answer(self, screen: Screen) -> dict[str, int]:
+        """Answers to every item on ``screen``."""
+        if screen.questionnaire == "after_task":
+            base = self._preference()
+        else:
+            base = self._rating()
+        out = {}
+        for item in screen.items:
+            jitter = int(self.rng.integers(-self.noise, self.noise + 1)) if self.noise else 0
+            out[item.id] = int(np.clip(round(base) + jitter, 1, item.points))
+        return out
+
+    def _rating(self) -> float:
+        if not self.runs:
+            return 4.0
+        run = self.runs[-1]
+        if not run.success:
+            return 2.0
+        return 1.0 + 6.0 * max(0.0, 1.0 - run.duration_s / run.time_limit_s)
+
+    def _preference(self) -> float:
+        if len(self.runs) < 2:
+            return 4.0
+        first, second = self.runs[-2].cost, self.runs[-1].cost
+        return 4.0 + 3.0 * (first - second) / max(first, second, 1e-9)

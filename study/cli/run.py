@@ -1,0 +1,101 @@
+"""``python -m study run``: one whole session headless, through the same engine as the server.
+
+    python -m study run --protocol protocols/dragan2013.toml --db data/study.db \\
+        --participant P01 --input scripted --seed 1 [--resume]
+
+Items are answered by the scripted rule of ``study.answers``. Progress goes to stderr; the last
+line on stdout is one JSON object: participant, trials_completed, ratings, status (plus
+``error`` when the run could not go on; exit code 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+from pathlib import Path
+from typing import Any
+
+DEFAULT_PROTOCOL = Path(__file__).resolve().parents[2] / "protocols" / "dragan2013.toml"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--protocol", type=Path, default=DEFAULT_PROTOCOL, help="protocol TOML")
+    parser.add_argument("--db", type=Path, required=True, help="study store (SQLite file)")
+    parser.add_argument("--participant", required=True, help="pseudonymous ID, e.g. P01")
+    parser.add_argument("--input", choices=["scripted"], default="scripted", help="user input")
+    parser.add_argument("--seed", type=int, default=0, help="session seed (trials, answers)")
+    parser.add_argument(
+        "--resume", action="store_true", help="continue this participant's interrupted session"
+    )
+    parser.add_argument(
+        "--demographics", type=json.loads, default=None, help="JSON object, e.g. '{\"age\": 30}'"
+    )
+    parser.add_argument("--schedule-row", type=int, default=None, help="override the design row")
+    parser.add_argument("--realtime", action="store_true", help="pace trials to wall-clock time")
+    parser.add_argument(
+        "--synchronous", choices=["FULL", "NORMAL"], default="FULL", help="SQLite durability"
+    )
+
+
+def main(args: argparse.Namespace) -> int:
+    from study.answers import ScriptedAnswers
+    from study.headless import run_headless
+    from study.protocol import ProtocolError, load_protocol
+    from study.session import Session, open_store
+    from study.session_errors import SessionError
+    from study.store import StoreError
+
+    result: dict[str, Any] = {"participant": args.participant}
+    session = None
+    store = None
+
+    def on_term(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, on_term)
+    try:
+        protocol = load_protocol(args.protocol)
+        store = open_store(args.db, protocol, synchronous=args.synchronous)
+        if args.resume:
+            session = Session.reopen(store, protocol, args.participant)
+        else:
+            session = Session.enrol(
+                store,
+                protocol,
+                args.participant,
+                seed=args.seed,
+                demographics=args.demographics,
+                schedule_row=args.schedule_row,
+            )
+        answers = ScriptedAnswers(seed=session.seed)
+
+        def log(summary: object) -> None:
+            ov = session.overview() if session is not None else None
+            print(f"{args.participant}: step {ov.step if ov else '?'}: {summary}", file=sys.stderr)
+
+        report = run_headless(session, answerer=answers, realtime=args.realtime, on_trial=log)
+        result = report.as_dict()
+        code = 0
+    except (ProtocolError, StoreError, SessionError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        result.update(status="error", error=str(exc))
+        code = 2
+    except KeyboardInterrupt:
+        print("interrupted: the running trial is marked interrupted; use --resume", file=sys.stderr)
+        result.update(status="interrupted")
+        code = 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        if session is not None:
+            if "trials_completed" not in result:
+                from study.headless import report as make_report
+
+                result = {**make_report(session).as_dict(), **result}
+                result.setdefault("status", session.status)
+            session.close()
+        if store is not None:
+            store.close()
+    print(json.dumps(result))
+    return code
