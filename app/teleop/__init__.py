@@ -1,18 +1,28 @@
 """Teleoperation: input sources become the user's target, and the target becomes ``U``.
 
-``ReachRegion`` clamps targets to what the interface can point at; ``ik_step`` turns a target
+``ReachRegion`` clamps targets to what the interface can point at; ``IKStep`` turns a target
 into the next configuration ``U`` with a velocity limit; input sources (``GizmoInput``,
 ``KeyboardInput``, ``ScriptedInput``) implement ``InputSource.command(obs) -> TeleopCommand``.
 """
 
 from app.teleop.errors import InvalidTargetError, TeleopError
+from app.teleop.gizmo import GizmoInput
+from app.teleop.ik_step import IKStep
+from app.teleop.keyboard import GRASP_KEYS, KEYMAP, KeyboardInput
 from app.teleop.reach import ReachRegion
+from app.teleop.scripted import ScriptedInput
 from app.teleop.types import InputSource, TeleopCommand, TrialObservation
 
 __all__ = [
+    "GRASP_KEYS",
+    "KEYMAP",
+    "GizmoInput",
+    "IKStep",
     "InputSource",
     "InvalidTargetError",
+    "KeyboardInput",
     "ReachRegion",
+    "ScriptedInput",
     "TeleopCommand",
     "TeleopError",
     "TrialObservation",

@@ -1,0 +1,150 @@
+"""The Panda arm as one model with two views: a MuJoCo spec (physics) and pinocchio ``Kinematics``.
+
+``load_arm()`` is cached: the URDF is read and converted once per process. ``Arm.spec()`` returns
+a fresh ``MjSpec`` of the arm with a servo on each of the seven joints, a gripper actuator
+(the second finger mirrors the first through an equality), gravity compensation and a ``tcp``
+site placed where pinocchio's TCP frame is, so both views report the same end-effector pose.
+
+Each joint servo is a position actuator (``ctrl[0:7]``, stiffness ``KP``) plus a velocity
+actuator (``ctrl[8:15]``, damping ``KV``): torque ``= KP (q_cmd - q) + KV (qd_cmd - qd)``.
+A command ``U = Q + u`` per tick is tracked at its own speed (``qd_cmd = u / dt``) instead of
+lagging behind a damper that pulls toward rest. ``ctrl[7]`` is the gripper opening.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from app.robot.assets import panda_urdf
+from app.robot.kinematics import FINGER_JOINTS, Kinematics
+
+ARM_JOINTS = tuple(f"panda_joint{i}" for i in range(1, 8))
+LAST_ARM_BODY = "panda_link7"
+TCP_SITE = "tcp"
+GRIPPER_ACTUATOR = "gripper"
+VELOCITY_SUFFIX = "_velocity"
+# Position servo gains per joint (N m / rad), damping (N m s / rad) and torque limits (N m).
+KP = (4500.0, 4500.0, 3500.0, 3500.0, 2000.0, 2000.0, 2000.0)
+KV = (450.0, 450.0, 350.0, 350.0, 200.0, 200.0, 200.0)
+TORQUE = (87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0)
+GRIPPER_KP = 1000.0  # N / m on the finger opening
+GRIPPER_FORCE = 40.0  # N, per finger
+GRIPPER_MAX = 0.04  # m, finger travel
+# Collision bits. Table and floor (contype 1, conaffinity 1|2) stop everything; the arm (2)
+# never collides with itself or the objects; the fingers (2|4) touch an object only while the
+# object's conaffinity has bit 4, which a Simulation sets while the gripper closes and holds.
+ARM_CONTYPE, ARM_CONAFFINITY = 2, 0
+FINGER_CONTYPE = 2 | 4
+WORLD_CONTYPE, WORLD_CONAFFINITY = 1, 3
+OBJECT_CONTYPE, OBJECT_CONAFFINITY, OBJECT_GRIP_BIT = 1, 1, 4
+
+
+@dataclass(frozen=True, eq=False)
+class Arm:
+    """The Panda: joint names and limits, pinocchio kinematics, and a MuJoCo spec factory."""
+
+    urdf: str
+    kinematics: Kinematics
+    joint_names: tuple[str, ...]
+    lower: np.ndarray
+    upper: np.ndarray
+
+    @property
+    def dof(self) -> int:
+        return len(self.joint_names)
+
+    def spec(self) -> mujoco.MjSpec:
+        """A fresh MuJoCo spec of the arm alone, ready for a scene to add table and objects."""
+        return _arm_spec(self.urdf, self.kinematics)
+
+    def within_limits(self, q: np.ndarray, *, tol: float = 1e-9) -> bool:
+        q = np.asarray(q, dtype=float)
+        return bool(np.all(q >= self.lower - tol) and np.all(q <= self.upper + tol))
+
+
+@functools.cache
+def load_arm() -> Arm:
+    """Load the Panda once per process (``ModelNotFoundError`` if the package is missing)."""
+    urdf = panda_urdf()
+    kin = Kinematics(urdf)
+    if kin.joint_names != ARM_JOINTS:
+        raise RuntimeError(f"unexpected Panda joints {kin.joint_names}; expected {ARM_JOINTS}")
+    return Arm(
+        urdf=urdf,
+        kinematics=kin,
+        joint_names=ARM_JOINTS,
+        lower=kin.lower.copy(),
+        upper=kin.upper.copy(),
+    )
+
+
+def _arm_spec(urdf: str, kin: Kinematics) -> mujoco.MjSpec:
+    spec = mujoco.MjSpec.from_string(urdf)
+    spec.modelname = "panda_scene"
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    spec.option.impratio = 10.0
+    spec.compiler.autolimits = True
+    for body in spec.bodies:
+        if body.name.startswith("panda_"):
+            body.gravcomp = 1.0
+    for geom in spec.geoms:
+        geom.contype, geom.conaffinity = ARM_CONTYPE, ARM_CONAFFINITY
+        geom.rgba = [0.92, 0.92, 0.95, 1.0]
+    for name in (*ARM_JOINTS, *FINGER_JOINTS):
+        joint = spec.joint(name)
+        joint.armature = 0.1 if name in ARM_JOINTS else 0.01
+        joint.damping = [1.0 if name in ARM_JOINTS else 2.0, 0.0, 0.0]
+    for finger in ("panda_leftfinger", "panda_rightfinger"):
+        for geom in spec.body(finger).geoms:
+            geom.friction = [1.5, 0.01, 0.001]
+            geom.contype = FINGER_CONTYPE
+            geom.condim = 4
+            geom.priority = 1
+            geom.rgba = [0.25, 0.25, 0.28, 1.0]
+    placement = kin.tcp_in_last_joint
+    site = spec.body(LAST_ARM_BODY).add_site()
+    site.name = TCP_SITE
+    site.pos = placement.translation.tolist()
+    site.quat = _wxyz(placement.rotation).tolist()
+    site.size = [0.005, 0.005, 0.005]
+    site.rgba = [1.0, 0.3, 0.2, 0.0]
+    for name, kp, torque in zip(ARM_JOINTS, KP, TORQUE, strict=True):
+        act = spec.add_actuator()
+        act.name = name
+        act.target = name
+        act.trntype = mujoco.mjtTrn.mjTRN_JOINT
+        act.set_to_position(kp=kp)
+        act.forcerange = [-torque, torque]
+        act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        lo, hi = spec.joint(name).range
+        act.ctrlrange = [lo, hi]
+        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    grip = spec.add_actuator()
+    grip.name = GRIPPER_ACTUATOR
+    grip.target = FINGER_JOINTS[0]
+    grip.trntype = mujoco.mjtTrn.mjTRN_JOINT
+    grip.set_to_position(kp=GRIPPER_KP, kv=20.0)
+    grip.forcerange = [-GRIPPER_FORCE, GRIPPER_FORCE]
+    grip.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    grip.ctrlrange = [0.0, GRIPPER_MAX]
+    grip.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    for name, kv, torque in zip(ARM_JOINTS, KV, TORQUE, strict=True):
+        act = spec.add_actuator()
+        act.name = f"{name}{VELOCITY_SUFFIX}"
+        act.target = name
+        act.trntype = mujoco.mjtTrn.mjTRN_JOINT
+        act.set_to_velocity(kv=kv)
+        act.forcerange = [-torque, torque]
+        act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    return spec
+
+
+def _wxyz(rotation: np.ndarray) -> np.ndarray:
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(rotation, dtype=float).reshape(9))
+    return quat

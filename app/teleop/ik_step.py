@@ -1,0 +1,80 @@
+"""From the user's target to ``U``: one velocity-limited IK step per control tick.
+
+``U = clip(Q + dq)`` with ``dq = dt J^+ [v; w] + dt (I - J^+ J) k_n (q_rest - Q)``, where
+``J^+ = J^T (J J^T + l^2 I)^-1``, ``v = k (x* - phi(Q))`` capped at ``max_speed`` (m/s) and
+``w = k_r log(R* R^T)`` keeps the gripper pointing down, fingers closing along world y (the
+orientation of the start and of every grasp pose). Each joint moves at most ``max_joint_speed / rate_hz`` per tick.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+
+from app.robot.kinematics import Kinematics, downward_rotation
+
+
+class IKStep:
+    """Velocity-limited damped-least-squares step of the TCP toward a target position."""
+
+    def __init__(
+        self,
+        kinematics: Kinematics,
+        *,
+        rate_hz: float,
+        max_speed: float = 0.3,
+        max_joint_speed: float = 1.0,
+        gain: float = 5.0,
+        rotation_gain: float = 3.0,
+        max_angular_speed: float = 1.0,
+        damping: float = 1e-3,
+        posture: np.ndarray | None = None,
+        posture_gain: float = 0.5,
+        rotation: np.ndarray | None = None,
+    ) -> None:
+        self.kin = kinematics
+        self.dt = 1.0 / rate_hz
+        self.max_speed = max_speed
+        self.max_joint_step = max_joint_speed * self.dt
+        self.gain = gain
+        self.rotation_gain = rotation_gain
+        self.max_angular_speed = max_angular_speed
+        self._damp = damping * np.eye(6)
+        self._eye = np.eye(kinematics.nq)
+        self.posture = None if posture is None else np.asarray(posture, dtype=float).copy()
+        self.posture_gain = posture_gain
+        self.rotation = downward_rotation(0.0) if rotation is None else np.asarray(rotation)
+
+    def __call__(
+        self,
+        q: np.ndarray,
+        target: np.ndarray,
+        *,
+        rotation: np.ndarray | None = None,
+        max_speed: float | None = None,
+    ) -> np.ndarray:
+        """Next configuration ``U`` (7,) moving the TCP from ``phi(q)`` toward ``target`` (3,)."""
+        x, rot, jac = self.kin.pose_and_jacobian(q)
+        if rotation is None:
+            rotation = self.rotation
+        v = self.gain * (target - x)
+        speed = math.sqrt(v.dot(v))
+        limit = self.max_speed if max_speed is None else max_speed
+        if speed > limit:
+            v *= limit / speed
+        w = self.rotation_gain * pin.log3(rotation @ rot.T)
+        wn = math.sqrt(w.dot(w))
+        if wn > self.max_angular_speed:
+            w *= self.max_angular_speed / wn
+        twist = np.concatenate((v, w))
+        j_pinv = jac.T @ np.linalg.inv(jac @ jac.T + self._damp)
+        dq = j_pinv @ twist
+        if self.posture is not None:
+            dq += (self._eye - j_pinv @ jac) @ (self.posture_gain * (self.posture - q))
+        dq *= self.dt
+        biggest = np.abs(dq).max()
+        if biggest > self.max_joint_step:
+            dq *= self.max_joint_step / biggest
+        return np.clip(q + dq, self.kin.lower, self.kin.upper)

@@ -1,0 +1,94 @@
+"""A scripted user for tests and simulated participants: straight toward the target, noisy.
+
+The user moves their target at ``speed`` (m/s) toward a hover point ``approach_height`` above
+the goal's grasp point, then down to it, with Ornstein-Uhlenbeck noise of standard deviation
+``noise`` (m). The raw target is not clamped: at the interface's limit the user keeps pushing.
+They ask for a grasp when the TCP is within ``grasp_tolerance`` of the grasp point, or when the
+TCP has stalled for ``stall_s`` seconds near where they want it (they try anyway).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from app.teleop.types import TeleopCommand, TrialObservation
+
+
+class ScriptedInput:
+    """Seeded scripted user; ``goal`` (index) defaults to the trial's target object."""
+
+    def __init__(
+        self,
+        *,
+        seed: int = 0,
+        speed: float = 0.15,
+        noise: float = 0.002,
+        noise_time_s: float = 0.5,
+        approach_height: float = 0.08,
+        grasp_tolerance: float = 0.01,
+        stall_s: float = 1.5,
+        retry_s: float = 1.5,
+        goal: int | None = None,
+    ) -> None:
+        self.rng = np.random.default_rng(seed)
+        self.speed = speed
+        self.noise = noise
+        self.noise_time_s = noise_time_s
+        self.approach_height = approach_height
+        self.grasp_tolerance = grasp_tolerance
+        self.stall_s = stall_s
+        self.retry_s = retry_s
+        self.goal = goal
+        self._target: np.ndarray | None = None
+        self._offset = np.zeros(3)
+        self._phase = "hover"
+        self._last_grasp_t = -math.inf
+        self._stall_ref: tuple[float, np.ndarray] | None = None
+
+    @property
+    def phase(self) -> str:
+        return self._phase
+
+    def command(self, obs: TrialObservation) -> TeleopCommand:
+        dt = 1.0 / obs.rate_hz
+        goal = obs.target_index if self.goal is None else self.goal
+        grasp_point = obs.goal_positions[goal]
+        hover = grasp_point + np.array([0.0, 0.0, self.approach_height])
+        if self._target is None:
+            self._target = obs.ee.copy()
+        stalled = self._stalled(obs)
+        if self._phase == "hover":
+            near = (
+                np.linalg.norm(obs.ee[:2] - hover[:2]) < 0.015 and abs(obs.ee[2] - hover[2]) < 0.03
+            )
+            if near or stalled:
+                self._phase = "descend"
+                self._stall_ref = None
+        waypoint = hover if self._phase == "hover" else grasp_point
+        step = waypoint - self._target
+        dist = math.sqrt(step.dot(step))
+        if dist > self.speed * dt:
+            step *= self.speed * dt / dist
+        self._target = self._target + step
+        if self.noise > 0:
+            a = math.exp(-dt / self.noise_time_s)
+            self._offset = a * self._offset + math.sqrt(1 - a * a) * self.noise * (
+                self.rng.standard_normal(3)
+            )
+        grasp = False
+        if self._phase == "descend" and not obs.gripper_closed:
+            close = np.linalg.norm(obs.ee - grasp_point) < self.grasp_tolerance
+            if (close or stalled) and obs.t - self._last_grasp_t > self.retry_s:
+                grasp = True
+                self._last_grasp_t = obs.t
+                self._stall_ref = None
+        return TeleopCommand(self._target + self._offset, grasp)
+
+    def _stalled(self, obs: TrialObservation) -> bool:
+        """True when the TCP moved less than 5 mm during the last ``stall_s`` seconds."""
+        if self._stall_ref is None or np.linalg.norm(obs.ee - self._stall_ref[1]) > 0.005:
+            self._stall_ref = (obs.t, obs.ee.copy())
+            return False
+        return obs.t - self._stall_ref[0] >= self.stall_s

@@ -1,0 +1,75 @@
+"""What a trial produces: one ``TickRecord`` per control tick and a ``TrialResult`` at the end."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+OUTCOMES = ("success", "wrong_object", "dropped", "timeout", "aborted", "interrupted")
+
+
+@dataclass(frozen=True, slots=True)
+class TickRecord:
+    """One control tick, after physics.
+
+    ``t``: simulated time (s, pauses excluded); ``q``: robot configuration Q after the tick;
+    ``u``: the user's next configuration U; ``p``: the policy's P; ``command``:
+    ``(1 - alpha) U + alpha P`` sent to the servos; ``probabilities``: ``P(G | xi)``;
+    ``predicted``: index of G*; ``user_target``: the clamped target (3,); ``ee``: TCP (3,);
+    ``gripper``: finger opening (m); ``events``: what happened this tick.
+    """
+
+    tick: int
+    t: float
+    q: np.ndarray
+    u: np.ndarray
+    p: np.ndarray
+    command: np.ndarray
+    alpha: float
+    confidence: float
+    probabilities: np.ndarray
+    predicted: int
+    user_target: np.ndarray
+    ee: np.ndarray
+    gripper: float
+    events: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain JSON-able values (lists for arrays)."""
+        return {
+            name: (value.tolist() if isinstance(value, np.ndarray) else value)
+            for name, value in ((n, getattr(self, n)) for n in self.__slots__)
+        }
+
+
+@dataclass(frozen=True)
+class TrialResult:
+    """How a trial ended. ``duration_s`` is simulated time, which excludes pauses."""
+
+    outcome: str
+    success: bool
+    duration_s: float
+    ticks: int
+    records: tuple[TickRecord, ...]
+    goal_names: tuple[str, ...]
+    target: str
+    seed: int
+    task: str = ""
+    mode: str = ""
+    events: tuple[tuple[float, str], ...] = field(default=())
+
+    def summary(self) -> dict[str, Any]:
+        """The one-line JSON summary the CLI prints."""
+        return {
+            "task": self.task,
+            "mode": self.mode,
+            "seed": self.seed,
+            "outcome": self.outcome,
+            "success": self.success,
+            "duration_s": round(self.duration_s, 4),
+            "ticks": self.ticks,
+            "target": self.target,
+            "events": len(self.events),
+        }

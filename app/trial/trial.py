@@ -1,0 +1,368 @@
+"""One trial: input source -> user target -> U (IK) -> blending -> robot, tick by tick.
+
+Each ``tick()`` asks the input source for a target, clamps it to the reach region, turns it
+into ``U`` with a velocity-limited IK step, blends ``U`` with the policy's ``P`` (prediction
+from the user target, confidence ``c = max(0, 1 - d / D)``, arbitration ``alpha(c)``), servos
+the arm to ``(1 - alpha) U + alpha P`` and advances the physics. A grasp request closes the
+gripper in physics; holding an object, the arm lifts it by itself; the trial succeeds when the
+target is ``lift_height_m`` above its rest height. Outcomes: ``success``, ``wrong_object``,
+``dropped``, ``timeout``, ``aborted`` and ``interrupted`` -- logged, never raised.
+
+Thread safety: ``tick``, ``pause``, ``resume``, ``abort`` and ``interrupt`` take one lock; the
+server runs ``tick`` paced in its own thread while UI callbacks feed the input source.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Mapping
+
+import numpy as np
+
+from app.blending import (
+    NoAssistance,
+    PolicyBlender,
+    arbitration_from_config,
+    confidence_from_config,
+    policy_from_config,
+    predictor_from_config,
+)
+from app.robot.scene import Scene, build_scene
+from app.robot.simulation import Simulation, SimulationError
+from app.teleop.ik_step import IKStep
+from app.teleop.types import InputSource, TeleopCommand, TrialObservation
+from app.trial.config import TrialConfig
+from app.trial.records import TickRecord, TrialResult
+
+CLOSE_S = 0.4  # gripper closing time before judging the grasp
+REOPEN_S = 0.4  # after a missed grasp, time the gripper takes to open again
+LIFT_TIMEOUT_S = 3.0  # the automatic lift must reach the height within this time
+LIFT_SPEED = 0.1  # m/s, automatic lift
+DROP_S = 0.15  # contact lost this long while lifting = dropped
+FAR_OUTSIDE_M = 0.5  # a raw target this far outside the reach region is logged as such
+TILT_RAD = 0.7  # an object tilted beyond this is logged as knocked over
+
+
+class Trial:
+    """A trial drivable tick by tick (``tick()``) or to the end (``run_trial``)."""
+
+    def __init__(
+        self,
+        config: TrialConfig,
+        input_source: InputSource,
+        *,
+        seed: int = 0,
+        scene: Scene | None = None,
+    ) -> None:
+        self.config = config
+        self.input_source = input_source
+        self.seed = seed
+        self.scene = scene if scene is not None else build_scene(config.scene)
+        self.sim = Simulation(self.scene, physics_dt=config.physics_dt)
+        kin = self.scene.arm.kinematics.copy()
+        self.kinematics = kin
+        self.ik = IKStep(kin, rate_hz=config.rate_hz, posture=self.scene.start_q)
+        self.blender = _blender(config, self.scene)
+        self.blender.reset(self.scene.start_ee)
+        self._lock = threading.RLock()
+        self._paused = False
+        self._pause_events: list[str] = []
+        self.ticks = 0
+        self.outcome: str | None = None
+        self._phase = "reach"
+        self._phase_t = 0.0
+        self._grasp_prev = False
+        self._hold_q = self.scene.start_q.copy()
+        self._lift_target = np.zeros(3)
+        self._held: int | None = None
+        self._lost_t: float | None = None
+        self._knocked: set[int] = set()
+        n = len(self.scene.goals)
+        self.user_target = self.scene.start_ee.copy()
+        self._last = (0.0, 0.0, np.full(n, 1.0 / n), -1)
+        self.records: list[TickRecord] = []
+        self.events: list[tuple[float, str]] = []
+
+    # ---- state -------------------------------------------------------------------------
+    @property
+    def t(self) -> float:
+        """Simulated time, seconds (pauses excluded)."""
+        return self.ticks * self.config.dt
+
+    @property
+    def done(self) -> bool:
+        return self.outcome is not None
+
+    @property
+    def paused(self) -> bool:
+        return self._paused
+
+    @property
+    def success(self) -> bool:
+        return self.outcome == "success"
+
+    def pause(self) -> None:
+        with self._lock:
+            if not self._paused and not self.done:
+                self._paused = True
+                self._pause_events.append("paused")
+
+    def resume(self) -> None:
+        with self._lock:
+            if self._paused:
+                self._paused = False
+                self._pause_events.append("resumed")
+
+    def abort(self, outcome: str = "aborted") -> None:
+        """End the trial now (experimenter: ``aborted``; lost participant: ``interrupted``)."""
+        if outcome not in ("aborted", "interrupted"):
+            raise ValueError(f"outcome: 'aborted' or 'interrupted', got {outcome!r}")
+        with self._lock:
+            if not self.done:
+                self._finish(outcome, [outcome])
+
+    def interrupt(self) -> None:
+        self.abort("interrupted")
+
+    def observation(self) -> TrialObservation:
+        """What an input source sees now."""
+        alpha, _, _, predicted = self._last
+        held = self._held
+        return TrialObservation(
+            t=self.t,
+            q=self.sim.q,
+            ee=self.sim.ee,
+            gripper_closed=self._phase in ("closing", "lifting"),
+            user_target=self.user_target.copy(),
+            reach=self.scene.reach,
+            goal_names=self.scene.goals.names,
+            goal_positions=self.scene.goals.positions,
+            target_index=self.scene.target_index,
+            alpha=alpha,
+            predicted=predicted,
+            grasped=None if held is None else self.scene.object_names[held],
+            rate_hz=self.config.rate_hz,
+        )
+
+    def result(self) -> TrialResult:
+        return TrialResult(
+            outcome=self.outcome or "interrupted",
+            success=self.success,
+            duration_s=self.t,
+            ticks=self.ticks,
+            records=tuple(self.records),
+            goal_names=self.scene.goals.names,
+            target=self.scene.target,
+            seed=self.seed,
+            task=self.config.task,
+            mode=self.config.mode,
+            events=tuple(self.events),
+        )
+
+    # ---- the loop ----------------------------------------------------------------------
+    def tick(self) -> TickRecord | None:
+        """Advance one control period; ``None`` (nothing happens) while paused or once done."""
+        with self._lock:
+            if self._paused or self.done:
+                return None
+            events: list[str] = self._pause_events
+            self._pause_events = []
+            q = self.sim.q
+            cmd = self._ask_input(events)
+            self._set_user_target(cmd, events)
+            request = cmd.grasp and not self._grasp_prev
+            self._grasp_prev = bool(cmd.grasp)
+            u, p, command = self._control(q, request, events)
+            try:
+                self.sim.step(
+                    command,
+                    gripper_closed=self._phase in ("closing", "lifting"),
+                    substeps=self.config.substeps,
+                )
+            except SimulationError as exc:  # pragma: no cover - guarded by clipping
+                events.append(f"physics_error:{exc}")
+                self.ticks += 1
+                self._finish("aborted", events)
+                return self._record(q, q, q, events)
+            self.ticks += 1
+            self._judge(events)
+            if not self.done and self.t >= self.config.time_limit_s - 1e-9:
+                self._finish("timeout", events)
+            return self._record(u, p, command, events)
+
+    def _ask_input(self, events: list[str]) -> TeleopCommand:
+        try:
+            return self.input_source.command(self.observation())
+        except Exception as exc:  # an input device must never stop the loop
+            events.append(f"input_error:{type(exc).__name__}")
+            return TeleopCommand(self.user_target.copy(), False)
+
+    def _set_user_target(self, cmd: TeleopCommand, events: list[str]) -> None:
+        raw = np.asarray(cmd.target, dtype=float).reshape(-1)
+        if raw.shape != (3,) or not np.all(np.isfinite(raw)):
+            events.append("invalid_target")
+            return
+        reach = self.scene.reach
+        clamped = reach.clamp(raw)
+        if not np.array_equal(clamped, raw):
+            outside = reach.distance_outside(raw)
+            events.append("target_far_outside" if outside > FAR_OUTSIDE_M else "target_clamped")
+        self.user_target = clamped
+
+    def _control(
+        self, q: np.ndarray, request: bool, events: list[str]
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        t = self.t
+        if self._phase == "reach":
+            if request:
+                self._enter("closing", events, "grasp_requested")
+                self.sim.set_grip_contacts(True)
+                self._hold_q = q
+                return q, q, q
+            u = self.ik(q, self.user_target)
+            rec = self.blender.step(q, u, x=self.user_target)
+            self._last = (rec.alpha, rec.confidence, rec.probabilities, rec.predicted)
+            return u, rec.P, rec.command
+        if self._phase == "lifting":
+            cmd = self.ik(q, self._lift_target, max_speed=LIFT_SPEED)
+            return cmd, cmd, cmd
+        if self._phase == "reopening" and t - self._phase_t >= REOPEN_S:
+            self.sim.set_grip_contacts(False)
+            self._enter("reach", events)
+        return self._hold_q, self._hold_q, self._hold_q
+
+    def _enter(self, phase: str, events: list[str], event: str | None = None) -> None:
+        self._phase = phase
+        self._phase_t = self.t
+        if event:
+            events.append(event)
+
+    def _judge(self, events: list[str]) -> None:
+        t = self.t
+        names = self.scene.object_names
+        if self._phase == "closing" and t - self._phase_t >= CLOSE_S:
+            held = self.sim.held_object()
+            if held is None:
+                self._enter("reopening", events, "grasp_missed")
+            else:
+                self._held = held
+                self._lost_t = None
+                self._lift_target = self.sim.ee + np.array(
+                    [0.0, 0.0, self.config.lift_height_m + 0.03]
+                )
+                self._enter("lifting", events, f"grasped:{names[held]}")
+        elif self._phase == "lifting" and self._held is not None:
+            i = self._held
+            if self.sim.held_object() == i:
+                self._lost_t = None
+            elif self._lost_t is None:
+                self._lost_t = t
+            height = float(self.sim.object_heights()[i])
+            if height >= self.config.lift_height_m and self._lost_t is None:
+                events.append(f"lifted:{names[i]}")
+                self._finish("success" if i == self.scene.target_index else "wrong_object", events)
+            elif self._lost_t is not None and t - self._lost_t >= DROP_S:
+                events.append(f"dropped:{names[i]}")
+                self._finish("dropped", events)
+            elif t - self._phase_t >= LIFT_TIMEOUT_S:
+                events.append(f"lift_failed:{names[i]}")
+                self._finish("dropped", events)
+        if self.ticks % 10 == 0:
+            for i in np.flatnonzero(self.sim.object_tilts() > TILT_RAD):
+                if int(i) not in self._knocked:
+                    self._knocked.add(int(i))
+                    events.append(f"knocked_over:{names[i]}")
+
+    def _finish(self, outcome: str, events: list[str]) -> None:
+        if outcome == "timeout":
+            events.append("timeout")
+        self.outcome = outcome
+        self._phase = "done"
+        events.append(f"outcome:{outcome}")
+
+    def _record(
+        self, u: np.ndarray, p: np.ndarray, command: np.ndarray, events: list[str]
+    ) -> TickRecord:
+        alpha, confidence, probabilities, predicted = self._last
+        if self._phase != "reach":
+            alpha = 0.0
+        t = self.t
+        self.events.extend((t, e) for e in events)
+        rec = TickRecord(
+            tick=self.ticks,
+            t=t,
+            q=self.sim.q,
+            u=np.array(u, dtype=float),
+            p=np.array(p, dtype=float),
+            command=np.array(command, dtype=float),
+            alpha=float(alpha),
+            confidence=float(confidence),
+            probabilities=np.array(probabilities, dtype=float),
+            predicted=int(predicted),
+            user_target=self.user_target.copy(),
+            ee=self.sim.ee,
+            gripper=self.sim.gripper_opening,
+            events=tuple(events),
+        )
+        self.records.append(rec)
+        return rec
+
+
+def _blender(config: TrialConfig, scene: Scene) -> PolicyBlender:
+    goals = scene.goals
+    prediction = config.prediction
+    space = "workspace"
+    if isinstance(prediction, Mapping):
+        space = str(prediction.get("space", "workspace"))
+        prediction = predictor_from_config(
+            dict(prediction), points=goals, where="prediction", target=scene.target_index
+        )
+    confidence = config.confidence
+    if isinstance(confidence, Mapping):
+        confidence = confidence_from_config(dict(confidence), where="confidence")
+    arbitration = config.arbitration
+    if arbitration is None:
+        arbitration = NoAssistance()
+    elif isinstance(arbitration, Mapping):
+        arbitration = arbitration_from_config(dict(arbitration), where="arbitration")
+    policy = config.policy
+    if isinstance(policy, Mapping):
+        policy = policy_from_config(dict(policy), rate_hz=config.rate_hz, where="policy")
+    if space != "workspace":
+        raise ValueError(
+            "prediction.space: the trial predicts from the user's target, use 'workspace'"
+        )
+    return PolicyBlender(
+        goals=goals,
+        predictor=prediction,
+        confidence=confidence,
+        arbitration=arbitration,
+        policy=policy,
+        space="workspace",
+    )
+
+
+def run_trial(
+    config: TrialConfig,
+    input_source: InputSource,
+    *,
+    seed: int = 0,
+    realtime: bool = False,
+    scene: Scene | None = None,
+) -> TrialResult:
+    """Run one trial to its end, as fast as possible or paced to wall-clock time."""
+    trial = Trial(config, input_source, seed=seed, scene=scene)
+    dt = config.dt
+    start = time.perf_counter()
+    while not trial.done:
+        if trial.paused:
+            time.sleep(0.01)
+            start += 0.01
+            continue
+        trial.tick()
+        if realtime:
+            delay = start + trial.ticks * dt - time.perf_counter()
+            if delay > 0:
+                time.sleep(delay)
+    return trial.result()
