@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from study.protocol import TRAINING_MODE, ProtocolError, load_protocol
-from study.store import DOF, Store
+from study.store import DOF, Store, now_iso
 
 if TYPE_CHECKING:
     from study.protocol import Protocol
@@ -331,3 +331,23 @@ def write_tables(
             df.to_parquet(path, index=False)
             written.append(path)
     return written
+
+
+def export_metadata(
+    store: Store, tables: Mapping[str, pd.DataFrame], *, protocol: Protocol | None
+) -> dict[str, Any]:
+    """Provenance written beside the tables as ``metadata.json``: which store, protocol (id,
+    version, content hash) and software produced them, and how many rows each table has."""
+    import app
+
+    return {
+        "store": str(store.path),
+        "store_schema": store.meta.version,
+        "protocol_id": store.meta.protocol_id,
+        "protocol_version": store.meta.protocol_version,
+        "protocol_hash": store.meta.protocol_hash,
+        "protocol_file": str(protocol.path) if protocol is not None else None,
+        "software_version": app.__version__,
+        "exported_at": now_iso(),
+        "rows": {name: len(df) for name, df in tables.items()},
+    }

@@ -252,6 +252,9 @@ def test_export_cli_writes_csv_parquet_and_codebook(store_path, tmp_path) -> Non
     assert len(book) == sum(len(df.columns) for df in tables.values())
     md = (out / "codebook.md").read_text()
     assert "## trials" in md and "`preference_aggressive`" in md
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["protocol_hash"] == load_protocol(PAPER).content_hash
+    assert meta["rows"] == summary["rows"]
 
 
 def test_export_cli_reports_a_missing_store(tmp_path) -> None:

@@ -1,7 +1,8 @@
 """``python -m study export --db PATH --out DIR``: tidy CSV + Parquet tables and a codebook.
 
 Writes trials, samples, ratings and events (``.csv`` and ``.parquet``) and ``codebook.csv`` /
-``codebook.md`` describing every column. The store is opened read-only.
+``codebook.md`` describing every column, and ``metadata.json`` (store, protocol id, version and
+content hash, software version, row counts). The store is opened read-only.
 """
 
 from __future__ import annotations
@@ -12,7 +13,13 @@ import sys
 from pathlib import Path
 
 from study.codebook import codebook, write_codebook
-from study.export import ExportError, find_protocol, tidy_tables, write_tables
+from study.export import (
+    ExportError,
+    export_metadata,
+    find_protocol,
+    tidy_tables,
+    write_tables,
+)
 from study.protocol import ProtocolError, load_protocol
 from study.store import Store, StoreError
 
@@ -37,14 +44,16 @@ def main(args: argparse.Namespace) -> int:
                 load_protocol(args.protocol) if args.protocol else find_protocol(store)
             )
             tables = tidy_tables(store, protocol=protocol)
+            metadata = export_metadata(store, tables, protocol=protocol)
         book = codebook(tables, protocol=protocol)
         written = write_tables(tables, args.out, formats=formats)
         written += write_codebook(book, args.out)
+        meta_path = Path(args.out) / "metadata.json"
+        meta_path.write_text(json.dumps(metadata, indent=1) + "\n")
+        written.append(meta_path)
     except (StoreError, ProtocolError, ExportError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    summary = {name: len(df) for name, df in tables.items()}
-    summary_line = {"out": str(args.out), "rows": summary, "files": len(written),
-                    "protocol": str(protocol.path) if protocol else None}
-    print(json.dumps(summary_line))
+    print(json.dumps({"out": str(args.out), "rows": metadata["rows"], "files": len(written),
+                      "protocol": metadata["protocol_file"]}))
     return 0
