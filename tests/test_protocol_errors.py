@@ -171,3 +171,20 @@ def test_every_difficulty_correctness_cell_needs_a_task(tmp_path: Path) -> None:
     path.write_text(TEXT[:start] + TEXT[end:])
     expect(path, UndefinedReferenceError, "tasks",
            "no task has difficulty = 'hard' and correctness = 'wrong'")
+
+
+def test_object_names_must_not_name_a_level_of_this_protocol(tmp_path: Path) -> None:
+    text = (ROOT / "protocols" / "memory3.toml").read_text()
+    old = '{ name = "can",'
+    assert text.count(old) == 1
+    path = tmp_path / "memory3.toml"
+    path.write_text(text.replace(old, '{ name = "memory-card",'))
+    expect(path, BlindingError, "scenes.three.objects[2].name", "['memory']")
+
+
+def test_target_description_is_checked_for_this_protocols_levels(tmp_path: Path) -> None:
+    text = (ROOT / "protocols" / "memory3.toml").read_text()
+    path = tmp_path / "memory3.toml"
+    path.write_text(text.replace('task = "Pick up the {target}.', 'task = "Pick up the {target}'
+                                 ' (linear).'))
+    expect(path, BlindingError, "instructions.task", "['linear']")

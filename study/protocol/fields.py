@@ -128,7 +128,7 @@ class Table:
         value = self._get(name, default)
         if isinstance(value, bool) or not isinstance(value, int):
             raise self._type_error(name, value, "an integer")
-        _check_range(self, name, value, minimum, maximum, strict_min=False)
+        _check_range(self, name, value, minimum, maximum)
         return value
 
     def number(
@@ -200,15 +200,14 @@ def check_number(
         raise table.value_error(name, f"must be finite, got {value!r}")
     if positive and number <= 0:
         raise table.value_error(name, f"must be > 0, got {value!r}")
-    _check_range(table, name, number, minimum, maximum, strict_min=False)
+    _check_range(table, name, number, minimum, maximum)
     return number
 
 
 def _check_range(
-    table: Table, name: str | int, value: float, minimum: float | None, maximum: float | None,
-    *, strict_min: bool,
+    table: Table, name: str | int, value: float, minimum: float | None, maximum: float | None
 ) -> None:
-    if minimum is not None and (value <= minimum if strict_min else value < minimum):
+    if minimum is not None and value < minimum:
         raise table.value_error(name, f"must be >= {minimum}, got {value!r}")
     if maximum is not None and value > maximum:
         raise table.value_error(name, f"must be <= {maximum}, got {value!r}")

@@ -13,7 +13,6 @@ from __future__ import annotations
 import hashlib
 import json
 import re
-import string
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
@@ -22,17 +21,15 @@ from typing import Any
 
 from study.protocol.components import build_check, component
 from study.protocol.errors import (
-    BlindingError,
     ProtocolError,
     ProtocolSyntaxError,
     ProtocolValueError,
-    ScaleMismatchError,
     UndefinedReferenceError,
 )
 from study.protocol.fields import Table, join_key
-from study.protocol.model import Control, Mode, StudyInfo, Task, Texts, Training
+from study.protocol.model import Control, Mode, StudyInfo, Task, Training
+from study.protocol.participant import check_blinding, read_questionnaire, read_texts
 from study.protocol.protocol import TRAINING_MODE, Protocol
-from study.protocol.questionnaire import LikertItem, Questionnaire, Scale
 
 SCHEMA = 1
 _NAME = re.compile(r"^[a-z][a-z0-9_-]{0,31}$")
@@ -40,9 +37,6 @@ _TOP_LEVEL = (
     "schema", "study", "control", "factors", "tasks", "prediction", "confidence", "policy",
     "modes", "training", "scenes", "consent", "debrief", "instructions", "questionnaire",
 )
-_INSTRUCTIONS_REQUIRED = ("welcome", "training", "task", "rating")
-_INSTRUCTIONS_OPTIONAL = ("preference", "pause")
-_PLACEHOLDERS = {"training": {"target"}, "task": {"target"}}
 
 
 def load_protocol(path: str | Path) -> Protocol:
@@ -123,9 +117,9 @@ class _Loader:
         policy = component(root.table("policy"), "policy")
         modes = self._modes(root.table("modes"), mode_levels)
         training = self._training(root.table("training"), scenes, control)
-        questionnaire = self._questionnaire(root.table("questionnaire"), len(modes))
+        questionnaire = read_questionnaire(root.table("questionnaire"), n_modes=len(modes))
         self._build_checks(tasks, scenes, prediction, confidence, policy, modes, training, control)
-        texts = self._texts(root, questionnaire)
+        texts = read_texts(root, questionnaire=questionnaire)
         root.close(allowed=", ".join(_TOP_LEVEL))
         protocol = Protocol(
             path=self.path,
@@ -146,7 +140,7 @@ class _Loader:
             content_hash=content_hash(self.raw),
             software_version=app.__version__,
         )
-        self._check_blinding(protocol)
+        check_blinding(protocol)
         return protocol
 
     # -- sections ---------------------------------------------------------------------------
@@ -350,127 +344,3 @@ class _Loader:
         )
         t.close(allowed="runs, scene, time_limit_s, prediction")
         return training
-
-    def _questionnaire(self, t: Table, n_modes: int) -> Questionnaire:
-        t.only("points", "scales", "items", "after_training", "after_run", "after_task")
-        points = t.integer("points", minimum=2, maximum=11)
-        scales: dict[str, Scale] = {}
-        for name, sub in t.table("scales").tables():
-            sub.only("anchors")
-            anchors = sub.strings("anchors", unique=True)
-            if len(anchors) != points:
-                raise self.error(
-                    ScaleMismatchError, sub.where("anchors"),
-                    f"{len(anchors)} anchors for a {points}-point questionnaire"
-                    f" (questionnaire.points = {points}); give one anchor per point",
-                )
-            sub.close(allowed="anchors")
-            scales[name] = Scale(name=name, anchors=anchors)
-        items: dict[str, LikertItem] = {}
-        items_table = t.table("items")
-        for item_id, sub in items_table.tables():
-            if not re.match(r"^[a-z][a-z0-9_]{0,31}$", item_id):
-                raise items_table.value_error(
-                    item_id, "item ids name data columns: lower-case letters, digits and '_'"
-                )
-            sub.only("prompt", "scale")
-            scale_name = sub.string("scale")
-            if scale_name not in scales:
-                raise self.error(
-                    UndefinedReferenceError, sub.where("scale"),
-                    f"scale {scale_name!r} is not defined in questionnaire.scales"
-                    f" ({', '.join(scales) or 'none'})",
-                )
-            items[item_id] = LikertItem(
-                id=item_id, prompt=sub.string("prompt"), scale=scales[scale_name]
-            )
-            sub.close(allowed="prompt, scale")
-        asked: dict[str, tuple[LikertItem, ...]] = {}
-        for phase in ("after_training", "after_run", "after_task"):
-            ids = t.strings(phase, [], nonempty=False)
-            for i, item_id in enumerate(ids):
-                if item_id not in items:
-                    raise self.error(
-                        UndefinedReferenceError, join_key(t.where(phase), i),
-                        f"item {item_id!r} is not defined in questionnaire.items",
-                    )
-            asked[phase] = tuple(items[i] for i in ids)
-        if asked["after_task"] and n_modes != 2:
-            raise t.value_error(
-                "after_task",
-                f"a preference between a task's two runs needs exactly 2 modes, this protocol"
-                f" has {n_modes}; leave after_task empty",
-            )
-        t.close(allowed="points, scales, items, after_training, after_run, after_task")
-        return Questionnaire(points=points, items=MappingProxyType(items), **asked)
-
-    def _texts(self, root: Table, questionnaire: Questionnaire) -> Texts:
-        consent = root.table("consent")
-        debrief = root.table("debrief")
-        consent.only("text", "agree")
-        debrief.only("text")
-        texts_consent = consent.string("text")
-        agree = consent.string("agree")
-        consent.close(allowed="text, agree")
-        texts_debrief = debrief.string("text")
-        debrief.close(allowed="text")
-        t = root.table("instructions")
-        t.only(*_INSTRUCTIONS_REQUIRED, *_INSTRUCTIONS_OPTIONAL)
-        instructions: dict[str, str] = {}
-        for phase in _INSTRUCTIONS_REQUIRED + _INSTRUCTIONS_OPTIONAL:
-            required = phase in _INSTRUCTIONS_REQUIRED or (
-                phase == "preference" and questionnaire.after_task
-            )
-            if not required and phase not in t:
-                continue
-            text = t.string(phase)
-            self._check_placeholders(t, phase, text)
-            instructions[phase] = text
-        t.close(allowed=", ".join(_INSTRUCTIONS_REQUIRED + _INSTRUCTIONS_OPTIONAL))
-        return Texts(
-            consent=texts_consent,
-            consent_agree=agree,
-            debrief=texts_debrief,
-            instructions=MappingProxyType(instructions),
-        )
-
-    def _check_placeholders(self, t: Table, phase: str, text: str) -> None:
-        allowed = _PLACEHOLDERS.get(phase, set())
-        try:
-            fields = [f for _, f, _, _ in string.Formatter().parse(text) if f is not None]
-        except ValueError as e:
-            raise t.value_error(
-                phase, f"bad braces ({e}); write {{{{ and }}}} for literal braces"
-            ) from None
-        for f in fields:
-            if f not in allowed:
-                hint = f"allowed: {{{', '.join(sorted(allowed))}}}" if allowed else "none allowed"
-                raise t.value_error(phase, f"unknown placeholder {{{f}}} ({hint})")
-
-    # -- blinding ---------------------------------------------------------------------------
-    def _check_blinding(self, p: Protocol) -> None:
-        words = p.condition_words
-        texts: list[tuple[str, str]] = [
-            ("consent.text", p.texts.consent),
-            ("consent.agree", p.texts.consent_agree),
-            ("debrief.text", p.texts.debrief),
-        ]
-        texts += [(f"instructions.{k}", v) for k, v in p.texts.instructions.items()]
-        for item in p.questionnaire.items.values():
-            texts.append((f"questionnaire.items.{item.id}.prompt", item.prompt))
-        for item in p.questionnaire.items.values():
-            for i, anchor in enumerate(item.scale.anchors):
-                texts.append((f"questionnaire.scales.{item.scale.name}.anchors[{i}]", anchor))
-        for task in p.tasks:
-            texts.append((f"tasks.{task.name}.scene (its target)", p.describe_trial(task.name)))
-            for obj in p.scenes[task.scene].object_names:
-                texts.append((f"scenes.{task.scene}.objects ({obj})", obj))
-        texts.append(("training.scene (its target)", p.describe_training()))
-        for key, text in texts:
-            found = [w for w in words if w in text.lower()]
-            if found:
-                raise self.error(
-                    BlindingError, key,
-                    f"participant-facing text contains the condition word(s) {found} (as a"
-                    f" word or inside one, e.g. 'bright' holds 'right'); rephrase: {text[:60]!r}",
-                )

@@ -1,0 +1,150 @@
+"""The participant-facing part of a protocol: questionnaire, texts, and the blinding check.
+
+Everything here reaches the participant's browser, so :func:`check_blinding` rejects any text
+containing a condition word (a level of any factor, as a word or inside one: "bright" holds
+"right"), the same rule the UI's blinding guard applies to every message it sends.
+"""
+
+from __future__ import annotations
+
+import re
+import string
+from types import MappingProxyType
+
+from study.protocol.errors import BlindingError, ScaleMismatchError, UndefinedReferenceError
+from study.protocol.fields import Table, join_key
+from study.protocol.model import Texts
+from study.protocol.protocol import Protocol
+from study.protocol.questionnaire import PHASES, LikertItem, Questionnaire, Scale
+
+INSTRUCTIONS_REQUIRED = ("welcome", "training", "task", "rating")
+INSTRUCTIONS_OPTIONAL = ("preference", "pause")  # preference: required if after_task is asked
+PLACEHOLDERS = {"training": {"target"}, "task": {"target"}}
+_ITEM_ID = re.compile(r"^[a-z][a-z0-9_]{0,31}$")
+
+
+def read_questionnaire(t: Table, *, n_modes: int) -> Questionnaire:
+    """``[questionnaire]``: points, scales (one anchor per point), items, when each is asked."""
+    t.only("points", "scales", "items", *PHASES)
+    points = t.integer("points", minimum=2, maximum=11)
+    scales: dict[str, Scale] = {}
+    for name, sub in t.table("scales").tables():
+        sub.only("anchors")
+        anchors = sub.strings("anchors", unique=True)
+        if len(anchors) != points:
+            raise ScaleMismatchError(
+                f"{len(anchors)} anchors for a {points}-point questionnaire"
+                f" (questionnaire.points = {points}); give one anchor per point",
+                file=t.file, key=sub.where("anchors"),
+            )
+        scales[name] = Scale(name=name, anchors=anchors)
+    items: dict[str, LikertItem] = {}
+    items_table = t.table("items")
+    for item_id, sub in items_table.tables():
+        if not _ITEM_ID.match(item_id):
+            raise items_table.value_error(
+                item_id, "item ids name data columns: lower-case letters, digits and '_'"
+            )
+        sub.only("prompt", "scale")
+        scale_name = sub.string("scale")
+        if scale_name not in scales:
+            raise UndefinedReferenceError(
+                f"scale {scale_name!r} is not defined in questionnaire.scales"
+                f" ({', '.join(scales) or 'none'})",
+                file=t.file, key=sub.where("scale"),
+            )
+        items[item_id] = LikertItem(id=item_id, prompt=sub.string("prompt"),
+                                    scale=scales[scale_name])
+    asked: dict[str, tuple[LikertItem, ...]] = {}
+    for phase in PHASES:
+        ids = t.strings(phase, [], nonempty=False)
+        for i, item_id in enumerate(ids):
+            if item_id not in items:
+                raise UndefinedReferenceError(
+                    f"item {item_id!r} is not defined in questionnaire.items",
+                    file=t.file, key=join_key(t.where(phase), i),
+                )
+        asked[phase] = tuple(items[i] for i in ids)
+    if asked["after_task"] and n_modes != 2:
+        raise t.value_error(
+            "after_task",
+            f"a preference between a task's two runs needs exactly 2 modes, this protocol has"
+            f" {n_modes}; leave after_task empty",
+        )
+    return Questionnaire(points=points, items=MappingProxyType(items), **asked)
+
+
+def read_texts(root: Table, *, questionnaire: Questionnaire) -> Texts:
+    """``[consent]`` (text, agree), ``[debrief]`` (text) and ``[instructions]`` per phase."""
+    consent = root.table("consent")
+    consent.only("text", "agree")
+    debrief = root.table("debrief")
+    debrief.only("text")
+    t = root.table("instructions")
+    t.only(*INSTRUCTIONS_REQUIRED, *INSTRUCTIONS_OPTIONAL)
+    instructions: dict[str, str] = {}
+    for phase in INSTRUCTIONS_REQUIRED + INSTRUCTIONS_OPTIONAL:
+        required = phase in INSTRUCTIONS_REQUIRED or (
+            phase == "preference" and bool(questionnaire.after_task)
+        )
+        if required or phase in t:
+            instructions[phase] = _placeholders_checked(t, phase)
+    return Texts(
+        consent=consent.string("text"),
+        consent_agree=consent.string("agree"),
+        debrief=debrief.string("text"),
+        instructions=MappingProxyType(instructions),
+    )
+
+
+def _placeholders_checked(t: Table, phase: str) -> str:
+    text = t.string(phase)
+    allowed = PLACEHOLDERS.get(phase, set())
+    try:
+        fields = [f for _, f, _, _ in string.Formatter().parse(text) if f is not None]
+    except ValueError as e:
+        raise t.value_error(
+            phase, f"bad braces ({e}); write {{{{ and }}}} for literal braces"
+        ) from None
+    for f in fields:
+        if f not in allowed:
+            hint = f"allowed: {{{', '.join(sorted(allowed))}}}" if allowed else "none allowed"
+            raise t.value_error(phase, f"unknown placeholder {{{f}}} ({hint})")
+    return text
+
+
+def participant_texts(p: Protocol) -> list[tuple[str, str]]:
+    """Every (key path, text) of ``p`` that a participant may see."""
+    texts = [
+        ("consent.text", p.texts.consent),
+        ("consent.agree", p.texts.consent_agree),
+        ("debrief.text", p.texts.debrief),
+    ]
+    texts += [(f"instructions.{k}", v) for k, v in p.texts.instructions.items()]
+    scales = {}
+    for item in p.questionnaire.items.values():
+        texts.append((f"questionnaire.items.{item.id}.prompt", item.prompt))
+        scales[item.scale.name] = item.scale
+    for scale in scales.values():
+        texts += [(f"questionnaire.scales.{scale.name}.anchors[{i}]", a)
+                  for i, a in enumerate(scale.anchors)]
+    for name in dict.fromkeys([*(t.scene for t in p.tasks), p.training.scene]):
+        scene = p.scenes[name]
+        texts += [(f"scenes.{name}.objects[{i}].name", o) for i, o in enumerate(scene.object_names)]
+    for task in p.tasks:
+        texts.append((f"scenes.{task.scene}.target", p.describe_trial(task.name)))
+    texts.append((f"scenes.{p.training.scene}.target", p.describe_training()))
+    return texts
+
+
+def check_blinding(p: Protocol) -> None:
+    """Raise :class:`BlindingError` at the first participant-facing text naming a condition."""
+    words = p.condition_words
+    for key, text in participant_texts(p):
+        found = [w for w in words if w in text.lower()]
+        if found:
+            raise BlindingError(
+                f"participant-facing text contains the condition word(s) {found} (as a word or"
+                f" inside one, e.g. 'bright' holds 'right'); rephrase: {text[:60]!r}",
+                file=p.path, key=key,
+            )
