@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy import stats
+from scipy import special
 
 from analysis.design import effect_name, effect_terms, numeric_column, require_columns
 from analysis.errors import DesignError
@@ -169,7 +169,7 @@ def factorial_anova(
         f = (ss / df1) / mse if mse > 0 else np.inf
         rows.append({
             "effect": name, "df1": float(df1), "df2": float(df_resid), "F": float(f),
-            "p": float(stats.f.sf(f, df1, df_resid)), "np2": ss / (ss + sse) if ss + sse > 0
+            "p": float(special.fdtrc(df1, df_resid, f)), "np2": ss / (ss + sse) if ss + sse > 0
             else np.nan, "SS": ss,
         })
     r2 = 1.0 - sse / sst if sst > 0 else np.nan

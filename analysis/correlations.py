@@ -10,7 +10,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
-from scipy import stats
+from scipy import special
 
 from analysis.errors import DesignError, SchemaError
 from analysis.load import RATING_ITEMS
@@ -33,7 +33,7 @@ def pearson(x: Sequence[float], y: Sequence[float]) -> dict[str, float]:
     r = max(-1.0, min(1.0, r))
     df = n - 2
     t = r * np.sqrt(df) / np.sqrt(max(1e-300, 1 - r * r))
-    p = float(2 * stats.t.sf(abs(t), df))
+    p = float(2 * special.stdtr(df, -abs(t)))
     if n > 3 and abs(r) < 1:
         z, h = np.arctanh(r), 1.959963984540054 / np.sqrt(n - 3)
         lo, hi = float(np.tanh(z - h)), float(np.tanh(z + h))

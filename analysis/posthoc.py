@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy import stats
+from scipy import special
 
 from analysis.errors import DesignError
 
@@ -46,8 +46,8 @@ def paired_t(a: Sequence[float], b: Sequence[float]) -> dict[str, float]:
     mean, sd = float(d.mean()), float(d.std(ddof=1))
     se = sd / np.sqrt(n)
     t = mean / se if se > 0 else (np.inf * np.sign(mean) if mean else np.nan)
-    p = float(2 * stats.t.sf(abs(t), n - 1)) if np.isfinite(t) else (0.0 if mean else 1.0)
-    half = float(stats.t.ppf(0.975, n - 1) * se)
+    p = float(2 * special.stdtr(n - 1, -abs(t))) if np.isfinite(t) else (0.0 if mean else 1.0)
+    half = float(special.stdtrit(n - 1, 0.975) * se)
     return {"n": n, "df": float(n - 1), "t": float(t), "p": p, "mean_a": float(a_.mean()),
             "mean_b": float(b_.mean()), "mean_diff": mean, "ci_low": mean - half,
             "ci_high": mean + half, "d_z": mean / sd if sd > 0 else np.nan}

@@ -15,14 +15,16 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
-from analysis.anova import FactorialAnovaResult, factorial_anova
 from analysis.design import require_columns
 from analysis.errors import DataError, SchemaError
+
+if TYPE_CHECKING:
+    from analysis.anova import FactorialAnovaResult
 
 PREDICTORS: dict[str, dict[str, Any]] = {
     "amnesic": {"kind": "amnesic", "temperature": 0.05},
@@ -177,6 +179,8 @@ def evaluate_predictions(
 
 def prediction_anova(evals: pd.DataFrame, *, dv: str = "success_rate") -> FactorialAnovaResult:
     """Factorial ANOVA of ``dv`` on predictor x difficulty x correctness x mode (type III)."""
+    from analysis.anova import factorial_anova
+
     data = evals.copy()
     orders = {"predictor": list(dict.fromkeys(evals["predictor"])),
               "difficulty": ["easy", "hard"], "correctness": ["right", "wrong"],

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy import stats
+from scipy import special
 
 from analysis.design import CellData, cell_means, effect_name, effect_terms
 
@@ -67,7 +67,7 @@ def rm_anova_cells(cells: CellData) -> pd.DataFrame:
         ss_err = float((resid**2).sum())
         df2 = df1 * (n - 1)
         f = (ss / df1) / (ss_err / df2) if ss_err > 0 else np.inf
-        p = float(stats.f.sf(f, df1, df2)) if np.isfinite(f) else 0.0
+        p = float(special.fdtrc(df1, df2, f)) if np.isfinite(f) else 0.0
         if df1 == 1:
             eps = 1.0
         else:
@@ -75,7 +75,7 @@ def rm_anova_cells(cells: CellData) -> pd.DataFrame:
             tr2 = float(np.trace(s @ s))
             eps = float(np.trace(s) ** 2 / (df1 * tr2)) if tr2 > 0 else 1.0
             eps = min(1.0, max(eps, 1.0 / df1))
-        p_gg = float(stats.f.sf(f, df1 * eps, df2 * eps)) if np.isfinite(f) else 0.0
+        p_gg = float(special.fdtrc(df1 * eps, df2 * eps, f)) if np.isfinite(f) else 0.0
         total = ss + ss_err
         rows.append({
             "effect": effect_name(cells.factors, term),

@@ -1,0 +1,105 @@
+"""The report command end to end on an exported synthetic study, and its failure messages."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from analysis.load import from_frames, task_cells
+from analysis.protocol_info import load_protocol_info
+from analysis.synthetic import synthetic_tables
+from analysis.timing import timing_analysis
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def export_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A simulated 8-participant study written like `study export` output (CSV + Parquet)."""
+    d = tmp_path_factory.mktemp("export")
+    tables = synthetic_tables(8, seed=21, rate_hz=20.0)
+    tables["trials"].to_csv(d / "trials.csv", index=False)
+    tables["samples"].to_parquet(d / "samples.parquet")
+    tables["ratings"].to_csv(d / "ratings.csv", index=False)
+    tables["events"].to_csv(d / "events.csv", index=False)
+    return d
+
+
+def _report(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "analysis", "report", *args], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_report_writes_html_markdown_json_and_figures(export_dir: Path, tmp_path: Path) -> None:
+    out = tmp_path / "report"
+    run = _report("--export-dir", str(export_dir), "--out", str(out))
+    assert run.returncode == 0, run.stderr
+    html = (out / "report.html").read_text()
+    assert html.count("<svg") == 3  # Fig. 7, 8, 9 inline
+    assert not re.search(r"<(img|script|link)\b", html)  # self-contained
+    for fig in ("fig7_arbitration", "fig8_time_preference", "fig9_prediction"):
+        assert (out / "figures" / f"{fig}.png").stat().st_size > 10_000
+        assert (out / "figures" / f"{fig}.svg").read_text().lstrip().startswith("<?xml")
+    md = (out / "report.md").read_text()
+    assert "| effect | df | F | p | partial η² | paper F | paper p |" in md
+    assert "| difficulty | 1, 53 |" in md and "18.45" in md
+    assert "figures/fig9_prediction.png" in md
+
+    doc = json.loads((out / "results.json").read_text())
+    stats = pd.DataFrame(doc["statistics"])
+    assert {"analysis", "effect", "test", "df1", "df2", "statistic", "p",
+            "effect_size"} <= set(stats.columns)
+
+    def row(analysis: str, effect: str) -> pd.Series:
+        return stats[(stats.analysis == analysis) & (stats.effect == effect)].iloc[0]
+
+    assert row("timing_ancova", "difficulty")["df2"] == 53
+    assert row("timing_ancova", "difficulty")["paper_value"] == 18.45
+    assert row("timing_rm", "correctness:mode")["df2"] == 7
+    assert row("timing_posthoc", "aggressive&wrong - timid&wrong (aggressive vs timid when "
+               "wrong)")["df1"] == 15
+    assert row("timing_planned", "Easy&Wrong: aggressive - timid")["df1"] == 7
+    assert row("preference", "time_advantage_aggressive")["df1"] == 30
+    assert row("prediction_anova", "predictor")["df2"] == 112
+    assert row("prediction_anova", "predictor")["paper_value"] == 1020.95
+    # the numbers in the file are the API's numbers on the same data
+    cells, _ = task_cells(from_frames(pd.read_csv(export_dir / "trials.csv")).trials)
+    api = timing_analysis(cells).ancova.table.set_index("effect")
+    assert row("timing_ancova", "mode")["statistic"] == pytest.approx(api.loc["mode", "F"])
+    assert doc["fits"]["timing_ancova"]["df_resid"] == 53
+    assert doc["protocol"]["content_hash"] == load_protocol_info().content_hash
+    assert doc["software"]["version"] and doc["participants"] == 8
+
+
+def test_report_on_incomplete_data_notes_what_was_dropped(export_dir: Path,
+                                                          tmp_path: Path) -> None:
+    src = tmp_path / "export"
+    src.mkdir()
+    trials = pd.read_csv(export_dir / "trials.csv")
+    trials.loc[(trials.participant == "P05") & (trials.task == "hard-wrong"), "status"] = "skipped"
+    trials.to_csv(src / "trials.csv", index=False)  # no samples: prediction is skipped
+    run = _report("--export-dir", str(src), "--out", str(tmp_path / "r"))
+    assert run.returncode == 0, run.stderr
+    doc = json.loads((tmp_path / "r" / "results.json").read_text())
+    assert any("P05" in n for n in doc["notes"])
+    assert any("no samples" in n for n in doc["notes"])
+    assert doc["fits"]["timing_rm"]["n_subjects"] == 7
+
+
+def test_report_bad_sources_exit_2_with_a_message(tmp_path: Path, export_dir: Path) -> None:
+    gone = _report("--export-dir", str(tmp_path / "nowhere"), "--out", str(tmp_path / "o"))
+    assert gone.returncode == 2 and "not a directory" in gone.stderr
+    db = _report("--db", str(tmp_path / "absent.db"), "--out", str(tmp_path / "o"))
+    assert db.returncode == 2 and "--db" in db.stderr and "Traceback" not in db.stderr
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    pd.read_csv(export_dir / "trials.csv").drop(columns="duration_s").to_csv(
+        broken / "trials.csv", index=False)
+    bad = _report("--export-dir", str(broken), "--out", str(tmp_path / "o"))
+    assert bad.returncode == 2 and "'duration_s'" in bad.stderr and "Traceback" not in bad.stderr
