@@ -39,7 +39,7 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
         "mode": ("manipulated factor: arbitration mode; none for unassisted training", ""),
         "run": ("which run of the task this is", "first | second | ..."),
         "attempt": ("attempt number of this trial step (a redo starts attempt 2)", "1.."),
-        "status": ("what became of the attempt", "completed | redone | skipped | interrupted"),
+        "status": ("what became of the attempt", "completed | redone | skipped | interrupted | running (still in progress)"),
         "outcome": ("how the trial ended",
                     "success | wrong_object | dropped | timeout | aborted | interrupted"),
         "success": ("the target was lifted", "true | false"),

@@ -104,6 +104,8 @@ CASES = [
      "modes.timid.arbitration.alpha_max", "must be in (0, 1)"),
     ('{ kind = "oracle" }', '{ kind = "oracle", goal = "cup" }', UnknownKeyError,
      "training.prediction.goal", "unknown key 'goal'"),
+    ("participants = 8", "participants = 12", ProtocolValueError, "study.participants",
+     "use a multiple of 8"),
     ("schema = 1", "schema = 2", ProtocolValueError, "schema", "reads schema 1"),
     ("schema = 1\n", "", MissingKeyError, "schema", "required key is missing"),
 ]
@@ -153,6 +155,7 @@ def test_missing_file_names_it(tmp_path: Path) -> None:
 
 def test_preference_needs_two_modes(tmp_path: Path) -> None:
     text = TEXT.replace('mode = ["timid", "aggressive"]', 'mode = ["timid", "aggressive", "bold"]')
+    text = text.replace("participants = 8 ", "participants = 24 ")  # 4 task x 6 mode orders
     text = text.replace(
         "[training]\n",
         '[modes.bold]\narbitration = { kind = "linear", alpha_max = 0.8 }\n\n[training]\n',

@@ -191,6 +191,12 @@ def test_cli_csv_and_json(paper) -> None:
     assert records == [{k: r[k] if k != "position" else int(r[k]) for k in r} for r in rows]
 
 
+def test_cli_defaults_to_the_planned_sample_size() -> None:
+    out = run_cli("--protocol", str(PAPER))
+    assert out.returncode == 0, out.stderr
+    assert len(out.stdout.strip().splitlines()) == 1 + 64
+
+
 def test_cli_reports_bad_input(tmp_path: Path) -> None:
     out = run_cli("--protocol", str(PAPER), "--participants", "0")
     assert out.returncode == 2 and "participants must be a positive integer" in out.stderr

@@ -28,7 +28,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"protocol TOML file (default {DEFAULT_PROTOCOL})",
     )
     parser.add_argument(
-        "--participants", type=int, required=True, help="number of participants (>= 1)"
+        "--participants", type=int, default=None,
+        help="number of participants (default: the protocol's study.participants)",
     )
     parser.add_argument("--format", choices=("csv", "json"), default="csv", help="output format")
 
@@ -36,7 +37,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     try:
         protocol = load_protocol(args.protocol)
-        trials = schedule(protocol, participants=args.participants)
+        participants = args.participants
+        if participants is None:
+            participants = protocol.study.participants
+            if participants is None:
+                raise ScheduleError(
+                    f"{args.protocol} sets no study.participants; pass --participants N"
+                )
+        trials = schedule(protocol, participants=participants)
     except (ProtocolError, ScheduleError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

@@ -117,6 +117,7 @@ class _Loader:
         policy = component(root.table("policy"), "policy")
         modes = self._modes(root.table("modes"), mode_levels)
         training = self._training(root.table("training"), scenes, control)
+        self._check_sample_size(study, tasks, modes)
         questionnaire = read_questionnaire(root.table("questionnaire"), n_modes=len(modes))
         self._build_checks(tasks, scenes, prediction, confidence, policy, modes, training, control)
         texts = read_texts(root, questionnaire=questionnaire)
@@ -145,15 +146,29 @@ class _Loader:
 
     # -- sections ---------------------------------------------------------------------------
     def _study(self, t: Table) -> StudyInfo:
-        t.only("id", "title", "version", "description")
+        t.only("id", "title", "version", "description", "participants")
         info = StudyInfo(
             id=self._name(t, "id"),
             title=t.string("title"),
             version=t.string("version"),
             description=t.string("description", "", nonempty=False),
+            participants=t.integer("participants", None, minimum=1, maximum=100_000)
+            if "participants" in t else None,
         )
-        t.close(allowed="id, title, version, description")
         return info
+
+    def _check_sample_size(self, study: StudyInfo, tasks: tuple[Task, ...],
+                           modes: tuple[Mode, ...]) -> None:
+        from study.schedule import Design
+
+        cycle = Design(tasks=tuple(t.name for t in tasks), modes=tuple(m.name for m in modes))
+        n = study.participants
+        if n is not None and n % cycle.cycle:
+            raise self.error(
+                ProtocolValueError, "study.participants",
+                f"{n} participants do not fill whole balanced cycles of {cycle.cycle} (task"
+                f" orders x mode orders); use a multiple of {cycle.cycle}",
+            )
 
     def _control(self, t: Table) -> Control:
         t.only("rate_hz", "physics_dt", "time_limit_s", "lift_height_m")

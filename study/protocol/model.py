@@ -10,12 +10,14 @@ from typing import Any
 
 @dataclass(frozen=True)
 class StudyInfo:
-    """Identity of the study: ``id`` is stored with every session."""
+    """Identity of the study: ``id`` is stored with every session; ``participants`` is the
+    planned sample size (a whole number of balanced schedule cycles), if given."""
 
     id: str
     title: str
     version: str
     description: str = ""
+    participants: int | None = None
 
 
 @dataclass(frozen=True)
