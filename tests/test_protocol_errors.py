@@ -106,6 +106,8 @@ CASES = [
      "training.prediction.goal", "unknown key 'goal'"),
     ("participants = 8", "participants = 12", ProtocolValueError, "study.participants",
      "use a multiple of 8"),
+    ('difficulty = ["easy", "hard"]', 'dificulty = ["easy", "hard"]', UnknownKeyError,
+     "factors.dificulty", "unknown key 'dificulty'"),
     ("schema = 1", "schema = 2", ProtocolValueError, "schema", "reads schema 1"),
     ("schema = 1\n", "", MissingKeyError, "schema", "required key is missing"),
 ]

@@ -1,5 +1,8 @@
-"""``python -m study COMMAND`` subcommands; each module has ``add_arguments`` and ``main``.
+"""``python -m study COMMAND`` subcommands, one module each with ``add_arguments(parser)`` and
+``main(args) -> int`` (dispatched by ``app.cli.dispatch``, see ``study/__main__.py``):
 
-    schedule   print the counterbalanced trial schedule (study.cli.schedule)
-    export     write tidy CSV + Parquet tables and a codebook from a store (study.cli.export)
+    schedule   the counterbalanced trial schedule (study.schedule) as CSV or JSON
+    run        one whole session headless with a scripted participant
+    simulate   simulated participants through the whole study
+    export     tidy CSV + Parquet tables, codebook and metadata from a store (study.export)
 """

@@ -104,6 +104,7 @@ class _Loader:
         study = self._study(root.table("study"))
         control = self._control(root.table("control"))
         factors = root.table("factors")
+        factors.only("difficulty", "correctness", "mode")
         difficulty = self._levels(factors, "difficulty")
         correctness = self._levels(factors, "correctness")
         mode_levels = self._levels(factors, "mode")
