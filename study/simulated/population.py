@@ -70,9 +70,9 @@ class GraspParams:
     early_radius_m: float
     miss_p: float  # per attempt: aim at a point miss_offset_m beside the object
     miss_offset_m: float
-    close_wait_s: float  # wait with the gripper closed before lifting
+    close_wait_s: float  # at least this long with the gripper closed before lifting
     lift_m: float  # how high the target is raised after closing
-    check_after_s: float  # after this long lifting, a slipped/missed object is noticed
+    check_after_s: float  # this long after closing, an empty gripper is noticed
     retry_pause_s: float  # pause with the gripper open before reaching again
     stall_radius_m: float  # the gripper stopped getting nearer while within this ...
     stall_time_s: float  # ... for this long: close anyway ("as near as it gets")

@@ -22,10 +22,13 @@ Each tick the user sets an absolute target (clamped by the interface's reach):
   (``dm_h/dt = (hand - m_h) / lag``), split the same way (a robot ahead is help).
 - ``n``: Ornstein-Uhlenbeck hand noise, sd ``sigma (1 + careless rho)``.
 
-Grasp: closes when the seen gripper is within ``grasp_radius`` of ``a`` and slower than
+Grasp (``grasp`` is held True from the request on; trials react to its rising edge): closes
+when the seen gripper is within ``grasp_radius`` of ``a`` and slower than
 ``settle_speed`` (or, on an impatient "early" attempt, as soon as it is within
-``early_radius``, still moving; or once it stalls within ``stall_radius``), waits, lifts by ``lift_m``; a missed or slipped object is noticed while
-lifting and the user opens, pauses and reaches again (with a fresh plan).
+``early_radius``, still moving; or once it stalls within ``stall_radius``). Once the object is
+seen in the gripper (after at least ``close_wait``) they lift by ``lift_m`` (harmless where the
+trial lifts by itself); an empty gripper ``check_after`` after closing, or an object slipping
+out, makes them open, pause and reach again with a fresh plan.
 
 The user knows which object to pick up (``obs.target_index``, as participants are told "the
 bottle") and sees the robot; they never read ``obs.alpha``, ``obs.predicted`` or conditions.
@@ -272,16 +275,20 @@ class SimulatedUser:
                 self.grasp_closed = True
                 self._enter(CLOSE, t)
         elif self.phase == CLOSE:
-            if since >= g.close_wait_s:
+            if grasped == target_name and since >= g.close_wait_s:
                 self._enter(LIFT, t)
                 self._new_plan(self._aim + np.array([0.0, 0.0, g.lift_m]))
-        elif self.phase == LIFT:
-            if since >= g.check_after_s and seen_t >= self._phase_t and grasped != target_name:
-                self.grasp_closed = False
-                self._enter(OPEN, t)
+            elif since >= g.check_after_s and grasped != target_name:
+                self._release(t)  # nothing (or the wrong thing) in the gripper: open, retry
+        elif self.phase == LIFT and grasped != target_name and seen_t >= self._phase_t:
+            self._release(t)  # slipped out
         elif self.phase == OPEN and since >= g.retry_pause_s:
             self._enter(REACH, t)
             self._new_attempt(goal, t)
+
+    def _release(self, t: float) -> None:
+        self.grasp_closed = False
+        self._enter(OPEN, t)
 
     def _enter(self, phase: str, t: float) -> None:
         self.phase = phase

@@ -1,0 +1,82 @@
+"""``python -m study simulate``: simulated participants through the whole study, headless.
+
+    python -m study simulate --protocol protocols/dragan2013.toml --participants 8 \\
+        --db data/sim.db --seed 1 [--workers N] [--population protocols/population.toml]
+
+Every participant is drawn from the population file, enrolled, and driven through the real
+session engine and control loop (training, every task in both modes, questionnaires, debrief)
+as fast as the machine allows, writing the same store as a live study. A progress bar goes to
+stderr; the last line on stdout is one JSON object: participants, trials, ratings, wall_s
+(plus workers, db, seed, simulated_s, outcomes, errors). Exit code 2 on bad input or when a
+participant's session failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[2]
+DEFAULT_PROTOCOL = ROOT / "protocols" / "dragan2013.toml"
+DEFAULT_POPULATION = ROOT / "protocols" / "population.toml"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--protocol", type=Path, default=DEFAULT_PROTOCOL, help="protocol TOML")
+    parser.add_argument("--db", type=Path, required=True, help="study store (SQLite file)")
+    parser.add_argument("--participants", type=int, default=8, help="how many to simulate")
+    parser.add_argument("--seed", type=int, default=0, help="population + session seed")
+    parser.add_argument(
+        "--workers", type=int, default=1, help="processes (each writes the same WAL store)"
+    )
+    parser.add_argument(
+        "--population", type=Path, default=DEFAULT_POPULATION, help="population TOML"
+    )
+    parser.add_argument(
+        "--first", type=int, default=0, help="first population index (to add to a store)"
+    )
+    parser.add_argument(
+        "--synchronous",
+        choices=["FULL", "NORMAL"],
+        default="NORMAL",
+        help="SQLite durability (NORMAL: safe against a crash of the process, not of the OS)",
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def main(args: argparse.Namespace) -> int:
+    from study.protocol import ProtocolError
+    from study.simulated import SimulationError
+    from study.simulated.runner import simulate
+    from study.store import StoreError
+
+    result: dict[str, Any]
+    try:
+        report = simulate(
+            protocol_path=args.protocol,
+            db=args.db,
+            participants=args.participants,
+            seed=args.seed,
+            workers=args.workers,
+            population_path=args.population,
+            first=args.first,
+            synchronous=args.synchronous,
+            progress=not args.no_progress,
+        )
+        result = report.as_dict()
+        for error in report.errors:
+            print(f"error: {error}", file=sys.stderr)
+        code = 2 if report.errors else 0
+    except (ProtocolError, StoreError, SimulationError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        result = {"participants": 0, "trials": 0, "ratings": 0, "wall_s": 0.0, "error": str(exc)}
+        code = 2
+    except KeyboardInterrupt:
+        print("interrupted: running trials are marked interrupted in the store", file=sys.stderr)
+        result = {"status": "interrupted"}
+        code = 130
+    print(json.dumps(result))
+    return code

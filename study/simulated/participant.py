@@ -1,0 +1,100 @@
+"""``SimulatedParticipant``: one simulated person across a whole session.
+
+It plays both parts the headless session loop (``study.headless.run_headless``) asks of a
+participant: the input factory (a fresh :class:`~study.simulated.user_model.SimulatedUser`
+for every trial attempt, seeded by the participant and the attempt's seed) and the answerer
+(``observe`` each finished run, ``answer`` each questionnaire screen). It sees what a
+participant sees - the screen (which set of items is asked, their scales) and its own runs
+(duration, outcome, the motion it saw) - never the task, mode or correctness of a step.
+
+Runs finished before the ``after_training`` questionnaire are the practice runs: they set the
+participant's references (``QuestionnaireModel.observe_training``) and are what the baseline
+items rate. ``after_run`` items rate the last run; ``after_task`` asks the preference between the
+last two runs (1 = the first run).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from study.simulated.errors import SimulationRunError
+from study.simulated.experience import RunExperience
+from study.simulated.population import ParticipantParams, participant_rng
+from study.simulated.questionnaire import QuestionnaireModel
+from study.simulated.user_model import SimulatedUser
+
+if TYPE_CHECKING:
+    from app.trial import TrialConfig
+    from study.screen import Screen
+    from study.trial_run import TrialSummary
+
+
+class SimulatedParticipant:
+    """Input factory + answerer for ``run_headless`` (see module docstring)."""
+
+    def __init__(self, params: ParticipantParams) -> None:
+        self.params = params
+        self.questionnaire = QuestionnaireModel(
+            params.questionnaire, rng=participant_rng(params.index, seed=params.seed, stream=1)
+        )
+        self.runs: list[RunExperience] = []
+        self.training_runs: list[RunExperience] = []
+        self._trained = False
+        self._user: SimulatedUser | None = None
+
+    # ---- input factory ----------------------------------------------------------------------
+    def __call__(self, config: TrialConfig, seed: int) -> SimulatedUser:
+        """A fresh user for one trial attempt (``config`` is not looked at: it carries the
+        condition, which a participant does not know)."""
+        del config
+        rng = np.random.default_rng([self.params.seed, self.params.index, 2, int(seed)])
+        self._user = SimulatedUser(self.params, rng=rng)
+        return self._user
+
+    # ---- answerer ---------------------------------------------------------------------------
+    def observe(self, summary: TrialSummary | None, *, time_limit_s: float) -> None:
+        """Remember how the run just finished went (``None``: aborted, not lived to the end)."""
+        del time_limit_s
+        user, self._user = self._user, None
+        if summary is None or user is None:
+            return
+        self.runs.append(user.experience(duration_s=summary.duration_s, success=summary.success))
+
+    def answer(self, screen: Screen) -> dict[str, int]:
+        """Answers to every item on a questionnaire screen."""
+        if not screen.items:
+            raise SimulationRunError(f"answer: screen {screen.title!r} asks no items")
+        if screen.questionnaire == "after_training":
+            self._finish_training(keep_last=0)
+            return self._rate(screen, self.training_runs or self.runs[-1:])
+        self._finish_training(keep_last=1)
+        if not self.runs:
+            raise SimulationRunError(
+                f"answer: {screen.questionnaire} items asked before any run was observed"
+            )
+        if screen.questionnaire == "after_task":
+            if len(self.runs) < 2:
+                raise SimulationRunError("answer: a preference needs two runs; observed one")
+            first, second = self.runs[-2], self.runs[-1]
+            return {
+                item.id: self.questionnaire.prefer(first, second, points=item.points)
+                for item in screen.items
+            }
+        return self._rate(screen, self.runs[-1])
+
+    def _rate(self, screen: Screen, runs: RunExperience | list[RunExperience]) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for item in screen.items:
+            out.update(self.questionnaire.rate([item.id], runs, points=item.points))
+        return out
+
+    def _finish_training(self, *, keep_last: int) -> None:
+        """The runs so far (but the last ``keep_last``) were practice: they become the
+        questionnaire's references. Happens once."""
+        if self._trained:
+            return
+        self._trained = True
+        self.training_runs = self.runs[: len(self.runs) - keep_last]
+        self.questionnaire.observe_training(self.training_runs)
