@@ -39,7 +39,8 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
         "mode": ("manipulated factor: arbitration mode; none for unassisted training", ""),
         "run": ("which run of the task this is", "first | second | ..."),
         "attempt": ("attempt number of this trial step (a redo starts attempt 2)", "1.."),
-        "status": ("what became of the attempt", "completed | redone | skipped | interrupted | running (still in progress)"),
+        "status": ("what became of the attempt (running: still in progress at export)",
+                   "completed | redone | skipped | interrupted | running"),
         "outcome": ("how the trial ended",
                     "success | wrong_object | dropped | timeout | aborted | interrupted"),
         "success": ("the target was lifted", "true | false"),
@@ -126,7 +127,8 @@ def _likert(column: str, protocol: Protocol | None, columns: list[str]) -> tuple
             mode = column[len(base) + 1:]
             half = ((q.items[base].scale.points if q else 7) - 1) / 2
             return (f"{base} re-centred on mode {mode}: positive = preferred the {mode} run,"
-                    f" negative = preferred the other run, 0 = no preference", f"{-half:g}..{half:+g}")
+                    " negative = preferred the other run, 0 = no preference",
+                    f"{-half:g}..{half:+g}")
     if q is None:
         return (f"Likert answer to item {column!r}: a rating of this run, or the task's"
                 " preference between its two runs (then on both runs)", "1..7")

@@ -1,5 +1,4 @@
-"""The parts of a protocol as typed, immutable values (the whole is :class:`~study.protocol.Protocol`).
-"""
+"""The parts of a protocol as typed, immutable values (the whole: ``study.protocol.Protocol``)."""
 
 from __future__ import annotations
 
