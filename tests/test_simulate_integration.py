@@ -1,0 +1,112 @@
+"""``python -m study simulate`` end to end: simulated participants through the real session
+engine, control loop and store (MuJoCo physics, headless).
+
+The protocol is the study's own with a shorter time limit (20 s instead of 120 s) so that a
+trial the simulated user cannot finish ends quickly; everything else is unchanged.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from study.cli import simulate as simulate_cli
+from study.protocol import load_protocol
+from study.store import Store
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def short_protocol(tmp_path_factory: pytest.TempPathFactory, protocol_path: Path) -> Path:
+    text = protocol_path.read_text(encoding="utf-8")
+    text, n = re.subn(r"(?m)^time_limit_s = \d+", "time_limit_s = 20", text)
+    assert n >= 1, "the protocol's [control] time_limit_s moved; update this fixture"
+    path = tmp_path_factory.mktemp("protocol") / "dragan2013-short.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory: pytest.TempPathFactory, short_protocol: Path) -> tuple[dict, Path]:
+    db = tmp_path_factory.mktemp("store") / "sim.db"
+    parser = argparse.ArgumentParser()
+    simulate_cli.add_arguments(parser)
+    args = parser.parse_args(
+        [
+            "--protocol",
+            str(short_protocol),
+            "--participants",
+            "1",
+            "--db",
+            str(db),
+            "--seed",
+            "3",
+            "--no-progress",
+        ]
+    )
+    import contextlib
+    import io
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = simulate_cli.main(args)
+    lines = out.getvalue().strip().splitlines()
+    summary = json.loads(lines[-1])
+    assert code == 0, summary
+    return summary, db
+
+
+def test_summary_line(simulated: tuple[dict, Path]) -> None:
+    summary, _ = simulated
+    assert summary["participants"] == 1
+    assert summary["trials"] == 11  # 3 training runs + 4 tasks x 2 modes
+    assert summary["ratings"] == 3 + 8 * 3 + 4
+    assert summary["wall_s"] > 0
+    assert summary["errors"] == []
+
+
+def test_store_holds_a_completed_session(
+    simulated: tuple[dict, Path], short_protocol: Path
+) -> None:
+    _, db = simulated
+    protocol = load_protocol(short_protocol)
+    with Store.open_readonly(db) as store:
+        (session,) = store.sessions()
+        assert session.status == "completed"
+        assert session.participant == "sim3-001"
+        trials = store.trials()
+        assert [t.phase for t in trials].count("training") == protocol.training.runs
+        task_trials = [t for t in trials if t.phase == "task"]
+        assert len(task_trials) == 8
+        assert all(t.status == "completed" for t in trials)
+        conditions = {(t.task, t.mode) for t in task_trials}
+        assert len(conditions) == 8
+        for t in trials:
+            assert t.outcome in ("success", "timeout", "dropped", "wrong_object")
+            assert store.sample_count(t.trial_id) == t.ticks > 0
+            assert t.duration_s is not None and 0 < t.duration_s <= 20.0 + 1e-6
+        # the simulated user picks the object up where the task is feasible
+        assert sum(t.outcome == "success" for t in trials) >= 6
+        ratings = store.ratings()
+        assert {r.item for r in ratings} == {"helpful", "matched", "teammate", "preference"}
+        assert all(1 <= r.value <= 7 for r in ratings)
+        assert sum(r.item == "preference" for r in ratings) == 4
+        assert store.demographics("sim3-001")["simulated"] is True
+        kinds = [e.kind for e in store.events()]
+        assert "simulated_participant" in kinds and "finish" in kinds
+
+
+def test_same_participant_cannot_be_simulated_twice(
+    simulated: tuple[dict, Path], short_protocol: Path
+) -> None:
+    _, db = simulated
+    from study.simulated import SimulationRunError
+    from study.simulated.runner import simulate
+
+    with pytest.raises(SimulationRunError, match=r"sim3-001 is already in .*--first 1"):
+        simulate(protocol_path=short_protocol, db=db, participants=1, seed=3, progress=False)
