@@ -205,9 +205,10 @@ def assign_rows(history: Iterable[Enrollment | tuple[str, bool]]) -> list[int]:
 def next_row(history: Iterable[Enrollment | tuple[str, bool]]) -> int:
     """The design row for the next enrollment, given everyone enrolled so far (in order).
 
-    ``history`` holds :class:`Enrollment` values or ``(participant, withdrawn)`` pairs. Rows are
-    handed out 0, 1, 2, ...; the lowest row whose holder withdrew and that no active participant
-    has taken since goes first, so withdrawals do not unbalance the design.
+    ``history`` holds :class:`Enrollment` values or ``(participant, withdrawn)`` pairs. The next
+    row is the lowest one no active (not withdrawn) participant holds: rows go out 0, 1, 2, ...
+    in enrollment order, a withdrawn participant's row goes to the next enrollment, and a row
+    skipped by an explicit override is filled later, so the design stays balanced.
     """
     entries = [e if isinstance(e, Enrollment) else Enrollment(e[0], bool(e[1])) for e in history]
     rows = assign_rows(entries)
@@ -216,7 +217,7 @@ def next_row(history: Iterable[Enrollment | tuple[str, bool]]) -> int:
 
 def _next(entries: Sequence[Enrollment], rows: Sequence[int]) -> int:
     active = {r for e, r in zip(entries, rows, strict=True) if not e.withdrawn}
-    freed = sorted({r for e, r in zip(entries, rows, strict=True) if e.withdrawn} - active)
-    if freed:
-        return freed[0]
-    return max(rows, default=-1) + 1
+    row = 0
+    while row in active:
+        row += 1
+    return row

@@ -149,6 +149,13 @@ def test_withdrawn_row_goes_to_the_next_enrollment() -> None:
     assert next_row(history) == 3
 
 
+def test_rows_skipped_by_an_override_are_filled() -> None:
+    history = [Enrollment("a", row=2), Enrollment("b", row=0)]
+    assert next_row(history) == 1
+    history.append(Enrollment("c", row=1))
+    assert next_row(history) == 3
+
+
 def test_enrollment_history_errors() -> None:
     with pytest.raises(ScheduleError, match="enrolled twice"):
         next_row([("p1", False), ("p1", False)])
