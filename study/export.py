@@ -183,72 +183,46 @@ class _Exporter:
         return t
 
     def _condition_ratings(self, t: pd.DataFrame, items: list[str]) -> pd.DataFrame:
+        """Each after-run answer on the trial it rates: the rating's ``trial_id``, or for a
+        rating without one, the completed trial of its participant, task, mode and run. A later
+        answer replaces an earlier one."""
+        for item in items:
+            t[item] = pd.Series(pd.NA, index=t.index, dtype="object")
         r = self.raw_ratings
-        r = r[(r["phase"] == "task") & r["item"].isin(items)]
-        for item in items:
-            t[item] = pd.NA
-        if r.empty:
-            return t
-        latest = r.drop_duplicates(["participant", "task", "mode", "run", "item"], keep="last")
-        by_trial = r[r["trial_id"].notna()].drop_duplicates(["trial_id", "item"], keep="last")
-        by_trial = by_trial.pivot(index="trial_id", columns="item", values="value")
-        by_cond = latest.pivot_table(
-            index=["participant", "task", "mode", "run"], columns="item", values="value",
-            aggfunc="last",
-        )
-        for item in items:
-            direct = t["trial_id"].map(by_trial[item]) if item in by_trial else None
-            keyed = pd.Series(pd.NA, index=t.index, dtype="object")
-            if item in by_cond:
-                lookup = by_cond[item].to_dict()
-                keyed = pd.Series(
-                    [lookup.get((p, k, m, n), pd.NA) for p, k, m, n in zip(
-                        t["participant"], t["task"], t["mode"], t["run"], strict=True)],
-                    index=t.index, dtype="object",
+        for row in r[(r["phase"] == "task") & r["item"].isin(items)].itertuples(index=False):
+            if pd.notna(row.trial_id):
+                rated = t["trial_id"] == row.trial_id
+            else:
+                rated = (
+                    (t["participant"] == row.participant) & (t["task"] == row.task)
+                    & (t["mode"] == row.mode) & (t["run"] == row.run)
+                    & (t["status"] == "completed")
                 )
-            # Ratings name the trial they are about; older rows fall back to the condition,
-            # which matches only the trial that was completed (not redone / skipped ones).
-            fallback = keyed.where(t["status"] == "completed", pd.NA)
-            value = direct.astype("object") if direct is not None else fallback
-            t[item] = value.where(value.notna(), fallback).where(t["phase"] == "task", pd.NA)
+            t.loc[rated, row.item] = row.value
         return t
 
     def _preferences(
         self, t: pd.DataFrame, items: list[str], mid: float, reference: str | None
     ) -> pd.DataFrame:
-        r = self.raw_ratings
-        r = r[(r["phase"] == "task") & r["item"].isin(items)]
+        """The after-task answer on every run of its task, raw and re-centred on ``reference``
+        (``value - mid`` if the reference mode was the second run, ``mid - value`` if first)."""
         a = self.assignments
-        first_mode = {
-            (p, k): m for p, k, m in a.loc[a["run"] == "first", ["participant", "task", "mode"]]
-            .itertuples(index=False)
-        }
-        second_mode = {
-            (p, k): m for p, k, m in a.loc[a["run"] == "second", ["participant", "task", "mode"]]
-            .itertuples(index=False)
-        }
+        run_of = {(p, k, m): run for p, k, m, run in
+                  a[["participant", "task", "mode", "run"]].itertuples(index=False)}
         for item in items:
-            answers = (
-                r[r["item"] == item].drop_duplicates(["participant", "task"], keep="last")
-                .set_index(["participant", "task"])["value"].to_dict()
-            )
-            keys = list(zip(t["participant"], t["task"], strict=True))
-            raw = [answers.get(k, pd.NA) if ph == "task" else pd.NA
-                   for k, ph in zip(keys, t["phase"], strict=True)]
-            t[item] = pd.Series(raw, index=t.index, dtype="object")
+            t[item] = pd.Series(pd.NA, index=t.index, dtype="object")
+            if reference is not None:
+                t[f"{item}_{reference}"] = np.nan
+        r = self.raw_ratings
+        for row in r[(r["phase"] == "task") & r["item"].isin(items)].itertuples(index=False):
+            runs = (t["participant"] == row.participant) & (t["task"] == row.task) \
+                & (t["phase"] == "task")
+            t.loc[runs, row.item] = row.value
             if reference is None:
                 continue
-            centred: list[Any] = []
-            for key, v in zip(keys, raw, strict=True):
-                if v is pd.NA:
-                    centred.append(np.nan)
-                elif second_mode.get(key) == reference:
-                    centred.append(float(v) - mid)
-                elif first_mode.get(key) == reference:
-                    centred.append(mid - float(v))
-                else:
-                    centred.append(np.nan)
-            t[f"{item}_{reference}"] = centred
+            run = run_of.get((row.participant, row.task, reference))
+            centred = {"second": row.value - mid, "first": mid - row.value}.get(run, np.nan)
+            t.loc[runs, f"{row.item}_{reference}"] = centred
         return t
 
     # -- samples -----------------------------------------------------------------------------

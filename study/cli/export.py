@@ -43,7 +43,14 @@ def main(args: argparse.Namespace) -> int:
             protocol = (
                 load_protocol(args.protocol) if args.protocol else find_protocol(store)
             )
-            tables = tidy_tables(store, protocol=protocol)
+            if protocol is None:
+                print(
+                    f"note: no protocol file matches the store's protocol"
+                    f" {store.meta.protocol_id!r} (hash {store.meta.protocol_hash[:12]}); item"
+                    " columns are inferred from the data (pass --protocol to name them)",
+                    file=sys.stderr,
+                )
+            tables = tidy_tables(store, protocol=protocol, search=[])
             metadata = export_metadata(store, tables, protocol=protocol)
         book = codebook(tables, protocol=protocol)
         written = write_tables(tables, args.out, formats=formats)
