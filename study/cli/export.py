@@ -47,7 +47,7 @@ def main(args: argparse.Namespace) -> int:
                 print(
                     f"note: no protocol file matches the store's protocol"
                     f" {store.meta.protocol_id!r} (hash {store.meta.protocol_hash[:12]}); item"
-                    " columns are inferred from the data (pass --protocol to name them)",
+                    " columns are inferred from the data (pass --protocol with the file the study ran with)",
                     file=sys.stderr,
                 )
             tables = tidy_tables(store, protocol=protocol, search=[])
