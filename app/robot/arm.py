@@ -31,7 +31,8 @@ VELOCITY_SUFFIX = "_velocity"
 KP = (4500.0, 4500.0, 3500.0, 3500.0, 2000.0, 2000.0, 2000.0)
 KV = (450.0, 450.0, 350.0, 350.0, 200.0, 200.0, 200.0)
 TORQUE = (87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0)
-GRIPPER_KP = 1000.0  # N / m on the finger opening
+GRIPPER_KP = 400.0  # N / m on the finger opening: squeezes a 6 cm bottle with ~12 N
+GRIPPER_KV = 10.0  # N s / m, about critical for the fingers (never saturates: smooth)
 GRIPPER_FORCE = 40.0  # N, per finger
 GRIPPER_MAX = 0.04  # m, finger travel
 # Collision bits. Table and floor (contype 1, conaffinity 1|2) stop everything; the arm (2)
@@ -103,6 +104,8 @@ def _arm_spec(urdf: str, kin: Kinematics) -> mujoco.MjSpec:
         for geom in spec.body(finger).geoms:
             geom.friction = [1.5, 0.01, 0.001]
             geom.contype = FINGER_CONTYPE
+            geom.solref = [0.004, 1.0]  # stiff pads: grip by friction, not by sinking in
+            geom.solimp = [0.95, 0.99, 0.001, 0.5, 2.0]
             geom.condim = 4
             geom.priority = 1
             geom.rgba = [0.25, 0.25, 0.28, 1.0]
@@ -128,7 +131,7 @@ def _arm_spec(urdf: str, kin: Kinematics) -> mujoco.MjSpec:
     grip.name = GRIPPER_ACTUATOR
     grip.target = FINGER_JOINTS[0]
     grip.trntype = mujoco.mjtTrn.mjTRN_JOINT
-    grip.set_to_position(kp=GRIPPER_KP, kv=20.0)
+    grip.set_to_position(kp=GRIPPER_KP, kv=GRIPPER_KV)
     grip.forcerange = [-GRIPPER_FORCE, GRIPPER_FORCE]
     grip.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
     grip.ctrlrange = [0.0, GRIPPER_MAX]

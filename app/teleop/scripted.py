@@ -66,6 +66,7 @@ class ScriptedInput:
             if near or stalled:
                 self._phase = "descend"
                 self._stall_ref = None
+                stalled = False
         waypoint = hover if self._phase == "hover" else grasp_point
         step = waypoint - self._target
         dist = math.sqrt(step.dot(step))
