@@ -63,7 +63,7 @@ class AnswerError(ValueError):
 
 
 class ConditionError(KeyError):
-    """A task or mode name that the loaded protocol does not define."""
+    """A task, mode or instruction phase that the loaded protocol does not define."""
 
     def __str__(self) -> str:  # KeyError would quote the message
         return str(self.args[0]) if self.args else ""
