@@ -37,6 +37,7 @@ from study.session_errors import (
     InvalidAnswerError,
     MissingReasonError,
     SessionClosedError,
+    SessionError,
     SessionStateError,
     UnknownItemError,
 )
@@ -341,6 +342,16 @@ class Session:
             step = self._require_phase("ready", "running", action="trial_config")
             return self._config(step)
 
+    def record_event(self, kind: str, detail: Mapping[str, Any] | None = None) -> None:
+        """Append an event of the caller's (UI: tab connected, input rejected ...) to the
+        session's log; thread-safe, refused once this object lost or closed its lease."""
+        if not isinstance(kind, str) or not kind:
+            raise SessionError("an event needs a kind (a short name such as 'tab_connected')")
+        with self._lock:
+            self._require_open()
+            with self._tx() as tx:
+                tx.event(self.session_id, self.participant, kind, dict(detail or {}))
+
     def add_listener(self, listener: Listener) -> None:
         """Call ``listener(screen)`` after every transition (from the acting thread)."""
         with self._lock:
@@ -569,7 +580,7 @@ class Session:
             if self._closed:
                 return
             try:
-                if not self._keeper.lost:
+                if not self._keeper.lost and self._status not in FINAL_STATUSES:
                     where, run = self._where(), self._active
                     self._stop(run)
                     with self._tx() as tx:

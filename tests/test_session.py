@@ -274,6 +274,9 @@ def test_pause_and_resume_a_running_trial(store: Store, protocol: Protocol) -> N
     assert run.run_to_end() is not None
     kinds = [e.kind for e in store.events()]
     assert kinds[-4:] == ["trial_start", "pause", "resume", "trial_end"]
+    session.record_event("tab_connected", {"client": 3})
+    assert store.events()[-1].kind == "tab_connected"
+    assert store.events()[-1].detail == {"client": 3}
     assert store.trial(run.trial_id).ticks == 5 and store.sample_count(run.trial_id) == 5
     session.close()
 

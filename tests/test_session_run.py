@@ -1,0 +1,115 @@
+"""``python -m study run``: a whole headless session with the real trial, and its bad inputs."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from app.cli import dispatch
+from study.__main__ import COMMANDS
+from study.protocol import load_protocol
+from study.session import open_store
+from study.store import Store
+
+ROOT = Path(__file__).resolve().parents[1]
+PROTOCOL = ROOT / "protocols" / "dragan2013.toml"
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, dict, str]:
+    code = dispatch("python -m study", "", COMMANDS, ["run", *argv])
+    out, err = capsys.readouterr()
+    return code, json.loads(out.strip().splitlines()[-1]), err
+
+
+@pytest.fixture(scope="module")
+def short_protocol(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The study protocol with a 20 s time limit, so runs that cannot finish end sooner."""
+    text = re.sub(r"time_limit_s = \d+(\.\d+)?", "time_limit_s = 20", PROTOCOL.read_text())
+    path = tmp_path_factory.mktemp("protocol") / "short.toml"
+    path.write_text(text)
+    return path
+
+
+def digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_whole_session_headless(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], short_protocol: Path
+) -> None:
+    db = tmp_path / "study.db"
+    args = [
+        "--protocol",
+        str(short_protocol),
+        "--db",
+        str(db),
+        "--participant",
+        "P01",
+        "--input",
+        "scripted",
+        "--seed",
+        "1",
+        "--demographics",
+        '{"age": 27}',
+    ]
+    code, summary, _ = run(capsys, *args)
+    assert code == 0
+    assert summary == {
+        "participant": "P01",
+        "trials_completed": 11,
+        "ratings": 31,
+        "status": "completed",
+    }
+    with Store.open_readonly(db) as store:
+        assert store.integrity_check() == "ok"
+        trials = store.trials()
+        assert all(t.status == "completed" for t in trials)
+        assert all(t.outcome in ("success", "wrong_object", "dropped", "timeout") for t in trials)
+        assert all(t.ticks == store.sample_count(t.trial_id) > 0 for t in trials)
+        assert all(t.duration_s == pytest.approx(t.ticks / 100) for t in trials)
+        assert trials[3].goal_names and len(trials[3].goal_positions[0]) == 3
+        assert store.demographics("P01") == {"age": 27}
+        samples = store.samples(trials[0].trial_id)
+        assert samples["alpha"].eq(0).all()  # training runs are unassisted
+        assert samples["tick"].tolist() == list(range(trials[0].ticks))
+    # the same participant again is refused, the store unchanged
+    before = digest(db)
+    code, summary, err = run(capsys, *args)
+    assert code == 2 and "P01 is already enrolled" in summary["error"]
+    assert "error: participant P01 is already enrolled" in err
+    code, summary, _ = run(capsys, *args, "--resume")
+    assert code == 2 and "already completed" in summary["error"]
+    assert digest(db) == before
+
+
+def test_bad_inputs_name_the_problem(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], short_protocol: Path
+) -> None:
+    db = tmp_path / "study.db"
+    base = ["--db", str(db), "--input", "scripted"]
+    code, summary, _ = run(
+        capsys, *base, "--protocol", str(short_protocol), "--participant", "P07", "--resume"
+    )
+    assert code == 2 and summary["status"] == "error"
+    assert "participant P07 is not enrolled" in summary["error"]
+    code, summary, _ = run(
+        capsys, *base, "--protocol", str(short_protocol), "--participant", "jane@example.org"
+    )
+    assert code == 2 and "not a pseudonym" in summary["error"]
+    # a store written by one protocol refuses another, untouched
+    protocol = load_protocol(short_protocol)
+    open_store(db, protocol).close()
+    before = digest(db)
+    code, summary, _ = run(capsys, *base, "--protocol", str(PROTOCOL), "--participant", "P01")
+    assert code == 2 and "was written by protocol 'dragan2013'" in summary["error"]
+    assert digest(db) == before
+    junk = tmp_path / "junk.db"
+    junk.write_text("not a database at all " * 50)
+    code, summary, _ = run(
+        capsys, "--db", str(junk), "--protocol", str(PROTOCOL), "--participant", "P01"
+    )
+    assert code == 2 and "not a SQLite database" in summary["error"]
