@@ -12,6 +12,7 @@ The arm passes through objects while reaching; the fingers touch them once a gra
 from __future__ import annotations
 
 import copy
+import math
 
 import mujoco
 import numpy as np
@@ -19,6 +20,8 @@ import numpy as np
 from app.robot.arm import GRIPPER_MAX, OBJECT_CONAFFINITY, OBJECT_GRIP_BIT
 from app.robot.errors import RobotError
 from app.robot.scene import Scene
+
+_BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
 
 
 class SimulationError(RobotError):
@@ -80,9 +83,9 @@ class Simulation:
         The velocity servos get ``(command - q) / (substeps dt)``: reach the command in one tick.
         """
         command = np.asarray(command, dtype=float)
-        if command.shape != (7,) or not np.all(np.isfinite(command)):
+        if command.shape != (7,) or not math.isfinite(command.sum()):
             raise SimulationError(f"command must be 7 finite joint angles, got {command!r}")
-        target = np.clip(command, self._lower, self._upper)
+        target = np.minimum(np.maximum(command, self._lower), self._upper)
         self.data.ctrl[8:15] = (target - self.data.qpos[:7]) / (substeps * self.model.opt.timestep)
         self.data.ctrl[:7] = target
         self.data.ctrl[self.scene.gripper_actuator_id] = (

@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pinocchio as pin
+from scipy.linalg.lapack import dposv
 
 from app.robot.kinematics import Kinematics, downward_rotation
 
@@ -42,7 +43,6 @@ class IKStep:
         self.rotation_gain = rotation_gain
         self.max_angular_speed = max_angular_speed
         self._damp = damping * np.eye(6)
-        self._eye = np.eye(kinematics.nq)
         self.posture = None if posture is None else np.asarray(posture, dtype=float).copy()
         self.posture_gain = posture_gain
         self.rotation = downward_rotation(0.0) if rotation is None else np.asarray(rotation)
@@ -69,12 +69,21 @@ class IKStep:
         if wn > self.max_angular_speed:
             w *= self.max_angular_speed / wn
         twist = np.concatenate((v, w))
-        j_pinv = jac.T @ np.linalg.inv(jac @ jac.T + self._damp)
-        dq = j_pinv @ twist
         if self.posture is not None:
-            dq += (self._eye - j_pinv @ jac) @ (self.posture_gain * (self.posture - q))
+            # dq = J+ twist + (I - J+ J) z  =  z + J+ (twist - J z), z the posture velocity
+            z = self.posture_gain * (self.posture - q)
+            twist -= jac @ z
+        else:
+            z = None
+        _, y, info = dposv(jac @ jac.T + self._damp, twist)  # (J J^T + l^2 I) y = twist
+        if info != 0:  # pragma: no cover - J J^T + l^2 I is positive definite
+            return q.copy()
+        dq = jac.T @ y
+        if z is not None:
+            dq += z
         dq *= self.dt
-        biggest = np.abs(dq).max()
+        biggest = float(np.abs(dq).max())
         if biggest > self.max_joint_step:
             dq *= self.max_joint_step / biggest
-        return np.clip(q + dq, self.kin.lower, self.kin.upper)
+        dq += q
+        return np.minimum(np.maximum(dq, self.kin.lower), self.kin.upper)

@@ -80,7 +80,8 @@ class ScriptedInput:
             )
         grasp = False
         if self._phase == "descend" and not obs.gripper_closed:
-            close = np.linalg.norm(obs.ee - grasp_point) < self.grasp_tolerance
+            gap = obs.ee - grasp_point
+            close = math.sqrt(gap.dot(gap)) < self.grasp_tolerance
             if (close or stalled) and obs.t - self._last_grasp_t > self.retry_s:
                 grasp = True
                 self._last_grasp_t = obs.t
@@ -89,7 +90,8 @@ class ScriptedInput:
 
     def _stalled(self, obs: TrialObservation) -> bool:
         """True when the TCP moved less than 5 mm during the last ``stall_s`` seconds."""
-        if self._stall_ref is None or np.linalg.norm(obs.ee - self._stall_ref[1]) > 0.005:
+        moved = np.inf if self._stall_ref is None else obs.ee - self._stall_ref[1]
+        if self._stall_ref is None or math.sqrt(moved.dot(moved)) > 0.005:
             self._stall_ref = (obs.t, obs.ee.copy())
             return False
         return obs.t - self._stall_ref[0] >= self.stall_s

@@ -14,6 +14,7 @@ server runs ``tick`` paced in its own thread while UI callbacks feed the input s
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Mapping
@@ -199,14 +200,18 @@ class Trial:
             return TeleopCommand(self.user_target.copy(), False)
 
     def _set_user_target(self, cmd: TeleopCommand, events: list[str]) -> None:
-        raw = np.asarray(cmd.target, dtype=float).reshape(-1)
-        if raw.shape != (3,) or not np.all(np.isfinite(raw)):
+        try:
+            raw = np.asarray(cmd.target, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raw = np.empty(0)
+        if raw.shape != (3,) or not math.isfinite(raw[0] + raw[1] + raw[2]):
             events.append("invalid_target")
             return
         reach = self.scene.reach
-        clamped = reach.clamp(raw)
-        if not np.array_equal(clamped, raw):
-            outside = reach.distance_outside(raw)
+        clamped = np.minimum(np.maximum(raw, reach.lo), reach.hi)
+        diff = raw - clamped
+        outside = math.sqrt(diff.dot(diff))
+        if outside > 0.0:
             events.append("target_far_outside" if outside > FAR_OUTSIDE_M else "target_clamped")
         self.user_target = clamped
 

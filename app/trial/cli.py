@@ -1,0 +1,97 @@
+"""``python -m app trial``: run one headless trial and print its outcome; last line is JSON.
+
+Example: ``python -m app trial --task hard-right --mode aggressive --input scripted --seed 1``.
+``--mode none`` runs the task unassisted (alpha = 0); ``--task training`` runs the training
+scene. The configuration comes from the protocol (``--protocol``, default
+``protocols/dragan2013.toml``) through ``study.protocol.load_protocol``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import time
+from pathlib import Path
+
+from app.teleop import InputSource, ScriptedInput, TeleopCommand, TrialObservation
+from app.trial.config import TrialConfig
+from app.trial.records import save_records
+from app.trial.trial import run_trial
+
+DEFAULT_PROTOCOL = Path(__file__).resolve().parents[2] / "protocols" / "dragan2013.toml"
+INPUTS = ("scripted", "idle")
+
+
+class IdleInput:
+    """A user who never moves: the target stays where the gripper started."""
+
+    def command(self, obs: TrialObservation) -> TeleopCommand:
+        return TeleopCommand(obs.user_target, False)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--task", default="hard-right", help="task name, or 'training'")
+    parser.add_argument("--mode", default="timid", help="mode name, or 'none' (unassisted)")
+    parser.add_argument("--input", choices=INPUTS, default="scripted", help="input source")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the scripted user")
+    parser.add_argument("--protocol", type=Path, default=DEFAULT_PROTOCOL, help="protocol TOML")
+    parser.add_argument("--realtime", action="store_true", help="pace to wall-clock time")
+    parser.add_argument("--speed", type=float, default=0.15, help="scripted user speed, m/s")
+    parser.add_argument("--noise", type=float, default=0.002, help="scripted user noise, m")
+    parser.add_argument("--time-limit", type=float, default=None, help="override, seconds")
+    parser.add_argument("--save", type=Path, default=None, help="write the records (.npz)")
+
+
+def trial_config_from_protocol(
+    protocol_path: Path, task: str, mode: str, *, time_limit_s: float | None = None
+) -> TrialConfig:
+    """The protocol's configuration of ``task`` in ``mode`` (``none``: unassisted)."""
+    from study.protocol import load_protocol
+
+    protocol = load_protocol(protocol_path)
+    if task == "training":
+        config = protocol.training_config()
+    elif mode == "none":
+        first = protocol.mode_names[0]
+        config = dataclasses.replace(
+            protocol.trial_config(task, first), arbitration=None, mode="none"
+        )
+    else:
+        config = protocol.trial_config(task, mode)
+    if time_limit_s is not None:
+        config = dataclasses.replace(config, time_limit_s=time_limit_s)
+    return config
+
+
+def make_input(name: str, *, seed: int, speed: float, noise: float) -> InputSource:
+    if name == "scripted":
+        return ScriptedInput(seed=seed, speed=speed, noise=noise)
+    if name == "idle":
+        return IdleInput()
+    raise ValueError(f"--input: one of {INPUTS}, got {name!r}")
+
+
+def main(args: argparse.Namespace) -> int:
+    try:
+        config = trial_config_from_protocol(
+            args.protocol, args.task, args.mode, time_limit_s=args.time_limit
+        )
+        source = make_input(args.input, seed=args.seed, speed=args.speed, noise=args.noise)
+    except (ValueError, KeyError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    wall = time.perf_counter()
+    result = run_trial(config, source, seed=args.seed, realtime=args.realtime)
+    wall = time.perf_counter() - wall
+    summary = result.summary()
+    summary.update(task=args.task, mode=args.mode, input=args.input, wall_s=round(wall, 3))
+    print(
+        f"{args.task} / {args.mode} / {args.input} seed {args.seed}: {result.outcome}"
+        f" after {result.duration_s:.2f} s ({result.ticks} ticks, {wall:.2f} s wall)"
+    )
+    if args.save is not None:
+        print(f"records written to {save_records(result, args.save)}")
+    print(json.dumps(summary))
+    return 0
