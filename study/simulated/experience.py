@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from study.simulated._vec import norm
+
 
 @dataclass(frozen=True)
 class RunExperience:
@@ -36,8 +38,8 @@ class ExperienceLog:
 
     def add(self, *, t: float, input_velocity: np.ndarray, robot_velocity: np.ndarray) -> None:
         self.last_t = t
-        speed = float(np.linalg.norm(robot_velocity))
-        ask = float(np.linalg.norm(input_velocity))
+        speed = norm(robot_velocity)
+        ask = norm(input_velocity)
         if speed <= self.min_speed or ask <= self.min_speed:
             return
         cos = float(input_velocity @ robot_velocity) / (speed * ask)

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from study.simulated._vec import norm
 from study.simulated.population import ReactionParams
 
 _NEAR_M = 0.03  # closer than this to the aim point, the direction to it is not meaningful
@@ -35,7 +36,7 @@ def opposition(
     velocity: np.ndarray, direction: np.ndarray, *, angle_deg: float, min_speed: float
 ) -> float:
     """How much the seen robot motion works against the goal direction ``direction`` (unit)."""
-    speed = float(np.linalg.norm(velocity))
+    speed = norm(velocity)
     if speed <= min_speed:
         return 0.0
     cos = float(velocity @ direction) / speed
@@ -45,12 +46,12 @@ def opposition(
 
 def push_direction(velocity: np.ndarray, direction: np.ndarray) -> np.ndarray:
     """Unit vector toward the goal and away from the robot's motion, ``(d - v^) / |d - v^|``."""
-    speed = float(np.linalg.norm(velocity))
+    speed = norm(velocity)
     if speed < 1e-9:
         return direction
     w = direction - velocity / speed
-    norm = float(np.linalg.norm(w))
-    return direction if norm < 1e-9 else w / norm
+    length = norm(w)
+    return direction if length < 1e-9 else w / length
 
 
 def help_level(*, lead_m: float, full_lead_m: float, opposed: float) -> float:
@@ -83,7 +84,7 @@ class Reaction:
         ``commanded``, where their input should have put the gripper (forward model)."""
         p = self.params
         to_aim = aim - ee
-        dist = float(np.linalg.norm(to_aim))
+        dist = norm(to_aim)
         if dist > _NEAR_M:
             direction = to_aim / dist
             o = opposition(
@@ -94,7 +95,7 @@ class Reaction:
             )
             if o > 0.0 and commanded is not None:
                 to_cmd = commanded - ee
-                gap = float(np.linalg.norm(to_cmd))
+                gap = norm(to_cmd)
                 if gap > _NEAR_M:
                     o = min(
                         o,
@@ -113,7 +114,7 @@ class Reaction:
         self.opposed = o
         self.fight += dt * (p.fight_rate_per_s * o - (1.0 - o) * self.fight / p.fight_decay_s)
         self.fight = min(max(self.fight, 0.0), p.fight_max)
-        lead = float(np.linalg.norm(aim - own_target)) - dist
+        lead = norm(aim - own_target) - dist
         h = help_level(lead_m=lead, full_lead_m=p.relax_lead_m, opposed=o)
         self.relax += dt * (p.relaxer * p.relax_depth * h - self.relax) / p.relax_time_s
         self.relax = min(max(self.relax, 0.0), 1.0)

@@ -41,6 +41,7 @@ import math
 import numpy as np
 
 from app.teleop.types import TeleopCommand, TrialObservation
+from study.simulated._vec import clamp_box, norm
 from study.simulated.errors import ObservationError
 from study.simulated.experience import ExperienceLog, RunExperience
 from study.simulated.movement import HandNoise, fitts_time, minimum_jerk
@@ -68,6 +69,7 @@ class SimulatedUser:
         self.attempts = 0
         self.grasp_closed = False
         self._view: DelayedView | None = None
+        self._goal_point = np.zeros(3)
         self._t_prev: float | None = None
         self._phase_t = 0.0
         self._r0 = np.zeros(3)
@@ -87,10 +89,12 @@ class SimulatedUser:
     # ---- InputSource -----------------------------------------------------------------------
     def command(self, obs: TrialObservation) -> TeleopCommand:
         """Next target and gripper wish from the observation (see the module docstring)."""
-        goal = self._goal(obs)
         if self._view is None:
+            self._goal_point = self._goal(obs)
             self._start(obs)
         assert self._view is not None
+        goal = self._goal_point
+        lo, hi = obs.reach.lo, obs.reach.hi
         dt = 1.0 / obs.rate_hz if self._t_prev is None else max(obs.t - self._t_prev, 0.0)
         self._t_prev = obs.t
         own = np.array(obs.user_target, dtype=float)
@@ -105,7 +109,7 @@ class SimulatedUser:
             obs.t,
             seen_t=seen.t,
             ee=seen.ee,
-            speed=float(np.linalg.norm(seen.velocity)),
+            speed=norm(seen.velocity),
             grasped=seen.grasped,
             goal=goal,
             target_name=target_name,
@@ -113,7 +117,7 @@ class SimulatedUser:
 
         self.log.add(t=obs.t, input_velocity=seen.own_velocity, robot_velocity=seen.velocity)
         if self.phase != WAIT:
-            err, norm, lag = self._seen_error(seen.plan, seen.ee, seen.velocity)
+            err, err_size, lag = self._seen_error(seen.plan, seen.ee, seen.velocity)
             self.reaction.update(
                 dt=dt,
                 velocity=seen.velocity,
@@ -128,21 +132,21 @@ class SimulatedUser:
             self._phi = min(1.0, self._phi + dt * (1.0 - rho) * wait / self._plan_t)
             self._r = self._r0 + (self._aim - self._r0) * minimum_jerk(self._phi)
             blend = 1.0 - math.exp(-dt / m.follow_lag_s)
-            self._model = self._model + blend * (obs.reach.clamp(self._r) - self._model)
-            if norm > m.feedback_deadzone_m:
+            self._model = self._model + blend * (clamp_box(self._r, lo, hi) - self._model)
+            if err_size > m.feedback_deadzone_m:
                 k = min(
                     m.max_gain_per_s,
                     m.feedback_gain_per_s * (1.0 + self.reaction.fight) * (1.0 - rho),
                 )
-                self._c = self._c + dt * k * (1.0 - m.feedback_deadzone_m / norm) * err
+                self._c = self._c + dt * k * (1.0 - m.feedback_deadzone_m / err_size) * err
             self._c = self._c * math.exp(-dt / m.correction_leak_s)
             hand = self._r + self._c + self.reaction.push_offset()
-            clamped = obs.reach.clamp(hand)
+            clamped = clamp_box(hand, lo, hi)
             self._c = self._c + (clamped - hand)  # anti-windup: the gizmo stops at the reach
             self._hand = clamped
             self._follow = self._follow + blend * (clamped - self._follow)
         scale = 1.0 + self.params.reaction.careless_noise_gain * self.reaction.relax
-        target = obs.reach.clamp(self._hand + self.noise.step(dt, scale=scale))
+        target = clamp_box(self._hand + self.noise.step(dt, scale=scale), lo, hi)
         return TeleopCommand(target=target, grasp=self.grasp_closed)
 
     def experience(self, *, duration_s: float | None = None, success: bool) -> RunExperience:
@@ -163,16 +167,16 @@ class SimulatedUser:
         """
         err = expected - ee
         to_aim = self._aim - ee
-        dist = float(np.linalg.norm(to_aim))
+        dist = norm(to_aim)
         if dist < 1e-9:
-            return err, float(np.linalg.norm(err)), 0.0
+            return err, norm(err), 0.0
         d = to_aim / dist
         along = float(err @ d)
         lag = 0.0
         if along < 0.0 or float(velocity @ d) > self.params.reaction.opposition_speed_m_s:
             err = err - along * d
             lag = max(along, 0.0)
-        return err, float(np.linalg.norm(err)), lag
+        return err, norm(err), lag
 
     def _overridden(self, commanded: np.ndarray, ee: np.ndarray, velocity: np.ndarray) -> float:
         """How far the robot is from where the user's input should have put it, not counting
@@ -180,13 +184,13 @@ class SimulatedUser:
         opposition angle of the commanded point)."""
         err = commanded - ee
         to_aim = self._aim - ee
-        dist = float(np.linalg.norm(to_aim))
+        dist = norm(to_aim)
         if dist > 1e-9:
             along = float(err @ to_aim) / dist
             if along < 0.0:
                 err = err - (along / dist) * to_aim
-        gap = float(np.linalg.norm(err))
-        speed = float(np.linalg.norm(velocity))
+        gap = norm(err)
+        speed = norm(velocity)
         r = self.params.reaction
         coming = (
             gap > 1e-9
@@ -228,7 +232,7 @@ class SimulatedUser:
         self._r = self._r0.copy()
         self._aim = aim
         self._phi = 0.0
-        dist = float(np.linalg.norm(aim - self._r0))
+        dist = norm(aim - self._r0)
         self._plan_t = max(
             fitts_time(dist, a=m.fitts_a_s, b=m.fitts_b_s_per_bit, width=m.fitts_width_m), 1e-3
         )
@@ -265,7 +269,7 @@ class SimulatedUser:
                 self._new_attempt(goal, t)
             return
         if self.phase == REACH:
-            dist = float(np.linalg.norm(self._aim - ee))
+            dist = norm(self._aim - ee)
             if dist < self._best - 0.003:
                 self._best, self._best_t = dist, t
             settled = dist < g.grasp_radius_m and speed < g.settle_speed_m_s
