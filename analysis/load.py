@@ -208,6 +208,13 @@ def task_cells(trials: pd.DataFrame) -> tuple[pd.DataFrame, tuple[str, ...]]:
     if len(other):
         counts = other["status"].value_counts().to_dict()
         notes.append("task attempts left out: " + ", ".join(f"{v} {k}" for k, v in counts.items()))
+    if "success" in done.columns and (~done["success"].astype(bool)).any():
+        failed = done[~done["success"].astype(bool)]
+        outcomes = failed["outcome"].value_counts().to_dict() if "outcome" in failed else {}
+        notes.append(
+            f"{len(failed)} completed task trial(s) ended without success ("
+            + ", ".join(f"{v} {k}" for k, v in outcomes.items())
+            + "); their duration (until the trial ended, e.g. the time limit) is analysed as is")
     keys = ["participant", "task", "difficulty", "correctness", "mode"]
     dup = done.duplicated(keys, keep=False)
     if dup.any():

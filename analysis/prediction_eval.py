@@ -13,7 +13,10 @@ has 128 - 16 = 112 residual df with 8 participants, as in the paper.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+import multiprocessing
+import os
+from collections.abc import Mapping
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -131,46 +134,69 @@ def _trajectories(samples: pd.DataFrame) -> dict[Any, tuple[np.ndarray, np.ndarr
     return {ids[a]: (t[a:b], xyz[a:b]) for a, b in zip(starts, ends, strict=True)}
 
 
+def score_trajectory(
+    points: np.ndarray, t: np.ndarray, xyz: np.ndarray, target: int,
+    predictors: Mapping[str, Mapping[str, Any]],
+) -> list[dict[str, Any]]:
+    """Success rate and time to the first lasting correct prediction, per predictor."""
+    out = []
+    for name, cfg in predictors.items():
+        rep = replay(points, xyz, make_predictor(cfg, points), t=t, target=target)
+        assert rep.correct is not None
+        first = first_lasting_correct(rep.correct)
+        span = rep.t[-1] if rep.t[-1] > 0 else np.nan
+        out.append({
+            "predictor": name, "n_ticks": len(t),
+            "success_rate": float(rep.correct.mean()),
+            "time_to_correct_s": float(rep.t[first]) if first is not None else np.nan,
+            "fraction_to_correct": float(rep.t[first] / span) if first is not None else np.nan,
+        })
+    return out
+
+
+def _score_job(job: tuple[Any, ...]) -> list[dict[str, Any]]:
+    return score_trajectory(*job)
+
+
 def evaluate_predictions(
     cells: pd.DataFrame,
     samples: pd.DataFrame,
     *,
     predictors: Mapping[str, Mapping[str, Any]] = PREDICTORS,
-    progress: Callable[[int, int], None] | None = None,
+    workers: int | None = None,
 ) -> tuple[pd.DataFrame, tuple[str, ...]]:
     """Replay every trial of ``cells`` (task_cells output) that has samples, per predictor.
 
     Returns one row per trial and predictor (``EVAL_COLUMNS``) and notes (trials without
-    samples).
+    samples). ``workers`` > 1 replays trials in that many processes (default: up to 2 when
+    there are more than 50,000 ticks); the results do not depend on it.
     """
     require_columns(cells, ["trial_id", "goal_names", "goal_positions", "target"],
                     what="the trials table")
     trajs = _trajectories(samples)
-    rows, notes, missing = [], [], []
-    for k, (_, row) in enumerate(cells.iterrows()):
+    jobs, meta, missing = [], [], []
+    for _, row in cells.iterrows():
         tid = row["trial_id"]
         if tid not in trajs:
             missing.append(str(tid))
             continue
         _, pts, target = trial_goals(row)
         t, xyz = trajs[tid]
-        for name, cfg in predictors.items():
-            rep = replay(pts, xyz, make_predictor(cfg, pts), t=t, target=target)
-            assert rep.correct is not None
-            first = first_lasting_correct(rep.correct)
-            span = rep.t[-1] if rep.t[-1] > 0 else np.nan
-            rows.append({
-                "trial_id": tid, "participant": row["participant"], "task": row["task"],
-                "difficulty": row["difficulty"], "correctness": row["correctness"],
-                "mode": row["mode"], "predictor": name, "n_ticks": len(t),
-                "success_rate": float(rep.correct.mean()),
-                "time_to_correct_s": float(rep.t[first]) if first is not None else np.nan,
-                "fraction_to_correct": float(rep.t[first] / span) if first is not None
-                else np.nan,
-                "duration_s": row.get("duration_s", np.nan),
-            })
-        if progress is not None:
-            progress(k + 1, len(cells))
+        jobs.append((pts, t, xyz, target, dict(predictors)))
+        meta.append({"trial_id": tid, "participant": row["participant"], "task": row["task"],
+                     "difficulty": row["difficulty"], "correctness": row["correctness"],
+                     "mode": row["mode"], "duration_s": row.get("duration_s", np.nan)})
+    if workers is None:
+        ticks = sum(len(j[1]) for j in jobs)
+        workers = min(2, os.cpu_count() or 1) if ticks > 50_000 else 1
+    if workers > 1 and len(jobs) > 1:
+        ctx = multiprocessing.get_context("fork")
+        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+            scored = list(pool.map(_score_job, jobs, chunksize=max(1, len(jobs) // (4 * workers))))
+    else:
+        scored = [_score_job(j) for j in jobs]
+    rows = [{**m, **r} for m, rs in zip(meta, scored, strict=True) for r in rs]
+    notes = []
     if missing:
         notes.append(f"{len(missing)} task trial(s) have no samples and were not replayed "
                      f"(trial_id {', '.join(missing[:10])}{' ...' if len(missing) > 10 else ''})")

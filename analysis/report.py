@@ -132,6 +132,11 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure]) -> lis
             f"{cells.groupby('participant').size().max()} per participant). Mean time per task "
             f"{cells['duration_s'].mean():.1f} s (paper: about 28 s).")
     out.append(data)
+    if "fig7" in figures:
+        out.append(Section("Arbitration (Fig. 7)", paragraphs=[
+            "α as a function of the confidence c for each mode, from the protocol's "
+            "[modes.*].arbitration tables through app.blending.arbitration_from_config."],
+            figures=[figures["fig7"]]))
     if res.timing is not None:
         t = res.timing
         sec = Section("Timing (section 5.1)")
@@ -170,7 +175,7 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure]) -> lis
         sec.tables.append(Table("Time per task and mode (s)", pd.DataFrame({
             "task": summ["task"], "mode": summ["mode"], "mean": summ["mean"].map(fmt),
             "SE": summ["se"].map(fmt), "n": summ["n"]})))
-        sec.figures += [f for k, f in figures.items() if k in ("fig7", "fig8")]
+        sec.figures += [f for k, f in figures.items() if k == "fig8"]
         out.append(sec)
     if res.correlations is not None:
         sec = Section("Preferences")
@@ -188,15 +193,18 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure]) -> lis
                                                               strict=True)],
             "paper r": pub})))
         out.append(sec)
-    if res.prediction is not None and res.prediction_summary is not None:
+    if res.prediction_summary is not None:
         sec = Section("Prediction (section 5.2)")
         p = res.prediction
         sec.paragraphs.append(
             "Every logged user-target trajectory replayed through app.blending's predictors "
             f"({', '.join(res.prediction_summary['predictor'].unique())}); success rate = share "
             "of ticks predicting the target; time to the first lasting correct prediction from "
-            f"the trial's start. Factorial ANOVA (type {p.ss_type} SS): N = {p.n}, residual df "
-            f"= {p.df_resid}, R² = {p.r2:.2f} (paper: R² = 0.9 on F(1, 112)).")
+            "the trial's start.")
+        if p is not None:
+            sec.paragraphs.append(
+                f"Factorial ANOVA (type {p.ss_type} SS): N = {p.n}, residual df = "
+                f"{p.df_resid}, R² = {p.r2:.2f} (paper: R² = 0.9 on F(1, 112)).")
         ps = res.prediction_summary
         sec.tables.append(Table("Success rate and time to a lasting correct prediction",
                                 pd.DataFrame({
@@ -207,8 +215,9 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure]) -> lis
                                         ps["time_to_correct_s"].map(fmt),
                                     "never lastingly correct": ps["never_lasting"],
                                     "trials": ps["n"]})))
-        sec.tables.append(Table("Factorial ANOVA on the success rate",
-                                _anova_table(p.table, "prediction_anova", s)))
+        if p is not None:
+            sec.tables.append(Table("Factorial ANOVA on the success rate",
+                                    _anova_table(p.table, "prediction_anova", s)))
         sec.figures += [f for k, f in figures.items() if k == "fig9"]
         out.append(sec)
     if res.notes:

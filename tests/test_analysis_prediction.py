@@ -122,3 +122,11 @@ def test_predict_command(tmp_path: Path) -> None:
     pd.DataFrame({"t": [0, 1], "x": [0.1, 0.2]}).to_csv(tr, index=False)
     cols = _predict("--goals", str(goals), "--trajectory", str(tr), "--method", "memory")
     assert cols.returncode == 2 and "q1" in cols.stderr
+
+
+def test_parallel_replay_gives_the_same_table() -> None:
+    d = synthetic_tables(2, seed=5, rate_hz=10.0)
+    cells, _ = task_cells(from_frames(d["trials"]).trials)
+    serial, _ = evaluate_predictions(cells, d["samples"], workers=1)
+    parallel, _ = evaluate_predictions(cells, d["samples"], workers=2)
+    pd.testing.assert_frame_equal(serial, parallel)

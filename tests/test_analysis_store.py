@@ -1,0 +1,59 @@
+"""Integration: a real study store written by `python -m study run` (scripted participant),
+read through study.export.tidy_tables, analysed and reported."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from analysis.load import load_tables, task_cells
+from analysis.prediction_eval import evaluate_predictions
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    db = tmp_path_factory.mktemp("store") / "study.db"
+    run = subprocess.run([sys.executable, "-m", "study", "run", "--db", str(db),
+                          "--participant", "P01", "--seed", "3"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    return db
+
+
+def test_store_loads_into_the_contract_tables(store: Path) -> None:
+    tables = load_tables(db=store)
+    assert tables.protocol_hash and len(tables.protocol_hash) == 64
+    cells, _ = task_cells(tables.trials)
+    assert len(cells) == 8
+    assert set(zip(cells["task"], cells["mode"], strict=True)) == {
+        (t, m) for t in ("easy-right", "easy-wrong", "hard-right", "hard-wrong")
+        for m in ("timid", "aggressive")}
+    assert (tables.trials[tables.trials.phase == "training"]["mode"] == "none").all()
+    evals, notes = evaluate_predictions(cells, tables.samples, workers=1)
+    assert notes == () and len(evals) == 16
+    assert evals["success_rate"].between(0, 1).all()
+    ticks = tables.samples.groupby("trial_id").size()
+    assert (evals.set_index("trial_id")["n_ticks"].groupby(level=0).first()
+            == ticks.reindex(evals["trial_id"].unique())).all()
+
+
+def test_report_from_a_one_participant_store(store: Path, tmp_path: Path) -> None:
+    run = subprocess.run([sys.executable, "-m", "analysis", "report", "--db", str(store),
+                          "--out", str(tmp_path)], cwd=ROOT, capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 0, run.stderr
+    doc = json.loads((tmp_path / "results.json").read_text())
+    assert doc["participants"] == 1
+    # one participant cannot carry a repeated-measures analysis: skipped with the reason
+    assert any("timing analysis skipped" in n and "at least two" in n for n in doc["notes"])
+    # 16 replays cannot fit the 16 cells of the four-factor model: said, not crashed
+    assert any("prediction analysis skipped" in n and "16 parameters" in n for n in doc["notes"])
+    html = (tmp_path / "report.html").read_text()
+    assert html.count("<svg") == 2  # Fig. 7 from the protocol, Fig. 9 from the replays
+    assert "Success rate and time to a lasting correct prediction" in html
