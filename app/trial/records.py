@@ -80,6 +80,7 @@ class TrialResult:
 def save_records(result: TrialResult, path: str | Path) -> Path:
     """Write a trial's records to ``path`` (``.npz``): arrays per field plus a JSON summary."""
     path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     recs = result.records
     arrays: dict[str, np.ndarray] = {
         "tick": np.array([r.tick for r in recs], dtype=np.int64),

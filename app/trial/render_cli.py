@@ -1,0 +1,62 @@
+"""``python -m app render``: film a trial to MP4, live or replayed from saved records.
+
+Live: ``python -m app render --task hard-right --mode aggressive --seed 1 --out trial.mp4``.
+Replay: ``python -m app trial ... --save run.npz`` then
+``python -m app render --replay run.npz --task hard-right --out trial.mp4`` (the task names
+the scene). Rendering is headless (``MUJOCO_GL=egl`` by default).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from app.trial.cli import DEFAULT_PROTOCOL, INPUTS, make_input, trial_config_from_protocol
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--task", default="hard-right", help="task name, or 'training'")
+    parser.add_argument("--mode", default="timid", help="mode name, or 'none' (unassisted)")
+    parser.add_argument("--input", choices=INPUTS, default="scripted")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--protocol", type=Path, default=DEFAULT_PROTOCOL)
+    parser.add_argument("--replay", type=Path, default=None, help="records (.npz) to replay")
+    parser.add_argument("--out", type=Path, default=Path("trial.mp4"), help="MP4 to write")
+    parser.add_argument("--fps", type=float, default=30.0)
+    parser.add_argument("--width", type=int, default=640)
+    parser.add_argument("--height", type=int, default=480)
+    parser.add_argument("--time-limit", type=float, default=None)
+
+
+def main(args: argparse.Namespace) -> int:
+    from app.robot.scene import build_scene
+    from app.trial.records import load_records
+    from app.trial.video import VideoError, render_live, replay
+
+    try:
+        config = trial_config_from_protocol(
+            args.protocol, args.task, args.mode, time_limit_s=args.time_limit
+        )
+        size = {"fps": args.fps, "width": args.width, "height": args.height}
+        if args.replay is not None:
+            meta, records = load_records(args.replay)
+            frames = replay(
+                build_scene(config.scene), records, args.out, rate_hz=config.rate_hz, **size
+            )
+            summary = {"replay": str(args.replay), "outcome": meta.get("outcome")}
+        else:
+            source = make_input(args.input, seed=args.seed, speed=0.15, noise=0.002)
+            result, frames = render_live(config, source, args.out, seed=args.seed, **size)
+            summary = result.summary()
+    except (ValueError, KeyError, OSError, VideoError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    summary.update(video=str(args.out), frames=frames)
+    print(f"wrote {frames} frames to {args.out}")
+    print(json.dumps(summary))
+    return 0
