@@ -54,6 +54,9 @@ def sample_row(trial_id: int, tick: int, record: TickLike) -> tuple[Any, ...]:
     try:
         probabilities = record.probabilities
         probs = probabilities.tolist() if hasattr(probabilities, "tolist") else list(probabilities)
+        probs_json = str([float(x) for x in probs])  # JSON for finite floats, 3x faster
+        if "n" in probs_json:  # nan or inf: let json spell them (NaN, Infinity)
+            probs_json = json.dumps(probs)
         events = record.events
         return (
             trial_id,
@@ -66,7 +69,7 @@ def sample_row(trial_id: int, tick: int, record: TickLike) -> tuple[Any, ...]:
             float(record.alpha),
             float(record.confidence),
             None if record.predicted is None else int(record.predicted),
-            json.dumps(probs),
+            probs_json,
             *_vector(record.user_target, 3, "user_target"),
             *_vector(record.ee, 3, "ee"),
             float(record.gripper),

@@ -20,8 +20,10 @@ SQLite (the ``SampleWriter`` thread does). Listeners run after the lock is relea
 
 from __future__ import annotations
 
+import logging
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -54,6 +56,7 @@ if TYPE_CHECKING:
     from app.trial import TrialConfig
     from study.protocol import Protocol
 
+LOGGER = logging.getLogger("study.session")
 FINAL_STATUSES = ("completed", "withdrawn", "ended")
 Listener = Callable[[Screen], None]
 
@@ -98,15 +101,7 @@ class Session:
         heartbeat_s: float,
         flush_interval_s: float,
     ) -> None:
-        if (
-            store.meta.protocol_hash != protocol.content_hash
-            or store.meta.protocol_id != protocol.id
-        ):
-            raise ProtocolMismatchError(
-                f"store {store.path} belongs to protocol {store.meta.protocol_id!r} "
-                f"({store.meta.protocol_hash[:12]}), not {protocol.id!r} "
-                f"({protocol.content_hash[:12]}); open it with the protocol it was created with"
-            )
+        _check_protocol(store, protocol)
         self.store = store
         self.protocol = protocol
         self.participant = participant
@@ -436,7 +431,7 @@ class Session:
                     values[item_id] = pending[item_id].check(value)
                 except AnswerError as exc:
                     raise InvalidAnswerError(str(exc)) from exc
-            trial_id, rated = self._rated_trial(step)
+            trial_id = self._rated_trial(step)
             done = len(values) == len(pending)
             with self._tx() as tx:
                 for item_id, value in values.items():
@@ -452,7 +447,7 @@ class Session:
                         item=item_id,
                         value=value,
                     )
-                detail = {"step": step.index, "items": sorted(values), "rated_trial": rated}
+                detail = {"step": step.index, "items": sorted(values), "trial_id": trial_id}
                 tx.event(self.session_id, self.participant, "answer", detail)
                 if done:
                     self._move(tx, self._next_step(step.index))
@@ -675,25 +670,12 @@ class Session:
             pass
         return tuple(actions)
 
-    def _tx(self) -> Any:
+    @contextmanager
+    def _tx(self) -> Iterator[Transaction]:
         """A store transaction that first checks this process still holds the lease."""
-        store, lease = self.store, self._lease
-
-        class _Guarded:
-            def __enter__(self_inner) -> Transaction:
-                self_inner.cm = store.transaction()
-                tx = self_inner.cm.__enter__()
-                try:
-                    tx.require_lease(lease)
-                except BaseException as exc:
-                    self_inner.cm.__exit__(type(exc), exc, exc.__traceback__)
-                    raise
-                return tx
-
-            def __exit__(self_inner, *exc: Any) -> Any:
-                return self_inner.cm.__exit__(*exc)
-
-        return _Guarded()
+        with self.store.transaction() as tx:
+            tx.require_lease(self._lease)
+            yield tx
 
     def _changed(self) -> Screen:
         with self._lock:
@@ -701,7 +683,10 @@ class Session:
             listeners = list(self._listeners)
         screen = self.screen()
         for listener in listeners:
-            listener(screen)
+            try:
+                listener(screen)
+            except Exception:  # a UI's bug must not undo or block a committed transition
+                LOGGER.exception("session listener %r failed", listener)
         return screen
 
     def _where(self) -> dict[str, Any]:
@@ -745,23 +730,16 @@ class Session:
         }
         return [i for i in step.items if i.id not in answered]
 
-    def _rated_trial(self, step: Step) -> tuple[int | None, int | None]:
-        """The completed trial attempt an after-run (or after-training) item is about."""
-        if step.rates_step is None and step.questionnaire == "after_training":
-            rated_step = max(
-                s.index for s in self.plan.steps if s.phase == "training" and s.kind == "trial"
-            )
-        else:
-            rated_step = step.rates_step
-        if rated_step is None:
-            return None, None
+    def _rated_trial(self, step: Step) -> int | None:
+        """The completed trial attempt an after-run item is about (``None`` for other items)."""
+        if step.rates_step is None:
+            return None
         completed = [
             t.trial_id
             for t in self.store.trials(session_id=self.session_id)
-            if t.step == rated_step and t.status == "completed"
+            if t.step == step.rates_step and t.status == "completed"
         ]
-        trial_id = completed[-1] if completed else None
-        return (trial_id if step.rates_step is not None else None), rated_step
+        return completed[-1] if completed else None
 
     def _redo_target(self, step: Step | None) -> tuple[int, int]:
         """The completed trial just before the cursor that ``redo`` may run again."""

@@ -28,13 +28,16 @@ pytestmark = pytest.mark.slow
 
 
 def start(db: Path, *extra: str) -> subprocess.Popen[str]:
+    protocol = db.parent / "protocol.toml"  # a snapshot: the shared file may change meanwhile
+    if not protocol.exists():
+        protocol.write_text(PROTOCOL.read_text())
     cmd = [
         sys.executable,
         "-m",
         "study",
         "run",
         "--protocol",
-        str(PROTOCOL),
+        str(protocol),
         "--db",
         str(db),
         "--participant",

@@ -474,3 +474,71 @@ def test_thread_safety(store: Store, protocol: Protocol) -> None:
     assert trial.status == "completed" and trial.ticks == 400 == store.sample_count(run.trial_id)
     assert session.screen().phase == "ready"
     session.close()
+
+
+def test_experimenter_overview_carries_the_condition(store: Store, protocol: Protocol) -> None:
+    session = enrol(store, protocol)
+    overview = session.overview()
+    assert overview.phase == "waiting" and overview.experimenter_actions == (
+        "start",
+        "withdraw",
+        "end",
+    )
+    to_step(session, "questions", questionnaire="after_training")
+    session.answer({"helpful": 4, "matched": 4, "teammate": 4})
+    overview = session.overview()
+    first = store.assignments("P01")[0]
+    task = protocol.task(first.task)
+    assert (overview.task, overview.mode, overview.run, overview.attempt) == (
+        first.task,
+        first.mode,
+        "first",
+        1,
+    )
+    assert (overview.difficulty, overview.correctness) == (task.difficulty, task.correctness)
+    assert overview.trials_completed == 3 and overview.ratings == 3
+    # the step before is the baseline questions, so there is no trial to redo
+    assert set(overview.experimenter_actions) == {"pause", "withdraw", "end", "skip"}
+    finish_run(session)
+    assert "redo" in session.overview().experimenter_actions
+    assert len(overview.schedule) == 8
+    session.close()
+
+
+def test_a_failing_listener_does_not_break_the_session(store: Store, protocol: Protocol) -> None:
+    session = enrol(store, protocol)
+
+    def broken(screen: object) -> None:
+        raise RuntimeError("UI bug")
+
+    session.add_listener(broken)
+    assert session.start().phase == "consent"
+    assert session.agree().phase == "ready"
+    session.close()
+
+
+def test_lost_lease_stops_writes(store: Store, protocol: Protocol) -> None:
+    session = enrol(store, protocol)
+    session.start()
+    events = len(store.events())
+    with store.transaction() as tx:  # another host's process took the session over
+        tx.cur.execute("UPDATE leases SET token = 'other', pid = 1 WHERE participant = 'P01'")
+    with pytest.raises(SessionLockedError, match="now held by process 1"):
+        session.agree()
+    assert session.cursor == 0 and store.session("P01").cursor == 0
+    assert len(store.events()) == events
+
+
+def test_end_before_start_and_waiting_screen(store: Store, protocol: Protocol) -> None:
+    session = enrol(store, protocol)
+    screen = session.screen()
+    assert (
+        screen.phase == "waiting"
+        and screen.actions == ()
+        and screen.progress.text == "Trial 0 of 11"
+    )
+    with pytest.raises(MissingReasonError, match="end needs a reason"):
+        session.end(reason="")
+    assert session.end(reason="participant did not show up").phase == "done"
+    assert store.session("P01").status == "ended" and store.session("P01").ended_at
+    session.close()
