@@ -115,17 +115,15 @@ class SampleWriter:
         self._thread.start()
 
     def add(self, trial_id: int, tick: int, record: TickLike) -> None:
-        """Queue one tick's record (converted now, so a malformed record fails here)."""
-        self._raise_pending()
-        row = sample_row(trial_id, tick, record)
-        with self._buffer_lock:
-            self._buffer.append(row)
+        """Queue one tick's record (converted now, so a malformed record fails here). If earlier
+        commits failed, the row is still queued and ``StoreError`` says so."""
+        self.add_row(sample_row(trial_id, tick, record))
 
     def add_row(self, row: tuple[Any, ...]) -> None:
         """Queue an already converted row (``SAMPLE_COLUMNS`` order)."""
-        self._raise_pending()
         with self._buffer_lock:
             self._buffer.append(row)
+        self._raise_pending()
 
     @property
     def pending(self) -> int:
@@ -177,4 +175,3 @@ class SampleWriter:
                 continue
             except BaseException:  # pragma: no cover - a store closed under us
                 return
-

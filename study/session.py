@@ -672,10 +672,16 @@ class Session:
 
     @contextmanager
     def _tx(self) -> Iterator[Transaction]:
-        """A store transaction that first checks this process still holds the lease."""
-        with self.store.transaction() as tx:
-            tx.require_lease(self._lease)
-            yield tx
+        """A store transaction that first checks this process still holds the lease; if it
+        fails, the in-memory cursor and skipped steps are restored with the rolled-back file."""
+        cursor, skipped = self._cursor, set(self._skipped)
+        try:
+            with self.store.transaction() as tx:
+                tx.require_lease(self._lease)
+                yield tx
+        except BaseException:
+            self._cursor, self._skipped = cursor, skipped
+            raise
 
     def _changed(self) -> Screen:
         with self._lock:
@@ -817,11 +823,11 @@ class Session:
         with self._lock:
             if self._active is not run or self._closed:
                 return  # aborted meanwhile by redo/skip/withdraw/end/close
+            # If a commit below fails the run stays active and the next tick() retries.
+            self._writer.flush()
             outcome = str(run.trial.outcome or "timeout")
             success = bool(getattr(run.trial, "success", outcome == "success"))
             summary = TrialSummary(run.trial_id, outcome, success, run.duration_s(), run.ticks)
-            run._finish(summary)
-            self._writer.flush()
             nxt = self._next_step(run.step)
             with self._tx() as tx:
                 tx.end_trial(
@@ -839,6 +845,7 @@ class Session:
                     {"trial_id": run.trial_id, "outcome": outcome, "cursor": nxt},
                 )
                 self._move(tx, nxt)
+            run._finish(summary)
             self._active = None
         self._changed()
 

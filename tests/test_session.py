@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import sqlite3
 import threading
 from pathlib import Path
 from typing import Any
@@ -33,6 +34,7 @@ from study.store import (
     ProtocolMismatchError,
     SessionLockedError,
     Store,
+    StoreError,
     UnknownParticipantError,
 )
 
@@ -541,4 +543,30 @@ def test_end_before_start_and_waiting_screen(store: Store, protocol: Protocol) -
         session.end(reason="")
     assert session.end(reason="participant did not show up").phase == "done"
     assert store.session("P01").status == "ended" and store.session("P01").ended_at
+    session.close()
+
+
+def test_a_failed_commit_at_trial_end_is_retried_by_the_next_tick(
+    store: Store, protocol: Protocol, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    session = enrol(store, protocol)
+    to_step(session, "ready")
+    run = session.start_trial(input_source=None)
+    for _ in range(4):
+        run.tick()
+    real = store.insert_samples
+
+    def disk_full(rows: object) -> None:
+        raise sqlite3.OperationalError("database or disk is full")
+
+    monkeypatch.setattr(store, "insert_samples", disk_full)
+    with pytest.raises(StoreError, match="disk is full"):
+        run.tick()  # the trial's last tick: its samples cannot be committed
+    assert session.screen().phase == "running" and not run.over
+    assert store.trial(run.trial_id).status == "running"
+    monkeypatch.setattr(store, "insert_samples", real)
+    assert run.tick() is None and run.over  # retried: samples, then the trial, committed
+    trial = store.trial(run.trial_id)
+    assert trial.status == "completed" and trial.ticks == 5 == store.sample_count(run.trial_id)
+    assert session.screen().progress.text == "Trial 2 of 11"
     session.close()

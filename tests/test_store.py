@@ -261,5 +261,6 @@ def test_sample_writer_keeps_rows_when_a_commit_fails(tmp_path: Path) -> None:
         assert writer.pending == 2 and store.sample_count(tid) == 0
         with pytest.raises(StoreError, match="not reaching the store"):
             writer.add(tid, 1, tick(1))
+        assert writer.pending == 3  # the new row is kept too, for the next commit
         with pytest.raises(StoreError, match="could not commit"):
             writer.close()  # the thread stops; the rows are still reported, not dropped
