@@ -62,7 +62,7 @@ class TrialConfig:
             object.__setattr__(self, name, _freeze(getattr(self, name)))
         _check_number("rate_hz", self.rate_hz, 10.0, 1000.0)
         _check_number("physics_dt", self.physics_dt, 1e-4, 0.01)
-        _check_number("time_limit_s", self.time_limit_s, 1.0, 3600.0)
+        _check_number("time_limit_s", self.time_limit_s, 0.1, 3600.0)
         _check_number("lift_height_m", self.lift_height_m, 0.005, 0.3)
         ratio = 1.0 / (self.rate_hz * self.physics_dt)
         if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:

@@ -162,6 +162,22 @@ class Trial:
         )
 
     # ---- the loop ----------------------------------------------------------------------
+    def run(self, *, realtime: bool = False) -> TrialResult:
+        """Tick to the end, as fast as possible or paced to wall-clock time (pauses honoured)."""
+        dt = self.config.dt
+        start = time.perf_counter() - self.ticks * dt
+        while not self.done:
+            if self._paused:
+                time.sleep(0.005)
+                start = time.perf_counter() - self.ticks * dt
+                continue
+            self.tick()
+            if realtime:
+                delay = start + self.ticks * dt - time.perf_counter()
+                if delay > 0:
+                    time.sleep(delay)
+        return self.result()
+
     def tick(self) -> TickRecord | None:
         """Advance one control period; ``None`` (nothing happens) while paused or once done."""
         with self._lock:
@@ -357,17 +373,4 @@ def run_trial(
     scene: Scene | None = None,
 ) -> TrialResult:
     """Run one trial to its end, as fast as possible or paced to wall-clock time."""
-    trial = Trial(config, input_source, seed=seed, scene=scene)
-    dt = config.dt
-    start = time.perf_counter()
-    while not trial.done:
-        if trial.paused:
-            time.sleep(0.01)
-            start += 0.01
-            continue
-        trial.tick()
-        if realtime:
-            delay = start + trial.ticks * dt - time.perf_counter()
-            if delay > 0:
-                time.sleep(delay)
-    return trial.result()
+    return Trial(config, input_source, seed=seed, scene=scene).run(realtime=realtime)

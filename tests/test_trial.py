@@ -1,0 +1,196 @@
+"""Headless trials: outcomes, the Hard task's need for assistance, bad input, pausing, the CLI."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from app.teleop import GizmoInput, ScriptedInput, TeleopCommand, TrialObservation
+from app.trial import OUTCOMES, Trial, run_trial
+from app.trial.cli import IdleInput, trial_config_from_protocol
+from app.trial.records import load_records, save_records
+
+
+@pytest.fixture(scope="module")
+def config(protocol_path):
+    def make(task: str, mode: str, **changes):
+        cfg = trial_config_from_protocol(protocol_path, task, mode)
+        return dataclasses.replace(cfg, **changes) if changes else cfg
+
+    return make
+
+
+def test_easy_task_unassisted_succeeds_with_full_records(config) -> None:
+    result = run_trial(config("easy-right", "none", time_limit_s=30), ScriptedInput(seed=0))
+    assert result.outcome == "success" and result.success
+    assert result.ticks == len(result.records)
+    assert result.duration_s == pytest.approx(result.ticks / 100)
+    last = result.records[-1]
+    assert "lifted:bottle" in last.events and "outcome:success" in last.events
+    for rec in result.records[::50]:
+        assert rec.q.shape == rec.u.shape == rec.p.shape == rec.command.shape == (7,)
+        assert rec.user_target.shape == rec.ee.shape == (3,)
+        assert rec.probabilities.shape == (2,) and rec.probabilities.sum() == pytest.approx(1)
+        assert rec.alpha == 0.0
+        json.dumps(rec.as_dict())
+    assert any(e.startswith("grasped:bottle") for _, e in result.events)
+
+
+@pytest.mark.parametrize("task", ["hard-right", "hard-wrong"])
+def test_hard_task_needs_assistance(config, task: str) -> None:
+    for seed in (0, 1):
+        alone = run_trial(config(task, "none", time_limit_s=20), ScriptedInput(seed=seed))
+        assert not alone.success and alone.outcome in ("timeout", "dropped")
+        grasp = np.array([0.68, 0.22, 0.13])
+        closest = min(np.linalg.norm(r.ee - grasp) for r in alone.records)
+        assert closest > 0.02  # the interface never lets the gripper reach the bottle
+        assert any("target_clamped" in r.events for r in alone.records)
+        for mode in ("timid", "aggressive"):
+            helped = run_trial(config(task, mode, time_limit_s=30), ScriptedInput(seed=seed))
+            assert helped.outcome == "success", (task, mode, seed, helped.outcome)
+            assert max(r.alpha for r in helped.records) > 0.3
+
+
+def test_aggressive_gives_more_help_than_timid(config) -> None:
+    peak = {}
+    for mode in ("timid", "aggressive"):
+        result = run_trial(config("hard-right", mode, time_limit_s=30), ScriptedInput(seed=0))
+        peak[mode] = max(r.alpha for r in result.records)
+    assert peak["aggressive"] > peak["timid"]
+
+
+def test_grasping_the_other_object_is_an_outcome(config) -> None:
+    result = run_trial(config("easy-right", "none", time_limit_s=30), ScriptedInput(goal=1))
+    assert result.outcome == "wrong_object" and not result.success
+    assert "lifted:box" in result.records[-1].events
+
+
+def test_dropping_is_an_outcome(config) -> None:
+    trial = Trial(config("easy-right", "none", time_limit_s=30), ScriptedInput(seed=0))
+    while not trial.done:
+        rec = trial.tick()
+        if any(e.startswith("grasped:") for e in rec.events):
+            trial.sim.set_grip_contacts(False)  # the bottle slips through the fingers
+    assert trial.outcome == "dropped"
+    assert "dropped:bottle" in trial.records[-1].events
+
+
+def test_timeout_and_abort(config) -> None:
+    result = run_trial(config("easy-right", "timid", time_limit_s=2), IdleInput())
+    assert result.outcome == "timeout" and result.ticks == 200
+    trial = Trial(config("easy-right", "timid"), IdleInput())
+    trial.tick()
+    trial.abort()
+    assert trial.outcome == "aborted" and trial.tick() is None
+    assert set(OUTCOMES) >= {"success", "wrong_object", "dropped", "timeout", "aborted"}
+
+
+class BadInput:
+    """Feeds NaN, far-away, misshapen targets and exceptions, then sensible ones."""
+
+    def __init__(self) -> None:
+        self.n = 0
+
+    def command(self, obs: TrialObservation) -> TeleopCommand:
+        self.n += 1
+        kind = self.n % 5
+        if kind == 0:
+            return TeleopCommand(np.array([np.nan, 0.0, 0.3]))
+        if kind == 1:
+            return TeleopCommand(np.array([50.0, -50.0, 9.0]))
+        if kind == 2:
+            return TeleopCommand(np.array([0.1, 0.2]))
+        if kind == 3:
+            raise RuntimeError("device unplugged")
+        return TeleopCommand(np.array([np.inf, 0.0, 0.0]), grasp=False)
+
+
+def test_bad_input_is_logged_never_crashes(config) -> None:
+    result = run_trial(config("easy-wrong", "aggressive", time_limit_s=1), BadInput())
+    assert result.outcome == "timeout"
+    events = [e for r in result.records for e in r.events]
+    for expected in ("invalid_target", "target_far_outside", "input_error:RuntimeError"):
+        assert expected in events
+    for rec in result.records:
+        assert np.all(np.isfinite(rec.q)) and np.all(np.isfinite(rec.command))
+        assert result.records[0].user_target.shape == (3,)
+    reach_hi = np.array([0.75, 0.45, 0.6])
+    assert all(np.all(r.user_target <= reach_hi + 1e-12) for r in result.records)
+
+
+def test_pause_excludes_time_and_is_logged(config) -> None:
+    trial = Trial(config("easy-right", "timid", time_limit_s=5), IdleInput())
+    for _ in range(10):
+        trial.tick()
+    trial.pause()
+    assert trial.paused and trial.tick() is None and trial.t == pytest.approx(0.1)
+    trial.resume()
+    rec = trial.tick()
+    assert rec.t == pytest.approx(0.11) and rec.events[:2] == ("paused", "resumed")
+
+
+def test_realtime_run_is_paced_and_pauses_from_another_thread(config) -> None:
+    source = GizmoInput()
+    trial = Trial(config("easy-right", "timid", time_limit_s=0.5), source)
+
+    def ui() -> None:  # the UI thread: moves the gizmo, pauses for 0.3 s
+        time.sleep(0.1)
+        source.set_target(np.array([0.5, 0.1, 0.3]))
+        trial.pause()
+        time.sleep(0.3)
+        trial.resume()
+
+    thread = threading.Thread(target=ui)
+    start = time.perf_counter()
+    thread.start()
+    result = trial.run(realtime=True)
+    wall = time.perf_counter() - start
+    thread.join()
+    assert result.outcome == "timeout"
+    assert result.duration_s == pytest.approx(0.5)  # paused time is excluded
+    assert wall >= 0.5 + 0.3 - 0.05
+    assert np.allclose(result.records[-1].user_target, [0.5, 0.1, 0.3])
+    assert any("paused" in r.events for r in result.records)
+
+
+def test_records_round_trip(config, tmp_path) -> None:
+    result = run_trial(config("easy-right", "timid", time_limit_s=30), ScriptedInput(seed=2))
+    path = save_records(result, tmp_path / "run.npz")
+    meta, records = load_records(path)
+    assert meta["outcome"] == result.outcome and len(records) == result.ticks
+    assert np.array_equal(records[-1].q, result.records[-1].q)
+    assert records[-1].events == result.records[-1].events
+
+
+def test_cli_prints_json_last(repo_root) -> None:
+    def run(*args: str) -> dict:
+        proc = subprocess.run(
+            [sys.executable, "-m", "app", "trial", *args],
+            cwd=repo_root,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert proc.returncode == 0, proc.stderr
+        return json.loads(proc.stdout.strip().splitlines()[-1])
+
+    out = run("--task", "hard-right", "--mode", "aggressive", "--input", "scripted", "--seed", "1")
+    assert out["success"] is True and out["outcome"] == "success"
+    assert out["ticks"] > 0 and out["duration_s"] > 0
+    alone = run("--task", "hard-right", "--mode", "none", "--seed", "1", "--time-limit", "8")
+    assert alone["success"] is False
+    proc = subprocess.run(
+        [sys.executable, "-m", "app", "trial", "--task", "medium"],
+        cwd=repo_root,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 2 and "medium" in proc.stderr
