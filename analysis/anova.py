@@ -112,7 +112,7 @@ def factorial_anova(
                               "two levels - drop it from the model")
         levels[f] = lv
         blocks[(i,)] = effect_coding(s, lv)
-    observed = set(map(tuple, d[factors].astype(str).to_numpy()))
+    observed = set(d[factors].astype(str).drop_duplicates().itertuples(index=False, name=None))
     empty = [c for c in itertools.product(*levels.values()) if c not in observed]
     if empty:
         listed = "; ".join(" & ".join(f"{f}={v}" for f, v in zip(factors, c, strict=True))

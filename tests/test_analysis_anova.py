@@ -107,6 +107,29 @@ def test_three_factors_match_statsmodels_anovarm_with_awkward_names() -> None:
         assert ours.loc[effect, "p"] == pytest.approx(row["Pr > F"], rel=1e-7)
 
 
+def test_published_r_ezanova_values_on_statsmodels_reference_data() -> None:
+    # statsmodels ships this 8-subject, 2 x 3 x 2 data set with its tests; the F values below
+    # are R's ez::ezANOVA output for it (as printed in statsmodels' test_anova_rm.py).
+    import statsmodels
+
+    path = Path(statsmodels.__file__).parent / "stats" / "tests" / "results" / \
+        "anova-rm-test-data.csv"
+    data = pd.read_csv(path)
+    ours = rm_anova(data, dv="DV", subject="id", within=["A", "B", "D"]).table
+    ez = [  # df1, df2, F, p  for A, B, D, A:B, A:D, B:D, A:B:D
+        (1, 7, 8.7650709, 0.021087505), (2, 14, 8.4985785, 0.003833921),
+        (1, 7, 20.5076546, 0.002704428), (2, 14, 0.8457797, 0.450021759),
+        (1, 7, 21.7593382, 0.002301792), (2, 14, 6.2416695, 0.011536846),
+        (2, 14, 5.4253359, 0.018010647),
+    ]
+    assert list(ours["effect"]) == ["A", "B", "D", "A:B", "A:D", "B:D", "A:B:D"]
+    np.testing.assert_allclose(ours[["df1", "df2", "F", "p"]].to_numpy(), np.array(ez),
+                               rtol=1e-6)
+    one = rm_anova(data.iloc[:16], dv="DV", subject="id", within=["B"]).table.iloc[0]
+    assert (one["df1"], one["df2"]) == (1, 7)
+    assert float(one["F"]) == pytest.approx(22.4, rel=1e-6)
+
+
 def _paper_shaped(seed: int = 1) -> pd.DataFrame:
     """8 participants x 2x2x2 cells with three covariates, like the paper's timing data."""
     rng = np.random.default_rng(seed)
