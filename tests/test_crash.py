@@ -179,7 +179,7 @@ def test_kill9_mid_trial_then_resume_loses_nothing(tmp_path: Path) -> None:
         assert [t.position for t in done if t.phase == "task"] == list(range(1, 9))
         assert not [t for t in trials if t.status == "running"]
         kinds = [e.kind for e in store.events()]
-        assert kinds.count("reopen") >= 2 and kinds[-1] == "finish"
+        assert kinds.count("reopen") >= 1 and kinds[-1] == "finish"
         reopen = next(e for e in store.events() if e.kind == "reopen" and e.detail["interrupted"])
         assert reopen.detail["interrupted"] == [running.trial_id]
         assert reopen.detail["cursor"] == running.step and "took_over" in reopen.detail

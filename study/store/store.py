@@ -168,7 +168,8 @@ class Store:
     def transaction(self) -> Iterator[Transaction]:
         """``with store.transaction() as tx:`` one atomic write (``BEGIN IMMEDIATE`` .. ``COMMIT``).
 
-        Any exception rolls everything back and propagates."""
+        Any exception rolls everything back and propagates; SQLite's own errors (locked after
+        ``busy_timeout``, disk full, constraint violations) come out as ``StoreError``."""
         if self.readonly:
             raise ReadOnlyStoreError(f"store {self.path} was opened read-only")
         with self._lock:
@@ -177,13 +178,19 @@ class Store:
                 raise StoreError(
                     "store transactions do not nest: commit the open one before starting another"
                 )
-            conn.execute("BEGIN IMMEDIATE")
             try:
-                yield Transaction(conn)
-            except BaseException:
-                conn.execute("ROLLBACK")
-                raise
-            conn.execute("COMMIT")
+                conn.execute("BEGIN IMMEDIATE")
+                try:
+                    yield Transaction(conn)
+                    conn.execute("COMMIT")
+                except BaseException:
+                    if conn.in_transaction:
+                        conn.execute("ROLLBACK")
+                    raise
+            except sqlite3.Error as exc:
+                raise StoreError(
+                    f"store {self.path}: {exc} (nothing of this write was kept)"
+                ) from exc
 
     def insert_samples(self, rows: Sequence[Sequence[Any]]) -> None:
         """Insert sample rows (``SAMPLE_COLUMNS`` order) in one transaction with ``executemany``."""
