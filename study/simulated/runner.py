@@ -38,6 +38,12 @@ if TYPE_CHECKING:
     from study.store import Store
 
 
+SAMPLE_FLUSH_S = 0.25
+"""Samples are committed in batches this often (wall time; the SampleWriter's maximum): a
+simulated trial runs many times faster than real time, so fewer, larger write transactions
+keep concurrent workers from queueing on the store's write lock."""
+
+
 @dataclass(frozen=True)
 class ParticipantJob:
     """Who to simulate: population index, pseudonymous ID, design row and session seed."""
@@ -154,6 +160,7 @@ def run_participant(
         seed=job.session_seed,
         schedule_row=job.schedule_row,
         demographics={"simulated": True, "population_index": job.index, "population_seed": seed},
+        flush_interval_s=SAMPLE_FLUSH_S,
     )
     error: str | None = None
     try:

@@ -1,0 +1,117 @@
+"""How fast simulated participants run through the whole study (training included).
+
+    .venv/bin/python benchmarks/simulate.py [--small 8] [--large 64] [--workers 2] [--seed 1]
+
+Measures, each into a fresh temporary store, with the real session engine and control loop:
+``--small`` participants with one process, then ``--large`` participants with one process and
+with ``--workers`` processes (the speed-up). Prints a table (per-participant wall time median and
+p99, simulated time, outcomes) and, as its last line, one JSON object. The machine's load average
+is printed too: on a shared 2-core machine other jobs slow every figure down.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from study.simulated.runner import SimulationReport, simulate  # noqa: E402
+
+
+def _cpu_s() -> float:
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+def measure(
+    *, participants: int, workers: int, seed: int, protocol: Path, tmp: Path
+) -> dict[str, Any]:
+    db = tmp / f"sim-{participants}-{workers}.db"
+    load = os.getloadavg()[0]
+    cpu0 = _cpu_s()
+    report: SimulationReport = simulate(
+        protocol_path=protocol,
+        db=db,
+        participants=participants,
+        seed=seed,
+        workers=workers,
+        progress=True,
+    )
+    per = np.array([r.wall_s for r in report.results])
+    ticks_s = report.sim_s  # simulated seconds (100 control ticks per second)
+    return {
+        "participants": participants,
+        "workers": workers,
+        "wall_s": round(report.wall_s, 2),
+        "cpu_s": round(_cpu_s() - cpu0, 2),
+        "per_participant_median_s": round(float(np.median(per)), 2),
+        "per_participant_p99_s": round(float(np.percentile(per, 99)), 2),
+        "trials": report.trials,
+        "ratings": report.ratings,
+        "simulated_s": round(ticks_s, 1),
+        "realtime_factor": round(ticks_s / report.wall_s, 1),
+        "outcomes": report.outcomes,
+        "errors": len(report.errors),
+        "load_avg_1min_before": round(load, 2),
+    }
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--small", type=int, default=8)
+    parser.add_argument("--large", type=int, default=64, help="0 to skip the scaling runs")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--protocol", type=Path, default=ROOT / "protocols" / "dragan2013.toml")
+    args = parser.parse_args()
+    rows: list[dict[str, Any]] = []
+    with tempfile.TemporaryDirectory(prefix="bench-simulate-") as tmp:
+        runs = [(args.small, 1)]
+        if args.large:
+            runs += [(args.large, 1), (args.large, args.workers)]
+        for n, w in runs:
+            print(f"-- {n} participants, {w} worker(s)", file=sys.stderr)
+            rows.append(
+                measure(
+                    participants=n,
+                    workers=w,
+                    seed=args.seed,
+                    protocol=args.protocol,
+                    tmp=Path(tmp),
+                )
+            )
+    head = (
+        f"{'participants':>12} {'workers':>7} {'wall_s':>8} {'cpu_s':>8} {'median_s':>9} "
+        f"{'p99_s':>7} {'sim_s':>8} {'x_real':>7} {'load':>5}  outcomes"
+    )
+    print(head)
+    for r in rows:
+        print(
+            f"{r['participants']:>12} {r['workers']:>7} {r['wall_s']:>8} {r['cpu_s']:>8} "
+            f"{r['per_participant_median_s']:>9} {r['per_participant_p99_s']:>7} "
+            f"{r['simulated_s']:>8} {r['realtime_factor']:>7} {r['load_avg_1min_before']:>5}  "
+            f"{r['outcomes']}"
+        )
+    summary: dict[str, Any] = {"runs": rows, "small_wall_s": rows[0]["wall_s"]}
+    if args.large:
+        one, many = rows[1], rows[2]
+        summary["speedup"] = round(one["wall_s"] / many["wall_s"], 2)
+        summary["large_wall_s_1_worker"] = one["wall_s"]
+        summary[f"large_wall_s_{args.workers}_workers"] = many["wall_s"]
+    print(json.dumps(summary))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
