@@ -134,6 +134,14 @@ def cell_means(
                 "a factor needs at least two levels - drop it from the design"
             )
     keys = ["_s", *[f"_f{i}" for i in range(len(within))]]
+    for i, f in enumerate(within):
+        per_subject = df.groupby("_s", sort=False)[f"_f{i}"].nunique()
+        if (per_subject <= 1).all():
+            raise DesignError(
+                f"factor {f!r} does not vary within subjects (every subject has one level): it "
+                "is a between-subjects factor; this repeated-measures analysis takes "
+                "within-subject factors only - drop it from --within"
+            )
     agg = df.groupby(keys, sort=False)["_y"].agg(["mean", "count"])
     repeated = agg["count"] > 1
     if repeated.any():

@@ -13,6 +13,8 @@ import numpy as np
 import pandas as pd
 import pytest
 import statsmodels.formula.api as smf
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import stats
 from statsmodels.stats.anova import AnovaRM, anova_lm
 
@@ -203,6 +205,33 @@ def test_bad_input_messages() -> None:
                  within=["mode"])
     with pytest.raises(DesignError, match="constant"):
         factorial_anova(d.assign(k=1.0), dv="duration_s", factors=["mode"], covariates=["k"])
+
+
+@settings(max_examples=40, deadline=None)
+@given(n=st.integers(min_value=3, max_value=12), seed=st.integers(0, 10_000),
+       shift=st.floats(-50, 50))
+def test_two_level_effect_is_the_squared_paired_t(n: int, seed: int, shift: float) -> None:
+    # For one two-level within factor, F(1, n-1) equals the paired t statistic squared, and a
+    # per-subject constant (a subject effect) changes nothing.
+    rng = np.random.default_rng(seed)
+    a, b = rng.normal(size=n), rng.normal(size=n) + 0.3
+    subj = rng.normal(0, 5, size=n)
+    long = pd.DataFrame({"s": np.tile(np.arange(n), 2), "f": ["a"] * n + ["b"] * n,
+                         "y": np.r_[a + subj, b + subj] + shift})
+    row = rm_anova(long, dv="y", subject="s", within=["f"]).table.iloc[0]
+    ref = stats.ttest_rel(a, b)
+    assert float(row["F"]) == pytest.approx(ref.statistic**2, rel=1e-9)
+    assert float(row["p"]) == pytest.approx(ref.pvalue, rel=1e-7)
+    shuffled = long.sample(frac=1.0, random_state=seed)
+    assert float(rm_anova(shuffled, dv="y", subject="s", within=["f"]).table.iloc[0]["F"]) == \
+        pytest.approx(float(row["F"]))
+
+
+def test_between_subject_factor_is_named() -> None:
+    d = _paper_shaped()
+    d["group"] = np.where(d["participant"].isin(["P0", "P1", "P2", "P3"]), "g1", "g2")
+    with pytest.raises(DesignError, match="'group' does not vary within subjects"):
+        rm_anova(d, dv="duration_s", subject="participant", within=["mode", "group"])
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
