@@ -92,6 +92,7 @@ class Simulation:
             0.0 if gripper_closed else min(self.scene.spec.gripper_open, GRIPPER_MAX)
         )
         mujoco.mj_step(self.model, self.data, nstep=substeps)
+        mujoco.mj_kinematics(self.model, self.data)  # poses of the new qpos, not the last step's
         if (
             not np.isfinite(self.data.qpos[0])
             or self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
