@@ -25,18 +25,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--db", type=Path, required=True, help="study store (SQLite file)")
     parser.add_argument("--participant", required=True, help="pseudonymous ID, e.g. P01")
     parser.add_argument("--input", choices=["scripted"], default="scripted", help="user input")
-    parser.add_argument("--seed", type=int, default=0, help="session seed (trials, answers)")
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="session seed for a new session (trials, answers); a resumed one keeps its own",
+    )
     parser.add_argument(
         "--resume", action="store_true", help="continue this participant's interrupted session"
     )
     parser.add_argument(
-        "--demographics", type=json.loads, default=None, help="JSON object, e.g. '{\"age\": 30}'"
+        "--demographics",
+        type=_json_object,
+        default=None,
+        help="JSON object, stored apart from trial data, e.g. '{\"age\": 30}'",
     )
     parser.add_argument("--schedule-row", type=int, default=None, help="override the design row")
     parser.add_argument("--realtime", action="store_true", help="pace trials to wall-clock time")
     parser.add_argument(
         "--synchronous", choices=["FULL", "NORMAL"], default="FULL", help="SQLite durability"
     )
+
+
+def _json_object(text: str) -> dict[str, Any]:
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise argparse.ArgumentTypeError(f"not JSON ({exc}); e.g. '{{\"age\": 30}}'") from exc
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(f"must be a JSON object, got {type(value).__name__}")
+    return value
 
 
 def main(args: argparse.Namespace) -> int:
@@ -46,6 +64,7 @@ def main(args: argparse.Namespace) -> int:
     from study.session import Session, open_store
     from study.session_errors import SessionError
     from study.store import StoreError
+    from study.trial_run import TrialSummary
 
     result: dict[str, Any] = {"participant": args.participant}
     session = None
@@ -71,9 +90,15 @@ def main(args: argparse.Namespace) -> int:
             )
         answers = ScriptedAnswers(seed=session.seed)
 
-        def log(summary: object) -> None:
-            ov = session.overview() if session is not None else None
-            print(f"{args.participant}: step {ov.step if ov else '?'}: {summary}", file=sys.stderr)
+        def log(summary: TrialSummary | None) -> None:
+            if summary is None:
+                print(f"{args.participant}: trial aborted", file=sys.stderr)
+                return
+            print(
+                f"{args.participant}: trial {summary.trial_id}: {summary.outcome} after "
+                f"{summary.duration_s:.2f} s ({summary.ticks} ticks)",
+                file=sys.stderr,
+            )
 
         report = run_headless(session, answerer=answers, realtime=args.realtime, on_trial=log)
         result = report.as_dict()
