@@ -14,8 +14,8 @@ Each tick the user sets an absolute target (clamped by the interface's reach):
   direction to ``a`` (see ``_seen_error``: a robot ahead is help, a robot behind but coming is
   slow, a robot across or stuck is corrected): ``dc/dt = k_eff dz(e_corr)`` with a dead zone
   ``dz`` and ``k_eff = min(k_max, k (1 + f) (1 - rho))``, leaking back to the plan with time
-  constant ``leak`` (``- c / leak``: corrections fade once no longer needed); anti-windup keeps ``r + c + push``
-  inside the reach region (the gizmo stops at the reach).
+  constant ``leak`` (``- c / leak``: corrections fade once no longer needed); anti-windup
+  keeps ``r + c + push`` inside the reach region (the gizmo stops at the reach).
 - ``push``: steering against a robot that works against the goal, ``f`` and ``rho`` from
   :mod:`study.simulated.reaction` (everything seen is ``tau`` seconds old). Whether the robot
   is overriding them the user judges against a second forward model, of their own input
@@ -23,9 +23,9 @@ Each tick the user sets an absolute target (clamped by the interface's reach):
 - ``n``: Ornstein-Uhlenbeck hand noise, sd ``sigma (1 + careless rho)``.
 
 Grasp (``grasp`` is held True from the request on; trials react to its rising edge): closes
-when the seen gripper is within ``grasp_radius`` of ``a`` and slower than
-``settle_speed`` (or, on an impatient "early" attempt, as soon as it is within
-``early_radius``, still moving; or once it stalls within ``stall_radius``). Once the object is
+when the seen gripper is within ``grasp_radius`` of ``a`` and slower than ``settle_speed``
+(or, on an impatient "early" attempt, as soon as it is within ``early_radius``, still moving;
+or once it stalls within ``stall_radius``). Once the object is
 seen in the gripper (after at least ``close_wait``) they lift by ``lift_m`` (harmless where the
 trial lifts by itself); an empty gripper ``check_after`` after closing, or an object slipping
 out, makes them open, pause and reach again with a fresh plan.
@@ -81,7 +81,6 @@ class SimulatedUser:
         self._model = np.zeros(3)
         self._follow = np.zeros(3)
         self._hand = np.zeros(3)
-        self._offset = np.zeros(3)
         self._early = False
         self._best = math.inf
         self._best_t = 0.0
@@ -245,7 +244,6 @@ class SimulatedUser:
         if self.rng.random() < g.miss_p:  # misjudged depth: aims beside the object
             angle = self.rng.uniform(0.0, 2.0 * math.pi)
             offset[:2] = g.miss_offset_m * np.array([math.cos(angle), math.sin(angle)])
-        self._offset = offset
         self._best = math.inf
         self._best_t = t
         self._new_plan(goal + offset)
