@@ -222,7 +222,7 @@ def test_samples_round_trip(tmp_path: Path) -> None:
         assert df.loc[3, "events"] == '["grasp"]'
         assert df.loc[0, "probabilities"] == "[0.2, 0.8]"
         assert store.sample_count(tid) == 5
-        with pytest.raises(StoreError, match="UNIQUE constraint failed.*nothing of this write"):
+        with pytest.raises(StoreError, match=r"UNIQUE constraint failed.*nothing of this write"):
             store.insert_samples([sample_row(tid, 5, tick(5)), sample_row(tid, 4, tick(4))])
         assert store.sample_count(tid) == 5  # the whole batch rolled back
         bad = tick(0)
