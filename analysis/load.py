@@ -195,11 +195,15 @@ def load_tables(*, db: str | Path | None = None,
     return from_store(db) if db is not None else from_export(export_dir)  # type: ignore[arg-type]
 
 
-def task_cells(trials: pd.DataFrame) -> tuple[pd.DataFrame, tuple[str, ...]]:
+def task_cells(trials: pd.DataFrame, *,
+               successful_only: bool = False) -> tuple[pd.DataFrame, tuple[str, ...]]:
     """One row per participant, task and mode: the completed task trial of each cell.
 
-    Training runs, redone, skipped and interrupted attempts are left out. A cell completed
-    more than once is averaged (numeric columns) with a note.
+    Training runs, redone, skipped and interrupted attempts are left out. Completed trials
+    that ended without success (dropped, wrong object, timeout) are kept with a note - their
+    duration is the time until the trial ended - or left out with ``successful_only=True``
+    (their cells then count as missing). A cell completed more than once is averaged
+    (numeric columns) with a note.
     """
     t = trials
     notes: list[str] = []
@@ -211,10 +215,15 @@ def task_cells(trials: pd.DataFrame) -> tuple[pd.DataFrame, tuple[str, ...]]:
     if "success" in done.columns and (~done["success"].astype(bool)).any():
         failed = done[~done["success"].astype(bool)]
         outcomes = failed["outcome"].value_counts().to_dict() if "outcome" in failed else {}
-        notes.append(
-            f"{len(failed)} completed task trial(s) ended without success ("
-            + ", ".join(f"{v} {k}" for k, v in outcomes.items())
-            + "); their duration (until the trial ended, e.g. the time limit) is analysed as is")
+        what = ", ".join(f"{v} {k}" for k, v in outcomes.items())
+        if successful_only:
+            done = done[done["success"].astype(bool)]
+            notes.append(f"{len(failed)} completed task trial(s) ended without success "
+                         f"({what}) and were left out (successful trials only)")
+        else:
+            notes.append(f"{len(failed)} completed task trial(s) ended without success "
+                         f"({what}); their duration (until the trial ended, e.g. the time "
+                         "limit) is analysed as is (--successful-only leaves them out)")
     keys = ["participant", "task", "difficulty", "correctness", "mode"]
     dup = done.duplicated(keys, keep=False)
     if dup.any():

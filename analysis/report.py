@@ -119,7 +119,8 @@ def _anova_table(table: pd.DataFrame, analysis: str, stats: pd.DataFrame) -> pd.
     return pd.DataFrame(rows)
 
 
-def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure]) -> list[Section]:
+def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
+              trials: pd.DataFrame | None = None) -> list[Section]:
     s = res.statistics
     out: list[Section] = []
     cells = res.cells
@@ -131,6 +132,10 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure]) -> lis
             f"({cells.groupby('participant').size().min()}-"
             f"{cells.groupby('participant').size().max()} per participant). Mean time per task "
             f"{cells['duration_s'].mean():.1f} s (paper: about 28 s).")
+    if trials is not None and not trials.empty:
+        cols = [c for c in ("phase", "status", "outcome") if c in trials.columns]
+        counts = trials.groupby(cols, dropna=False).size().reset_index(name="trials")
+        data.tables.append(Table("Trial attempts by phase, status and outcome", counts))
     out.append(data)
     if "fig7" in figures:
         out.append(Section("Arbitration (Fig. 7)", paragraphs=[
@@ -382,6 +387,7 @@ def write_report(
     *,
     protocol_path: str | Path | None = DEFAULT_PROTOCOL,
     predictors: Mapping[str, Mapping[str, Any]] = PREDICTORS,
+    successful_only: bool = False,
 ) -> ReportFiles:
     """Analyse ``tables`` and write report.html, report.md, results.json and figures/."""
     out = Path(out_dir)
@@ -397,7 +403,7 @@ def write_report(
     if proto is not None and "amnesic" in predictors:
         predictors = {**predictors, "amnesic": {**predictors["amnesic"],
                                                 "temperature": proto.amnesic_temperature}}
-    res = analyse(tables, predictors=predictors)
+    res = analyse(tables, predictors=predictors, successful_only=successful_only)
     res.notes = proto_notes + res.notes
     figures = _figures(res, tables, proto, out / "figures", predictors)
     meta = {
@@ -414,7 +420,7 @@ def write_report(
             and tables.protocol_hash != proto.content_hash):
         res.notes.insert(0, "the protocol file's hash differs from the one recorded with the "
                             "data: pass the protocol the study ran with (--protocol)")
-    sections = _sections(res, figures)
+    sections = _sections(res, figures, tables.trials)
     html_path, md_path, json_path = out / "report.html", out / "report.md", out / "results.json"
     html_path.write_text(render_html(sections, meta), encoding="utf-8")
     md_path.write_text(render_markdown(sections, meta), encoding="utf-8")

@@ -90,9 +90,10 @@ def statistics_table(res: StudyResults) -> pd.DataFrame:
 
 
 def analyse(tables: StudyTables, *,
-            predictors: Mapping[str, Mapping[str, Any]] = PREDICTORS) -> StudyResults:
+            predictors: Mapping[str, Mapping[str, Any]] = PREDICTORS,
+            successful_only: bool = False) -> StudyResults:
     """Run every analysis of section 5 that the data allow; see the module docstring."""
-    cells, notes = task_cells(tables.trials)
+    cells, notes = task_cells(tables.trials, successful_only=successful_only)
     res = StudyResults(cells=cells, notes=[*tables.notes, *notes])
     if cells.empty:
         res.notes.append("no completed task trials: nothing to analyse")

@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -129,6 +130,10 @@ def main() -> int:
         elif isinstance(val, dict):
             for sub, v in val.items():
                 print(f"{key + '.' + sub:40s} {v['median_s']:9.3f} {v['p99_s']:8.3f}")
+    results["load_average_1_5_15"] = list(os.getloadavg())
+    results["cpus"] = os.cpu_count()
+    print(f"load average {results['load_average_1_5_15']} on {os.cpu_count()} CPUs "
+          "(other processes slow every figure down)")
     print(json.dumps({"benchmark": "analysis", **results}))
     return 0
 

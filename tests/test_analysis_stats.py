@@ -169,3 +169,16 @@ def test_missing_trial_columns_are_named(study: dict[str, pd.DataFrame]) -> None
     with pytest.raises(DesignError):
         timing_analysis(task_cells(from_frames(study["trials"][
             study["trials"].participant == "P01"]).trials)[0])
+
+
+def test_unsuccessful_trials_are_kept_with_a_note_or_left_out(
+        study: dict[str, pd.DataFrame]) -> None:
+    trials = study["trials"].copy()
+    bad = (trials.participant == "P02") & (trials.task == "hard-wrong") & \
+        (trials["mode"] == "aggressive")
+    trials.loc[bad, ["success", "outcome"]] = [False, "timeout"]
+    kept, notes = task_cells(from_frames(trials).trials)
+    assert len(kept) == 64 and any("1 timeout" in n and "as is" in n for n in notes)
+    only, notes2 = task_cells(from_frames(trials).trials, successful_only=True)
+    assert len(only) == 63 and any("left out" in n for n in notes2)
+    assert set(timing_analysis(only).rm.table["df2"]) == {6}

@@ -20,6 +20,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, help="output folder (created if needed)")
     parser.add_argument("--protocol", default=str(DEFAULT_PROTOCOL),
                         help="protocol TOML the study ran with (Fig. 7 and the hash)")
+    parser.add_argument("--successful-only", action="store_true",
+                        help="leave out completed trials that ended without success")
 
 
 @friendly
@@ -31,7 +33,8 @@ def main(args: argparse.Namespace) -> int:
     tables = load_tables(db=args.db, export_dir=args.export_dir)
     if tables.trials.empty:
         return fail(f"{tables.source} holds no trials; run a study (or a simulation) first")
-    files = write_report(tables, args.out, protocol_path=args.protocol)
+    files = write_report(tables, args.out, protocol_path=args.protocol,
+                         successful_only=args.successful_only)
     for n in files.results.notes:
         note(n)
     print(f"wrote {files.html}, {files.markdown}, {files.results_json} and "
