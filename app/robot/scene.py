@@ -69,11 +69,11 @@ class Scene:
     def target(self) -> str:
         return self.spec.target
 
-    @property
+    @functools.cached_property
     def target_index(self) -> int:
         return self.spec.target_index
 
-    @property
+    @functools.cached_property
     def object_names(self) -> tuple[str, ...]:
         return self.spec.object_names
 

@@ -5,8 +5,9 @@ tick ``step(command, gripper_closed=..., substeps=n)`` sets the seven joint serv
 command (clipped to the joint limits; a non-finite command is refused) and the gripper servo
 to open or closed, then advances ``n`` physics steps. Queries report what a trial needs to
 judge the outcome: the TCP position, which object both fingers hold, object heights and tilt.
-The arm passes through objects while reaching; the fingers touch them once a grasp starts
-(``set_grip_contacts``), so assistance never knocks a bottle over on its way in.
+The arm passes through objects while reaching and the objects rest (no contacts to solve); they
+come alive when a grasp starts (``set_grip_contacts``), so assistance never knocks a bottle over
+on its way in and the reaching phase simulates fast.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import math
 import mujoco
 import numpy as np
 
-from app.robot.arm import GRIPPER_MAX, OBJECT_CONAFFINITY, OBJECT_GRIP_BIT
+from app.robot.arm import GRIPPER_MAX, OBJECT_CONAFFINITY, OBJECT_CONTYPE, OBJECT_GRIP_BIT
 from app.robot.errors import RobotError
 from app.robot.scene import Scene
 
@@ -45,6 +46,12 @@ class Simulation:
         self._object_bodies = np.array(scene.object_body_ids)
         self._body_of_geom = self.model.geom_bodyid
         self._qadr = np.array(scene.object_qpos_addr)
+        self._open = min(scene.spec.gripper_open, GRIPPER_MAX)
+        if scene.gripper_actuator_id != 7:  # pragma: no cover - fixed by Arm.spec()
+            raise SimulationError("the gripper actuator must be ctrl[7]")
+        self._object_dofs = np.concatenate(
+            [np.arange(6) + self.model.body_dofadr[b] for b in scene.object_body_ids]
+        )
         self.reset()
 
     def reset(self) -> None:
@@ -85,33 +92,41 @@ class Simulation:
         command = np.asarray(command, dtype=float)
         if command.shape != (7,) or not math.isfinite(command.sum()):
             raise SimulationError(f"command must be 7 finite joint angles, got {command!r}")
+        data = self.data
         target = np.minimum(np.maximum(command, self._lower), self._upper)
-        self.data.ctrl[8:15] = (target - self.data.qpos[:7]) / (substeps * self.model.opt.timestep)
-        self.data.ctrl[:7] = target
-        self.data.ctrl[self.scene.gripper_actuator_id] = (
-            0.0 if gripper_closed else min(self.scene.spec.gripper_open, GRIPPER_MAX)
-        )
-        mujoco.mj_step(self.model, self.data, nstep=substeps)
-        mujoco.mj_kinematics(self.model, self.data)  # poses of the new qpos, not the last step's
-        if (
-            not np.isfinite(self.data.qpos[0])
-            or self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
-        ):
+        ctrl = data.ctrl
+        ctrl[8:15] = (target - data.qpos[:7]) * (1.0 / (substeps * self.model.opt.timestep))
+        ctrl[:7] = target
+        ctrl[7] = 0.0 if gripper_closed else self._open
+        expected = data.time + substeps * self.model.opt.timestep
+        mujoco.mj_step(self.model, data, nstep=substeps)
+        mujoco.mj_kinematics(self.model, data)  # poses of the new qpos, not the last step's
+        # MuJoCo resets a diverging simulation (bad acceleration) to time 0: catch that too.
+        if not math.isfinite(data.qpos[0]) or data.time < expected - 1e-9:
             raise SimulationError("physics diverged (non-finite state); the trial cannot go on")
 
     @property
     def grip_contacts(self) -> bool:
-        return bool(self.model.geom_conaffinity[self._object_geoms[0]] & OBJECT_GRIP_BIT)
+        return bool(self.model.geom_contype[self._object_geoms[0]])
 
     def set_grip_contacts(self, on: bool) -> None:
-        """Let the fingers touch the objects (while grasping) or pass through them (reaching).
+        """Objects live (contacts, gravity) while grasping; at rest and untouchable while reaching.
 
-        While the user reaches, the arm never pushes objects over; the fingers take hold of
-        whatever lies between them once the gripper closes.
+        While the user reaches, the arm passes through the objects, so nothing can move them:
+        they rest where they stand with gravity compensated and no contacts to solve (the
+        physics step costs a third). Once the gripper closes they fall under gravity again,
+        stand on the table and the fingers take hold of whatever lies between them.
         """
-        affinity = OBJECT_CONAFFINITY | OBJECT_GRIP_BIT if on else OBJECT_CONAFFINITY
-        self.model.geom_conaffinity[self._object_geoms] = affinity
-        self.model.body_conaffinity[self._object_bodies] = affinity  # broadphase filter
+        contype = OBJECT_CONTYPE if on else 0
+        affinity = OBJECT_CONAFFINITY | OBJECT_GRIP_BIT if on else 0
+        m = self.model
+        m.geom_contype[self._object_geoms] = contype
+        m.geom_conaffinity[self._object_geoms] = affinity
+        m.body_contype[self._object_bodies] = contype  # the broadphase filters bodies first
+        m.body_conaffinity[self._object_bodies] = affinity
+        m.body_gravcomp[self._object_bodies] = 0.0 if on else 1.0
+        if not on:
+            self.data.qvel[self._object_dofs] = 0.0
 
     def object_positions(self) -> np.ndarray:
         """Object centres (n, 3) in the order of the scene's objects."""

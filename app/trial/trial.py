@@ -310,18 +310,20 @@ class Trial:
             alpha = 0.0
         t = self.t
         self.events.extend((t, e) for e in events)
+        # u, p, command, probabilities and user_target are fresh arrays each tick (or the
+        # unchanging hold configuration), never written to afterwards: no copies needed.
         rec = TickRecord(
             tick=self.ticks,
             t=t,
             q=self.sim.q,
-            u=np.array(u, dtype=float),
-            p=np.array(p, dtype=float),
-            command=np.array(command, dtype=float),
+            u=u,
+            p=p,
+            command=command,
             alpha=float(alpha),
             confidence=float(confidence),
-            probabilities=np.array(probabilities, dtype=float),
+            probabilities=probabilities,
             predicted=int(predicted),
-            user_target=self.user_target.copy(),
+            user_target=self.user_target,
             ee=self.sim.ee,
             gripper=self.sim.gripper_opening,
             events=tuple(events),
