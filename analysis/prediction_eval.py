@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import threading
 from collections.abc import Mapping
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -168,8 +169,9 @@ def evaluate_predictions(
     """Replay every trial of ``cells`` (task_cells output) that has samples, per predictor.
 
     Returns one row per trial and predictor (``EVAL_COLUMNS``) and notes (trials without
-    samples). ``workers`` > 1 replays trials in that many processes (default: up to 2 when
-    there are more than 50,000 ticks); the results do not depend on it.
+    samples). ``workers`` > 1 replays trials in that many forked processes (default: up to 2
+    when there are more than 50,000 ticks and the caller runs no other threads); the results
+    do not depend on it.
     """
     require_columns(cells, ["trial_id", "goal_names", "goal_positions", "target"],
                     what="the trials table")
@@ -186,9 +188,10 @@ def evaluate_predictions(
         meta.append({"trial_id": tid, "participant": row["participant"], "task": row["task"],
                      "difficulty": row["difficulty"], "correctness": row["correctness"],
                      "mode": row["mode"], "duration_s": row.get("duration_s", np.nan)})
-    if workers is None:
+    if workers is None:  # forking a threaded process (e.g. a server) is unsafe: stay serial
         ticks = sum(len(j[1]) for j in jobs)
-        workers = min(2, os.cpu_count() or 1) if ticks > 50_000 else 1
+        big = ticks > 50_000 and threading.active_count() == 1
+        workers = min(2, os.cpu_count() or 1) if big else 1
     if workers > 1 and len(jobs) > 1:
         ctx = multiprocessing.get_context("fork")
         with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:

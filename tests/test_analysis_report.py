@@ -103,3 +103,18 @@ def test_report_bad_sources_exit_2_with_a_message(tmp_path: Path, export_dir: Pa
         broken / "trials.csv", index=False)
     bad = _report("--export-dir", str(broken), "--out", str(tmp_path / "o"))
     assert bad.returncode == 2 and "'duration_s'" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_rendering_escapes_text_and_formats_p_values() -> None:
+    from analysis.render import Section, Table, fmt_p, render_html, render_markdown
+
+    meta = {"source": "x", "generated_at": "now", "protocol": {"id": "p"},
+            "software": {k: "1" for k in ("package", "version", "commit", "python", "numpy",
+                                          "pandas", "scipy", "statsmodels", "matplotlib")}}
+    sec = Section("S", paragraphs=["a < b"], tables=[Table("T", pd.DataFrame(
+        {"participant": ["<script>alert(1)</script>"], "v": ["x|y"]}))])
+    page = render_html([sec], meta)
+    assert "<script>" not in page and "&lt;script&gt;" in page
+    assert "x\\|y" in render_markdown([sec], meta)
+    assert [fmt_p(p) for p in (0.0004, 0.0021, 0.11, 1.0)] == ["< .001", ".002", ".110",
+                                                               "1.000"]
