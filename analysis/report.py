@@ -120,7 +120,9 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
             f"{', '.join(t.covariates) or 'none'}; N = {t.ancova.n}, residual df = "
             f"{t.ancova.df_resid}, R² = {t.ancova.r2:.2f} (paper: R² = 0.66 on F(1, 53)). "
             "Type III tests each effect at the unweighted cell means adjusted for all other "
-            "terms and the covariates (SPSS GLM's default, the form the paper reports).")
+            "terms and the covariates (SPSS GLM's default, the form the paper reports). Like "
+            "the paper's, this model treats the 64 times as independent given the covariates; "
+            "the repeated-measures ANOVA below models the participant instead.")
         sec.tables.append(Table("Factorial ANOVA with covariates",
                                 _anova_table(t.ancova.table, "timing_ancova", s)))
         me = s[s.analysis == "timing_effects"]
