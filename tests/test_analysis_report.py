@@ -118,3 +118,28 @@ def test_rendering_escapes_text_and_formats_p_values() -> None:
     assert "x\\|y" in render_markdown([sec], meta)
     assert [fmt_p(p) for p in (0.0004, 0.0021, 0.11, 1.0)] == ["< .001", ".002", ".110",
                                                                "1.000"]
+
+
+def test_fig7_curves_follow_the_arbitration_tables() -> None:
+    import numpy as np
+
+    from analysis.figures import arbitration_figure
+
+    tables = {"timid": {"kind": "timid", "alpha_max": 0.4, "saturation": 0.6},
+              "aggressive": {"kind": "aggressive", "threshold": 0.3, "alpha_high": 0.8}}
+    lines = {ln.get_label(): ln for ln in arbitration_figure(tables).axes[0].lines}
+    c = lines["timid"].get_xdata()
+    np.testing.assert_allclose(lines["timid"].get_ydata(), 0.4 * np.minimum(1.0, c / 0.6),
+                               atol=1e-12)
+    np.testing.assert_allclose(lines["aggressive"].get_ydata(), np.where(c >= 0.3, 0.8, 0.0))
+
+
+def test_protocol_fallback_without_study_package(protocol_path: Path,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    import hashlib
+
+    monkeypatch.setitem(sys.modules, "study.protocol", None)  # import now fails
+    info = load_protocol_info(protocol_path)
+    assert info.content_hash == hashlib.sha256(protocol_path.read_bytes()).hexdigest()
+    assert set(info.arbitrations) == {"timid", "aggressive"}
+    assert "plain TOML" in info.notes[0]
