@@ -38,6 +38,8 @@ def measure(
     *, participants: int, workers: int, seed: int, protocol: Path, tmp: Path
 ) -> dict[str, Any]:
     db = tmp / f"sim-{participants}-{workers}.db"
+    if db.exists():
+        raise SystemExit(f"{db} exists; pass an empty --keep folder")
     load = os.getloadavg()[0]
     cpu0 = _cpu_s()
     report: SimulationReport = simulate(
@@ -74,9 +76,12 @@ def main() -> int:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--protocol", type=Path, default=ROOT / "protocols" / "dragan2013.toml")
+    parser.add_argument("--keep", type=Path, default=None, help="write the stores here (kept)")
     args = parser.parse_args()
     rows: list[dict[str, Any]] = []
-    with tempfile.TemporaryDirectory(prefix="bench-simulate-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="bench-simulate-") as scratch:
+        tmp = args.keep or Path(scratch)
+        tmp.mkdir(parents=True, exist_ok=True)
         runs = [(args.small, 1)]
         if args.large:
             runs += [(args.large, 1), (args.large, args.workers)]
