@@ -168,6 +168,27 @@ def test_factorial_with_covariates_matches_statsmodels_ols(ss_type: int) -> None
         assert table.loc[effect, "df2"] == 53
 
 
+@pytest.mark.parametrize("ss_type", [2, 3])
+def test_unbalanced_three_level_factorial_matches_statsmodels(ss_type: int) -> None:
+    rng = np.random.default_rng(9)
+    rows = []
+    for a, b in itertools.product(["a1", "a2", "a3"], ["b1", "b2"]):
+        for _ in range(int(rng.integers(3, 9))):  # unequal cell sizes
+            x = rng.normal()
+            rows.append({"A": a, "B": b, "x": x,
+                         "y": (a == "a2") * 1.5 + (b == "b2") * (a == "a3") + 0.5 * x
+                         + rng.normal()})
+    d = pd.DataFrame(rows)
+    res = factorial_anova(d, dv="y", factors=["A", "B"], covariates=["x"], ss_type=ss_type)
+    ref = anova_lm(smf.ols("y ~ C(A, Sum) * C(B, Sum) + x", data=d).fit(), typ=ss_type)
+    ours = res.table.set_index("effect")["F"]
+    assert ours["A"] == pytest.approx(ref.loc["C(A, Sum)", "F"], rel=1e-8)
+    assert ours["B"] == pytest.approx(ref.loc["C(B, Sum)", "F"], rel=1e-8)
+    assert ours["A:B"] == pytest.approx(ref.loc["C(A, Sum):C(B, Sum)", "F"], rel=1e-8)
+    assert ours["x"] == pytest.approx(ref.loc["x", "F"], rel=1e-8)
+    assert res.df_resid == len(d) - 6 - 1
+
+
 def test_covariate_anova_aggregates_repeats_and_keeps_df() -> None:
     d = _paper_shaped()
     doubled = pd.concat([d, d.assign(duration_s=d.duration_s + 2.0)], ignore_index=True)
