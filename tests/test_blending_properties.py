@@ -114,7 +114,7 @@ def test_path_cost_cancels_across_goals(sc, seed, cost_name) -> None:
     p_direct = direct.update(u).probabilities
     for x in detour[1:]:
         p_winding = winding.update(x).probabilities
-    assert winding.path_cost >= direct.path_cost
+    assert winding.path_cost >= direct.path_cost - 1e-9  # triangle inequality, up to rounding
     np.testing.assert_allclose(p_winding, p_direct, atol=1e-9)
 
 
