@@ -45,17 +45,28 @@ def test_easy_task_unassisted_succeeds_with_full_records(config) -> None:
 
 @pytest.mark.parametrize("task", ["hard-right", "hard-wrong"])
 def test_hard_task_needs_assistance(config, task: str) -> None:
+    grasp = np.array([0.68, 0.22, 0.13])  # the bottle's grasp point, beyond the reach
     for seed in (0, 1):
-        alone = run_trial(config(task, "none", time_limit_s=20), ScriptedInput(seed=seed))
-        assert not alone.success and alone.outcome in ("timeout", "dropped")
-        grasp = np.array([0.68, 0.22, 0.13])
+        # A user who pushes at the interface's limit and waits: the gripper never gets there.
+        patient = ScriptedInput(seed=seed, grasp_when_stalled=False)
+        alone = run_trial(config(task, "none", time_limit_s=15), patient)
+        assert alone.outcome == "timeout"
         closest = min(np.linalg.norm(r.ee - grasp) for r in alone.records)
-        assert closest > 0.02  # the interface never lets the gripper reach the bottle
-        assert any("target_clamped" in r.events for r in alone.records)
+        assert closest > 0.02
+        assert sum("target_clamped" in r.events for r in alone.records) > 500
+        # A user who tries to grasp anyway at the limit: no success either.
+        trying = run_trial(config(task, "none", time_limit_s=15), ScriptedInput(seed=seed))
+        assert not trying.success and trying.outcome in ("timeout", "dropped")
         for mode in ("timid", "aggressive"):
             helped = run_trial(config(task, mode, time_limit_s=30), ScriptedInput(seed=seed))
             assert helped.outcome == "success", (task, mode, seed, helped.outcome)
             assert max(r.alpha for r in helped.records) > 0.3
+
+
+def test_knocking_the_target_over_ends_the_trial(config) -> None:
+    result = run_trial(config("hard-right", "none", time_limit_s=30), ScriptedInput(seed=0))
+    assert result.outcome == "dropped"
+    assert "knocked_over:bottle" in result.records[-1].events
 
 
 def test_aggressive_gives_more_help_than_timid(config) -> None:

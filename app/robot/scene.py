@@ -34,7 +34,7 @@ from app.robot.scene_spec import ObjectSpec, SceneSpec
 from app.teleop.reach import ReachRegion
 
 GRASP_DEPTH = 0.03  # m, TCP below the object's top when grasping
-OBJECT_FRICTION = (1.2, 0.01, 0.001)
+OBJECT_FRICTION = (0.5, 0.005, 0.0001)  # objects on the table slide before they tip
 
 
 @dataclass(frozen=True, eq=False)

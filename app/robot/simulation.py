@@ -46,6 +46,7 @@ class Simulation:
         self._object_bodies = np.array(scene.object_body_ids)
         self._body_of_geom = self.model.geom_bodyid
         self._qadr = np.array(scene.object_qpos_addr)
+        self._rest_xpos = np.zeros((len(scene.object_body_ids), 3))
         self._open = min(scene.spec.gripper_open, GRIPPER_MAX)
         if scene.gripper_actuator_id != 7:  # pragma: no cover - fixed by Arm.spec()
             raise SimulationError("the gripper actuator must be ctrl[7]")
@@ -64,6 +65,13 @@ class Simulation:
         self.data.ctrl[8:15] = 0.0
         self.data.ctrl[self.scene.gripper_actuator_id] = self.scene.spec.gripper_open
         mujoco.mj_forward(self.model, self.data)
+        self._rest_xpos = self.data.xpos[self._object_bodies].copy()
+
+    def objects_at_rest(self, *, tol_m: float = 0.002, tol_rad: float = 0.05) -> bool:
+        """True when every object is still where the scene put it, upright and not moving."""
+        moved = np.abs(self.data.xpos[self._object_bodies] - self._rest_xpos).max()
+        speed = np.abs(self.data.qvel[self._object_dofs]).max()
+        return bool(moved < tol_m and speed < 0.01 and self.object_tilts().max() < tol_rad)
 
     @property
     def time(self) -> float:

@@ -3,8 +3,8 @@
 The user moves their target at ``speed`` (m/s) toward a hover point ``approach_height`` above
 the goal's grasp point, then down to it, with Ornstein-Uhlenbeck noise of standard deviation
 ``noise`` (m). The raw target is not clamped: at the interface's limit the user keeps pushing.
-They ask for a grasp when the TCP is within ``grasp_tolerance`` of the grasp point, or when the
-TCP has stalled for ``stall_s`` seconds near where they want it (they try anyway).
+They ask for a grasp when the TCP is within ``grasp_tolerance`` of the grasp point, or (with
+``grasp_when_stalled``) when the TCP has stalled for ``stall_s`` seconds (they try anyway).
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ class ScriptedInput:
         stall_s: float = 1.5,
         retry_s: float = 1.5,
         goal: int | None = None,
+        grasp_when_stalled: bool = True,
     ) -> None:
         self.rng = np.random.default_rng(seed)
         self.speed = speed
@@ -41,6 +42,7 @@ class ScriptedInput:
         self.stall_s = stall_s
         self.retry_s = retry_s
         self.goal = goal
+        self.grasp_when_stalled = grasp_when_stalled
         self._target: np.ndarray | None = None
         self._offset = np.zeros(3)
         self._phase = "hover"
@@ -82,7 +84,8 @@ class ScriptedInput:
         if self._phase == "descend" and not obs.gripper_closed:
             gap = obs.ee - grasp_point
             close = math.sqrt(gap.dot(gap)) < self.grasp_tolerance
-            if (close or stalled) and obs.t - self._last_grasp_t > self.retry_s:
+            stuck = stalled and self.grasp_when_stalled
+            if (close or stuck) and obs.t - self._last_grasp_t > self.retry_s:
                 grasp = True
                 self._last_grasp_t = obs.t
                 self._stall_ref = None

@@ -6,7 +6,8 @@ from the user target, confidence ``c = max(0, 1 - d / D)``, arbitration ``alpha(
 the arm to ``(1 - alpha) U + alpha P`` and advances the physics. A grasp request closes the
 gripper in physics; holding an object, the arm lifts it by itself; the trial succeeds when the
 target is ``lift_height_m`` above its rest height. Outcomes: ``success``, ``wrong_object``,
-``dropped``, ``timeout``, ``aborted`` and ``interrupted`` -- logged, never raised.
+``dropped`` (the held object fell, or the target was knocked over and can no longer be
+grasped), ``timeout``, ``aborted`` and ``interrupted`` -- logged, never raised.
 
 Thread safety: ``tick``, ``pause``, ``resume``, ``abort`` and ``interrupt`` take one lock; the
 server runs ``tick`` paced in its own thread while UI callbacks feed the input source.
@@ -249,7 +250,10 @@ class Trial:
             cmd = self.ik(q, self._lift_target, max_speed=LIFT_SPEED)
             return cmd, cmd, cmd
         if self._phase == "reopening" and t - self._phase_t >= REOPEN_S:
-            self.sim.set_grip_contacts(False)
+            if self.sim.objects_at_rest():  # untouched: back to resting, contact-free objects
+                self.sim.set_grip_contacts(False)
+            else:  # disturbed objects stay physical (they may be moving or tipped)
+                events.append("objects_disturbed")
             self._enter("reach", events)
         return self._hold_q, self._hold_q, self._hold_q
 
@@ -289,11 +293,14 @@ class Trial:
             elif t - self._phase_t >= LIFT_TIMEOUT_S:
                 events.append(f"lift_failed:{names[i]}")
                 self._finish("dropped", events)
-        if self.ticks % 10 == 0:
+        if self.ticks % 10 == 0 and not self.done:
             for i in np.flatnonzero(self.sim.object_tilts() > TILT_RAD):
                 if int(i) not in self._knocked:
                     self._knocked.add(int(i))
                     events.append(f"knocked_over:{names[i]}")
+                    if int(i) == self.scene.target_index:  # it cannot be grasped any more
+                        self._finish("dropped", events)
+                        break
 
     def _finish(self, outcome: str, events: list[str]) -> None:
         if outcome == "timeout":
