@@ -108,8 +108,8 @@ def factorial_anova(
         else:
             lv = tuple(sorted(set(s.astype(str))))
         if len(lv) < 2:
-            raise DesignError(f"factor {f!r} has only {len(lv)} level; a factor needs at least "
-                              "two levels - drop it from the model")
+            raise DesignError(f"factor {f!r} has {len(lv)} level{'s' if len(lv) != 1 else ''}; "
+                              "a factor needs at least two levels - drop it from the model")
         levels[f] = lv
         blocks[(i,)] = effect_coding(s, lv)
     observed = set(d[factors].astype(str).drop_duplicates().itertuples(index=False, name=None))
@@ -198,6 +198,11 @@ def covariate_anova(
     """
     from analysis.design import cell_means
 
+    roles = [dv, subject, *within, *covariates]
+    dupes = sorted({n for n in roles if roles.count(n) > 1})
+    if dupes:
+        raise DesignError(f"column(s) {', '.join(map(repr, dupes))} given in two roles (dependent "
+                          "variable, subject, factor, covariate); each role needs its own column")
     cells = cell_means(data, dv=dv, subject=subject, within=within,
                        drop_incomplete=drop_incomplete)
     require_columns(data, list(covariates))

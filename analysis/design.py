@@ -122,6 +122,14 @@ def cell_means(
             f"subject column {subject!r} is empty in {int(data[subject].isna().sum())} row(s); "
             "every row needs a subject id"
         )
+    for i, f in enumerate(within):  # before rows with a missing value are left out
+        per_subject = df.groupby("_s", sort=False)[f"_f{i}"].nunique()
+        if df[f"_f{i}"].nunique() > 1 and (per_subject <= 1).all():
+            raise DesignError(
+                f"factor {f!r} does not vary within subjects (every subject has one level): it "
+                "is a between-subjects factor; this repeated-measures analysis takes "
+                "within-subject factors only - drop it from --within"
+            )
     if df["_y"].isna().any():
         n_nan = int(df["_y"].isna().sum())
         notes.append(f"{n_nan} row(s) with a missing {dv!r} were left out")
@@ -130,18 +138,11 @@ def cell_means(
     for f, lv in zip(within, levels, strict=True):
         if len(lv) < 2:
             raise DesignError(
-                f"factor {f!r} has only {len(lv)} level ({', '.join(lv) or 'none'}); "
+                f"factor {f!r} has {len(lv)} level{'s' if len(lv) != 1 else ''} "
+                f"({', '.join(lv) or 'none'}); "
                 "a factor needs at least two levels - drop it from the design"
             )
     keys = ["_s", *[f"_f{i}" for i in range(len(within))]]
-    for i, f in enumerate(within):
-        per_subject = df.groupby("_s", sort=False)[f"_f{i}"].nunique()
-        if (per_subject <= 1).all():
-            raise DesignError(
-                f"factor {f!r} does not vary within subjects (every subject has one level): it "
-                "is a between-subjects factor; this repeated-measures analysis takes "
-                "within-subject factors only - drop it from --within"
-            )
     agg = df.groupby(keys, sort=False)["_y"].agg(["mean", "count"])
     repeated = agg["count"] > 1
     if repeated.any():
@@ -167,7 +168,9 @@ def cell_means(
             more = f" (and {len(missing) - MAX_LISTED} more)" if len(missing) > MAX_LISTED else ""
             raise DesignError(
                 f"the design is incomplete: {len(missing)} of {len(subjects_all)} subject(s) lack "
-                f"cells - {listed}{more}. Collect the missing data, or drop these subjects "
+                f"cells - {listed}{more}"
+                + (f" ({'; '.join(notes)})" if notes else "")
+                + ". Collect the missing data, or drop these subjects "
                 "(--drop-incomplete / drop_incomplete=True)",
                 missing=missing,
             )
