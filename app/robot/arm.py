@@ -41,6 +41,7 @@ GRIPPER_MAX = 0.04  # m, finger travel
 ARM_CONTYPE, ARM_CONAFFINITY = 2, 0
 FINGER_CONTYPE = 2 | 4
 WORLD_CONTYPE, WORLD_CONAFFINITY = 1, 3
+LOW_LINKS = ("panda_link6", "panda_link7", "panda_hand", "panda_leftfinger", "panda_rightfinger")
 OBJECT_CONTYPE, OBJECT_CONAFFINITY, OBJECT_GRIP_BIT = 1, 1, 4
 
 
@@ -90,11 +91,15 @@ def _arm_spec(urdf: str, kin: Kinematics) -> mujoco.MjSpec:
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
     spec.option.impratio = 10.0
     spec.compiler.autolimits = True
+    spec.compiler.discardvisual = False  # keep the upper links, which collide with nothing
     for body in spec.bodies:
         if body.name.startswith("panda_"):
             body.gravcomp = 1.0
     for geom in spec.geoms:
-        geom.contype, geom.conaffinity = ARM_CONTYPE, ARM_CONAFFINITY
+        # Only the wrist, hand and fingers can reach the table; the upper links never collide.
+        low = geom.parent.name in LOW_LINKS
+        geom.contype = ARM_CONTYPE if low else 0
+        geom.conaffinity = ARM_CONAFFINITY
         geom.rgba = [0.92, 0.92, 0.95, 1.0]
     for name in (*ARM_JOINTS, *FINGER_JOINTS):
         joint = spec.joint(name)

@@ -165,7 +165,7 @@ def _compile(spec: SceneSpec, arm: Arm) -> mujoco.MjModel:
     floor.size = [2.0, 2.0, 0.05]
     floor.pos = [0.0, 0.0, spec.table.top_z - 0.75]
     floor.rgba = [0.55, 0.55, 0.58, 1.0]
-    floor.contype, floor.conaffinity = WORLD_CONTYPE, WORLD_CONAFFINITY
+    floor.contype, floor.conaffinity = WORLD_CONTYPE, OBJECT_CONAFFINITY  # objects only
     t = spec.table
     table = world.add_geom()
     table.name = "table"
