@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from analysis.load import load_tables, task_cells
@@ -57,3 +58,22 @@ def test_report_from_a_one_participant_store(store: Path, tmp_path: Path) -> Non
     html = (tmp_path / "report.html").read_text()
     assert html.count("<svg") == 2  # Fig. 7 from the protocol, Fig. 9 from the replays
     assert "Success rate and time to a lasting correct prediction" in html
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+def test_exported_files_give_the_same_numbers_as_the_store(store: Path, tmp_path: Path,
+                                                           fmt: str) -> None:
+    run = subprocess.run([sys.executable, "-m", "study", "export", "--db", str(store), "--out",
+                          str(tmp_path), "--format", fmt], cwd=ROOT, capture_output=True,
+                         text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    from_db, from_files = load_tables(db=store), load_tables(export_dir=tmp_path)
+    assert from_files.protocol_hash == from_db.protocol_hash
+    a, _ = task_cells(from_db.trials)
+    b, _ = task_cells(from_files.trials)
+    cols = ["participant", "task", "mode", "duration_s", "preference_aggressive", "trial_id"]
+    pd.testing.assert_frame_equal(a[cols].reset_index(drop=True), b[cols].reset_index(drop=True),
+                                  check_dtype=False)
+    ea, _ = evaluate_predictions(a, from_db.samples, workers=1)
+    eb, _ = evaluate_predictions(b, from_files.samples, workers=1)
+    pd.testing.assert_frame_equal(ea, eb, check_dtype=False)
