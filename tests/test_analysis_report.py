@@ -143,3 +143,15 @@ def test_protocol_fallback_without_study_package(protocol_path: Path,
     assert info.content_hash == hashlib.sha256(protocol_path.read_bytes()).hexdigest()
     assert set(info.arbitrations) == {"timid", "aggressive"}
     assert "plain TOML" in info.notes[0]
+
+
+def test_report_with_training_runs_only(tmp_path: Path) -> None:
+    from analysis.load import from_frames
+    from analysis.report import write_report
+
+    trials = synthetic_tables(2, seed=1, with_samples=False)["trials"]
+    files = write_report(from_frames(trials[trials.phase == "training"]), tmp_path)
+    doc = json.loads(files.results_json.read_text())
+    assert doc["statistics"] == [] and doc["participants"] == 0
+    assert any("no completed task trials" in n for n in doc["notes"])
+    assert files.html.read_text().count("<svg") == 1  # Fig. 7 from the protocol still drawn
