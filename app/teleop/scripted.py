@@ -4,7 +4,8 @@ The user moves their target at ``speed`` (m/s) toward a hover point ``approach_h
 the goal's grasp point, then down to it, with Ornstein-Uhlenbeck noise of standard deviation
 ``noise`` (m). The raw target is not clamped: at the interface's limit the user keeps pushing.
 They ask for a grasp when the TCP is within ``grasp_tolerance`` of the grasp point, or (with
-``grasp_when_stalled``) when the TCP has stalled for ``stall_s`` seconds (they try anyway).
+``grasp_when_stalled``) when the TCP has stalled for ``stall_s`` seconds within
+``stalled_grasp_radius`` of it (close enough to try anyway).
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ class ScriptedInput:
         retry_s: float = 1.5,
         goal: int | None = None,
         grasp_when_stalled: bool = True,
+        stalled_grasp_radius: float = 0.04,
     ) -> None:
         self.rng = np.random.default_rng(seed)
         self.speed = speed
@@ -43,6 +45,7 @@ class ScriptedInput:
         self.retry_s = retry_s
         self.goal = goal
         self.grasp_when_stalled = grasp_when_stalled
+        self.stalled_grasp_radius = stalled_grasp_radius
         self._target: np.ndarray | None = None
         self._offset = np.zeros(3)
         self._phase = "hover"
@@ -83,8 +86,9 @@ class ScriptedInput:
         grasp = False
         if self._phase == "descend" and not obs.gripper_closed:
             gap = obs.ee - grasp_point
-            close = math.sqrt(gap.dot(gap)) < self.grasp_tolerance
-            stuck = stalled and self.grasp_when_stalled
+            dist = math.sqrt(gap.dot(gap))
+            close = dist < self.grasp_tolerance
+            stuck = stalled and self.grasp_when_stalled and dist < self.stalled_grasp_radius
             if (close or stuck) and obs.t - self._last_grasp_t > self.retry_s:
                 grasp = True
                 self._last_grasp_t = obs.t
