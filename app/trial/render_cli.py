@@ -3,7 +3,7 @@
 Live: ``python -m app render --task hard-right --mode aggressive --seed 1 --out trial.mp4``.
 Replay: ``python -m app trial ... --save run.npz`` then
 ``python -m app render --replay run.npz --task hard-right --out trial.mp4`` (the task names
-the scene). Rendering is headless (``MUJOCO_GL=egl`` by default).
+the scene), or from a study store: ``--store data/study.sqlite --trial-id 12``. Rendering is headless (``MUJOCO_GL=egl`` by default).
 """
 
 from __future__ import annotations
@@ -26,6 +26,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--protocol", type=Path, default=DEFAULT_PROTOCOL)
     parser.add_argument("--replay", type=Path, default=None, help="records (.npz) to replay")
+    parser.add_argument("--store", type=Path, default=None, help="study store (SQLite) to replay")
+    parser.add_argument("--trial-id", type=int, default=None, help="trial to replay from --store")
     parser.add_argument("--out", type=Path, default=Path("trial.mp4"), help="MP4 to write")
     parser.add_argument("--fps", type=float, default=30.0)
     parser.add_argument("--width", type=int, default=640)
@@ -35,15 +37,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from app.robot.scene import build_scene
-    from app.trial.records import load_records
-    from app.trial.video import VideoError, render_live, replay
+    from app.trial.records import load_records, records_from_samples
+    from app.trial.video import render_live, replay
 
     try:
         config = trial_config_from_protocol(
             args.protocol, args.task, args.mode, time_limit_s=args.time_limit
         )
         size = {"fps": args.fps, "width": args.width, "height": args.height}
-        if args.replay is not None:
+        if args.store is not None:
+            from study.store import Store
+
+            if args.trial_id is None:
+                raise ValueError("--store needs --trial-id")
+            store = Store.open_readonly(args.store)
+            row = store.trial(args.trial_id)
+            task = row.task if row.phase != "training" and row.task else "training"
+            config = trial_config_from_protocol(args.protocol, task, "none")
+            records = records_from_samples(store.samples(args.trial_id))
+            if not records:
+                raise ValueError(f"trial {args.trial_id} has no samples in {args.store}")
+            frames = replay(
+                build_scene(config.scene), records, args.out, rate_hz=config.rate_hz, **size
+            )
+            summary = {"store": str(args.store), "trial_id": args.trial_id, "outcome": row.outcome}
+        elif args.replay is not None:
             meta, records = load_records(args.replay)
             frames = replay(
                 build_scene(config.scene), records, args.out, rate_hz=config.rate_hz, **size
@@ -53,7 +71,7 @@ def main(args: argparse.Namespace) -> int:
             source = make_input(args.input, seed=args.seed, speed=0.15, noise=0.002)
             result, frames = render_live(config, source, args.out, seed=args.seed, **size)
             summary = result.summary()
-    except (ValueError, KeyError, OSError, VideoError) as exc:
+    except (ValueError, KeyError, OSError, RuntimeError) as exc:  # incl. VideoError, StoreError
         print(f"error: {exc}", file=sys.stderr)
         return 2
     summary.update(video=str(args.out), frames=frames)
