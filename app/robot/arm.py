@@ -1,14 +1,15 @@
 """The Panda arm as one model with two views: a MuJoCo spec (physics) and pinocchio ``Kinematics``.
 
 ``load_arm()`` is cached: the URDF is read and converted once per process. ``Arm.spec()`` returns
-a fresh ``MjSpec`` of the arm with a servo on each of the seven joints, a gripper actuator
-(the second finger mirrors the first through an equality), gravity compensation and a ``tcp``
+a fresh ``MjSpec`` of the arm with a servo on each of the seven joints, a servo per finger
+(both get the same opening), gravity compensation and a ``tcp``
 site placed where pinocchio's TCP frame is, so both views report the same end-effector pose.
 
 Each joint servo is a position actuator (``ctrl[0:7]``, stiffness ``KP``) plus a velocity
 actuator (``ctrl[8:15]``, damping ``KV``): torque ``= KP (q_cmd - q) + KV (qd_cmd - qd)``.
 A command ``U = Q + u`` per tick is tracked at its own speed (``qd_cmd = u / dt``) instead of
-lagging behind a damper that pulls toward rest. ``ctrl[7]`` is the gripper opening.
+lagging behind a damper that pulls toward rest. ``ctrl[7]`` and ``ctrl[15]`` are the finger
+openings (the same value).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ ARM_JOINTS = tuple(f"panda_joint{i}" for i in range(1, 8))
 LAST_ARM_BODY = "panda_link7"
 TCP_SITE = "tcp"
 GRIPPER_ACTUATOR = "gripper"
+GRIPPER_MIRROR = "gripper_mirror"
 VELOCITY_SUFFIX = "_velocity"
 # Position servo gains per joint (N m / rad), damping (N m s / rad) and torque limits (N m).
 KP = (4500.0, 4500.0, 3500.0, 3500.0, 2000.0, 2000.0, 2000.0)
@@ -132,15 +134,11 @@ def _arm_spec(urdf: str, kin: Kinematics) -> mujoco.MjSpec:
         lo, hi = spec.joint(name).range
         act.ctrlrange = [lo, hi]
         act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
-    grip = spec.add_actuator()
-    grip.name = GRIPPER_ACTUATOR
-    grip.target = FINGER_JOINTS[0]
-    grip.trntype = mujoco.mjtTrn.mjTRN_JOINT
-    grip.set_to_position(kp=GRIPPER_KP, kv=GRIPPER_KV)
-    grip.forcerange = [-GRIPPER_FORCE, GRIPPER_FORCE]
-    grip.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
-    grip.ctrlrange = [0.0, GRIPPER_MAX]
-    grip.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    # The URDF's mimic joint becomes an equality constraint, which costs a constraint solve on
+    # every step; two finger servos with the same command keep the fingers symmetric for free.
+    for equality in list(spec.equalities):
+        spec.delete(equality)
+    _add_finger_servo(spec, GRIPPER_ACTUATOR, FINGER_JOINTS[0])
     for name, kv, torque in zip(ARM_JOINTS, KV, TORQUE, strict=True):
         act = spec.add_actuator()
         act.name = f"{name}{VELOCITY_SUFFIX}"
@@ -149,7 +147,20 @@ def _arm_spec(urdf: str, kin: Kinematics) -> mujoco.MjSpec:
         act.set_to_velocity(kv=kv)
         act.forcerange = [-torque, torque]
         act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    _add_finger_servo(spec, GRIPPER_MIRROR, FINGER_JOINTS[1])
     return spec
+
+
+def _add_finger_servo(spec: mujoco.MjSpec, name: str, joint: str) -> None:
+    grip = spec.add_actuator()
+    grip.name = name
+    grip.target = joint
+    grip.trntype = mujoco.mjtTrn.mjTRN_JOINT
+    grip.set_to_position(kp=GRIPPER_KP, kv=GRIPPER_KV)
+    grip.forcerange = [-GRIPPER_FORCE, GRIPPER_FORCE]
+    grip.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    grip.ctrlrange = [0.0, GRIPPER_MAX]
+    grip.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
 
 
 def _wxyz(rotation: np.ndarray) -> np.ndarray:

@@ -206,8 +206,8 @@ def _compile(spec: SceneSpec, arm: Arm) -> mujoco.MjModel:
         model = ms.compile()
     except ValueError as exc:  # pragma: no cover - MuJoCo compiler messages are specific
         raise SceneError(f"scenes.{spec.name}: MuJoCo could not compile the scene: {exc}") from exc
-    if model.nu != 2 * len(ARM_JOINTS) + 1:
-        raise SceneError(f"scenes.{spec.name}: expected {2 * len(ARM_JOINTS) + 1} actuators")
+    if model.nu != 2 * len(ARM_JOINTS) + 2:
+        raise SceneError(f"scenes.{spec.name}: expected {2 * len(ARM_JOINTS) + 2} actuators")
     return model
 
 

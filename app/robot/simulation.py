@@ -63,7 +63,7 @@ class Simulation:
         self.data.qpos[7:9] = self.scene.spec.gripper_open
         self.data.ctrl[:7] = self.scene.start_q
         self.data.ctrl[8:15] = 0.0
-        self.data.ctrl[self.scene.gripper_actuator_id] = self.scene.spec.gripper_open
+        self.data.ctrl[7] = self.data.ctrl[15] = self.scene.spec.gripper_open
         mujoco.mj_forward(self.model, self.data)
         self._rest_xpos = self.data.xpos[self._object_bodies].copy()
 
@@ -105,7 +105,7 @@ class Simulation:
         ctrl = data.ctrl
         ctrl[8:15] = (target - data.qpos[:7]) * (1.0 / (substeps * self.model.opt.timestep))
         ctrl[:7] = target
-        ctrl[7] = 0.0 if gripper_closed else self._open
+        ctrl[7] = ctrl[15] = 0.0 if gripper_closed else self._open
         expected = data.time + substeps * self.model.opt.timestep
         mujoco.mj_step(self.model, data, nstep=substeps)
         mujoco.mj_kinematics(self.model, data)  # poses of the new qpos, not the last step's
