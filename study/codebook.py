@@ -39,7 +39,8 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
         "mode": ("manipulated factor: arbitration mode; none for unassisted training", ""),
         "run": ("which run of the task this is", "first | second | ..."),
         "attempt": ("attempt number of this trial step (a redo starts attempt 2)", "1.."),
-        "status": ("what became of the attempt (running: still in progress at export)",
+        "status": ("what became of the attempt (running: its process was still running it at "
+                   "export; one whose process had died is reported interrupted)",
                    "completed | redone | skipped | interrupted | running"),
         "outcome": ("how the trial ended",
                     "success | wrong_object | dropped | timeout | aborted | interrupted"),

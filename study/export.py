@@ -2,7 +2,12 @@
 
 ``tidy_tables(store_or_path)`` is the one place that defines them (the team contract's "Tidy
 tables"); ``python -m study export`` writes them as CSV and Parquet with a codebook
-(``study.codebook`` describes every column). The store is opened read-only.
+(``study.codebook`` describes every column). The store is opened read-only and never written.
+
+The questionnaire layout comes from the protocol the store was run with: the text the store
+keeps (``study.protocol.protocol_from_store``), else a matching protocol file, else it is
+inferred from the data (``resolve_protocol``). A trial left ``running`` by a dead process is
+exported as ``interrupted`` (``study.store.orphans``).
 
 Derived columns of ``trials``:
     training_time_s   mean ``duration_s`` of the participant's completed training runs
@@ -26,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from study.protocol import TRAINING_MODE, ProtocolError, load_protocol
+from study.protocol import TRAINING_MODE, ProtocolError, load_protocol, protocol_from_store
 from study.store import DOF, Store, now_iso
 
 if TYPE_CHECKING:
@@ -71,16 +76,31 @@ def tidy_tables(
 ) -> dict[str, pd.DataFrame]:
     """The tidy tables of a store: ``{"trials", "samples", "ratings", "events"}``.
 
-    ``protocol`` (optional) names the questionnaire's items and scales; without it the protocol
-    file ``<dir>/<study id>.toml`` is used when its content hash matches the store's (``search``:
-    the directories to look in, default ./protocols and the repository's; ``[]`` = none), and
-    otherwise the items are inferred from the data (7-point scale, preference re-centred on
-    ``aggressive`` or on the alphabetically last of two modes).
+    ``protocol`` (optional; must be the one the store was run with) names the questionnaire's
+    items and scales; without it ``resolve_protocol(store, search=search)`` picks one.
     """
     if isinstance(store_or_path, Store):
         return _Exporter(store_or_path, protocol, search).tables()
     with Store.open_readonly(store_or_path) as store:
         return _Exporter(store, protocol, search).tables()
+
+
+def resolve_protocol(
+    store: Store, *, search: Sequence[Path] | None = None
+) -> tuple[Protocol | None, str]:
+    """The protocol ``store`` was run with and where it came from, in this order: the text the
+    store keeps (``"store"``); a protocol file with the same content hash (``"file <path>"``,
+    see ``find_protocol``); else ``None`` and why, in which case export infers the items from
+    the data (7-point scale, preference re-centred on ``aggressive`` or on the alphabetically
+    last of two modes)."""
+    try:
+        return protocol_from_store(store), "store"
+    except ProtocolError as exc:
+        why = str(exc)
+    found = find_protocol(store, search=search)
+    if found is not None:
+        return found, f"file {found.path}"
+    return None, f"{why}; no protocol file matches either, so item columns are inferred"
 
 
 def find_protocol(store: Store, *, search: Sequence[Path] | None = None) -> Protocol | None:
@@ -107,12 +127,13 @@ class _Exporter:
     ) -> None:
         self.store = store
         if protocol is None:
-            protocol = find_protocol(store, search=search)
+            protocol, _ = resolve_protocol(store, search=search)
         elif protocol.content_hash != store.meta.protocol_hash:
             raise ExportError(
                 f"{store.path} was written by protocol {store.meta.protocol_id!r} (hash"
                 f" {store.meta.protocol_hash[:12]}), not by {protocol.path} (hash"
-                f" {protocol.content_hash[:12]}); pass the protocol the study ran with"
+                f" {protocol.content_hash[:12]}); pass the protocol the study ran with, or none"
+                " to use the one the store keeps"
             )
         self.protocol = protocol
         self.raw_trials = store.frame("trials").sort_values("trial_id", kind="stable")
@@ -321,6 +342,7 @@ def export_metadata(
         "protocol_version": store.meta.protocol_version,
         "protocol_hash": store.meta.protocol_hash,
         "protocol_file": str(protocol.path) if protocol is not None else None,
+        "protocol_stored": store.protocol_text() is not None,
         "software_version": app.__version__,
         "exported_at": now_iso(),
         "rows": {name: len(df) for name, df in tables.items()},

@@ -48,6 +48,7 @@ from study.store import (
     Store,
     Transaction,
     UnknownParticipantError,
+    changed_sections,
     check_participant_id,
 )
 from study.trial_run import TrialFactory, TrialRun, TrialSummary
@@ -62,12 +63,18 @@ Listener = Callable[[Screen], None]
 
 
 def open_store(path: str | Path, protocol: Protocol, *, synchronous: str = "FULL") -> Store:
-    """Open (or create) the store at ``path`` for ``protocol`` (mismatches raise)."""
+    """Open (or create) the store at ``path`` for ``protocol``; a new store keeps the protocol's
+    full text, so export and analysis can rebuild it (``study.protocol.protocol_from_store``).
+
+    Raises ``ProtocolMismatchError`` (naming both content hashes and the changed sections) if
+    the store was started with another protocol: continue with the original file, or use a new
+    path for the edited protocol."""
     return Store.open(
         path,
         protocol_id=protocol.id,
         protocol_hash=protocol.content_hash,
         protocol_version=protocol.study.version,
+        protocol_text=protocol.source or None,
         synchronous=synchronous,
     )
 
@@ -338,8 +345,16 @@ class Session:
             return self._config(step)
 
     def record_event(self, kind: str, detail: Mapping[str, Any] | None = None) -> None:
-        """Append an event of the caller's (UI: tab connected, input rejected ...) to the
-        session's log; thread-safe, refused once this object lost or closed its lease."""
+        """Append an event of the caller's to the session's log: the one way for a UI, server or
+        simulator to log its own events (tab connected, input rejected, simulated parameters).
+
+            session.record_event("participant_connected", {"client": 3})
+
+        ``detail`` must be JSON-serialisable. Thread-safe. The event is written in the same
+        transaction that checks this process still holds the participant's lease, so a session
+        taken over by another process (``SessionLockedError``) or closed
+        (``SessionClosedError``) cannot add to the log; nothing is written then. Prefer this to
+        ``store.transaction()`` + ``tx.event(...)``, which skips that check."""
         if not isinstance(kind, str) or not kind:
             raise SessionError("an event needs a kind (a short name such as 'tab_connected')")
         with self._lock:
@@ -874,11 +889,14 @@ class Session:
 def _check_protocol(store: Store, protocol: Protocol) -> None:
     meta = store.meta
     if meta.protocol_hash != protocol.content_hash or meta.protocol_id != protocol.id:
+        changed = changed_sections(store.protocol_text(), protocol.source or None)
         raise ProtocolMismatchError(
             f"store {store.path} was written by protocol {meta.protocol_id!r} version "
-            f"{meta.protocol_version or '?'} ({meta.protocol_hash[:12]}), not by {protocol.id!r} "
-            f"version {protocol.study.version} ({protocol.content_hash[:12]}); use the protocol "
-            "file the study started with, or a new store (data untouched)"
+            f"{meta.protocol_version or '?'} (content hash {meta.protocol_hash}), not by "
+            f"{protocol.id!r} version {protocol.study.version} (content hash "
+            f"{protocol.content_hash}){f'; changed: {changed}' if changed else ''}; use the "
+            "protocol the study started with (study.protocol.protocol_from_store rebuilds it), "
+            "or a new store for the edited protocol (data untouched)"
         )
 
 

@@ -2,8 +2,9 @@
 
 After every SIGKILL: ``PRAGMA integrity_check`` is ok; every trial and rating the store showed
 as committed before the kill is still there; the trial that was running keeps its samples up to
-the last batch (consecutive ticks from 0); ``--resume`` marks it interrupted and runs the same
-step again, so the session ends with the full schedule.
+the last batch (consecutive ticks from 0); until a resume, readers and export report it
+``interrupted`` while its row still says ``running`` (nothing written); ``--resume`` marks it
+interrupted and runs the same step again, so the session ends with the full schedule.
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ from pathlib import Path
 
 import pytest
 
-from study.store import Store
+from study.export import tidy_tables
+from study.store import ORPHAN_NOTE, Store
 
 ROOT = Path(__file__).resolve().parents[1]
 PROTOCOL = ROOT / "protocols" / "dragan2013.toml"
@@ -99,11 +101,19 @@ def check_after_kill(db: Path, before: dict[str, object]) -> None:
         assert before["completed"] <= completed  # type: ignore[operator]
         ratings = {(r.step, r.item, r.value) for r in store.ratings()}
         assert before["ratings"] <= ratings  # type: ignore[operator]
-        for t in trials:
+        assert not [t for t in trials if t.status == "running"]  # its process is dead
+        for t in store.trials(raw=True):
             if t.status == "running":  # the interrupted trial, not yet marked (no resume yet)
                 ticks = store.samples(t.trial_id)["tick"].tolist()
                 assert ticks == list(range(len(ticks)))
                 assert len(ticks) >= (before["samples"] if before["running"] else 0)  # type: ignore[operator]
+                reported = store.trial(t.trial_id)
+                assert (reported.status, reported.outcome, reported.success) == (
+                    "interrupted",
+                    "interrupted",
+                    False,
+                )
+                assert reported.ticks == len(ticks) and reported.note == ORPHAN_NOTE
 
 
 def test_kill9_mid_trial_then_resume_loses_nothing(tmp_path: Path) -> None:
@@ -131,11 +141,15 @@ def test_kill9_mid_trial_then_resume_loses_nothing(tmp_path: Path) -> None:
         kill(proc)
         check_after_kill(db, before)
         with Store.open_readonly(db) as store:
-            left = store.trial(before["running"].trial_id)
+            left = store.trial(before["running"].trial_id, raw=True)
             if left.status == "running":
                 running = left
                 assert store.sample_count(left.trial_id) >= before["samples"]
                 assert store.session("P01").cursor == left.step  # its place in the schedule
+                exported = tidy_tables(store)["trials"].set_index("trial_id").loc[left.trial_id]
+                assert (exported["status"], exported["outcome"]) == ("interrupted", "interrupted")
+                assert exported["ticks"] == store.sample_count(left.trial_id)
+                assert store.trial(left.trial_id, raw=True).status == "running"  # not written
                 break
         proc = start(db, "--resume")
     assert running is not None, "never caught a trial mid-run"

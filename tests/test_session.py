@@ -527,6 +527,8 @@ def test_lost_lease_stops_writes(store: Store, protocol: Protocol) -> None:
         tx.cur.execute("UPDATE leases SET token = 'other', pid = 1 WHERE participant = 'P01'")
     with pytest.raises(SessionLockedError, match="now held by process 1"):
         session.agree()
+    with pytest.raises(SessionLockedError, match="must stop writing"):
+        session.record_event("tab_connected", {"client": 3})
     assert session.cursor == 0 and store.session("P01").cursor == 0
     assert len(store.events()) == events
 

@@ -1,8 +1,10 @@
 """``python -m study export --db PATH --out DIR``: tidy CSV + Parquet tables and a codebook.
 
 Writes trials, samples, ratings and events (``.csv`` and ``.parquet``) and ``codebook.csv`` /
-``codebook.md`` describing every column, and ``metadata.json`` (store, protocol id, version and
-content hash, software version, row counts). The store is opened read-only.
+``codebook.md`` describing every column, ``metadata.json`` (store, protocol id, version and
+content hash, software version, row counts) and ``protocol.toml``, the exact protocol text the
+store keeps. The store is opened read-only. Item columns follow the protocol the store keeps;
+``--protocol`` overrides it (it must have the same content hash).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from study.codebook import codebook, write_codebook
 from study.export import (
     ExportError,
     export_metadata,
-    find_protocol,
+    resolve_protocol,
     tidy_tables,
     write_tables,
 )
@@ -29,7 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, required=True, help="directory to write into")
     parser.add_argument(
         "--protocol", type=Path, default=None,
-        help="protocol the study ran with (default: protocols/<study id>.toml if it matches)",
+        help="protocol the study ran with (default: the one the store keeps, else "
+        "protocols/<study id>.toml if its content hash matches)",
     )
     parser.add_argument(
         "--format", choices=("both", "csv", "parquet"), default="both", help="file formats"
@@ -40,24 +43,25 @@ def main(args: argparse.Namespace) -> int:
     formats = ("csv", "parquet") if args.format == "both" else (args.format,)
     try:
         with Store.open_readonly(args.db) as store:
-            protocol = (
-                load_protocol(args.protocol) if args.protocol else find_protocol(store)
-            )
-            if protocol is None:
-                print(
-                    f"note: no protocol file matches the store's protocol"
-                    f" {store.meta.protocol_id!r} (hash {store.meta.protocol_hash[:12]}); item"
-                    " columns are inferred from the data (pass --protocol with the file the study ran with)",
-                    file=sys.stderr,
-                )
+            if args.protocol:
+                protocol, source = load_protocol(args.protocol), f"file {args.protocol}"
+            else:
+                protocol, source = resolve_protocol(store)
+            if source != "store":
+                print(f"note: protocol from {source}", file=sys.stderr)
             tables = tidy_tables(store, protocol=protocol, search=[])
             metadata = export_metadata(store, tables, protocol=protocol)
+            stored_text = store.protocol_text()
         book = codebook(tables, protocol=protocol)
         written = write_tables(tables, args.out, formats=formats)
         written += write_codebook(book, args.out)
         meta_path = Path(args.out) / "metadata.json"
         meta_path.write_text(json.dumps(metadata, indent=1) + "\n")
         written.append(meta_path)
+        if stored_text is not None:
+            protocol_path = Path(args.out) / "protocol.toml"
+            protocol_path.write_text(stored_text, encoding="utf-8")
+            written.append(protocol_path)
     except (StoreError, ProtocolError, ExportError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

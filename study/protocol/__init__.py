@@ -5,6 +5,7 @@
     protocol.tasks, protocol.modes
     protocol.trial_config("hard-right", "aggressive")   # -> app.trial.TrialConfig
     protocol.describe_trial("hard-right")               # participant-facing, no condition word
+    protocol_from_store(store)                          # the exact protocol a store ran with
 """
 
 from study.protocol.errors import (
@@ -24,6 +25,7 @@ from study.protocol.loader import content_hash, load_protocol, parse_protocol
 from study.protocol.model import Control, Mode, StudyInfo, Task, Texts, Training
 from study.protocol.protocol import TRAINING_MODE, Protocol
 from study.protocol.questionnaire import PHASES, LikertItem, Questionnaire, Scale
+from study.protocol.stored import StoredProtocolError, protocol_from_store
 
 __all__ = [
     "PHASES",
@@ -43,6 +45,7 @@ __all__ = [
     "Questionnaire",
     "Scale",
     "ScaleMismatchError",
+    "StoredProtocolError",
     "StudyInfo",
     "Task",
     "Texts",
@@ -52,4 +55,5 @@ __all__ = [
     "content_hash",
     "load_protocol",
     "parse_protocol",
+    "protocol_from_store",
 ]

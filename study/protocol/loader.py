@@ -55,7 +55,7 @@ def parse_protocol(text: str, *, path: str | Path = "<string>") -> Protocol:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise _syntax_error(e, text, path) from None
-    return _Loader(raw, Path(path)).protocol()
+    return _Loader(raw, Path(path), source=text).protocol()
 
 
 def content_hash(raw: Mapping[str, Any]) -> str:
@@ -85,9 +85,10 @@ def _syntax_error(e: tomllib.TOMLDecodeError, text: str, path: str | Path) -> Pr
 
 
 class _Loader:
-    def __init__(self, raw: dict[str, Any], path: Path) -> None:
+    def __init__(self, raw: dict[str, Any], path: Path, *, source: str) -> None:
         self.raw = raw
         self.path = path
+        self.source = source
         self.root = Table(raw, file=path)
 
     def error(self, cls: type[ProtocolError], key: str, problem: str) -> ProtocolError:
@@ -141,6 +142,7 @@ class _Loader:
             texts=texts,
             content_hash=content_hash(self.raw),
             software_version=app.__version__,
+            source=self.source,
         )
         check_blinding(protocol)
         return protocol

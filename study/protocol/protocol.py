@@ -30,8 +30,9 @@ class Protocol:
     """A study: factors, tasks, modes, blending settings, scenes, questionnaire and texts.
 
     ``content_hash`` is the sha256 of the file's canonical content (key order and formatting do
-    not matter); ``software_version`` is ``app.__version__`` at load time. Both are stored with
-    every session so results can be traced to the exact study definition and code.
+    not matter); ``software_version`` is ``app.__version__`` at load time. ``source`` is the TOML
+    text it was parsed from: the store keeps it (keyed by ``content_hash``), so the exact protocol
+    a study ran with can be rebuilt from its store (:func:`study.protocol.protocol_from_store`).
     """
 
     path: Path
@@ -51,6 +52,7 @@ class Protocol:
     texts: Texts
     content_hash: str
     software_version: str
+    source: str = ""
 
     # -- lookups ---------------------------------------------------------------------------
     @property

@@ -1,8 +1,10 @@
 """The study store: one SQLite file (WAL, versioned schema) per study.
 
-``Store.open(path, protocol_id=, protocol_hash=)`` for sessions, ``Store.open_readonly(path)``
-for export and analysis. Tables: participants, demographics (apart from trial data), sessions,
-assignments (the schedule), leases, trials, samples (one row per control tick), ratings, events.
+``Store.open(path, protocol_id=, protocol_hash=, protocol_text=)`` for sessions (use
+``study.session.open_store(path, protocol)``), ``Store.open_readonly(path)`` for export and
+analysis. Tables: protocols (the full text of the study's protocol), participants, demographics
+(apart from trial data), sessions, assignments (the schedule), leases, trials, samples (one row
+per control tick), ratings, events.
 """
 
 from study.store.errors import (
@@ -17,6 +19,7 @@ from study.store.errors import (
     StoreError,
     UnknownParticipantError,
 )
+from study.store.orphans import ORPHAN_NOTE, STALE_AFTER_S
 from study.store.records import (
     AssignmentRecord,
     EventRecord,
@@ -28,12 +31,14 @@ from study.store.records import (
     TrialRecord,
 )
 from study.store.schema import DOF, SAMPLE_COLUMNS, SCHEMA_VERSION, TABLES
-from study.store.store import Store, Transaction, check_participant_id, now_iso
+from study.store.store import Store, Transaction, changed_sections, check_participant_id, now_iso
 
 __all__ = [
     "DOF",
+    "ORPHAN_NOTE",
     "SAMPLE_COLUMNS",
     "SCHEMA_VERSION",
+    "STALE_AFTER_S",
     "TABLES",
     "AssignmentRecord",
     "DuplicateParticipantError",
@@ -55,6 +60,7 @@ __all__ = [
     "Transaction",
     "TrialRecord",
     "UnknownParticipantError",
+    "changed_sections",
     "check_participant_id",
     "now_iso",
 ]

@@ -1,14 +1,31 @@
 """The store's SQLite schema, version ``SCHEMA_VERSION``.
 
 One row in ``schema_version`` says which schema and which protocol (study id + content hash)
-wrote the file. Demographics live in their own table, apart from trial data. ``samples`` holds
+wrote the file; ``protocols`` keeps that protocol's full TOML text keyed by its content hash, so
+the exact study definition can be rebuilt from the store alone. Demographics live in their own table, apart from trial data. ``samples`` holds
 one row per control tick, keyed by ``(trial_id, tick)``; the 7-vectors are spread over columns
 ``q1..q7`` etc. so the file stays readable with any SQLite client.
 """
 
 from __future__ import annotations
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+"""Version 2 added the ``protocols`` table; a version-1 file is read as it is (no stored
+protocol text) and upgraded when opened read-write (``MIGRATIONS``)."""
+
+READABLE_VERSIONS = (1, 2)
+
+PROTOCOLS_DDL = """
+CREATE TABLE protocols (
+    content_hash TEXT PRIMARY KEY,
+    protocol_id TEXT NOT NULL,
+    protocol_version TEXT NOT NULL,
+    text TEXT NOT NULL,
+    recorded_at TEXT NOT NULL
+)"""
+
+MIGRATIONS: dict[int, tuple[str, ...]] = {1: (PROTOCOLS_DDL,)}
+"""``{from_version: statements}`` that bring a file to ``from_version + 1``."""
 
 DOF = 7
 """Joint-space vectors stored per sample (the Panda arm's 7 joints)."""
@@ -50,6 +67,7 @@ CREATE TABLE schema_version (
     protocol_hash TEXT NOT NULL,
     created_at TEXT NOT NULL
 );
+{PROTOCOLS_DDL};
 CREATE TABLE participants (
     participant TEXT PRIMARY KEY,
     enrolled_at TEXT NOT NULL,
@@ -147,6 +165,7 @@ CREATE INDEX events_by_session ON events(session_id);
 
 TABLES = (
     "schema_version",
+    "protocols",
     "participants",
     "demographics",
     "sessions",

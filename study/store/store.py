@@ -8,7 +8,9 @@ and the sample writer thread serialise, and other processes wait on SQLite's own
 ``SampleWriter``.
 
 Opening never alters a file it refuses: the schema version and the protocol (study id + content
-hash) are checked read-only before any pragma that writes.
+hash) are checked read-only before any pragma that writes. The store keeps the full text of the
+protocol it was created for (``protocol_text()``); a ``running`` trial whose process is dead is
+read back as ``interrupted`` (``study.store.orphans``) without writing to the file.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import re
 import sqlite3
 import threading
 import time
+import tomllib
 import uuid
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -41,6 +44,7 @@ from study.store.errors import (
     StoreError,
     UnknownParticipantError,
 )
+from study.store.orphans import ORPHAN_NOTE, STALE_AFTER_S, Orphan, orphaned_trials
 from study.store.records import (
     AssignmentRecord,
     EventRecord,
@@ -51,7 +55,14 @@ from study.store.records import (
     StoreMeta,
     TrialRecord,
 )
-from study.store.schema import DDL, SAMPLE_COLUMNS, SCHEMA_VERSION, TABLES
+from study.store.schema import (
+    DDL,
+    MIGRATIONS,
+    READABLE_VERSIONS,
+    SAMPLE_COLUMNS,
+    SCHEMA_VERSION,
+    TABLES,
+)
 
 PARTICIPANT_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,31}$")
 SESSION_STATUSES = ("enrolled", "running", "completed", "withdrawn", "ended")
@@ -99,15 +110,21 @@ class Store:
         protocol_id: str,
         protocol_hash: str,
         protocol_version: str = "",
+        protocol_text: str | None = None,
         synchronous: str = "FULL",
         busy_timeout_s: float = 10.0,
     ) -> Store:
         """Open (or create) the store at ``path`` for the protocol ``protocol_id``/``protocol_hash``.
 
-        Raises ``SchemaVersionError`` or ``ProtocolMismatchError`` if the file was written by
-        another schema or protocol, ``NotAStoreError`` if it is not a study store. The file is
-        only read before these checks pass. ``synchronous`` is SQLite's durability level
-        (``FULL``: every commit survives power loss; ``NORMAL``: survives a killed process).
+        ``protocol_text`` is the protocol's TOML source (``study.session.open_store`` always
+        passes it): it is kept in the ``protocols`` table, keyed by the hash, when the store is
+        created (or later, if the store has no text for this hash yet), so export and analysis
+        can rebuild the exact protocol. Raises ``SchemaVersionError`` or
+        ``ProtocolMismatchError`` if the file was written by another schema or protocol,
+        ``NotAStoreError`` if it is not a study store. The file is only read before these checks
+        pass; a version-1 file is then upgraded in place (it gains the ``protocols`` table).
+        ``synchronous`` is SQLite's durability level (``FULL``: every commit survives power
+        loss; ``NORMAL``: survives a killed process).
         """
         if synchronous not in ("FULL", "NORMAL"):
             raise StoreError(f"synchronous must be 'FULL' or 'NORMAL', not {synchronous!r}")
@@ -119,10 +136,21 @@ class Store:
             meta = _read_meta(conn, p)
             if meta is None:
                 meta = _create(conn, p, protocol_id, protocol_version, protocol_hash)
-            _check_protocol(meta, p, protocol_id, protocol_hash, protocol_version)
+            _check_protocol(
+                meta,
+                p,
+                protocol_id,
+                protocol_hash,
+                protocol_version,
+                protocol_text,
+                _stored_text(conn, meta.protocol_hash),
+            )
             conn.execute("PRAGMA journal_mode=WAL")
             conn.execute(f"PRAGMA synchronous={synchronous}")
             conn.execute("PRAGMA foreign_keys=ON")
+            meta = _migrate(conn, meta)
+            if protocol_text is not None and _stored_text(conn, protocol_hash) is None:
+                _record_protocol(conn, meta, protocol_text)
         except BaseException:
             conn.close()
             raise
@@ -162,6 +190,13 @@ class Store:
         if self._conn is None:
             raise StoreError(f"store {self.path} is closed")
         return self._conn
+
+    def protocol_text(self) -> str | None:
+        """The TOML text of the protocol this store was created for (``None`` for a store made
+        without it, e.g. by a schema-1 version of the platform). Rebuild the ``Protocol`` with
+        ``study.protocol.protocol_from_store(store)``, which also checks its content hash."""
+        with self._lock:
+            return _stored_text(self.conn, self.meta.protocol_hash)
 
     # ---- writing ----------------------------------------------------------------------------
     @contextmanager
@@ -307,17 +342,26 @@ class Store:
         return [AssignmentRecord(*r) for r in rows]
 
     def trials(
-        self, *, participant: str | None = None, session_id: int | None = None
+        self, *, participant: str | None = None, session_id: int | None = None, raw: bool = False
     ) -> list[TrialRecord]:
-        """Trial attempts in the order they started (optionally of one participant/session)."""
-        sql, params = _where("SELECT * FROM trials", participant=participant, session_id=session_id)
-        return [_trial(r) for r in self._query(sql + " ORDER BY trial_id", params)]
+        """Trial attempts in the order they started (optionally of one participant/session).
 
-    def trial(self, trial_id: int) -> TrialRecord:
-        rows = self._query("SELECT * FROM trials WHERE trial_id = ?", (trial_id,))
+        A trial left ``running`` by a dead process is reported ``interrupted`` (see
+        ``study.store.orphans``); ``raw=True`` returns the rows exactly as stored."""
+        sql, params = _where("SELECT * FROM trials", participant=participant, session_id=session_id)
+        with self._snapshot() as conn:
+            rows = conn.execute(sql + " ORDER BY trial_id", params).fetchall()
+            orphans = {} if raw else orphaned_trials(conn, stale_after_s=STALE_AFTER_S)
+        return [_settled(_trial(r), orphans) for r in rows]
+
+    def trial(self, trial_id: int, *, raw: bool = False) -> TrialRecord:
+        """One trial attempt (an orphaned ``running`` one reported as in ``trials``)."""
+        with self._snapshot() as conn:
+            rows = conn.execute("SELECT * FROM trials WHERE trial_id = ?", (trial_id,)).fetchall()
+            orphans = {} if raw or not rows else orphaned_trials(conn)
         if not rows:
             raise StoreError(f"no trial with id {trial_id} in {self.path}")
-        return _trial(rows[0])
+        return _settled(_trial(rows[0]), orphans)
 
     def sample_count(self, trial_id: int) -> int:
         return int(
@@ -350,12 +394,43 @@ class Store:
         rows = self._query(sql + " ORDER BY event_id", params)
         return [EventRecord(*r[:5], detail=json.loads(r[5])) for r in rows]
 
-    def frame(self, table: str) -> pd.DataFrame:
-        """A whole table as a DataFrame (for export; ``leases`` included for diagnostics)."""
+    def frame(self, table: str, *, raw: bool = False) -> pd.DataFrame:
+        """A whole table as a DataFrame (for export; ``leases`` included for diagnostics).
+
+        In ``trials``, orphaned ``running`` trials are reported as in ``trials()`` unless
+        ``raw``."""
         if table not in TABLES:
             raise StoreError(f"unknown table {table!r}; tables are {', '.join(TABLES)}")
+        if table == "protocols" and "protocols" not in self._tables():
+            return pd.DataFrame(
+                columns=["content_hash", "protocol_id", "protocol_version", "text", "recorded_at"]
+            )
+        with self._snapshot() as conn:
+            df = pd.read_sql_query(f"SELECT * FROM {table}", conn)
+            orphans = orphaned_trials(conn) if table == "trials" and not raw else {}
+        for trial_id, orphan in orphans.items():
+            row = df["trial_id"] == trial_id
+            df.loc[row, ["status", "outcome", "success"]] = ["interrupted", "interrupted", 0]
+            df.loc[row, ["ticks", "duration_s"]] = [orphan.ticks, orphan.duration_s]
+            df.loc[row & df["note"].isna(), "note"] = ORPHAN_NOTE
+        return df
+
+    def _tables(self) -> set[str]:
+        return {r[0] for r in self._query("SELECT name FROM sqlite_master WHERE type='table'")}
+
+    @contextmanager
+    def _snapshot(self) -> Iterator[sqlite3.Connection]:
+        """Several reads that see one consistent state of the file (one read transaction)."""
         with self._lock:
-            return pd.read_sql_query(f"SELECT * FROM {table}", self.conn)
+            conn = self.conn
+            if conn.in_transaction:  # inside this store's own write: already consistent
+                yield conn
+                return
+            conn.execute("BEGIN")
+            try:
+                yield conn
+            finally:
+                conn.execute("COMMIT")
 
     def integrity_check(self) -> str:
         """SQLite's ``PRAGMA integrity_check`` result (``"ok"`` for a healthy file)."""
@@ -443,6 +518,8 @@ class Transaction:
     def event(
         self, session_id: int | None, participant: str | None, kind: str, detail: Mapping[str, Any]
     ) -> None:
+        """Append an event row. For a participant's session use ``Session.record_event``, which
+        also checks the session's lease in the same transaction."""
         self.cur.execute(
             "INSERT INTO events (session_id, participant, at, kind, detail) VALUES (?, ?, ?, ?, ?)",
             (session_id, participant, now_iso(), kind, json.dumps(dict(detail), sort_keys=True)),
@@ -604,12 +681,50 @@ def _read_meta(conn: sqlite3.Connection, path: Path) -> StoreMeta | None:
         raise SchemaVersionError(
             f"{path} has a schema_version table of another layout; it was written by other code"
         ) from exc
-    if meta.version != SCHEMA_VERSION:
+    if meta.version not in READABLE_VERSIONS:
         raise SchemaVersionError(
-            f"{path} uses store schema version {meta.version}, this code reads version "
-            f"{SCHEMA_VERSION}; open it with the matching version of the platform (data untouched)"
+            f"{path} uses store schema version {meta.version}, this code reads versions "
+            f"{', '.join(map(str, READABLE_VERSIONS))}; open it with the version of the platform "
+            "that wrote it (data untouched)"
         )
     return meta
+
+
+def _migrate(conn: sqlite3.Connection, meta: StoreMeta) -> StoreMeta:
+    """Bring an older (readable) file to ``SCHEMA_VERSION`` in one transaction."""
+    if meta.version == SCHEMA_VERSION:
+        return meta
+    conn.execute("BEGIN IMMEDIATE")
+    try:
+        version = conn.execute("SELECT version FROM schema_version").fetchone()[0]
+        while version < SCHEMA_VERSION:  # another process may have migrated meanwhile
+            for statement in MIGRATIONS[version]:
+                conn.execute(statement)
+            version += 1
+        conn.execute("UPDATE schema_version SET version = ?", (version,))
+        conn.execute("COMMIT")
+    except BaseException:
+        if conn.in_transaction:
+            conn.execute("ROLLBACK")
+        raise
+    return dataclasses.replace(meta, version=SCHEMA_VERSION)
+
+
+def _stored_text(conn: sqlite3.Connection, content_hash: str) -> str | None:
+    try:
+        row = conn.execute(
+            "SELECT text FROM protocols WHERE content_hash = ?", (content_hash,)
+        ).fetchone()
+    except sqlite3.OperationalError:  # a schema-1 file: no protocols table
+        return None
+    return None if row is None else str(row[0])
+
+
+def _record_protocol(conn: sqlite3.Connection, meta: StoreMeta, text: str) -> None:
+    conn.execute(
+        "INSERT OR IGNORE INTO protocols VALUES (?, ?, ?, ?, ?)",
+        (meta.protocol_hash, meta.protocol_id, meta.protocol_version, text, now_iso()),
+    )
 
 
 def _create(
@@ -619,6 +734,7 @@ def _create(
     protocol_version: str,
     protocol_hash: str,
 ) -> StoreMeta:
+    """Create the schema in an empty file (or read the meta of a store a racing process made)."""
     conn.execute("PRAGMA journal_mode=WAL")
     conn.execute("BEGIN IMMEDIATE")
     try:
@@ -645,15 +761,52 @@ def _create(
 
 
 def _check_protocol(
-    meta: StoreMeta, path: Path, protocol_id: str, protocol_hash: str, protocol_version: str
+    meta: StoreMeta,
+    path: Path,
+    protocol_id: str,
+    protocol_hash: str,
+    protocol_version: str,
+    text: str | None,
+    stored: str | None,
 ) -> None:
-    if meta.protocol_id != protocol_id or meta.protocol_hash != protocol_hash:
-        raise ProtocolMismatchError(
-            f"{path} was written by protocol {meta.protocol_id!r} version "
-            f"{meta.protocol_version or '?'} (content hash {meta.protocol_hash[:12]}), not by "
-            f"{protocol_id!r} version {protocol_version or '?'} (hash {protocol_hash[:12]}); use "
-            "the protocol file the study started with, or a new --db (data untouched)"
-        )
+    if meta.protocol_id == protocol_id and meta.protocol_hash == protocol_hash:
+        return
+    changed = changed_sections(stored, text)
+    kept = (
+        "; the store keeps the original (`python -m study export` writes it as protocol.toml)"
+        if stored is not None
+        else ""
+    )
+    raise ProtocolMismatchError(
+        f"{path} was written by protocol {meta.protocol_id!r} version "
+        f"{meta.protocol_version or '?'} (content hash {meta.protocol_hash}), not by "
+        f"{protocol_id!r} version {protocol_version or '?'} (content hash {protocol_hash})"
+        f"{f'; changed: {changed}' if changed else ''}. A store holds one protocol: to continue "
+        f"this study use the protocol file it started with{kept}; to run the edited protocol use "
+        "a new --db (data untouched)"
+    )
+
+
+def changed_sections(old: str | None, new: str | None, *, limit: int = 8) -> str:
+    """Dotted keys (to two levels, e.g. ``modes.aggressive``) whose content differs between two
+    protocol texts, comma-separated; ``""`` if either is missing or not TOML."""
+    if old is None or new is None:
+        return ""
+    try:
+        a, b = tomllib.loads(old), tomllib.loads(new)
+    except tomllib.TOMLDecodeError:
+        return ""
+    keys: list[str] = []
+    for key in sorted(set(a) | set(b)):
+        x, y = a.get(key), b.get(key)
+        if x == y:
+            continue
+        if isinstance(x, dict) and isinstance(y, dict):
+            keys += [f"{key}.{k}" for k in sorted(set(x) | set(y)) if x.get(k) != y.get(k)]
+        else:
+            keys.append(key)
+    more = f" (+{len(keys) - limit} more)" if len(keys) > limit else ""
+    return ", ".join(keys[:limit]) + more
 
 
 def _unknown(participant: str, path: Path | None) -> str:
@@ -677,6 +830,22 @@ def _where(
     if clauses:
         sql += " WHERE " + " AND ".join(clauses)
     return sql, tuple(params)
+
+
+def _settled(record: TrialRecord, orphans: Mapping[int, Orphan]) -> TrialRecord:
+    """``record`` as readers report it: an orphaned ``running`` trial becomes interrupted."""
+    orphan = orphans.get(record.trial_id)
+    if orphan is None or record.status != "running":
+        return record
+    return dataclasses.replace(
+        record,
+        status="interrupted",
+        outcome="interrupted",
+        success=False,
+        ticks=orphan.ticks,
+        duration_s=orphan.duration_s,
+        note=record.note or ORPHAN_NOTE,
+    )
 
 
 def _trial(row: Sequence[Any]) -> TrialRecord:
