@@ -20,13 +20,9 @@ def as_finite_array(value: Any, *, name: str, ndim: int, dim: int | None = None)
     except (TypeError, ValueError) as exc:
         raise InvalidInputError(f"{name}: expected numbers, got {value!r} ({exc})") from None
     if arr.ndim != ndim:
-        raise InvalidInputError(
-            f"{name}: expected a {ndim}-D array, got shape {arr.shape}"
-        )
+        raise InvalidInputError(f"{name}: expected a {ndim}-D array, got shape {arr.shape}")
     if dim is not None and arr.shape[-1] != dim:
-        raise InvalidInputError(
-            f"{name}: expected last dimension {dim}, got shape {arr.shape}"
-        )
+        raise InvalidInputError(f"{name}: expected last dimension {dim}, got shape {arr.shape}")
     if not np.isfinite(arr).all():
         raise InvalidInputError(f"{name}: contains NaN or infinite values: {arr!r}")
     return arr

@@ -93,8 +93,9 @@ class Timid(Arbitration):
     ``alpha_max < 1``, never taking full charge (Fig. 7)."""
 
     def __init__(self, alpha_max: float, saturation: float = 1.0) -> None:
-        self.alpha_max = in_interval(alpha_max, name="alpha_max", lo=0, hi=1, lo_open=True,
-                                     hi_open=True)
+        self.alpha_max = in_interval(
+            alpha_max, name="alpha_max", lo=0, hi=1, lo_open=True, hi_open=True
+        )
         self.saturation = in_interval(saturation, name="saturation", lo=0, hi=1, lo_open=True)
         self._slope = self.alpha_max / self.saturation
         self._breakpoints = (self.saturation,)
@@ -163,9 +164,7 @@ class PiecewiseLinear(Arbitration):
                 f"points: confidences must be strictly increasing, got {c.tolist()}"
             )
         if (a < 0).any() or (a > 1).any():
-            raise InvalidArbitrationError(
-                f"points: alpha must stay in [0, 1], got {a.tolist()}"
-            )
+            raise InvalidArbitrationError(f"points: alpha must stay in [0, 1], got {a.tolist()}")
         if (np.diff(a) < 0).any():
             raise InvalidArbitrationError(
                 f"points: alpha must not decrease with confidence, got {a.tolist()}"

@@ -95,7 +95,9 @@ class PolicyBlender:
             if not callable(obj):
                 raise InvalidInputError(f"{name}: expected a callable, got {obj!r}")
         if not isinstance(policy, Policy):
-            raise InvalidInputError(f"policy: needs step(q, target) and target_space, got {policy!r}")
+            raise InvalidInputError(
+                f"policy: needs step(q, target) and target_space, got {policy!r}"
+            )
         if feature is not None and not callable(feature):
             raise InvalidInputError(f"feature: expected a callable U -> x, got {feature!r}")
         if space is None:
@@ -136,9 +138,7 @@ class PolicyBlender:
             )
         dof = goals.configurations.shape[1] if goals.configurations is not None else None
         if self.dof is not None and dof is not None and dof != self.dof:
-            raise InvalidInputError(
-                f"goals: configurations are {dof}-D, the robot is {self.dof}-D"
-            )
+            raise InvalidInputError(f"goals: configurations are {dof}-D, the robot is {self.dof}-D")
         self.goals = goals
         self._points = points
         self._targets = targets

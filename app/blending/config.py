@@ -110,16 +110,31 @@ def arbitration_from_config(cfg: Any, *, where: str = "arbitration") -> Arbitrat
     kind, rest = _table(cfg, where, kinds)
     if kind == "timid":
         _check_keys(rest, ("alpha_max", "saturation"), where, kind)
-        return _build(where, rest, Timid, alpha_max=_require(rest, "alpha_max", where, kind),
-                      saturation=rest.get("saturation", 1.0))
+        return _build(
+            where,
+            rest,
+            Timid,
+            alpha_max=_require(rest, "alpha_max", where, kind),
+            saturation=rest.get("saturation", 1.0),
+        )
     if kind == "aggressive":
         _check_keys(rest, ("threshold", "alpha_high"), where, kind)
-        return _build(where, rest, Aggressive, threshold=_require(rest, "threshold", where, kind),
-                      alpha_high=rest.get("alpha_high", 1.0))
+        return _build(
+            where,
+            rest,
+            Aggressive,
+            threshold=_require(rest, "threshold", where, kind),
+            alpha_high=rest.get("alpha_high", 1.0),
+        )
     if kind == "linear":
         _check_keys(rest, ("alpha_min", "alpha_max"), where, kind)
-        return _build(where, rest, Linear, alpha_min=rest.get("alpha_min", 0.0),
-                      alpha_max=rest.get("alpha_max", 1.0))
+        return _build(
+            where,
+            rest,
+            Linear,
+            alpha_min=rest.get("alpha_min", 0.0),
+            alpha_max=rest.get("alpha_max", 1.0),
+        )
     if kind == "piecewise_linear":
         _check_keys(rest, ("points",), where, kind)
         return _build(where, rest, PiecewiseLinear, points=_require(rest, "points", where, kind))
@@ -134,8 +149,11 @@ def confidence_from_config(cfg: Any, *, where: str = "confidence") -> Confidence
         _check_keys(rest, ("D",), where, kind)
         return _build(where, rest, DistanceHinge, D=_require(rest, "D", where, kind))
     _check_keys(rest, (), where, kind)
-    return {"probability": ProbabilityConfidence, "entropy": EntropyConfidence,
-            "margin": MarginConfidence}[kind]()
+    return {
+        "probability": ProbabilityConfidence,
+        "entropy": EntropyConfidence,
+        "margin": MarginConfidence,
+    }[kind]()
 
 
 def _points_for(points: Any, space: str | None, where: str) -> Any:
@@ -164,9 +182,7 @@ def predictor_from_config(
     kind, rest = _table(cfg, where, ("amnesic", "memory", "laplace", "oracle"))
     space = rest.get("space")
     if space is not None and space not in ("workspace", "configuration"):
-        raise ConfigError(
-            f"{where}.space: must be 'workspace' or 'configuration', got {space!r}"
-        )
+        raise ConfigError(f"{where}.space: must be 'workspace' or 'configuration', got {space!r}")
     if kind == "oracle":
         _check_keys(rest, ("goal", "space"), where, kind)
         goal = target if target is not None else rest.get("goal")
@@ -192,8 +208,14 @@ def predictor_from_config(
     space = space or ("workspace" if isinstance(points, GoalSet) else None)
     if kind == "amnesic":
         _check_keys(rest, ("space", "temperature"), where, kind)
-        return _build(where, rest, AmnesicPredictor, points=pts,
-                      temperature=rest.get("temperature", 0.05), space=space)
+        return _build(
+            where,
+            rest,
+            AmnesicPredictor,
+            points=pts,
+            temperature=rest.get("temperature", 0.05),
+            space=space,
+        )
     _check_keys(rest, ("space", "cost", "rationality", "prior", "steps"), where, kind)
     cost_name = rest.get("cost", "length" if kind == "memory" else "squared_velocity")
     if cost_name == "length":
@@ -212,8 +234,16 @@ def predictor_from_config(
         )
     prior = rest.get("prior")
     cls = MemoryPredictor if kind == "memory" else LaplacePredictor
-    return _build(where, rest, cls, points=pts, cost=cost,
-                  rationality=rest.get("rationality", 1.0), prior=prior, space=space)
+    return _build(
+        where,
+        rest,
+        cls,
+        points=pts,
+        cost=cost,
+        rationality=rest.get("rationality", 1.0),
+        prior=prior,
+        space=space,
+    )
 
 
 def policy_from_config(
@@ -227,12 +257,20 @@ def policy_from_config(
     """Policy from a table; ``kind`` straight_line or workspace_line, with ``max_speed`` per
     second turned into ``max_step = max_speed / rate_hz`` per tick."""
     kind, rest = _table(cfg, where, ("straight_line", "workspace_line"))
-    if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float)) or not rate_hz > 0 \
-            or not np.isfinite(rate_hz):
+    if (
+        isinstance(rate_hz, bool)
+        or not isinstance(rate_hz, (int, float))
+        or not rate_hz > 0
+        or not np.isfinite(rate_hz)
+    ):
         raise ConfigError(f"{where}: rate_hz must be a finite number > 0, got {rate_hz!r}")
     speed = _require(rest, "max_speed", where, kind)
-    if isinstance(speed, bool) or not isinstance(speed, (int, float)) or not speed > 0 \
-            or not np.isfinite(speed):
+    if (
+        isinstance(speed, bool)
+        or not isinstance(speed, (int, float))
+        or not speed > 0
+        or not np.isfinite(speed)
+    ):
         raise ConfigError(f"{where}.max_speed: must be a finite number > 0, got {speed!r}")
     step = float(speed) / float(rate_hz)
     if kind == "straight_line":
@@ -241,5 +279,12 @@ def policy_from_config(
     _check_keys(rest, ("max_speed", "damping"), where, kind)
     if fk is None or jacobian is None:
         raise ConfigError(f"{where}.kind: 'workspace_line' needs fk= and jacobian= callables")
-    return _build(where, rest, WorkspaceLinePolicy, fk=fk, jacobian=jacobian, max_step=step,
-                  damping=rest.get("damping", 1e-3))
+    return _build(
+        where,
+        rest,
+        WorkspaceLinePolicy,
+        fk=fk,
+        jacobian=jacobian,
+        max_step=step,
+        damping=rest.get("damping", 1e-3),
+    )

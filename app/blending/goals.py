@@ -104,6 +104,4 @@ class GoalSet:
                     "space: 'configuration' needs goal configurations; this GoalSet has none"
                 )
             return self.configurations
-        raise InvalidInputError(
-            f"space: must be 'workspace' or 'configuration', got {space!r}"
-        )
+        raise InvalidInputError(f"space: must be 'workspace' or 'configuration', got {space!r}")

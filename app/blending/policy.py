@@ -78,7 +78,9 @@ class WorkspaceLinePolicy:
         if not callable(fk):
             raise InvalidInputError(f"fk: expected a callable q -> (3,), got {fk!r}")
         if not callable(jacobian):
-            raise InvalidInputError(f"jacobian: expected a callable q -> (3|6, dof), got {jacobian!r}")
+            raise InvalidInputError(
+                f"jacobian: expected a callable q -> (3|6, dof), got {jacobian!r}"
+            )
         self.fk = fk
         self.jacobian = jacobian
         self.max_step = positive(max_step, name="max_step")
@@ -102,9 +104,7 @@ class WorkspaceLinePolicy:
         try:
             dq = j.T @ np.linalg.solve(j @ j.T + self._lam2, dx)
         except np.linalg.LinAlgError:
-            raise InvalidInputError(
-                "jacobian: singular at q; use damping > 0"
-            ) from None
+            raise InvalidInputError("jacobian: singular at q; use damping > 0") from None
         return q + dq
 
     def __repr__(self) -> str:

@@ -66,9 +66,7 @@ class AmnesicPredictor:
         """Replace the goals (any number, any place); the dimension may not change once reset."""
         pts = as_points(points, name="points")
         if getattr(self, "points", None) is not None and pts.shape[1] != self.dim:
-            raise InvalidInputError(
-                f"points: dimension changed from {self.dim} to {pts.shape[1]}"
-            )
+            raise InvalidInputError(f"points: dimension changed from {self.dim} to {pts.shape[1]}")
         self.points = pts
         self._neg_inv_t = -1.0 / self.temperature
 

@@ -75,9 +75,7 @@ class MemoryPredictor:
         """
         pts = as_points(points, name="points")
         if self.points is not None and pts.shape[1] != self.dim:
-            raise InvalidInputError(
-                f"points: dimension changed from {self.dim} to {pts.shape[1]}"
-            )
+            raise InvalidInputError(f"points: dimension changed from {self.dim} to {pts.shape[1]}")
         n = pts.shape[0]
         if prior is None:
             log_prior = np.full(n, -math.log(n))
