@@ -6,7 +6,8 @@ velocity-limited IK step (``U``), blending (prediction, confidence, arbitration,
 Each tick is timed on its own (``perf_counter_ns``) across trials of every task and mode of the
 protocol; the parts (IK step, blending step, physics substeps) are timed separately too.
 The real-time factor is simulated seconds per wall second over whole ``run_trial`` calls,
-including building each trial (scene from the cache, fresh ``MjData``).
+including building each trial (scene from the cache, fresh ``MjData``); because the machine is
+shared, the factor per second of this process's CPU time and the load average are printed too.
 
 Prints a table, then as its last line one JSON object:
 ``{"tick_ms": {"median": .., "p99": ..}, "realtime_factor": .., "parts_us": {..}, ...}``.
@@ -21,6 +22,7 @@ import argparse
 import dataclasses
 import gc
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -100,13 +102,17 @@ def main() -> int:
     sim_s = 0.0
     outcomes: dict[str, int] = {}
     start = time.perf_counter()
+    cpu_start = time.process_time()
     for cfg in configs:
         for seed in seeds:
             result = run_trial(cfg, ScriptedInput(seed=seed + 100), seed=seed)
             sim_s += result.duration_s
             outcomes[result.outcome] = outcomes.get(result.outcome, 0) + 1
     wall_s = time.perf_counter() - start
+    cpu_s = time.process_time() - cpu_start
     rtf = sim_s / wall_s
+    rtf_cpu = sim_s / cpu_s
+    load = os.getloadavg()[0]
 
     tick = {k: v / 1e6 for k, v in stats(ticks).items()}
     parts = {
@@ -122,12 +128,18 @@ def main() -> int:
     print(f"{'trial setup (ms)':<28}{setup['median'] / 1e6:>12.3f}{setup['p99'] / 1e6:>12.3f}")
     print(f"ticks timed: {len(ticks)}; scenes compiled in {first_build_ms:.0f} ms (once)")
     print(f"whole trials: {sim_s:.1f} simulated s in {wall_s:.2f} wall s -> {rtf:.1f}x real time")
+    print(
+        f"  ({cpu_s:.2f} s of this process's CPU -> {rtf_cpu:.1f}x per CPU second;"
+        f" load average {load:.1f} on {os.cpu_count()} cores while measuring)"
+    )
     print(f"outcomes: {outcomes}")
     print(
         json.dumps(
             {
                 "tick_ms": tick,
                 "realtime_factor": rtf,
+                "realtime_factor_cpu": rtf_cpu,
+                "load_average": load,
                 "parts_us": parts,
                 "trial_setup_ms": setup["median"] / 1e6,
                 "ticks": len(ticks),
