@@ -20,6 +20,7 @@ SQLite (the ``SampleWriter`` thread does). Listeners run after the lock is relea
 
 from __future__ import annotations
 
+import json
 import logging
 import threading
 from collections.abc import Callable, Iterator, Mapping
@@ -357,10 +358,18 @@ class Session:
         ``store.transaction()`` + ``tx.event(...)``, which skips that check."""
         if not isinstance(kind, str) or not kind:
             raise SessionError("an event needs a kind (a short name such as 'tab_connected')")
+        detail = dict(detail or {})
+        try:
+            json.dumps(detail)
+        except (TypeError, ValueError) as exc:
+            raise SessionError(
+                f"event {kind!r}: detail must be JSON-serialisable (str, numbers, lists, dicts): "
+                f"{exc}; convert arrays with .tolist()"
+            ) from None
         with self._lock:
             self._require_open()
             with self._tx() as tx:
-                tx.event(self.session_id, self.participant, kind, dict(detail or {}))
+                tx.event(self.session_id, self.participant, kind, detail)
 
     def add_listener(self, listener: Listener) -> None:
         """Call ``listener(screen)`` after every transition (from the acting thread)."""

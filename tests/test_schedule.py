@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 import subprocess
 import sys
 from collections import Counter
@@ -212,3 +213,13 @@ def test_cli_reports_bad_input(tmp_path: Path) -> None:
     out = run_cli("--protocol", str(bad), "--participants", "8")
     assert out.returncode == 2
     assert f"{bad}: training.runs: expected an integer" in out.stderr
+
+
+def test_cli_default_protocol_from_any_directory(tmp_path: Path) -> None:
+    out = subprocess.run(
+        [sys.executable, "-m", "study", "schedule", "--participants", "8"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=60,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+    )
+    assert out.returncode == 0, out.stderr
+    assert len(out.stdout.strip().splitlines()) == 1 + 64

@@ -25,6 +25,7 @@ from study.session_errors import (
     InvalidAnswerError,
     MissingReasonError,
     SessionClosedError,
+    SessionError,
     SessionStateError,
     UnknownItemError,
 )
@@ -279,6 +280,9 @@ def test_pause_and_resume_a_running_trial(store: Store, protocol: Protocol) -> N
     session.record_event("tab_connected", {"client": 3})
     assert store.events()[-1].kind == "tab_connected"
     assert store.events()[-1].detail == {"client": 3}
+    with pytest.raises(SessionError, match="JSON-serialisable"):
+        session.record_event("input_rejected", {"target": np.zeros(3)})
+    assert store.events()[-1].kind == "tab_connected"
     assert store.trial(run.trial_id).ticks == 5 and store.sample_count(run.trial_id) == 5
     session.close()
 

@@ -113,3 +113,30 @@ def test_bad_inputs_name_the_problem(
         capsys, "--db", str(junk), "--protocol", str(PROTOCOL), "--participant", "P01"
     )
     assert code == 2 and "not a SQLite database" in summary["error"]
+
+
+def test_unexpected_failure_keeps_data_and_says_resume(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
+    short_protocol: Path,
+) -> None:
+    import study.headless as headless
+
+    def crash_mid_trial(session, **_: object):
+        session.start()
+        session.agree()
+        run = session.start_trial(input_source=headless.scripted_input(session.trial_config(), 1))
+        run.tick()
+        raise RuntimeError("boom in the control loop")
+
+    monkeypatch.setattr(headless, "run_headless", crash_mid_trial)
+    db = tmp_path / "study.db"
+    code, summary, err = run(
+        capsys, "--db", str(db), "--protocol", str(short_protocol), "--participant", "P01"
+    )
+    assert code == 1 and summary["status"] == "error"
+    assert summary["error"] == "RuntimeError: boom in the control loop"
+    assert "Traceback" in err and "--resume" in err
+    with Store.open_readonly(db) as store:
+        (trial,) = store.trials(raw=True)
+        assert trial.status == "interrupted" and store.sample_count(trial.trial_id) == 1
+        assert store.session("P01").status == "running"  # resumable

@@ -5,7 +5,9 @@
 
 Items are answered by the scripted rule of ``study.answers``. Progress goes to stderr; the last
 line on stdout is one JSON object: participant, trials_completed, ratings, status (plus
-``error`` when the run could not go on; exit code 2).
+``error`` when the run could not go on: exit code 2 for bad input or a refused store, 1 for an
+unexpected failure, whose traceback goes to stderr; the session is closed with its running trial
+marked interrupted either way, so ``--resume`` continues it).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ import argparse
 import json
 import signal
 import sys
+import traceback
 from pathlib import Path
 from typing import Any
 
@@ -111,6 +114,15 @@ def main(args: argparse.Namespace) -> int:
         print("interrupted: the running trial is marked interrupted; use --resume", file=sys.stderr)
         result.update(status="interrupted")
         code = 130
+    except Exception as exc:  # a bug: keep the data, say how to go on, show the traceback
+        traceback.print_exc()
+        print(
+            "error: unexpected failure (traceback above); recorded data are kept and the running "
+            "trial is marked interrupted: fix the cause, then continue with --resume",
+            file=sys.stderr,
+        )
+        result.update(status="error", error=f"{type(exc).__name__}: {exc}")
+        code = 1
     finally:
         signal.signal(signal.SIGTERM, previous)
         if session is not None:

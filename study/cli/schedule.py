@@ -18,14 +18,14 @@ from pathlib import Path
 from study.protocol import ProtocolError, load_protocol
 from study.schedule import ScheduleError, schedule
 
-DEFAULT_PROTOCOL = Path("protocols/dragan2013.toml")
+DEFAULT_PROTOCOL = Path(__file__).resolve().parents[2] / "protocols" / "dragan2013.toml"
 COLUMNS = ("participant", "position", "task", "mode")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--protocol", type=Path, default=DEFAULT_PROTOCOL,
-        help=f"protocol TOML file (default {DEFAULT_PROTOCOL})",
+        help="protocol TOML file (default: the repository's protocols/dragan2013.toml)",
     )
     parser.add_argument(
         "--participants", type=int, default=None,
