@@ -101,3 +101,27 @@ def test_replay_from_store_rows(config, tmp_path) -> None:
            on_frame=lambda rec, data: seen.append(
                np.linalg.norm(rec.ee - data.site_xpos[scene.tcp_site_id])))  # fmt: skip
     assert max(seen) < 1e-6
+
+
+def test_render_cli_replays_a_trial_from_a_study_store(repo_root, tmp_path) -> None:
+    db = tmp_path / "study.sqlite"
+    run = subprocess.run(
+        [sys.executable, "-m", "study", "run", "--db", str(db), "--participant", "P01",
+         "--seed", "1"],
+        cwd=repo_root, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    from study.store import Store
+
+    store = Store.open_readonly(db)
+    trial = next(t for t in store.trials() if t.phase == "task" and t.success)
+    out = tmp_path / "store.mp4"
+    proc = subprocess.run(
+        [sys.executable, "-m", "app", "render", "--store", str(db), "--trial-id",
+         str(trial.trial_id), "--out", str(out), "--fps", "5", "--width", "96", "--height", "72"],
+        cwd=repo_root, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert summary["outcome"] == "success"
+    assert summary["frames"] == frame_count(out) >= trial.duration_s * 5

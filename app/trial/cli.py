@@ -14,6 +14,7 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from app.teleop import InputSource, ScriptedInput, TeleopCommand, TrialObservation
 from app.trial.config import TrialConfig
@@ -50,7 +51,13 @@ def trial_config_from_protocol(
     """The protocol's configuration of ``task`` in ``mode`` (``none``: unassisted)."""
     from study.protocol import load_protocol
 
-    protocol = load_protocol(protocol_path)
+    return config_for(load_protocol(protocol_path), task, mode, time_limit_s=time_limit_s)
+
+
+def config_for(
+    protocol: Any, task: str, mode: str, *, time_limit_s: float | None = None
+) -> TrialConfig:
+    """``protocol.trial_config(task, mode)``; ``mode="none"`` unassisted, ``task="training"``."""
     if task == "training":
         config = protocol.training_config()
     elif mode == "none":

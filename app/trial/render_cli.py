@@ -3,7 +3,8 @@
 Live: ``python -m app render --task hard-right --mode aggressive --seed 1 --out trial.mp4``.
 Replay: ``python -m app trial ... --save run.npz`` then
 ``python -m app render --replay run.npz --task hard-right --out trial.mp4`` (the task names
-the scene), or from a study store: ``--store data/study.sqlite --trial-id 12``. Rendering is headless (``MUJOCO_GL=egl`` by default).
+the scene), or from a study store: ``--store data/study.sqlite --trial-id 12`` (the scene
+comes from the protocol the store keeps, or ``--protocol`` for older stores). Rendering is headless (``MUJOCO_GL=egl`` by default).
 """
 
 from __future__ import annotations
@@ -13,10 +14,17 @@ import json
 import os
 import sys
 from pathlib import Path
+from typing import Any
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from app.trial.cli import DEFAULT_PROTOCOL, INPUTS, make_input, trial_config_from_protocol
+from app.trial.cli import (
+    DEFAULT_PROTOCOL,
+    INPUTS,
+    config_for,
+    make_input,
+    trial_config_from_protocol,
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -33,6 +41,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--width", type=int, default=640)
     parser.add_argument("--height", type=int, default=480)
     parser.add_argument("--time-limit", type=float, default=None)
+
+
+def _stored_config(store: Any, task: str, fallback: Path) -> Any:
+    """The scene the trial ran in: from the protocol the store keeps, else ``fallback``."""
+    try:
+        from study.protocol.stored import protocol_from_store
+
+        protocol = protocol_from_store(store)
+    except (ImportError, ValueError):  # an older store without the protocol's text
+        return trial_config_from_protocol(fallback, task, "none")
+    return config_for(protocol, task, "none")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -53,7 +72,7 @@ def main(args: argparse.Namespace) -> int:
             store = Store.open_readonly(args.store)
             row = store.trial(args.trial_id)
             task = row.task if row.phase != "training" and row.task else "training"
-            config = trial_config_from_protocol(args.protocol, task, "none")
+            config = _stored_config(store, task, args.protocol)
             records = records_from_samples(store.samples(args.trial_id))
             if not records:
                 raise ValueError(f"trial {args.trial_id} has no samples in {args.store}")
