@@ -59,7 +59,7 @@ class Console(Protocol):
     def enrol(self, participant: str) -> str: ...
     def summaries(self) -> list[SessionSummary]: ...
     def detail(self, code: str) -> SessionDetail | None: ...
-    def act(self, code: str, action: str) -> str: ...
+    def act(self, code: str, action: str, *, reason: str = "") -> str: ...
 
 
 def _fmt_time(seconds: float) -> str:
@@ -100,18 +100,20 @@ class ExperimenterConsole:
         self.selected: str | None = None
         gui = server.gui
         gui.configure_theme(control_width="large", show_share_button=False)
+        gui.main_panel.dock_left()
+        gui.main_panel.set_width(820)
         gui.add_markdown("## Experimenter console")
-        with gui.add_folder("Enrol"):
-            self.participant_id = gui.add_text("Participant ID", initial_value="")
-            self.enrol_button = gui.add_button("Enrol and open session")
-            self.enrol_status = gui.add_markdown("")
         with gui.add_folder("Sessions"):
             self.sessions_md = gui.add_markdown(sessions_markdown([]))
             self.session_select = gui.add_dropdown("Session", options=("(none)",))
+            self.participant_id = gui.add_text("Participant ID", initial_value="")
+            self.enrol_button = gui.add_button("Enrol and open session")
+            self.enrol_status = gui.add_markdown("")
         self._session_folder = gui.add_folder("Selected session")
         with self._session_folder:
             self.status_md = gui.add_markdown("_Select a session._")
-            self.buttons = {a: gui.add_button(a.capitalize()) for a in ACTIONS}
+            self.action_group = gui.add_button_group("Action", [a.capitalize() for a in ACTIONS])
+            self.reason = gui.add_text("Reason", initial_value="")
             self.action_status = gui.add_markdown("")
             self.alpha_plot = gui.add_uplot(
                 (np.zeros(2), np.zeros(2), np.zeros(2)),
@@ -121,8 +123,11 @@ class ExperimenterConsole:
                     uplot.Series(label="confidence", stroke="#1971c2", width=2),
                 ),
                 title="Arbitration",
-                scales={"y": uplot.Scale(auto=False, range=(0.0, 1.0))},
-                aspect=2.0,
+                scales={
+                    "x": uplot.Scale(time=False),
+                    "y": uplot.Scale(auto=False, range=(0.0, 1.0)),
+                },
+                height=200,
             )
             self.prob_plot: viser.GuiUplotHandle | None = None
             self._prob_goals: tuple[str, ...] = ()
@@ -147,8 +152,9 @@ class ExperimenterConsole:
             self.selected = None if value == "(none)" else value
             self.refresh()
 
-        for action, button in self.buttons.items():
-            button.on_click(lambda _e, a=action: self._act(a))
+        @self.action_group.on_click
+        def _(_: object) -> None:
+            self._act(str(self.action_group.value).lower())
 
         self._loop = PacedLoop(self._refresh_safely, rate_hz=refresh_hz, name="console")
         self._loop.start()
@@ -158,7 +164,7 @@ class ExperimenterConsole:
             self.action_status.content = "_Select a session first._"
             return
         try:
-            result = self.console.act(self.selected, action)
+            result = self.console.act(self.selected, action, reason=str(self.reason.value).strip())
         except Exception as exc:
             result = f"**{action} failed:** {exc}"
         self.action_status.content = result
@@ -225,8 +231,11 @@ class ExperimenterConsole:
                         ),
                     ),
                     title="Goal probabilities",
-                    scales={"y": uplot.Scale(auto=False, range=(0.0, 1.0))},
-                    aspect=2.0,
+                    scales={
+                        "x": uplot.Scale(time=False),
+                        "y": uplot.Scale(auto=False, range=(0.0, 1.0)),
+                    },
+                    height=200,
                     order=self.alpha_plot.order + 0.5,
                 )
             self._prob_goals = d.goal_names

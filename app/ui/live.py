@@ -253,6 +253,27 @@ class LiveSession:
         page.add_gizmo(np.asarray(start, float), on_target=self._on_target)
         page.add_keys(on_nudge=self._on_nudge, on_grasp=self._grasp)
 
+    def _preview_scene(self, page: ParticipantPage) -> None:
+        """Show the next trial's scene at its start state on the ready screen, so the browser
+        has loaded it (the first draw is slow in software WebGL) before the trial's clock runs."""
+        from app.robot.scene import build_scene
+        from app.robot.simulation import Simulation
+
+        try:
+            config = self.session.trial_config()
+        except Exception:  # not on a trial step any more
+            return
+        scene = build_scene(config.scene)
+        sim = Simulation(scene, physics_dt=config.physics_dt)
+        with self._lock:
+            key = (page.client.client_id, str(scene.name))
+            if self._view_key != key:
+                page.client.scene.reset()
+                self._view = SceneView(page.client, sim.model)
+                self._view_key = key
+                self._rendered_seq = -1
+            self._view.render(sim.data.xpos, sim.data.xmat)
+
     def _render_step(self) -> None:
         view, snap, page, source = self._view, self._snapshot, self.page, self._input
         if view is not None and snap is not None and snap[0] != self._rendered_seq:
@@ -322,6 +343,7 @@ class LiveSession:
         elif screen.phase == "consent":
             page.show_consent(text, on_agree=lambda: self._participant("agree", self.session.agree))
         elif screen.phase == "ready":
+            self._preview_scene(page)
             page.show_message(
                 title, text, progress=progress, button="Start", on_button=self._start_trial
             )

@@ -21,7 +21,7 @@ import threading
 import viser
 
 from app.ui import blinding
-from app.ui.experimenter import ExperimenterConsole, SessionDetail, SessionSummary
+from app.ui.experimenter import ACTIONS, ExperimenterConsole, SessionDetail, SessionSummary
 from app.ui.live import LiveSession, SessionFactory
 from app.ui.participant import ParticipantPage
 from app.ui.scene import frame_task
@@ -68,7 +68,6 @@ class StudyServer:
         self.participant = viser.ViserServer(host=host, port=port, verbose=verbose)
         self.guard = blinding.install(self.participant)
         self.participant.gui.configure_theme(show_share_button=False, control_width="large")
-        self.participant.gui.set_panel_label(PAGE_TITLE)
         self.participant.scene.world_axes.visible = False
         self.participant.on_client_connect(self._participant_connected)
         self.participant.on_client_disconnect(self._participant_disconnected)
@@ -144,8 +143,10 @@ class StudyServer:
             live = self._sessions.get(code)
         return None if live is None else live.detail()
 
-    def act(self, code: str, action: str) -> str:
-        result = self.session(code).act(action)
+    def act(self, code: str, action: str, *, reason: str = "") -> str:
+        if action not in ACTIONS:
+            raise ServerError(f"unknown action {action!r}; actions: {', '.join(ACTIONS)}")
+        result = self.session(code).act(action, reason=reason)
         self._offer_all()
         return result
 

@@ -27,6 +27,7 @@ def browser() -> Iterator[Any]:
 @pytest.fixture
 def context(browser: Any) -> Iterator[Any]:
     ctx = browser.new_context(viewport={"width": 1100, "height": 720})
+    ctx.set_default_timeout(60_000)  # software WebGL under load: a first draw can take 20 s
     try:
         yield ctx
     finally:

@@ -105,16 +105,24 @@ def project(camera: viser.CameraHandle, point: np.ndarray) -> tuple[float, float
 
 
 def drag(page: Any, start: tuple[float, float], end: tuple[float, float], *, steps: int = 12):
-    """Press at ``start``, move to ``end`` in ``steps`` moves, release (slow software WebGL)."""
+    """Press at ``start``, move to ``end`` in ``steps`` moves, release.
+
+    Software WebGL draws a few frames per second under load, and the gizmo is picked on
+    pointer events: hover first (small moves), then move slowly enough for each move to land.
+    """
+    page.mouse.move(start[0] - 6, start[1] + 6)
+    page.wait_for_timeout(300)
+    page.mouse.move(start[0] - 2, start[1] + 2)
+    page.wait_for_timeout(300)
     page.mouse.move(*start)
-    page.wait_for_timeout(250)
+    page.wait_for_timeout(500)
     page.mouse.down()
-    page.wait_for_timeout(250)
+    page.wait_for_timeout(500)
     for k in range(1, steps + 1):
         a = k / steps
         page.mouse.move(start[0] + a * (end[0] - start[0]), start[1] + a * (end[1] - start[1]))
-        page.wait_for_timeout(80)
-    page.wait_for_timeout(250)
+        page.wait_for_timeout(150)
+    page.wait_for_timeout(400)
     page.mouse.up()
 
 
@@ -126,3 +134,56 @@ def wait_until(predicate: Any, *, timeout: float = 20.0, interval: float = 0.05)
         if value or time.monotonic() > deadline:
             return bool(value)
         time.sleep(interval)
+
+
+# -- a study server on free ports, with a shortened copy of the paper's protocol -----------------
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[2]
+
+
+def short_protocol(directory: Any, *, time_limit_s: float = 6.0, training_runs: int = 1) -> Any:
+    """A copy of protocols/dragan2013.toml whose trials time out after ``time_limit_s`` and with
+    ``training_runs`` practice runs, so a test walks through every kind of screen quickly."""
+    import re
+    from pathlib import Path
+
+    text = (ROOT / "protocols" / "dragan2013.toml").read_text()
+    text, n1 = re.subn(r"(?m)^time_limit_s = \S+", f"time_limit_s = {time_limit_s}", text)
+    text, n2 = re.subn(r"(?m)^runs = \d+", f"runs = {training_runs}", text)
+    assert n1 == 1 and n2 == 1, "protocol layout changed: update short_protocol()"
+    path = Path(directory) / "short.toml"
+    path.write_text(text)
+    return path
+
+
+@dataclass
+class RunningServer:
+    server: Any
+    store: Any
+    protocol: Any
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.server.participant_port}"
+
+    @property
+    def console_url(self) -> str:
+        return f"http://127.0.0.1:{self.server.experimenter_port}"
+
+    def stop(self) -> None:
+        self.server.stop()
+        self.store.close()
+
+
+def start_server(directory: Any, *, host: str = "127.0.0.1", **protocol_kw: Any) -> RunningServer:
+    """A ``StudyServer`` on free ports over a fresh store in ``directory``."""
+    from pathlib import Path
+
+    from app.ui.live import session_factory
+    from app.ui.server import StudyServer
+    from study.protocol import load_protocol
+    from study.session import open_store
+
+    protocol = load_protocol(short_protocol(directory, **protocol_kw))
+    store = open_store(Path(directory) / "study.db", protocol)
+    server = StudyServer(session_factory(store, protocol), host=host, port=0, experimenter_port=0)
+    return RunningServer(server, store, protocol)

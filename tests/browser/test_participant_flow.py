@@ -1,0 +1,249 @@
+"""A participant's whole session in headless Chromium, checked against the store.
+
+One walk through every kind of screen (waiting, consent, ready, trial, items, preference,
+debrief, done) with a protocol shortened to one practice run and 15 s trials: the gizmo is
+dragged with the mouse and the arm follows in the stored samples, keys nudge the target, the
+grasp button is logged, answers land in the ratings table, a reload mid-trial pauses and
+resumes the trial (paused time excluded), a second tab is refused, and no condition name
+reaches the page or its websocket. Screenshots of each phase go to tests/browser/screenshots.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from playwright.sync_api import expect
+
+from app.ui.blinding import CONDITION_WORDS
+from tests.browser.harness import (
+    FrameLog,
+    RunningServer,
+    drag,
+    project,
+    start_server,
+    wait_until,
+)
+
+pytestmark = pytest.mark.browser
+
+TIME_LIMIT_S = 15.0
+EXPERIMENTER_ONLY = ("Experimenter console", "Enrol", "Withdraw", "Goal probabilities", "alpha")
+
+
+@pytest.fixture
+def study(tmp_path: Path) -> Any:
+    rs = start_server(tmp_path, time_limit_s=TIME_LIMIT_S, training_runs=1)
+    try:
+        yield rs
+    finally:
+        rs.stop()
+
+
+def _connect(page: Any, url: str) -> None:
+    page.goto(url)
+    page.get_by_text("Connected").first.wait_for(timeout=30_000)
+
+
+def _shot(page: Any, folder: Path, name: str) -> None:
+    page.wait_for_timeout(300)
+    t = time.monotonic()
+    page.screenshot(path=str(folder / f"{name}.png"))
+    print(f"screenshot {name}: {time.monotonic() - t:.1f} s")
+
+
+def _settle(page: Any, *, rounds: int = 2) -> None:
+    """Wait until the browser draws frames quickly again (each screenshot waits for a frame)."""
+    for _ in range(rounds):
+        t = time.monotonic()
+        page.screenshot()
+        print(f"settle frame: {time.monotonic() - t:.1f} s")
+
+
+def _answer_all(page: Any, n_items: int, value: int) -> None:
+    """Click ``value`` on each of the ``n_items`` rows, checking Continue waits for all."""
+    cont = page.get_by_role("button", name="Continue")
+    expect(cont).to_be_disabled()
+    for k in range(n_items):
+        page.get_by_role("button", name=str(value), exact=True).nth(k).click()
+        page.get_by_text(f"Your answer: {value}").nth(k).wait_for()
+    expect(cont).to_be_enabled()
+    cont.click()
+
+
+def _trial_rows(rs: RunningServer) -> list[Any]:
+    return rs.store.trials()
+
+
+def _events(rs: RunningServer) -> list[Any]:
+    return rs.store.events()
+
+
+def _without_client_warning(text: str) -> str:
+    """The page text minus the viser client's own software-rendering notice ("... check that
+    hardware acceleration is enabled ..."), which the browser bundle shows by itself when WebGL
+    runs in software; the server never sends it (the websocket check below covers that)."""
+    lines = text.splitlines()
+    return "\n".join(ln for ln in lines if "WebGL" not in ln and "hardware acceleration" not in ln)
+
+
+def _texts_ok(texts: list[str]) -> None:
+    joined = "\n".join(texts).lower()
+    for word in CONDITION_WORDS:
+        assert word not in joined, f"condition word {word!r} reached the participant"
+
+
+def test_participant_session_end_to_end(study: RunningServer, context: Any, screenshots: Path):
+    srv = study.server
+    page = context.new_page()
+    frames = FrameLog().attach(page)
+    seen: list[str] = []
+
+    def text_now() -> str:
+        body = page.inner_text("body")
+        seen.append(_without_client_warning(body))
+        return body
+
+    # Waiting: no session yet, then the experimenter enrols and starts one.
+    _connect(page, study.url)
+    page.get_by_text("Please wait").wait_for()
+    code = srv.enrol("P01")
+    page.get_by_text("Welcome").first.wait_for()
+    _shot(page, screenshots, "01-waiting")
+    text_now()
+    srv.act(code, "start")
+
+    # Consent.
+    page.get_by_role("button", name="I agree").wait_for()
+    _shot(page, screenshots, "02-consent")
+    text_now()
+    page.get_by_role("button", name="I agree").click()
+
+    # Practice run: ready, then the trial screen with the scene and the gizmo.
+    page.get_by_role("button", name="Start").wait_for()
+    assert "Trial 1 of" in text_now()
+    _shot(page, screenshots, "03-ready")
+    _settle(page)  # the scene's first draw is slow in software WebGL
+    page.get_by_role("button", name="Start").click()
+    page.get_by_text("Grasp / release").wait_for()
+    live = srv.session(code)
+    assert wait_until(lambda: live.scene_view is not None and live.scene_view.frames_sent > 5)
+    text_now()
+
+    run = live._run
+    start = np.array(run.trial.user_target, float)
+    cam = live.page.client.camera
+    grab = project(cam, start + np.array([0.0, 0.0, 0.2]))
+    t_drag = time.monotonic()
+    drag(page, grab, (grab[0], grab[1] - 40), steps=5)
+    print(f"drag took {time.monotonic() - t_drag:.1f} s; trial time {run.trial.t:.1f} s")
+    assert wait_until(lambda: run.trial.user_target[2] > start[2] + 0.03, timeout=5)
+    # Keyboard: F lowers the target by one step (2 cm).
+    before = float(run.trial.user_target[2])
+    page.keyboard.press("f")
+    print(f"key pressed at trial time {run.trial.t:.1f} s")
+    assert wait_until(lambda: run.trial.user_target[2] < before - 0.015, timeout=5)
+    page.get_by_role("button", name="Grasp / release (G)").click()
+    trial_id = run.trial_id
+    _shot(page, screenshots, "04-trial")
+
+    # Items after practice: three 7-point rows with anchors; Continue needs every answer.
+    page.get_by_text("Your answer: none yet").first.wait_for(timeout=30_000)
+    body = text_now()
+    assert "Not at all helpful" in body and "Extremely helpful" in body
+    _shot(page, screenshots, "05-questions")
+    samples = study.store.samples(trial_id)
+    assert len(samples) > 0.9 * TIME_LIMIT_S * 100
+    assert samples.target_z.max() > start[2] + 0.05  # the gizmo drag
+    assert samples.ee_z.max() > start[2] + 0.04  # ... and the arm followed
+    events = [e for evs in samples.events for e in json.loads(evs)]
+    assert "grasp_requested" in events
+    _answer_all(page, 3, 5)
+    ratings = study.store.ratings()
+    assert sorted(r.item for r in ratings) == ["helpful", "matched", "teammate"]
+    assert {r.value for r in ratings} == {5} and {r.phase for r in ratings} == {"training"}
+
+    # First task run: reload mid-trial -> paused (an event), Continue resumes.
+    page.get_by_role("button", name="Start").wait_for()
+    assert "Trial 2 of" in text_now()
+    page.get_by_role("button", name="Start").click()
+    page.get_by_text("Grasp / release").wait_for()
+    page.wait_for_timeout(1500)
+    page.reload()
+    page.get_by_text("Connected").first.wait_for(timeout=30_000)
+    page.get_by_role("button", name="Continue").wait_for()
+    paused_at = time.monotonic()
+    text_now()
+    _shot(page, screenshots, "06-paused-after-reload")
+    kinds = [e.kind for e in _events(study)]
+    assert "participant_disconnected" in kinds and "pause" in kinds
+
+    # A second tab cannot take the session over.
+    intruder = context.new_page()
+    intruder_frames = FrameLog().attach(intruder)
+    _connect(intruder, study.url)
+    intruder.get_by_text("Already open", exact=True).wait_for()
+    _shot(intruder, screenshots, "07-second-tab-refused")
+    intruder.close()
+    assert "second_tab_refused" in [e.kind for e in _events(study)]
+    assert live.page is not None and live.page.client.client_id != -1
+
+    page.wait_for_timeout(1000)
+    page.get_by_role("button", name="Continue").click()
+    pause_s = time.monotonic() - paused_at
+    page.get_by_text("Your answer: none yet").first.wait_for(timeout=30_000)
+    task_trial = next(t for t in _trial_rows(study) if t.phase == "task")
+    assert task_trial.status == "completed"
+    assert task_trial.duration_s == pytest.approx(TIME_LIMIT_S, abs=0.05)  # pause excluded
+    kinds = [e.kind for e in _events(study)]
+    assert "resume" in kinds and pause_s > 2.0
+    _answer_all(page, 3, 6)
+
+    # Console screenshot while the second run is live (plots of alpha, confidence, P(goal)).
+    page.get_by_role("button", name="Start").click()
+    page.get_by_text("Grasp / release").wait_for()
+    console = context.new_page()
+    _connect(console, study.console_url)
+    srv.console.selected = code
+    srv.console.session_select.value = code
+    srv.console.refresh()
+    console.get_by_text("Goal probabilities").wait_for(timeout=15_000)
+    console.wait_for_timeout(1500)
+    _shot(console, screenshots, "10-experimenter-console")
+    console.close()
+
+    # After-run items, then the preference item naming "first run" and "second run".
+    page.get_by_text("Your answer: none yet").first.wait_for(timeout=30_000)
+    _answer_all(page, 3, 3)
+    page.get_by_text("Which of the two runs of this task did you prefer?").wait_for()
+    body = text_now()
+    assert "first run" in body and "second run" in body
+    _shot(page, screenshots, "08-preference")
+    _answer_all(page, 1, 2)
+    prefs = [r for r in study.store.ratings() if r.item == "preference"]
+    assert [p.value for p in prefs] == [2]
+
+    # The experimenter skips the other tasks; debrief, then done.
+    for _ in range(40):
+        if live.session.phase() == "debrief":
+            break
+        srv.act(code, "skip")
+    page.get_by_role("button", name="Finish").wait_for()
+    _shot(page, screenshots, "09-debrief")
+    text_now()
+    page.get_by_role("button", name="Finish").click()
+    page.get_by_text("Done").first.wait_for()
+    assert study.store.session("P01").status == "completed"
+
+    # Blinding: page text, every websocket message, and the guard itself.
+    _texts_ok(seen)
+    strings = frames.strings() + intruder_frames.strings()
+    assert len(strings) > 100
+    _texts_ok(strings)
+    assert srv.guard.violations == []
+    for marker in EXPERIMENTER_ONLY:
+        assert not any(marker in s for s in strings), marker
