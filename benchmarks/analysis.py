@@ -17,6 +17,7 @@ import argparse
 import itertools
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -36,10 +37,16 @@ def _summary(times: list[float]) -> dict[str, float]:
             "min_s": min(times), "max_s": max(times), "n": len(times)}
 
 
+CPU: list[float] = []  # CPU seconds (user + sys) of each command run, load-independent
+
+
 def _run(cmd: list[str]) -> float:
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
     elapsed = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    CPU.append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
     if proc.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed:\n{proc.stderr}")
     return elapsed
@@ -83,9 +90,11 @@ def main() -> int:
             tables["ratings"].to_csv(exp / "ratings.csv", index=False)
             source, label = ["--export-dir", str(exp)], "synthetic, 8 participants, 100 Hz"
             results["samples"] = len(tables["samples"])
+        CPU.clear()
         report = [_run([py, "-m", "analysis", "report", *source, "--out", str(tmpd / "rep")])
                   for _ in range(args.repeats)]
-        results["report_command"] = {**_summary(report), "target_s": 15.0, "data": label}
+        results["report_command"] = {**_summary(report), "target_s": 15.0, "data": label,
+                                     "cpu_s_median": statistics.median(CPU)}
 
         from analysis.load import load_tables
         from analysis.report import write_report
@@ -106,10 +115,15 @@ def main() -> int:
         anova_csv(csv)
         base = [py, "-m", "analysis", "anova", "--csv", str(csv), "--dv", "time_s", "--subject",
                 "subject", "--within", "difficulty", "correctness", "mode"]
+        CPU.clear()
         rm = [_run(base) for _ in range(max(5, args.repeats))]
+        rm_cpu = statistics.median(CPU)
+        CPU.clear()
         cov = [_run([*base, "--covariates", "skill"]) for _ in range(max(5, args.repeats))]
-        results["anova_command_rm_1000x8"] = {**_summary(rm), "target_s": 5.0}
-        results["anova_command_covariates_1000x8"] = {**_summary(cov), "target_s": 5.0}
+        results["anova_command_rm_1000x8"] = {**_summary(rm), "target_s": 5.0,
+                                              "cpu_s_median": rm_cpu}
+        results["anova_command_covariates_1000x8"] = {**_summary(cov), "target_s": 5.0,
+                                                      "cpu_s_median": statistics.median(CPU)}
 
         from analysis.rm_anova import rm_anova
 
@@ -122,11 +136,12 @@ def main() -> int:
             inproc.append(time.perf_counter() - t0)
         results["rm_anova_in_process_1000x8"] = _summary(inproc)
 
-    print(f"{'measure':40s} {'median s':>9s} {'p99 s':>8s} {'target':>7s}")
+    print(f"{'measure':40s} {'median s':>9s} {'p99 s':>8s} {'CPU s':>7s} {'target':>7s}")
     for key, val in results.items():
         if isinstance(val, dict) and "median_s" in val:
+            cpu = val.get("cpu_s_median")
             print(f"{key:40s} {val['median_s']:9.3f} {val['p99_s']:8.3f} "
-                  f"{val.get('target_s', ''):>7}")
+                  f"{'' if cpu is None else f'{cpu:.3f}':>7s} {val.get('target_s', ''):>7}")
         elif isinstance(val, dict):
             for sub, v in val.items():
                 print(f"{key + '.' + sub:40s} {v['median_s']:9.3f} {v['p99_s']:8.3f}")
