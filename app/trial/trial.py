@@ -128,7 +128,11 @@ class Trial:
         self.abort("interrupted")
 
     def observation(self) -> TrialObservation:
-        """What an input source sees now."""
+        """What an input source sees now (consistent: taken under the trial's lock)."""
+        with self._lock:
+            return self._observation()
+
+    def _observation(self) -> TrialObservation:
         alpha, _, _, predicted = self._last
         held = self._held
         return TrialObservation(
@@ -211,7 +215,7 @@ class Trial:
 
     def _ask_input(self, events: list[str]) -> TeleopCommand:
         try:
-            return self.input_source.command(self.observation())
+            return self.input_source.command(self._observation())
         except Exception as exc:  # an input device must never stop the loop
             events.append(f"input_error:{type(exc).__name__}")
             return TeleopCommand(self.user_target.copy(), False)
