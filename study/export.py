@@ -332,7 +332,9 @@ def export_metadata(
     store: Store, tables: Mapping[str, pd.DataFrame], *, protocol: Protocol | None
 ) -> dict[str, Any]:
     """Provenance written beside the tables as ``metadata.json``: which store, protocol (id,
-    version, content hash) and software produced them, and how many rows each table has."""
+    version, content hash, whether the store keeps its text) and software produced them, how
+    many rows each table has, and ``orphaned_trials``: trials left running by a process that
+    died, exported as interrupted (resuming their sessions records that in the store)."""
     import app
 
     return {
@@ -346,4 +348,5 @@ def export_metadata(
         "software_version": app.__version__,
         "exported_at": now_iso(),
         "rows": {name: len(df) for name, df in tables.items()},
+        "orphaned_trials": store.orphaned_trials(),
     }

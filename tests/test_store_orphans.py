@@ -4,12 +4,14 @@ while its process lives it stays ``running``; the file is never written by the r
 from __future__ import annotations
 
 import hashlib
+import json
 import subprocess
 import sys
 import textwrap
 import time
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from study.export import tidy_tables
@@ -65,9 +67,19 @@ def test_running_trial_without_a_live_lease_reads_as_interrupted(tmp_path: Path)
         assert store.frame("trials", raw=True).loc[0, "status"] == "running"
     before = db.read_bytes()
     with Store.open_readonly(db) as store:
+        assert store.orphaned_trials() == [tid]
         trials = tidy_tables(store, search=[])["trials"]
         assert (trials.loc[0, "status"], trials.loc[0, "outcome"]) == ("interrupted", "interrupted")
         assert trials.loc[0, "ticks"] == 4 and not trials.loc[0, "success"]
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [sys.executable, "-m", "study", "export", "--db", str(db), "--out", str(out)],
+        cwd=ROOT, capture_output=True, text=True, timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert f"trials [{tid}] were left running by a process that died" in proc.stderr
+    assert json.loads((out / "metadata.json").read_text())["orphaned_trials"] == [tid]
+    assert pd.read_csv(out / "trials.csv")["status"].tolist() == ["interrupted"]
     assert db.read_bytes() == before  # readers never write
 
 

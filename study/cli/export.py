@@ -52,6 +52,13 @@ def main(args: argparse.Namespace) -> int:
             tables = tidy_tables(store, protocol=protocol, search=[])
             metadata = export_metadata(store, tables, protocol=protocol)
             stored_text = store.protocol_text()
+            if metadata["orphaned_trials"]:
+                print(
+                    f"note: trials {metadata['orphaned_trials']} were left running by a process "
+                    "that died; they are exported as interrupted (resume those sessions to "
+                    "record it, or leave them)",
+                    file=sys.stderr,
+                )
         book = codebook(tables, protocol=protocol)
         written = write_tables(tables, args.out, formats=formats)
         written += write_codebook(book, args.out)

@@ -235,7 +235,7 @@ class Store:
             tx.cur.executemany(_INSERT_SAMPLE, rows)
 
     # ---- leases -------------------------------------------------------------------------------
-    def acquire_lease(self, participant: str, *, stale_after_s: float = 15.0) -> Lease:
+    def acquire_lease(self, participant: str, *, stale_after_s: float = STALE_AFTER_S) -> Lease:
         """Claim ``participant``'s session for this process.
 
         Raises ``SessionLockedError`` while a live process (or another session object in this
@@ -414,6 +414,12 @@ class Store:
             df.loc[row, ["ticks", "duration_s"]] = [orphan.ticks, orphan.duration_s]
             df.loc[row & df["note"].isna(), "note"] = ORPHAN_NOTE
         return df
+
+    def orphaned_trials(self) -> list[int]:
+        """Ids of trials the file says are ``running`` although no live process runs them
+        (reported ``interrupted`` by the readers; resuming the session records it)."""
+        with self._snapshot() as conn:
+            return sorted(orphaned_trials(conn))
 
     def _tables(self) -> set[str]:
         return {r[0] for r in self._query("SELECT name FROM sqlite_master WHERE type='table'")}
