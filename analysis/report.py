@@ -196,6 +196,12 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
                                     _anova_table(p.table, "prediction_anova", s)))
         sec.figures += [f for k, f in figures.items() if k == "fig9"]
         out.append(sec)
+    if res.timing is not None:
+        wide = res.timing.cells.pivot_table(index="participant", columns=["task", "mode"],
+                                            values="duration_s", observed=True)
+        wide.columns = [f"{t} {m}" for t, m in wide.columns]
+        out.append(Section("Appendix: time per participant and cell (s)", tables=[Table(
+            "Analysed durations", wide.map(fmt).reset_index())]))
     if res.notes:
         out.append(Section("Notes on the data", paragraphs=list(res.notes)))
     return out
