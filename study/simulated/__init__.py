@@ -6,6 +6,10 @@ runner that drives them through the real session engine.
 - :class:`SimulatedUser`: an ``app.teleop.InputSource`` for one trial (goal-directed minimum-jerk
   input, reaction delay, noise, steering against a wrong robot, relaxing when helped, grasping).
 - :class:`QuestionnaireModel`: Likert ratings and preferences from a run's experience.
+- :class:`SimulatedParticipant`: one person across a session (input factory + answerer for
+  ``study.headless.run_headless``).
+- :func:`simulate`: enrol and run simulated participants through the real session engine into a
+  store (``python -m study simulate``), optionally in worker processes.
 """
 
 from study.simulated.errors import (
@@ -15,6 +19,7 @@ from study.simulated.errors import (
     SimulationRunError,
 )
 from study.simulated.experience import ExperienceLog, RunExperience
+from study.simulated.participant import SimulatedParticipant
 from study.simulated.population import (
     DEFAULT_POPULATION_PATH,
     ParticipantParams,
@@ -23,6 +28,7 @@ from study.simulated.population import (
     participant_rng,
 )
 from study.simulated.questionnaire import QuestionnaireModel
+from study.simulated.runner import ParticipantResult, SimulationReport, simulate
 from study.simulated.user_model import SimulatedUser
 
 __all__ = [
@@ -30,13 +36,17 @@ __all__ = [
     "ExperienceLog",
     "ObservationError",
     "ParticipantParams",
+    "ParticipantResult",
     "Population",
     "PopulationError",
     "QuestionnaireModel",
     "RunExperience",
+    "SimulatedParticipant",
     "SimulatedUser",
     "SimulationError",
+    "SimulationReport",
     "SimulationRunError",
     "load_population",
     "participant_rng",
+    "simulate",
 ]
