@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Sequence
 
 import mujoco
 import numpy as np
@@ -115,26 +116,37 @@ class Simulation:
 
     @property
     def grip_contacts(self) -> bool:
-        return bool(self.model.geom_contype[self._object_geoms[0]])
+        """True while any object is live (touchable, under gravity)."""
+        return bool(self.model.geom_contype[self._object_geoms].any())
 
-    def set_grip_contacts(self, on: bool) -> None:
+    def set_grip_contacts(self, on: bool, *, only: Sequence[int] | None = None) -> None:
         """Objects live (contacts, gravity) while grasping; at rest and untouchable while reaching.
 
         While the user reaches, the arm passes through the objects, so nothing can move them:
         they rest where they stand with gravity compensated and no contacts to solve (the
         physics step costs a third). Once the gripper closes they fall under gravity again,
-        stand on the table and the fingers take hold of whatever lies between them.
+        stand on the table and the fingers take hold of whatever lies between them. ``only``
+        (object indices) wakes just those objects; ``on=False`` puts every object to rest.
         """
-        contype = OBJECT_CONTYPE if on else 0
-        affinity = OBJECT_CONAFFINITY | OBJECT_GRIP_BIT if on else 0
+        n = len(self._object_bodies)
+        live = np.zeros(n, dtype=bool)
+        if on:
+            live[list(range(n)) if only is None else list(only)] = True
+        contype = np.where(live, OBJECT_CONTYPE, 0)
+        affinity = np.where(live, OBJECT_CONAFFINITY | OBJECT_GRIP_BIT, 0)
         m = self.model
         m.geom_contype[self._object_geoms] = contype
         m.geom_conaffinity[self._object_geoms] = affinity
         m.body_contype[self._object_bodies] = contype  # the broadphase filters bodies first
         m.body_conaffinity[self._object_bodies] = affinity
-        m.body_gravcomp[self._object_bodies] = 0.0 if on else 1.0
-        if not on:
-            self.data.qvel[self._object_dofs] = 0.0
+        m.body_gravcomp[self._object_bodies] = np.where(live, 0.0, 1.0)
+        for k in np.flatnonzero(~live):
+            self.data.qvel[self._object_dofs[6 * k : 6 * k + 6]] = 0.0
+
+    def objects_near(self, point: np.ndarray, radius: float) -> list[int]:
+        """Indices of the objects whose centre lies within ``radius`` of ``point`` in the xy plane."""
+        xy = self.data.xpos[self._object_bodies, :2] - np.asarray(point)[:2]
+        return [int(k) for k in np.flatnonzero(np.hypot(xy[:, 0], xy[:, 1]) < radius)]
 
     def object_positions(self) -> np.ndarray:
         """Object centres (n, 3) in the order of the scene's objects."""

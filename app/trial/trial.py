@@ -44,6 +44,7 @@ LIFT_SPEED = 0.1  # m/s, automatic lift
 DROP_S = 0.15  # contact lost this long while lifting = dropped
 FAR_OUTSIDE_M = 0.5  # a raw target this far outside the reach region is logged as such
 TILT_RAD = 0.7  # an object tilted beyond this is logged as knocked over
+WAKE_M = 0.15  # a grasp wakes the objects within this horizontal distance of the gripper
 
 
 class Trial:
@@ -243,7 +244,8 @@ class Trial:
         if self._phase == "reach":
             if request:
                 self._enter("closing", events, "grasp_requested")
-                self.sim.set_grip_contacts(True)
+                # wake what the fingers can reach; farther objects keep resting (cheaper)
+                self.sim.set_grip_contacts(True, only=self.sim.objects_near(self.sim.ee, WAKE_M))
                 self._hold_q = q
                 return q, q, q
             u = self.ik(q, self.user_target)
