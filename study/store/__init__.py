@@ -19,6 +19,7 @@ from study.store.errors import (
     StoreError,
     UnknownParticipantError,
 )
+from study.store.opening import changed_sections
 from study.store.orphans import ORPHAN_NOTE, STALE_AFTER_S
 from study.store.records import (
     AssignmentRecord,
@@ -31,7 +32,9 @@ from study.store.records import (
     TrialRecord,
 )
 from study.store.schema import DOF, SAMPLE_COLUMNS, SCHEMA_VERSION, TABLES
-from study.store.store import Store, Transaction, changed_sections, check_participant_id, now_iso
+from study.store.store import Store
+from study.store.transaction import Transaction
+from study.store.values import check_participant_id, now_iso
 
 __all__ = [
     "DOF",

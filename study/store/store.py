@@ -1,5 +1,8 @@
 """``Store``: the study's SQLite database (WAL, versioned schema, one file per study).
 
+Writes go through ``with store.transaction() as tx`` (``study.store.transaction``); opening,
+schema checks and upgrades are in ``study.store.opening``.
+
 Thread-safety: every public method of ``Store`` and ``Transaction`` is thread-safe. The store
 owns one connection guarded by a re-entrant lock; a ``with store.transaction()`` block holds the
 lock from ``BEGIN IMMEDIATE`` to ``COMMIT``, so writes from the session (viser callback threads)
@@ -18,28 +21,22 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import re
 import sqlite3
 import threading
 import time
-import tomllib
 import uuid
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
 from study.store import lease as lease_mod
+from study.store import opening
 from study.store.errors import (
-    DuplicateParticipantError,
-    InvalidParticipantIdError,
     NotAStoreError,
-    ProtocolMismatchError,
     ReadOnlyStoreError,
-    SchemaVersionError,
     SessionLockedError,
     StoreError,
     UnknownParticipantError,
@@ -55,37 +52,14 @@ from study.store.records import (
     StoreMeta,
     TrialRecord,
 )
-from study.store.schema import (
-    DDL,
-    MIGRATIONS,
-    READABLE_VERSIONS,
-    SAMPLE_COLUMNS,
-    SCHEMA_VERSION,
-    TABLES,
-)
+from study.store.schema import SAMPLE_COLUMNS, TABLES
+from study.store.transaction import Transaction
+from study.store.values import now_iso, unknown_participant
 
-PARTICIPANT_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,31}$")
-SESSION_STATUSES = ("enrolled", "running", "completed", "withdrawn", "ended")
-TRIAL_STATUSES = ("running", "completed", "redone", "skipped", "interrupted")
 _INSERT_SAMPLE = (
     f"INSERT INTO samples ({', '.join(SAMPLE_COLUMNS)}) "
     f"VALUES ({', '.join('?' for _ in SAMPLE_COLUMNS)})"
 )
-
-
-def now_iso() -> str:
-    """The current UTC time, ISO 8601 with microseconds (the store's timestamp format)."""
-    return datetime.now(UTC).isoformat(timespec="microseconds")
-
-
-def check_participant_id(participant: str) -> str:
-    """Return ``participant`` if it is a valid pseudonym, else raise ``InvalidParticipantIdError``."""
-    if not isinstance(participant, str) or not PARTICIPANT_ID.match(participant):
-        raise InvalidParticipantIdError(
-            f"participant ID {participant!r} is not a pseudonym: use 1-32 letters, digits, '-' "
-            "or '_', starting with a letter or digit (e.g. 'P01'); never a name or e-mail"
-        )
-    return participant
 
 
 class Store:
@@ -131,26 +105,26 @@ class Store:
         p = Path(path)
         if p.parent and not p.parent.exists():
             raise StoreError(f"cannot create store {p}: directory {p.parent} does not exist")
-        conn = _connect(p, readonly=False, busy_timeout_s=busy_timeout_s)
+        conn = opening.connect(p, readonly=False, busy_timeout_s=busy_timeout_s)
         try:
-            meta = _read_meta(conn, p)
+            meta = opening.read_meta(conn, p)
             if meta is None:
-                meta = _create(conn, p, protocol_id, protocol_version, protocol_hash)
-            _check_protocol(
+                meta = opening.create_schema(conn, p, protocol_id, protocol_version, protocol_hash)
+            opening.check_protocol(
                 meta,
                 p,
                 protocol_id,
                 protocol_hash,
                 protocol_version,
                 protocol_text,
-                _stored_text(conn, meta.protocol_hash),
+                opening.stored_text(conn, meta.protocol_hash),
             )
             conn.execute("PRAGMA journal_mode=WAL")
             conn.execute(f"PRAGMA synchronous={synchronous}")
             conn.execute("PRAGMA foreign_keys=ON")
-            meta = _migrate(conn, meta)
-            if protocol_text is not None and _stored_text(conn, protocol_hash) is None:
-                _record_protocol(conn, meta, protocol_text)
+            meta = opening.migrate(conn, meta)
+            if protocol_text is not None and opening.stored_text(conn, protocol_hash) is None:
+                opening.record_protocol(conn, meta, protocol_text)
         except BaseException:
             conn.close()
             raise
@@ -162,9 +136,9 @@ class Store:
         p = Path(path)
         if not p.exists():
             raise StoreError(f"no store at {p}: check the --db path")
-        conn = _connect(p, readonly=True, busy_timeout_s=10.0)
+        conn = opening.connect(p, readonly=True, busy_timeout_s=10.0)
         try:
-            meta = _read_meta(conn, p)
+            meta = opening.read_meta(conn, p)
             if meta is None:
                 raise NotAStoreError(f"{p} is an empty SQLite file, not a study store")
         except BaseException:
@@ -196,7 +170,7 @@ class Store:
         without it, e.g. by a schema-1 version of the platform). Rebuild the ``Protocol`` with
         ``study.protocol.protocol_from_store(store)``, which also checks its content hash."""
         with self._lock:
-            return _stored_text(self.conn, self.meta.protocol_hash)
+            return opening.stored_text(self.conn, self.meta.protocol_hash)
 
     # ---- writing ----------------------------------------------------------------------------
     @contextmanager
@@ -315,7 +289,7 @@ class Store:
         """The participant's row; ``UnknownParticipantError`` if not enrolled."""
         rows = self._query("SELECT * FROM participants WHERE participant = ?", (participant,))
         if not rows:
-            raise UnknownParticipantError(_unknown(participant, self.path))
+            raise UnknownParticipantError(unknown_participant(participant, self.path))
         return ParticipantRecord(*rows[0])
 
     def has_participant(self, participant: str) -> bool:
@@ -329,7 +303,7 @@ class Store:
         """The participant's session; ``UnknownParticipantError`` if not enrolled."""
         rows = self._query("SELECT * FROM sessions WHERE participant = ?", (participant,))
         if not rows:
-            raise UnknownParticipantError(_unknown(participant, self.path))
+            raise UnknownParticipantError(unknown_participant(participant, self.path))
         return SessionRecord(*rows[0])
 
     def sessions(self) -> list[SessionRecord]:
@@ -443,386 +417,7 @@ class Store:
         return "\n".join(r[0] for r in self._query("PRAGMA integrity_check"))
 
 
-class Transaction:
-    """Writes inside one ``Store.transaction()``; each method is one or two SQL statements."""
-
-    def __init__(self, conn: sqlite3.Connection) -> None:
-        self.cur = conn.cursor()
-
-    def require_participant(self, participant: str) -> None:
-        row = self.cur.execute(
-            "SELECT 1 FROM participants WHERE participant = ?", (participant,)
-        ).fetchone()
-        if row is None:
-            raise UnknownParticipantError(_unknown(participant, None))
-
-    def require_lease(self, lease: Lease) -> None:
-        """Raise ``SessionLockedError`` unless ``lease`` is still the participant's lease."""
-        row = self.cur.execute(
-            "SELECT token, pid FROM leases WHERE participant = ?", (lease.participant,)
-        ).fetchone()
-        if row is None or row[0] != lease.token:
-            holder = f"process {row[1]}" if row else "nobody"
-            raise SessionLockedError(
-                f"participant {lease.participant}'s session lease is now held by {holder}; this "
-                "session object must stop writing (reopen it with resume)"
-            )
-
-    def enrolment_history(self) -> list[tuple[str, int, str]]:
-        """``(participant, schedule_row, session status)`` in enrolment order (read inside the
-        enrolling transaction, so two enrolments cannot take the same schedule row)."""
-        return [
-            (p, int(r), s)
-            for p, r, s in self.cur.execute(
-                "SELECT p.participant, p.schedule_row, s.status FROM participants p "
-                "JOIN sessions s USING (participant) ORDER BY s.session_id"
-            ).fetchall()
-        ]
-
-    def enrol(
-        self,
-        participant: str,
-        *,
-        schedule_row: int,
-        assignments: Sequence[tuple[int, str, str, str]],
-        seed: int,
-        demographics: Mapping[str, Any] | None = None,
-    ) -> int:
-        """Add a participant, their demographics (own table), schedule and session; returns the
-        session id. ``assignments`` rows are ``(position, task, run, mode)``."""
-        check_participant_id(participant)
-        if self.cur.execute(
-            "SELECT 1 FROM participants WHERE participant = ?", (participant,)
-        ).fetchone():
-            raise DuplicateParticipantError(
-                f"participant {participant} is already enrolled; choose a new ID, or resume "
-                "their session (--resume)"
-            )
-        at = now_iso()
-        self.cur.execute(
-            "INSERT INTO participants VALUES (?, ?, ?)", (participant, at, schedule_row)
-        )
-        if demographics:
-            self.cur.execute(
-                "INSERT INTO demographics VALUES (?, ?, ?)",
-                (participant, at, json.dumps(dict(demographics), sort_keys=True)),
-            )
-        self.cur.executemany(
-            "INSERT INTO assignments VALUES (?, ?, ?, ?, ?, ?)",
-            [
-                (participant, pos, task, run, mode, schedule_row)
-                for pos, task, run, mode in assignments
-            ],
-        )
-        self.cur.execute(
-            "INSERT INTO sessions (participant, created_at, status, cursor, seed) "
-            "VALUES (?, ?, 'enrolled', 0, ?)",
-            (participant, at, seed),
-        )
-        return int(self.cur.lastrowid or 0)
-
-    def event(
-        self, session_id: int | None, participant: str | None, kind: str, detail: Mapping[str, Any]
-    ) -> None:
-        """Append an event row. For a participant's session use ``Session.record_event``, which
-        also checks the session's lease in the same transaction."""
-        self.cur.execute(
-            "INSERT INTO events (session_id, participant, at, kind, detail) VALUES (?, ?, ?, ?, ?)",
-            (session_id, participant, now_iso(), kind, json.dumps(dict(detail), sort_keys=True)),
-        )
-
-    def update_session(
-        self, session_id: int, *, cursor: int | None = None, status: str | None = None
-    ) -> None:
-        """Move the session's cursor and/or status; a final status also stamps ``ended_at``."""
-        if status is not None:
-            if status not in SESSION_STATUSES:
-                raise StoreError(f"session status {status!r} is not one of {SESSION_STATUSES}")
-            ended = now_iso() if status in ("completed", "withdrawn", "ended") else None
-            self.cur.execute(
-                "UPDATE sessions SET status = ?, ended_at = ? WHERE session_id = ?",
-                (status, ended, session_id),
-            )
-        if cursor is not None:
-            self.cur.execute(
-                "UPDATE sessions SET cursor = ? WHERE session_id = ?", (cursor, session_id)
-            )
-
-    def insert_trial(self, **fields: Any) -> int:
-        """Insert a trial attempt with status ``running``; returns its ``trial_id``."""
-        fields = dict(fields)
-        fields.setdefault("status", "running")
-        fields.setdefault("started_at", now_iso())
-        for key in ("goal_names", "goal_positions"):
-            fields[key] = json.dumps(fields.get(key, []))
-        cols = ", ".join(fields)
-        marks = ", ".join("?" for _ in fields)
-        self.cur.execute(f"INSERT INTO trials ({cols}) VALUES ({marks})", tuple(fields.values()))
-        return int(self.cur.lastrowid or 0)
-
-    def end_trial(
-        self,
-        trial_id: int,
-        *,
-        status: str,
-        outcome: str | None,
-        success: bool | None,
-        duration_s: float | None,
-        ticks: int,
-        note: str | None = None,
-    ) -> None:
-        if status not in TRIAL_STATUSES:
-            raise StoreError(f"trial status {status!r} is not one of {TRIAL_STATUSES}")
-        self.cur.execute(
-            "UPDATE trials SET status = ?, outcome = ?, success = ?, duration_s = ?, ticks = ?, "
-            "ended_at = ?, note = coalesce(?, note) WHERE trial_id = ?",
-            (
-                status,
-                outcome,
-                None if success is None else int(success),
-                duration_s,
-                ticks,
-                now_iso(),
-                note,
-                trial_id,
-            ),
-        )
-
-    def set_trial_status(self, trial_id: int, status: str, *, note: str | None = None) -> None:
-        if status not in TRIAL_STATUSES:
-            raise StoreError(f"trial status {status!r} is not one of {TRIAL_STATUSES}")
-        self.cur.execute(
-            "UPDATE trials SET status = ?, note = coalesce(?, note) WHERE trial_id = ?",
-            (status, note, trial_id),
-        )
-
-    def interrupt_running_trials(self, session_id: int) -> list[int]:
-        """Mark this session's ``running`` trials (left by a crash) ``interrupted``; their
-        ``ticks`` become the number of samples that reached the file."""
-        ids = [
-            r[0]
-            for r in self.cur.execute(
-                "SELECT trial_id FROM trials WHERE session_id = ? AND status = 'running'",
-                (session_id,),
-            ).fetchall()
-        ]
-        for trial_id in ids:
-            n, last_t = self.cur.execute(
-                "SELECT count(*), max(t) FROM samples WHERE trial_id = ?", (trial_id,)
-            ).fetchone()
-            self.cur.execute(
-                "UPDATE trials SET status = 'interrupted', outcome = 'interrupted', success = 0, "
-                "ticks = ?, duration_s = ?, ended_at = ?, "
-                "note = coalesce(note, 'process ended during the trial') WHERE trial_id = ?",
-                (n, last_t, now_iso(), trial_id),
-            )
-        return ids
-
-    def add_rating(
-        self,
-        *,
-        session_id: int,
-        participant: str,
-        step: int,
-        phase: str,
-        task: str | None,
-        mode: str | None,
-        run: str | None,
-        trial_id: int | None,
-        item: str,
-        value: int,
-    ) -> None:
-        self.cur.execute(
-            "INSERT INTO ratings (session_id, participant, step, phase, task, mode, run, trial_id, "
-            "item, value, answered_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-            (
-                session_id,
-                participant,
-                step,
-                phase,
-                task,
-                mode,
-                run,
-                trial_id,
-                item,
-                value,
-                now_iso(),
-            ),
-        )
-
-
 # ---- helpers ------------------------------------------------------------------------------------
-def _connect(path: Path, *, readonly: bool, busy_timeout_s: float) -> sqlite3.Connection:
-    uri = f"file:{path.resolve()}?mode={'ro' if readonly else 'rwc'}"
-    try:
-        conn = sqlite3.connect(
-            uri, uri=True, isolation_level=None, check_same_thread=False, timeout=busy_timeout_s
-        )
-    except sqlite3.Error as exc:
-        raise StoreError(f"cannot open store {path}: {exc}") from exc
-    return conn
-
-
-def _read_meta(conn: sqlite3.Connection, path: Path) -> StoreMeta | None:
-    """The file's ``schema_version`` row, ``None`` for an empty file; errors for anything else."""
-    try:
-        names = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
-    except sqlite3.DatabaseError as exc:
-        raise NotAStoreError(
-            f"{path} is not a SQLite database ({exc}); choose another --db path"
-        ) from exc
-    if not names:
-        return None
-    if "schema_version" not in names:
-        raise NotAStoreError(
-            f"{path} is a SQLite database but not a study store (no schema_version table); "
-            "choose another --db path"
-        )
-    row = conn.execute("SELECT * FROM schema_version").fetchone()
-    if row is None:
-        raise NotAStoreError(f"{path} has an empty schema_version table; it is not a usable store")
-    try:
-        meta = StoreMeta(*row)
-    except TypeError as exc:
-        raise SchemaVersionError(
-            f"{path} has a schema_version table of another layout; it was written by other code"
-        ) from exc
-    if meta.version not in READABLE_VERSIONS:
-        raise SchemaVersionError(
-            f"{path} uses store schema version {meta.version}, this code reads versions "
-            f"{', '.join(map(str, READABLE_VERSIONS))}; open it with the version of the platform "
-            "that wrote it (data untouched)"
-        )
-    return meta
-
-
-def _migrate(conn: sqlite3.Connection, meta: StoreMeta) -> StoreMeta:
-    """Bring an older (readable) file to ``SCHEMA_VERSION`` in one transaction."""
-    if meta.version == SCHEMA_VERSION:
-        return meta
-    conn.execute("BEGIN IMMEDIATE")
-    try:
-        version = conn.execute("SELECT version FROM schema_version").fetchone()[0]
-        while version < SCHEMA_VERSION:  # another process may have migrated meanwhile
-            for statement in MIGRATIONS[version]:
-                conn.execute(statement)
-            version += 1
-        conn.execute("UPDATE schema_version SET version = ?", (version,))
-        conn.execute("COMMIT")
-    except BaseException:
-        if conn.in_transaction:
-            conn.execute("ROLLBACK")
-        raise
-    return dataclasses.replace(meta, version=SCHEMA_VERSION)
-
-
-def _stored_text(conn: sqlite3.Connection, content_hash: str) -> str | None:
-    try:
-        row = conn.execute(
-            "SELECT text FROM protocols WHERE content_hash = ?", (content_hash,)
-        ).fetchone()
-    except sqlite3.OperationalError:  # a schema-1 file: no protocols table
-        return None
-    return None if row is None else str(row[0])
-
-
-def _record_protocol(conn: sqlite3.Connection, meta: StoreMeta, text: str) -> None:
-    conn.execute(
-        "INSERT OR IGNORE INTO protocols VALUES (?, ?, ?, ?, ?)",
-        (meta.protocol_hash, meta.protocol_id, meta.protocol_version, text, now_iso()),
-    )
-
-
-def _create(
-    conn: sqlite3.Connection,
-    path: Path,
-    protocol_id: str,
-    protocol_version: str,
-    protocol_hash: str,
-) -> StoreMeta:
-    """Create the schema in an empty file (or read the meta of a store a racing process made)."""
-    conn.execute("PRAGMA journal_mode=WAL")
-    conn.execute("BEGIN IMMEDIATE")
-    try:
-        existing = conn.execute("SELECT count(*) FROM sqlite_master").fetchone()[0]
-        if existing:  # another process created it between our check and our lock
-            conn.execute("ROLLBACK")
-            meta = _read_meta(conn, path)
-            assert meta is not None
-            return meta
-        for statement in DDL.split(";"):
-            if statement.strip():
-                conn.execute(statement)
-        meta = StoreMeta(SCHEMA_VERSION, protocol_id, protocol_version, protocol_hash, now_iso())
-        conn.execute(
-            "INSERT INTO schema_version VALUES (?, ?, ?, ?, ?)",
-            (meta.version, meta.protocol_id, meta.protocol_version, protocol_hash, meta.created_at),
-        )
-        conn.execute("COMMIT")
-    except BaseException:
-        if conn.in_transaction:
-            conn.execute("ROLLBACK")
-        raise
-    return meta
-
-
-def _check_protocol(
-    meta: StoreMeta,
-    path: Path,
-    protocol_id: str,
-    protocol_hash: str,
-    protocol_version: str,
-    text: str | None,
-    stored: str | None,
-) -> None:
-    if meta.protocol_id == protocol_id and meta.protocol_hash == protocol_hash:
-        return
-    changed = changed_sections(stored, text)
-    kept = (
-        "; the store keeps the original (`python -m study export` writes it as protocol.toml)"
-        if stored is not None
-        else ""
-    )
-    raise ProtocolMismatchError(
-        f"{path} was written by protocol {meta.protocol_id!r} version "
-        f"{meta.protocol_version or '?'} (content hash {meta.protocol_hash}), not by "
-        f"{protocol_id!r} version {protocol_version or '?'} (content hash {protocol_hash})"
-        f"{f'; changed: {changed}' if changed else ''}. A store holds one protocol: to continue "
-        f"this study use the protocol file it started with{kept}; to run the edited protocol use "
-        "a new --db (data untouched)"
-    )
-
-
-def changed_sections(old: str | None, new: str | None, *, limit: int = 8) -> str:
-    """Dotted keys (to two levels, e.g. ``modes.aggressive``) whose content differs between two
-    protocol texts, comma-separated; ``""`` if either is missing or not TOML."""
-    if old is None or new is None:
-        return ""
-    try:
-        a, b = tomllib.loads(old), tomllib.loads(new)
-    except tomllib.TOMLDecodeError:
-        return ""
-    keys: list[str] = []
-    for key in sorted(set(a) | set(b)):
-        x, y = a.get(key), b.get(key)
-        if x == y:
-            continue
-        if isinstance(x, dict) and isinstance(y, dict):
-            keys += [f"{key}.{k}" for k in sorted(set(x) | set(y)) if x.get(k) != y.get(k)]
-        else:
-            keys.append(key)
-    more = f" (+{len(keys) - limit} more)" if len(keys) > limit else ""
-    return ", ".join(keys[:limit]) + more
-
-
-def _unknown(participant: str, path: Path | None) -> str:
-    where = f" in {path}" if path else ""
-    return (
-        f"participant {participant} is not enrolled{where}; check the ID, or start a new "
-        "session without --resume to enrol them"
-    )
-
-
 def _where(
     sql: str, *, participant: str | None, session_id: int | None
 ) -> tuple[str, tuple[Any, ...]]:
