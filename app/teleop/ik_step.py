@@ -46,6 +46,7 @@ class IKStep:
         self.posture = None if posture is None else np.asarray(posture, dtype=float).copy()
         self.posture_gain = posture_gain
         self.rotation = downward_rotation(0.0) if rotation is None else np.asarray(rotation)
+        self._twist = np.zeros(6)  # scratch: [v; w], rewritten every call
 
     def __call__(
         self,
@@ -57,24 +58,25 @@ class IKStep:
     ) -> np.ndarray:
         """Next configuration ``U`` (7,) moving the TCP from ``phi(q)`` toward ``target`` (3,)."""
         x, rot, jac = self.kin.pose_and_jacobian(q)
-        if rotation is None:
-            rotation = self.rotation
-        v = self.gain * (target - x)
+        twist = self._twist
+        v = twist[:3]
+        np.subtract(target, x, out=v)
+        v *= self.gain
         speed = math.sqrt(v.dot(v))
         limit = self.max_speed if max_speed is None else max_speed
         if speed > limit:
             v *= limit / speed
-        w = self.rotation_gain * pin.log3(rotation @ rot.T)
+        w = twist[3:]
+        w[:] = pin.log3((self.rotation if rotation is None else rotation) @ rot.T)
+        w *= self.rotation_gain
         wn = math.sqrt(w.dot(w))
         if wn > self.max_angular_speed:
             w *= self.max_angular_speed / wn
-        twist = np.concatenate((v, w))
+        z = None
         if self.posture is not None:
             # dq = J+ twist + (I - J+ J) z  =  z + J+ (twist - J z), z the posture velocity
             z = self.posture_gain * (self.posture - q)
             twist -= jac @ z
-        else:
-            z = None
         _, y, info = dposv(jac @ jac.T + self._damp, twist)  # (J J^T + l^2 I) y = twist
         if info != 0:  # pragma: no cover - J J^T + l^2 I is positive definite
             return q.copy()
@@ -82,7 +84,7 @@ class IKStep:
         if z is not None:
             dq += z
         dq *= self.dt
-        biggest = float(np.abs(dq).max())
+        biggest = max(dq.max(), -dq.min())
         if biggest > self.max_joint_step:
             dq *= self.max_joint_step / biggest
         dq += q
