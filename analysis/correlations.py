@@ -51,9 +51,9 @@ def preference_frame(cells: pd.DataFrame) -> pd.DataFrame:
                           "preference analysis needs it (-3..+3, positive = aggressive preferred)")
     keys = ["participant", "task", "difficulty", "correctness"]
     wide = cells.pivot_table(index=keys, columns="mode", values="duration_s", aggfunc="mean")
-    if not {"timid", "aggressive"} <= set(wide.columns):
-        raise DesignError("the preference analysis needs both a timid and an aggressive run "
-                          f"per task; modes present: {sorted(wide.columns)}")
+    if set(wide.columns) != {"timid", "aggressive"}:
+        raise DesignError("the preference analysis compares a timid and an aggressive run per "
+                          f"task; modes present: {sorted(map(str, wide.columns))}")
     out = pd.DataFrame({
         "duration_timid": wide["timid"], "duration_aggressive": wide["aggressive"],
     })

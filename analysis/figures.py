@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import io
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -94,29 +94,36 @@ def _bars(ax: Any, table: pd.DataFrame, value: str, err: str, groups: list[str],
     ax.set_xticks(x, [TASK_LABELS.get(g, g) for g in groups])
 
 
-def timing_preference_figure(summary: pd.DataFrame, preferences: pd.DataFrame) -> Figure:
-    """Fig. 8: (a) mean time per task and mode +- SE; (b) preference for aggressive +- SE."""
-    fig = _new(9.0, 3.4)
-    ax1, ax2 = fig.subplots(1, 2)
-    tasks = [t for t in TASK_ORDER if t in set(summary["task"])] or sorted(set(summary["task"]))
-    _bars(ax1, summary, "mean", "se", tasks, ["timid", "aggressive"], "mode", "task",
-          MODE_COLORS)
-    ax1.set(ylabel="time to complete (s)", title="(a) Time per task and mode")
-    ax1.legend(frameon=False)
-    g = preferences.groupby("task")["preference_aggressive"]
-    pref = pd.DataFrame({"mean": g.mean(), "se": g.std() / np.sqrt(g.count())}).reindex(tasks)
-    ax2.bar(np.arange(len(tasks)), pref["mean"], 0.6, yerr=pref["se"], capsize=3,
-            color="#8172b2")
-    ax2.axhline(0, color="k", lw=0.8)
-    ax2.set_xticks(np.arange(len(tasks)), [TASK_LABELS.get(t, t) for t in tasks])
-    ax2.set(ylim=(-3.2, 3.2), ylabel="← timid   preference   aggressive →",
-            title="(b) Preference per task")
+def timing_preference_figure(summary: pd.DataFrame, preferences: pd.DataFrame | None,
+                             *, modes: Sequence[str] = ("timid", "aggressive")) -> Figure:
+    """Fig. 8: (a) mean time per task and mode +- SE; (b) preference for aggressive +- SE
+    (left out when there are no preferences)."""
+    fig = _new(9.0 if preferences is not None else 5.5, 3.4)
+    axes = fig.subplots(1, 2 if preferences is not None else 1, squeeze=False)[0]
+    tasks = [t for t in TASK_ORDER if t in set(summary["task"])] or \
+        list(dict.fromkeys(summary["task"]))
+    present = [m for m in modes if m in set(summary["mode"])]
+    _bars(axes[0], summary, "mean", "se", tasks, present, "mode", "task", MODE_COLORS)
+    axes[0].set(ylabel="time to complete (s)", title="(a) Time per task and mode")
+    axes[0].legend(frameon=False)
+    if preferences is not None:
+        ax2 = axes[1]
+        g = preferences.groupby("task")["preference_aggressive"]
+        pref = pd.DataFrame({"mean": g.mean(), "se": g.std() / np.sqrt(g.count())})
+        pref = pref.reindex(tasks)
+        ax2.bar(np.arange(len(tasks)), pref["mean"], 0.6, yerr=pref["se"], capsize=3,
+                color="#8172b2")
+        ax2.axhline(0, color="k", lw=0.8)
+        ax2.set_xticks(np.arange(len(tasks)), [TASK_LABELS.get(t, t) for t in tasks])
+        ax2.set(ylim=(-3.2, 3.2), ylabel="← timid   preference   aggressive →",
+                title="(b) Preference per task")
     return fig
 
 
 def prediction_figure(evals: pd.DataFrame, example: Mapping[str, Replay],
                       goals: np.ndarray, goal_names: list[str], target: int,
-                      title: str = "") -> Figure:
+                      title: str = "", *,
+                      modes: Sequence[str] = ("timid", "aggressive")) -> Figure:
     """Fig. 9: (a) success rate by mode and predictor +- SE; (b, c) one trajectory (top view)
     coloured by correctness of each predictor, an arrow at the first lasting correct point."""
     fig = _new(11.0, 3.6)
@@ -124,7 +131,7 @@ def prediction_figure(evals: pd.DataFrame, example: Mapping[str, Replay],
     g = evals.groupby(["predictor", "mode"])["success_rate"]
     summ = pd.DataFrame({"mean": g.mean(), "se": g.std() / np.sqrt(g.count())}).reset_index()
     preds = list(dict.fromkeys(evals["predictor"]))
-    modes = [m for m in ("timid", "aggressive") if m in set(summ["mode"])]
+    modes = [m for m in modes if m in set(summ["mode"])]
     width = 0.8 / max(1, len(preds))
     x = np.arange(len(modes))
     for i, p in enumerate(preds):

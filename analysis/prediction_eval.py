@@ -16,7 +16,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import threading
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -206,14 +206,17 @@ def evaluate_predictions(
     return pd.DataFrame(rows, columns=EVAL_COLUMNS), tuple(notes)
 
 
-def prediction_anova(evals: pd.DataFrame, *, dv: str = "success_rate") -> FactorialAnovaResult:
-    """Factorial ANOVA of ``dv`` on predictor x difficulty x correctness x mode (type III)."""
+def prediction_anova(evals: pd.DataFrame, *, dv: str = "success_rate",
+                     levels: Mapping[str, Sequence[str]] | None = None) -> FactorialAnovaResult:
+    """Factorial ANOVA of ``dv`` on predictor x difficulty x correctness x mode (type III);
+    design factors with a single level in the data are left out of the model."""
     from analysis.anova import factorial_anova
+    from analysis.timing import design_levels
 
     data = evals.copy()
-    orders = {"predictor": list(dict.fromkeys(evals["predictor"])),
-              "difficulty": ["easy", "hard"], "correctness": ["right", "wrong"],
-              "mode": ["timid", "aggressive"]}
-    for f, lv in orders.items():
-        data[f] = pd.Categorical(data[f], categories=lv)
-    return factorial_anova(data, dv=dv, factors=list(orders))
+    orders = {"predictor": tuple(dict.fromkeys(evals["predictor"])),
+              **design_levels(evals, levels)}
+    factors = [f for f, lv in orders.items() if len(lv) >= 2]
+    for f in factors:
+        data[f] = pd.Categorical(data[f].astype(str), categories=list(orders[f]))
+    return factorial_anova(data, dv=dv, factors=factors)

@@ -26,6 +26,7 @@ class ProtocolInfo:
     arbitrations: dict[str, Mapping[str, Any]]  # mode name -> [modes.<name>].arbitration
     amnesic_temperature: float = 0.05
     notes: tuple[str, ...] = field(default_factory=tuple)
+    factors: dict[str, tuple[str, ...]] = field(default_factory=dict)  # [factors], in order
 
 
 def _temperature(prediction: Mapping[str, Any] | None) -> float:
@@ -54,6 +55,7 @@ def load_protocol_info(path: str | Path = DEFAULT_PROTOCOL) -> ProtocolInfo:
             arbitrations={m.name: dict(m.arbitration) for m in proto.modes
                           if m.arbitration is not None},
             amnesic_temperature=_temperature(proto.prediction),
+            factors={k: tuple(map(str, v)) for k, v in dict(proto.factors).items()},
         )
     raw = p.read_bytes()
     try:
@@ -67,6 +69,8 @@ def load_protocol_info(path: str | Path = DEFAULT_PROTOCOL) -> ProtocolInfo:
         arbitrations={k: v["arbitration"] for k, v in modes.items()
                       if isinstance(v, dict) and isinstance(v.get("arbitration"), dict)},
         amnesic_temperature=_temperature(doc.get("prediction")),
+        factors={k: tuple(map(str, v)) for k, v in doc.get("factors", {}).items()
+                 if isinstance(v, list)},
         notes=("study.protocol is unavailable: the protocol was read as plain TOML and its hash "
                "is the sha256 of the file's bytes",),
     )

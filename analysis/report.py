@@ -115,7 +115,7 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
         t = res.timing
         sec = Section("Timing (section 5.1)")
         sec.paragraphs.append(
-            f"Factorial ANOVA with covariates: duration ~ difficulty × correctness × mode, "
+            f"Factorial ANOVA with covariates: duration ~ {' × '.join(t.factors)}, "
             f"sum-to-zero contrasts, type {t.ancova.ss_type} sums of squares, covariates "
             f"{', '.join(t.covariates) or 'none'}; N = {t.ancova.n}, residual df = "
             f"{t.ancova.df_resid}, R² = {t.ancova.r2:.2f} (paper: R² = 0.66 on F(1, 53)). "
@@ -127,26 +127,31 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
                                 _anova_table(t.ancova.table, "timing_ancova", s)))
         me = s[s.analysis == "timing_effects"]
         sec.tables.append(Table("Main effects as mean differences (s)", pd.DataFrame({
-            "factor": me["effect"], "contrast": me["test"].str.replace("mean difference ", "").str.replace(" (s)", ""),
+            "factor": me["effect"],
+            "contrast": me["test"].str.replace("mean difference ", "").str.replace(" (s)", ""),
             "ours": me["statistic"].map(fmt), "paper": me["paper_value"].map(fmt)})))
         sec.tables.append(Table(f"Repeated-measures ANOVA ({t.rm.n_subjects} participants)",
                                 _anova_table(t.rm.table, "timing_rm", s),
                                 "Subjects as error strata: F(1, n - 1); the paper reports the "
                                 "covariate model above."))
         c = t.comparisons
-        comp = s[s.analysis.isin(["timing_posthoc", "timing_planned"])].reset_index(drop=True)
-        sec.tables.append(Table("Paired comparisons (Bonferroni within each family)",
-                                pd.DataFrame({
-                                    "family": c["family"], "comparison": c["comparison"],
-                                    "t": [f"t({fmt(d, 0)}) = {fmt(v)}" for d, v in
-                                          zip(c["df"], c["t"], strict=True)],
-                                    "p": c["p"].map(fmt_p), "p (Bonferroni)": c["p_bonf"].map(fmt_p),
-                                    "mean diff (s)": c["mean_diff"].map(fmt),
-                                    "95% CI": [f"[{fmt(a)}, {fmt(b)}]" for a, b in
-                                               zip(c["ci_low"], c["ci_high"], strict=True)],
-                                    "d_z": c["d_z"].map(fmt),
-                                    "paper |t|": comp["paper_value"].map(fmt)}),
-                                "Differences are first minus second; the paper reports |t|."))
+        if len(c):
+            comp = s[s.analysis.isin(["timing_posthoc", "timing_planned", "timing_pairwise"])]
+            comp = comp.reset_index(drop=True)
+            sec.tables.append(Table("Paired comparisons (Bonferroni within each family)",
+                                    pd.DataFrame({
+                                        "family": c["family"], "comparison": c["comparison"],
+                                        "t": [f"t({fmt(d, 0)}) = {fmt(v)}" for d, v in
+                                              zip(c["df"], c["t"], strict=True)],
+                                        "p": c["p"].map(fmt_p),
+                                        "p (Bonferroni)": c["p_bonf"].map(fmt_p),
+                                        "mean diff (s)": c["mean_diff"].map(fmt),
+                                        "95% CI": [f"[{fmt(a)}, {fmt(b)}]" for a, b in
+                                                   zip(c["ci_low"], c["ci_high"], strict=True)],
+                                        "d_z": c["d_z"].map(fmt),
+                                        "paper |t|": comp["paper_value"].map(fmt)}),
+                                    "Differences are first minus second; the paper reports "
+                                    "|t|."))
         summ = t.summary.copy()
         sec.tables.append(Table("Time per task and mode (s)", pd.DataFrame({
             "task": summ["task"], "mode": summ["mode"], "mean": summ["mean"].map(fmt),
@@ -223,9 +228,10 @@ def _figures(res: StudyResults, tables: StudyTables, proto: ProtocolInfo | None,
     if proto is not None and proto.arbitrations:
         made["fig7"] = figs.save(figs.arbitration_figure(proto.arbitrations), out,
                                  "fig7_arbitration", "Fig. 7: arbitration α(c) of each mode")
-    if res.timing is not None and res.preferences is not None:
+    modes = res.timing.levels["mode"] if res.timing is not None else ("timid", "aggressive")
+    if res.timing is not None:
         made["fig8"] = figs.save(
-            figs.timing_preference_figure(res.timing.summary, res.preferences), out,
+            figs.timing_preference_figure(res.timing.summary, res.preferences, modes=modes), out,
             "fig8_time_preference", "Fig. 8: time and preference per task (mean ± SE)")
     row = _example_trial(res)
     if row is not None and res.evals is not None:
@@ -239,7 +245,7 @@ def _figures(res: StudyResults, tables: StudyTables, proto: ProtocolInfo | None,
         title = (f"trial {row['trial_id']} ({row['participant']}, {row['task']}, "
                  f"{row['mode']})")
         made["fig9"] = figs.save(
-            figs.prediction_figure(res.evals, reps, pts, names, target, title), out,
+            figs.prediction_figure(res.evals, reps, pts, names, target, title, modes=modes), out,
             "fig9_prediction", "Fig. 9: prediction success (mean ± SE) and one trajectory "
             "(green = correct, red = wrong; arrow = first lasting correct point)")
     return made
@@ -303,7 +309,8 @@ def write_report(
     if proto is not None and "amnesic" in predictors:
         predictors = {**predictors, "amnesic": {**predictors["amnesic"],
                                                 "temperature": proto.amnesic_temperature}}
-    res = analyse(tables, predictors=predictors, successful_only=successful_only)
+    res = analyse(tables, predictors=predictors, successful_only=successful_only,
+                  levels=proto.factors if proto is not None else None)
     res.notes = proto_notes + res.notes
     figures = _figures(res, tables, proto, out / "figures", predictors)
     meta = {

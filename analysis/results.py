@@ -8,7 +8,7 @@ effect_size (+ its name), ci_low, ci_high, and the paper's value where it report
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -67,13 +67,12 @@ def statistics_table(res: StudyResults) -> pd.DataFrame:
                          t.ancova.r2, np.nan))
         rows += _anova_rows("timing_rm", t.rm.table, "repeated-measures ANOVA")
         for r in t.main_effects.itertuples():
-            rows.append(_row("timing_effects", r.factor, f"mean difference {r.contrast} (s)",
+            rows.append(_row("timing_effects", r.effect, f"mean difference {r.contrast} (s)",
                              np.nan, None, r.mean_diff, np.nan))
         rows.append(_row("timing_mean", "duration_s", "mean time per task (s)", np.nan, None,
                          float(t.cells["duration_s"].mean()), np.nan))
         for r in t.comparisons.itertuples():
-            analysis = "timing_posthoc" if r.family.startswith("post-hoc") else "timing_planned"
-            rows.append(_row(analysis, r.comparison, "paired t (Bonferroni)", r.df, None, r.t,
+            rows.append(_row(r.analysis, r.comparison, "paired t (Bonferroni)", r.df, None, r.t,
                              r.p, es=r.d_z, es_name="Cohen's d_z", p_bonf=r.p_bonf,
                              ci=(r.ci_low, r.ci_high)))
     if res.correlations is not None:
@@ -91,15 +90,19 @@ def statistics_table(res: StudyResults) -> pd.DataFrame:
 
 def analyse(tables: StudyTables, *,
             predictors: Mapping[str, Mapping[str, Any]] = PREDICTORS,
-            successful_only: bool = False) -> StudyResults:
-    """Run every analysis of section 5 that the data allow; see the module docstring."""
+            successful_only: bool = False,
+            levels: Mapping[str, Sequence[str]] | None = None) -> StudyResults:
+    """Run every analysis of section 5 that the data allow; see the module docstring.
+
+    ``levels``: the protocol's factor levels, to order them as the protocol does.
+    """
     cells, notes = task_cells(tables.trials, successful_only=successful_only)
     res = StudyResults(cells=cells, notes=[*tables.notes, *notes])
     if cells.empty:
         res.notes.append("no completed task trials: nothing to analyse")
         return res
     try:
-        res.timing = timing_analysis(cells)
+        res.timing = timing_analysis(cells, levels=levels)
         res.notes += [f"timing: {n}" for n in res.timing.notes]
     except AnalysisError as e:
         res.notes.append(f"timing analysis skipped: {e}")
@@ -120,7 +123,7 @@ def analyse(tables: StudyTables, *,
                 time_to_correct_s=("time_to_correct_s", "mean"),
                 never_lasting=("time_to_correct_s", lambda s: int(s.isna().sum())),
                 n=("success_rate", "size")).reset_index()
-            res.prediction = prediction_anova(res.evals)
+            res.prediction = prediction_anova(res.evals, levels=levels)
         except AnalysisError as e:
             res.notes.append(f"prediction analysis skipped: {e}")
     res.statistics = statistics_table(res)

@@ -7,11 +7,15 @@
 3. Paired t-tests, Bonferroni within each family, d_z and 95% CIs: post-hoc aggressive-and-wrong
    against each other aggressiveness x correctness situation (pairs = participant x difficulty,
    t(15)); planned timid vs aggressive on Hard&Right and on Easy&Wrong (t(7)).
+
+Other designs (a protocol with other levels, e.g. three modes, or a factor with one level) get
+the same models on the factors that vary, and pairwise mode comparisons within each task.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import itertools
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,6 +23,7 @@ import pandas as pd
 
 from analysis.anova import FactorialAnovaResult, covariate_anova
 from analysis.design import cell_means
+from analysis.errors import DesignError
 from analysis.load import COVARIATES
 from analysis.posthoc import Comparison, paired_comparisons
 from analysis.rm_anova import RMAnovaResult, rm_anova
@@ -26,6 +31,7 @@ from analysis.rm_anova import RMAnovaResult, rm_anova
 FACTORS = ("difficulty", "correctness", "mode")
 LEVELS = {"difficulty": ("easy", "hard"), "correctness": ("right", "wrong"),
           "mode": ("timid", "aggressive")}
+"""The paper's design; its levels also give the order of known levels in other designs."""
 
 
 @dataclass(frozen=True)
@@ -33,11 +39,29 @@ class TimingAnalysis:
     cells: pd.DataFrame            # the analysed rows (complete participants only)
     ancova: FactorialAnovaResult   # factorial ANOVA with covariates (type III)
     rm: RMAnovaResult              # repeated-measures ANOVA
-    comparisons: pd.DataFrame      # paired t-tests (posthoc.COLUMNS)
+    comparisons: pd.DataFrame      # paired t-tests (posthoc.COLUMNS + analysis)
     summary: pd.DataFrame          # task x mode: mean, se, n of duration_s
-    main_effects: pd.DataFrame     # mean differences of the three factors, seconds
+    main_effects: pd.DataFrame     # effect, factor, contrast, mean_low, mean_high, mean_diff
+    factors: tuple[str, ...]       # the factors that vary in the data
+    levels: dict[str, tuple[str, ...]]
     covariates: tuple[str, ...]
     notes: tuple[str, ...]
+
+    @property
+    def paper_design(self) -> bool:
+        return self.levels == {f: LEVELS[f] for f in FACTORS}
+
+
+def design_levels(cells: pd.DataFrame,
+                  levels: Mapping[str, Sequence[str]] | None = None) -> dict[str, tuple[str, ...]]:
+    """Levels present per factor, in the given (protocol) order, else the paper's, else sorted."""
+    out = {}
+    for f in FACTORS:
+        present = list(dict.fromkeys(cells[f].astype(str)))
+        order = list((levels or {}).get(f, ())) + list(LEVELS[f])
+        known = [lv for lv in dict.fromkeys(order) if lv in present]
+        out[f] = tuple(known + sorted(lv for lv in present if lv not in known))
+    return out
 
 
 def usable_covariates(cells: pd.DataFrame, wanted: Sequence[str]) -> tuple[list[str], list[str]]:
@@ -63,8 +87,9 @@ def summarise(cells: pd.DataFrame, value: str) -> pd.DataFrame:
     return out.rename(columns={"count": "n"}).drop(columns="std")
 
 
-def _comparisons(cells: pd.DataFrame) -> pd.DataFrame:
-    w = cells.pivot_table(index="participant", columns=list(FACTORS), values="duration_s")
+def _paper_comparisons(cells: pd.DataFrame) -> list[Comparison]:
+    w = cells.pivot_table(index="participant", columns=list(FACTORS), values="duration_s",
+                          observed=True)
 
     def col(dif: str, cor: str, mode: str) -> np.ndarray:
         return w[(dif, cor, mode)].to_numpy()
@@ -73,43 +98,83 @@ def _comparisons(cells: pd.DataFrame) -> pd.DataFrame:
         return np.concatenate([col("easy", cor, mode), col("hard", cor, mode)])
 
     family = "post-hoc: aggressive & wrong vs each other situation"
-    specs = [
+    planned = "planned: timid vs aggressive per task"
+    return [
         Comparison(family, "aggressive&wrong - timid&wrong (aggressive vs timid when wrong)",
                    both("wrong", "aggressive"), both("wrong", "timid")),
         Comparison(family, "aggressive&wrong - aggressive&right",
                    both("wrong", "aggressive"), both("right", "aggressive")),
         Comparison(family, "aggressive&wrong - timid&right",
                    both("wrong", "aggressive"), both("right", "timid")),
-        Comparison("planned: timid vs aggressive per task", "Hard&Right: aggressive - timid",
+        Comparison(planned, "Hard&Right: aggressive - timid",
                    col("hard", "right", "aggressive"), col("hard", "right", "timid")),
-        Comparison("planned: timid vs aggressive per task", "Easy&Wrong: aggressive - timid",
+        Comparison(planned, "Easy&Wrong: aggressive - timid",
                    col("easy", "wrong", "aggressive"), col("easy", "wrong", "timid")),
     ]
-    return paired_comparisons(specs)
 
 
-def timing_analysis(cells: pd.DataFrame, *,
-                    covariates: Sequence[str] = COVARIATES) -> TimingAnalysis:
-    """Run the section 5.1 analyses on ``task_cells`` output (see the module docstring)."""
+def _pairwise_mode_comparisons(cells: pd.DataFrame, modes: Sequence[str]) -> list[Comparison]:
+    w = cells.pivot_table(index="participant", columns=["task", "mode"], values="duration_s",
+                          observed=True)
+    out = []
+    for task in dict.fromkeys(cells["task"]):
+        for a, b in itertools.combinations(modes, 2):
+            if (task, a) in w.columns and (task, b) in w.columns:
+                out.append(Comparison(f"pairwise: modes within {task}", f"{task}: {b} - {a}",
+                                      w[(task, b)].to_numpy(), w[(task, a)].to_numpy()))
+    return out
+
+
+def _analysis_of(family: str) -> str:
+    if family.startswith("post-hoc"):
+        return "timing_posthoc"
+    return "timing_planned" if family.startswith("planned") else "timing_pairwise"
+
+
+def timing_analysis(cells: pd.DataFrame, *, covariates: Sequence[str] = COVARIATES,
+                    levels: Mapping[str, Sequence[str]] | None = None) -> TimingAnalysis:
+    """Run the section 5.1 analyses on ``task_cells`` output (see the module docstring).
+
+    ``levels``: the protocol's factor levels (their order is kept); default: the paper's.
+    """
+    lv = design_levels(cells, levels)
+    factors = tuple(f for f in FACTORS if len(lv[f]) >= 2)
+    if not factors:
+        raise DesignError("no factor of difficulty, correctness and mode has two levels in the "
+                          "data; there is nothing to compare")
     data = cells.copy()
-    for f, lv in LEVELS.items():
-        data[f] = pd.Categorical(data[f], categories=list(lv))
-    complete = cell_means(data, dv="duration_s", subject="participant", within=FACTORS,
+    for f in FACTORS:
+        data[f] = pd.Categorical(data[f].astype(str), categories=list(lv[f]))
+    complete = cell_means(data, dv="duration_s", subject="participant", within=factors,
                           drop_incomplete=True)
     notes = list(complete.notes)
     data = data[data["participant"].isin(set(complete.subjects))].reset_index(drop=True)
     covs, cov_notes = usable_covariates(data, covariates)
     notes += cov_notes
-    rm = rm_anova(data, dv="duration_s", subject="participant", within=FACTORS)
-    ancova = covariate_anova(data, dv="duration_s", subject="participant", within=FACTORS,
+    rm = rm_anova(data, dv="duration_s", subject="participant", within=factors)
+    ancova = covariate_anova(data, dv="duration_s", subject="participant", within=factors,
                              covariates=covs)
     marg = []
-    for f, (lo, hi) in LEVELS.items():
+    for f in factors:
         m = data.groupby(f, observed=True)["duration_s"].mean()
-        marg.append({"factor": f, "contrast": f"{hi} - {lo}", "mean_low": m[lo],
-                     "mean_high": m[hi], "mean_diff": m[hi] - m[lo]})
+        first = lv[f][0]
+        for other in lv[f][1:]:
+            marg.append({"effect": f if len(lv[f]) == 2 else f"{f} ({other} - {first})",
+                         "factor": f, "contrast": f"{other} - {first}", "mean_low": m[first],
+                         "mean_high": m[other], "mean_diff": m[other] - m[first]})
+    paper = lv == {f: LEVELS[f] for f in FACTORS}
+    specs = (_paper_comparisons(data) if paper
+             else _pairwise_mode_comparisons(data, lv["mode"]))
+    comparisons = paired_comparisons(specs) if specs else pd.DataFrame()
+    if len(comparisons):
+        comparisons.insert(0, "analysis", comparisons["family"].map(_analysis_of))
+    if not paper:
+        notes.append("the design differs from the paper's 2 x 2 x 2 ("
+                      + "; ".join(f"{f}: {', '.join(v)}" for f, v in lv.items())
+                      + "): models on the factors that vary, pairwise mode comparisons per task")
     return TimingAnalysis(
-        cells=data, ancova=ancova, rm=rm, comparisons=_comparisons(data),
+        cells=data, ancova=ancova, rm=rm, comparisons=comparisons,
         summary=summarise(data, "duration_s"), main_effects=pd.DataFrame(marg),
-        covariates=tuple(covs), notes=tuple(dict.fromkeys(notes + list(ancova.notes))),
+        factors=factors, levels=lv, covariates=tuple(covs),
+        notes=tuple(dict.fromkeys(notes + list(ancova.notes))),
     )

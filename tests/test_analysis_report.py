@@ -155,3 +155,37 @@ def test_report_with_training_runs_only(tmp_path: Path) -> None:
     assert doc["statistics"] == [] and doc["participants"] == 0
     assert any("no completed task trials" in n for n in doc["notes"])
     assert files.html.read_text().count("<svg") == 1  # Fig. 7 from the protocol still drawn
+
+
+def test_other_designs_three_modes_and_a_single_difficulty(tmp_path: Path) -> None:
+    """A protocol like protocols/memory3.toml: one difficulty level, three modes."""
+    import numpy as np
+
+    from analysis.load import from_frames
+    from analysis.report import write_report
+
+    t = synthetic_tables(8, seed=2, rate_hz=10.0)
+    trials, samples = t["trials"], t["samples"]
+    trials = trials[(trials.phase == "training") | (trials.difficulty == "easy")]
+    timid = trials[trials["mode"] == "timid"]
+    offset = int(trials["trial_id"].max())
+    rng = np.random.default_rng(0)
+    linear = timid.assign(mode="linear", trial_id=timid["trial_id"] + offset,
+                          duration_s=timid["duration_s"] + rng.normal(3, 2, len(timid)))
+    linear_samples = samples[samples.trial_id.isin(timid["trial_id"])].assign(
+        trial_id=lambda d: d["trial_id"] + offset)
+    tables = from_frames(pd.concat([trials, linear], ignore_index=True),
+                         pd.concat([samples, linear_samples], ignore_index=True))
+    files = write_report(tables, tmp_path)
+    res = files.results
+    assert res.timing is not None and res.timing.factors == ("correctness", "mode")
+    assert res.timing.levels["mode"] == ("timid", "aggressive", "linear")
+    rm = res.timing.rm.table.set_index("effect")
+    assert (rm.loc["mode", "df1"], rm.loc["mode", "df2"]) == (2, 14)
+    assert 1 / 2 <= rm.loc["mode", "eps_gg"] <= 1
+    comp = res.timing.comparisons
+    assert len(comp) == 6 and set(comp["m"]) == {3} and set(comp["df"]) == {7}
+    assert res.prediction is not None and res.prediction.df_resid == 96 - 12
+    assert any("preference analysis skipped" in n for n in res.notes)
+    assert any("differs from the paper" in n for n in res.notes)
+    assert files.html.read_text().count("<svg") == 3
