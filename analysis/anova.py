@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
@@ -216,4 +216,4 @@ def covariate_anova(
     for f, lv in zip(within, cells.levels, strict=True):
         agg[f] = pd.Categorical(agg[f], categories=list(lv))
     res = factorial_anova(agg, dv=dv, factors=within, covariates=covariates, ss_type=ss_type)
-    return FactorialAnovaResult(**{**res.__dict__, "notes": cells.notes + res.notes})
+    return replace(res, notes=cells.notes + res.notes)
