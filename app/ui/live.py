@@ -108,6 +108,7 @@ class LiveSession:
 
     # -- tabs ----------------------------------------------------------------------------------
     def attach(self, page: ParticipantPage) -> None:
+        page.on_reject = lambda problem: self._event("input_rejected", {"problem": problem[:200]})
         with self._lock:
             self.page = page
             self._shown = None
@@ -149,9 +150,10 @@ class LiveSession:
         try:
             call()
         except Exception as exc:  # a stale click or bad answer: tell, log, keep running
-            self._event("input_rejected", {"action": action, "problem": str(exc)[:200]})
             if page is not None:
                 page.reject(f"{action}: {exc}")
+            else:
+                self._event("input_rejected", {"problem": f"{action}: {exc}"[:200]})
                 self._shown = None
                 self._dirty.set()
 
@@ -189,7 +191,6 @@ class LiveSession:
             source.set_target(target)
         except TeleopError as exc:
             page = self.page
-            self._event("input_rejected", {"action": "target", "problem": str(exc)[:200]})
             if page is not None:
                 page.reject(str(exc))
 

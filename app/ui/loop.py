@@ -1,8 +1,10 @@
 """A thread that calls a function at a fixed rate, paced on the monotonic clock.
 
 Deadlines are absolute: tick ``k`` is due at ``t0 + k / rate_hz``, so sleep jitter does not
-accumulate into drift. A tick that overruns by more than ``max_lag`` periods resynchronises
-(the missed ticks are counted in ``overruns``, never run in a burst). While ``paused`` the
+accumulate into drift, and a late tick is followed by the next ones without sleeping until the
+schedule is met again (simulated time keeps up with the wall clock). Only a stall longer than
+``max_lag`` periods (250 ms at 100 Hz) resynchronises: those ticks are counted in ``overruns``
+and dropped, never run in a burst. While ``paused`` the
 function is not called and the schedule restarts on resume.
 """
 
@@ -32,7 +34,7 @@ class PacedLoop:
         *,
         rate_hz: float,
         name: str = "paced-loop",
-        max_lag: float = 5.0,
+        max_lag: float = 25.0,
         history: int = 2048,
     ) -> None:
         if not rate_hz > 0:

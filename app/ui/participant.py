@@ -102,6 +102,8 @@ class ParticipantPage:
         self._commands: list[object] = []
         self.rejected: list[str] = []
         self.asks_code = False
+        self.on_reject: Callable[[str], None] | None = None
+        """Called with each rejected input's problem (the server records it as an event)."""
 
     # -- plumbing ----------------------------------------------------------------------------
     def _new_screen(self, name: str) -> int:
@@ -131,6 +133,9 @@ class ParticipantPage:
         """Tell the participant an input was ignored (the server keeps running)."""
         self.rejected.append(problem)
         LOGGER.warning("participant client %s: rejected input: %s", self.client.client_id, problem)
+        if self.on_reject is not None:
+            with contextlib.suppress(Exception):
+                self.on_reject(problem)
         with contextlib.suppress(Exception):
             self.client.add_notification(
                 "Input ignored",

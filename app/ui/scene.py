@@ -12,6 +12,8 @@ Poses come from the control thread as snapshots ``(xpos (nbody,3), xmat (nbody,9
 from __future__ import annotations
 
 import threading
+import time
+from collections import deque
 from collections.abc import Callable
 from typing import Any
 
@@ -103,13 +105,21 @@ class SceneView:
         self._scene = ViserMujocoScene(_NeutralTarget(target, self.names), model, num_envs=1)  # type: ignore[arg-type]
         self._scene.camera_tracking_enabled = False
         self._on_frame = on_frame
+        self._flush = target.flush
         self.frames_sent = 0
+        self.render_s: deque[float] = deque(maxlen=4096)
+        """Wall time of the last renders (seconds), for the server benchmark."""
 
     def render(self, xpos: np.ndarray, xmat: np.ndarray) -> None:
         """Send one frame with body poses ``xpos (nbody,3)``, ``xmat (nbody,9)``."""
+        t = time.perf_counter()
         self._scene.update_from_arrays(
             np.asarray(xpos, float)[None], np.asarray(xmat, float).reshape(1, -1, 3, 3)
         )
+        # mjviser flushes inside its atomic block, where viser cannot send yet; flushing again
+        # here sends the frame now instead of after viser's 1/60 s window.
+        self._flush()
+        self.render_s.append(time.perf_counter() - t)
         self.frames_sent += 1
         if self._on_frame is not None:
             self._on_frame()
