@@ -100,6 +100,8 @@ class LiveSession:
     def _event(self, kind: str, detail: Mapping[str, Any]) -> None:
         """Append an event to the store (UI events: tabs, refusals, rejected input)."""
         self.log.append(f"{time.strftime('%H:%M:%S')} {kind}")
+        if self._stop.is_set():
+            return  # shutting down: the store may already be closed
         try:
             with self.session.store.transaction() as tx:
                 tx.event(self.session.session_id, self.participant, kind, dict(detail))
@@ -316,6 +318,11 @@ class LiveSession:
             self._end_run()
         if self.closed and not self._closed_notified:
             self._closed_notified = True
+            if self._render is not None:
+                self._render.stop()
+                self._render = None
+            with contextlib.suppress(Exception):
+                self.session.close()  # release the lease; the record stays readable
             if self.on_closed is not None:
                 self.on_closed()
         page = self.page

@@ -64,12 +64,12 @@ def main(args: argparse.Namespace) -> int:
         render_hz=min(args.render_hz, 60.0),
         verbose=args.verbose,
     )
-    participant_url, experimenter_url = server.urls()
-    print(f"participant view:  {participant_url}", flush=True)
-    print(f"experimenter view: {experimenter_url}  (this machine only)", flush=True)
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
+    participant_url, experimenter_url = server.urls()
+    print(f"participant view:  {participant_url}", flush=True)
+    print(f"experimenter view: {experimenter_url}  (this machine only)", flush=True)
     try:
         stop.wait()
     finally:

@@ -10,6 +10,7 @@ reaches the page or its websocket. Screenshots of each phase go to tests/browser
 
 from __future__ import annotations
 
+import io
 import json
 import time
 from pathlib import Path
@@ -17,6 +18,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from PIL import Image
 from playwright.sync_api import expect
 
 from app.ui.blinding import CONDITION_WORDS
@@ -50,10 +52,15 @@ def _connect(page: Any, url: str) -> None:
 
 
 def _shot(page: Any, folder: Path, name: str) -> None:
+    """Save a small screenshot for the README (PNG with a 96-colour palette)."""
     page.wait_for_timeout(300)
     t = time.monotonic()
-    page.screenshot(path=str(folder / f"{name}.png"))
+    png = page.screenshot()
     print(f"screenshot {name}: {time.monotonic() - t:.1f} s")
+    image = Image.open(io.BytesIO(png)).convert("RGB")
+    image.quantize(colors=96, method=Image.Quantize.MEDIANCUT).save(
+        folder / f"{name}.png", optimize=True
+    )
 
 
 def _settle(page: Any, *, rounds: int = 2) -> None:
@@ -207,6 +214,7 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     page.get_by_role("button", name="Start").click()
     page.get_by_text("Grasp / release").wait_for()
     console = context.new_page()
+    console.set_viewport_size({"width": 1100, "height": 1250})
     _connect(console, study.console_url)
     srv.console.selected = code
     srv.console.session_select.value = code

@@ -1,0 +1,82 @@
+"""Enrolling from the experimenter's console, and joining with a code when several run.
+
+The experimenter enrols a participant in the console (the join code appears there) and starts
+the session with the console's Start; with two sessions open the participant's page asks for
+the code, binds to that session, and after a reload binds to it again once the code is
+re-entered.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.browser.harness import RunningServer, start_server, wait_until
+from tests.browser.test_participant_flow import _connect, _shot
+
+pytestmark = pytest.mark.browser
+
+
+@pytest.fixture
+def study(tmp_path: Path) -> Any:
+    rs = start_server(tmp_path)
+    try:
+        yield rs
+    finally:
+        rs.stop()
+
+
+def _text_input(page: Any, label: str) -> Any:
+    """viser's text input next to ``label`` (its <label for> does not name the input)."""
+    return page.locator(
+        f"xpath=//label[text()='{label}']/ancestor::div[contains(@class, 'mantine-Flex-root')][1]"
+        "//input"
+    )
+
+
+def _join(page: Any, code: str) -> None:
+    _text_input(page, "Join code").fill(code)
+    page.get_by_role("button", name="Join").click()
+    page.get_by_role("button", name="I agree").wait_for()
+
+
+def test_console_enrols_and_participant_joins_by_code(
+    study: RunningServer, context: Any, screenshots: Path
+) -> None:
+    srv = study.server
+    console = context.new_page()
+    _connect(console, study.console_url)
+    _text_input(console, "Participant ID").fill("P01")
+    console.get_by_role("button", name="Enrol and open session").click()
+    status = console.get_by_text(re.compile(r"join code"))
+    status.wait_for()
+    code = re.search(r"\d{4}", status.inner_text()).group(0)  # type: ignore[union-attr]
+    assert srv.session(code).participant == "P01"
+    assert study.store.session("P01").status == "enrolled"
+    console.get_by_role("button", name="Start", exact=True).click()
+    assert wait_until(lambda: study.store.session("P01").status == "running")
+
+    other = srv.enrol("P02")
+    srv.act(other, "start")
+
+    page = context.new_page()
+    _connect(page, study.url)
+    _text_input(page, "Join code").wait_for()
+    _shot(page, screenshots, "00-join-code")
+    _text_input(page, "Join code").fill("1")  # no such code: refused, still asking
+    page.get_by_role("button", name="Join").click()
+    page.get_by_text("Input ignored").first.wait_for()
+    _join(page, code)
+    assert srv.session(code).page is not None and srv.session(other).page is None
+
+    page.reload()
+    page.get_by_text("Connected").first.wait_for()
+    _text_input(page, "Join code").wait_for()
+    _join(page, code)
+    assert wait_until(lambda: srv.session(code).page is not None)
+    kinds = [e.kind for e in study.store.events()]
+    assert kinds.count("participant_connected") == 2
+    assert "participant_disconnected" in kinds

@@ -1,0 +1,140 @@
+"""The study server's process layout: who listens where, join codes, the serve command."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from app.ui.blinding import find_condition_words
+from app.ui.server import new_join_code
+from tests.browser.harness import ROOT, iter_strings, start_server, wait_until
+from tests.test_ui_malformed import RawClient
+
+
+def _lan_ip() -> str | None:
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            s.connect(("10.255.255.255", 1))
+            ip = str(s.getsockname()[0])
+    except OSError:
+        return None
+    return None if ip.startswith("127.") else ip
+
+
+def test_experimenter_view_listens_on_loopback_only(tmp_path: Path) -> None:
+    rs = start_server(tmp_path, host="0.0.0.0")
+    try:
+        srv = rs.server
+        assert srv.experimenter.get_host() == "127.0.0.1"
+        assert srv.participant.get_host() == "0.0.0.0"
+        ip = _lan_ip()
+        if ip is not None:  # from the LAN: participant port open, experimenter port closed
+            with socket.create_connection((ip, srv.participant_port), timeout=2):
+                pass
+            with pytest.raises(OSError):
+                socket.create_connection((ip, srv.experimenter_port), timeout=2).close()
+        participant_url, experimenter_url = srv.urls()
+        assert participant_url.endswith(f":{srv.participant_port}")
+        assert experimenter_url == f"http://127.0.0.1:{srv.experimenter_port}"
+    finally:
+        rs.stop()
+
+
+def test_participant_socket_carries_nothing_of_the_console(tmp_path: Path) -> None:
+    """A tab on the participant port gets the participant page only: no console, no
+    condition, even while the console shows them for a running session."""
+    rs = start_server(tmp_path)
+    srv = rs.server
+    try:
+        code = srv.enrol("P01")
+        srv.act(code, "start")
+        srv.console.selected = code
+        srv.console.refresh()
+        assert "easy" in srv.console.schedule_md.content  # the console does show conditions
+
+        async def run() -> list[str]:
+            async with RawClient(srv.participant_port) as c:
+                await c.button("I agree")
+                await asyncio.sleep(0.5)
+                return [s for m in c.messages for s in iter_strings(m)]
+
+        strings = asyncio.run(run())
+        assert any("agree" in s for s in strings)
+        for marker in ("Experimenter console", "Enrol", "Withdraw", "Arbitration", code):
+            assert not any(marker in s for s in strings), marker
+        assert not any(find_condition_words(s) for s in strings)
+    finally:
+        rs.stop()
+
+
+def test_join_codes_are_short_distinct_digits() -> None:
+    taken: set[str] = set()
+    for _ in range(200):
+        code = new_join_code(taken)
+        assert code.isdigit() and len(code) == 4 and code not in taken
+        taken.add(code)
+
+
+def test_several_sessions_ask_for_the_code_and_a_wrong_code_is_refused(tmp_path: Path) -> None:
+    rs = start_server(tmp_path)
+    srv = rs.server
+    try:
+        codes = [srv.enrol(p) for p in ("P01", "P02")]
+        for code in codes:
+            srv.act(code, "start")
+
+        async def run() -> None:
+            async with RawClient(srv.participant_port) as c:
+                join = await c.button("Join")
+                text = await c.wait_for(lambda m: m.get("type") == "GuiTextMessage")
+                for value in ("0000", codes[1]):
+                    await c.send("GuiUpdateMessage", uuid=text["uuid"], updates={"value": value})
+                    await asyncio.sleep(0.2)
+                    await c.send("GuiUpdateMessage", uuid=join, updates={"value": True})
+                    await asyncio.sleep(0.5)
+                await c.button("I agree")
+                assert c.notices() >= 1  # the wrong code was refused with a notice
+                assert srv.session(codes[1]).page is not None
+                assert srv.session(codes[0]).page is None
+
+        asyncio.run(run())
+        assert wait_until(lambda: srv.session(codes[1]).page is None)  # tab gone -> unbound
+    finally:
+        rs.stop()
+
+
+def test_serve_command_prints_both_urls_and_stops_cleanly(tmp_path: Path) -> None:
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    proc = subprocess.Popen(
+        [
+            sys.executable, "-m", "app", "serve",
+            "--protocol", str(ROOT / "protocols" / "dragan2013.toml"),
+            "--db", str(tmp_path / "study.db"),
+            "--port", "0", "--experimenter-port", "0",
+        ],
+        cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+    )  # fmt: skip
+    try:
+        lines: list[str] = []
+        deadline = time.monotonic() + 60
+        assert proc.stdout is not None
+        while time.monotonic() < deadline and not any("experimenter view" in ln for ln in lines):
+            line = proc.stdout.readline()
+            if not line:
+                break
+            lines.append(line)
+        text = "".join(lines)
+        assert "participant view:  http://" in text, text
+        assert "experimenter view: http://127.0.0.1:" in text, text
+        assert (tmp_path / "study.db").exists()
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=30) == 0
