@@ -1,0 +1,67 @@
+"""The participant's gizmo and keys combine into one input source without fighting."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from app.teleop import ReachRegion, TrialObservation
+from app.teleop.errors import InvalidTargetError
+from app.ui.inputs import ParticipantInput
+from app.ui.participant import InputRejected, LikertItem, parse_answer, parse_position
+
+REACH = ReachRegion(np.array([0.2, -0.5, 0.0]), np.array([0.75, 0.5, 0.6]))
+
+
+def _obs(user_target: np.ndarray) -> TrialObservation:
+    return TrialObservation(
+        t=0.0,
+        q=np.zeros(7),
+        ee=user_target.copy(),
+        gripper_closed=False,
+        user_target=user_target,
+        reach=REACH,
+        goal_names=("a", "b"),
+        goal_positions=np.zeros((2, 3)),
+        target_index=0,
+    )
+
+
+def test_gizmo_pose_wins_then_keys_move_from_the_clamped_target() -> None:
+    src = ParticipantInput(start_target=np.array([0.4, 0.0, 0.3]), key_step_m=0.02)
+    src.set_target(np.array([0.5, 0.1, 0.9]))  # above the reach: the trial clamps it
+    cmd = src.command(_obs(np.array([0.4, 0.0, 0.3])))
+    assert np.allclose(cmd.target, [0.5, 0.1, 0.9]) and len(src.latencies_s) == 1
+    src.nudge(np.array([0.0, 0.0, -0.02]))
+    cmd = src.command(_obs(np.array([0.5, 0.1, 0.6])))
+    assert np.allclose(cmd.target, [0.5, 0.1, 0.58])  # from the clamped 0.6, not from 0.9
+    assert src.key_moved.is_set() and np.allclose(src.gizmo.target, [0.5, 0.1, 0.58])
+    cmd = src.command(_obs(np.array([0.5, 0.1, 0.58])))  # nothing new: the target holds
+    assert np.allclose(cmd.target, [0.5, 0.1, 0.58]) and not cmd.grasp
+
+
+def test_grasp_request_lasts_one_tick() -> None:
+    src = ParticipantInput(start_target=np.array([0.4, 0.0, 0.3]))
+    src.request_grasp()
+    assert src.command(_obs(np.array([0.4, 0.0, 0.3]))).grasp
+    assert not src.command(_obs(np.array([0.4, 0.0, 0.3]))).grasp
+
+
+def test_bad_gizmo_pose_is_refused_and_changes_nothing() -> None:
+    src = ParticipantInput(start_target=np.array([0.4, 0.0, 0.3]))
+    with pytest.raises(InvalidTargetError):
+        src.set_target(np.array([np.nan, 0.0, 0.3]))
+    assert np.allclose(src.gizmo.target, [0.4, 0.0, 0.3]) and len(src.latencies_s) == 0
+    with pytest.raises(InputRejected, match="finite"):
+        parse_position((0.1, float("inf"), 0.2))
+    with pytest.raises(InputRejected):
+        parse_position((0.1, 0.2))
+
+
+def test_answers_must_be_on_the_scale() -> None:
+    assert parse_answer("7", points=7) == 7
+    for bad in ("8", "0", "-1", "4.5", "x", ""):
+        with pytest.raises(InputRejected):
+            parse_answer(bad, points=7)
+    item = LikertItem("helpful", "How helpful?", tuple(f"a{k}" for k in range(1, 8)))
+    assert item.points == 7 and item.anchor_text() == "1 = a1 · 4 = a4 · 7 = a7"
