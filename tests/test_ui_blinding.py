@@ -9,7 +9,7 @@ import websockets
 
 from app.ui import blinding
 from app.ui.blinding import BlindingGuard, BlindingViolation, check_text, find_condition_words
-from tests.browser.harness import decode_frame, iter_strings
+from tests.browser.harness import decode_frame, iter_strings, run_async
 
 
 def received_messages(port: int, *, seconds: float = 1.0) -> list[dict]:
@@ -29,7 +29,7 @@ def received_messages(port: int, *, seconds: float = 1.0) -> list[dict]:
                     break
         return out
 
-    return asyncio.run(run())
+    return run_async(run())
 
 
 def test_every_condition_word_is_found_case_insensitively() -> None:

@@ -20,7 +20,7 @@ import msgspec
 import viser
 import websockets
 
-from tests.browser.harness import decode_frame, start_server, wait_until
+from tests.browser.harness import decode_frame, run_async, start_server, wait_until
 
 
 class RawClient:
@@ -183,7 +183,7 @@ def test_malformed_client_messages_are_rejected_and_the_server_keeps_running(
                 assert {r.value for r in rs.store.ratings()} == {6}
                 await c.ws.send(b"\x00\x01 not msgpack")
 
-        asyncio.run(scenario())
+        run_async(scenario())
         # The server still serves: a new client connects and gets the page.
         assert wait_until(lambda: live.page is None, timeout=5)
 
@@ -191,7 +191,7 @@ def test_malformed_client_messages_are_rejected_and_the_server_keeps_running(
             async with RawClient(srv.participant_port) as c:
                 await c.button("Start")
 
-        asyncio.run(second())
+        run_async(second())
         assert "input_rejected" in _kinds(rs.store)
         assert srv.guard.violations == []
     finally:

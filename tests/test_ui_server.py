@@ -15,7 +15,7 @@ import pytest
 
 from app.ui.blinding import find_condition_words
 from app.ui.server import new_join_code
-from tests.browser.harness import ROOT, iter_strings, start_server, wait_until
+from tests.browser.harness import ROOT, iter_strings, run_async, start_server, wait_until
 from tests.test_ui_malformed import RawClient
 
 
@@ -66,7 +66,7 @@ def test_participant_socket_carries_nothing_of_the_console(tmp_path: Path) -> No
                 await asyncio.sleep(0.5)
                 return [s for m in c.messages for s in iter_strings(m)]
 
-        strings = asyncio.run(run())
+        strings = run_async(run())
         assert any("agree" in s for s in strings)
         for marker in ("Experimenter console", "Enrol", "Withdraw", "Arbitration", code):
             assert not any(marker in s for s in strings), marker
@@ -105,7 +105,7 @@ def test_several_sessions_ask_for_the_code_and_a_wrong_code_is_refused(tmp_path:
                 assert srv.session(codes[1]).page is not None
                 assert srv.session(codes[0]).page is None
 
-        asyncio.run(run())
+        run_async(run())
         assert wait_until(lambda: srv.session(codes[1]).page is None)  # tab gone -> unbound
     finally:
         rs.stop()

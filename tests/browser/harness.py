@@ -92,6 +92,21 @@ class FrameLog:
     def strings(self) -> list[str]:
         return [s for m in self.messages() for s in iter_strings(m)]
 
+    def raw_bytes(self) -> bytes:
+        """Every frame's decompressed msgpack plus its binary buffers (meshes, arrays),
+        lower-cased: what a byte-level search for a word must look through."""
+        with self.lock:
+            frames = [payload for _, payload in self.frames]
+        parts = []
+        for payload in frames:
+            inner_len = int.from_bytes(payload[0:8], "little")
+            comp_len = int.from_bytes(payload[8:16], "little")
+            inner = zstandard.ZstdDecompressor().decompress(
+                payload[16 : 16 + comp_len], max_output_size=inner_len
+            )
+            parts.append(inner + payload[16 + comp_len :])
+        return b"\n".join(parts).lower()
+
 
 def project(camera: viser.CameraHandle, point: np.ndarray) -> tuple[float, float]:
     """Pixel (x, y) of world ``point`` in ``camera``'s image (OpenCV camera axes)."""
@@ -187,3 +202,24 @@ def start_server(directory: Any, *, host: str = "127.0.0.1", **protocol_kw: Any)
     store = open_store(Path(directory) / "study.db", protocol)
     server = StudyServer(session_factory(store, protocol), host=host, port=0, experimenter_port=0)
     return RunningServer(server, store, protocol)
+
+
+def run_async(coro: Any) -> Any:
+    """``asyncio.run(coro)`` in a fresh thread: works even when the calling thread already
+    runs an event loop (sync Playwright keeps one alive while a browser fixture is open)."""
+    import asyncio
+
+    box: dict[str, Any] = {}
+
+    def target() -> None:
+        try:
+            box["value"] = asyncio.run(coro)
+        except BaseException as exc:
+            box["error"] = exc
+
+    thread = threading.Thread(target=target, name="run-async")
+    thread.start()
+    thread.join()
+    if "error" in box:
+        raise box["error"]
+    return box.get("value")

@@ -252,6 +252,9 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     strings = frames.strings() + intruder_frames.strings()
     assert len(strings) > 100
     _texts_ok(strings)
+    raw = frames.raw_bytes() + intruder_frames.raw_bytes()  # incl. mesh (GLB) buffers
+    for word in CONDITION_WORDS:
+        assert word.encode() not in raw, word
     assert srv.guard.violations == []
     for marker in EXPERIMENTER_ONLY:
         assert not any(marker in s for s in strings), marker
