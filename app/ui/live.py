@@ -31,7 +31,7 @@ from app.ui.experimenter import SessionDetail, SessionSummary
 from app.ui.inputs import ParticipantInput
 from app.ui.loop import PacedLoop
 from app.ui.participant import LikertItem, ParticipantPage
-from app.ui.scene import SceneView
+from app.ui.scene import SceneView, frame_task, task_center
 
 LOGGER = logging.getLogger("app.ui.live")
 
@@ -275,6 +275,10 @@ class LiveSession:
                 self._view = SceneView(page.client, sim.model)
                 self._view_key = key
                 self._rendered_seq = -1
+                center, distance = task_center(
+                    np.vstack([scene.start_ee, np.asarray(scene.goals.positions, float)])
+                )
+                frame_task(page.client.camera, look_at=center, distance=distance)
             self._view.render(sim.data.xpos, sim.data.xmat)
 
     def _render_step(self) -> None:

@@ -87,6 +87,15 @@ def frame_task(
     camera.look_at = tuple(np.asarray(look_at, float))
 
 
+def task_center(points: np.ndarray) -> tuple[np.ndarray, float]:
+    """Where to look and from how far: the centre of ``points`` (the start of the gripper and
+    the objects, (n, 3)) and a distance that keeps them all in view."""
+    pts = np.asarray(points, float).reshape(-1, 3)
+    center = pts.mean(axis=0)
+    spread = float(np.max(np.linalg.norm(pts - center, axis=1))) if len(pts) > 1 else 0.3
+    return center, max(1.1, 1.0 + 2.0 * spread)
+
+
 class SceneView:
     """One participant's view of one simulated scene (per-client nodes, neutral names)."""
 

@@ -52,7 +52,11 @@ def _connect(page: Any, url: str) -> None:
 
 
 def _shot(page: Any, folder: Path, name: str) -> None:
-    """Save a small screenshot for the README (PNG with a 96-colour palette)."""
+    """Save a small screenshot for the README (PNG with a 96-colour palette), without the
+    viser client's own software-WebGL notice."""
+    notice = page.locator(".mantine-Notification-root button")
+    for k in range(notice.count()):
+        notice.nth(k).click()
     page.wait_for_timeout(300)
     t = time.monotonic()
     png = page.screenshot()
