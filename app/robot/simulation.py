@@ -98,18 +98,21 @@ class Simulation:
 
         The velocity servos get ``(command - q) / (substeps dt)``: reach the command in one tick.
         """
-        command = np.asarray(command, dtype=float)
+        if type(command) is not np.ndarray or command.dtype != np.float64:
+            command = np.asarray(command, dtype=float)
         if command.shape != (7,) or not math.isfinite(command.sum()):
             raise SimulationError(f"command must be 7 finite joint angles, got {command!r}")
-        data = self.data
-        target = np.minimum(np.maximum(command, self._lower), self._upper)
+        data, model = self.data, self.model
+        span = substeps * model.opt.timestep
         ctrl = data.ctrl
-        ctrl[8:15] = (target - data.qpos[:7]) * (1.0 / (substeps * self.model.opt.timestep))
-        ctrl[:7] = target
+        target = ctrl[:7]  # written in place: clip(command, lower, upper)
+        np.clip(command, self._lower, self._upper, out=target)
+        np.subtract(target, data.qpos[:7], out=ctrl[8:15])
+        ctrl[8:15] *= 1.0 / span
         ctrl[7] = ctrl[15] = 0.0 if gripper_closed else self._open
-        expected = data.time + substeps * self.model.opt.timestep
-        mujoco.mj_step(self.model, data, nstep=substeps)
-        mujoco.mj_kinematics(self.model, data)  # poses of the new qpos, not the last step's
+        expected = data.time + span
+        mujoco.mj_step(model, data, nstep=substeps)
+        mujoco.mj_kinematics(model, data)  # poses of the new qpos, not the last step's
         # MuJoCo resets a diverging simulation (bad acceleration) to time 0: catch that too.
         if not math.isfinite(data.qpos[0]) or data.time < expected - 1e-9:
             raise SimulationError("physics diverged (non-finite state); the trial cannot go on")

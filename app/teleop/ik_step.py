@@ -16,6 +16,8 @@ from scipy.linalg.lapack import dposv
 
 from app.robot.kinematics import Kinematics, downward_rotation
 
+_WORLD_ALIGNED = pin.LOCAL_WORLD_ALIGNED
+
 
 class IKStep:
     """Velocity-limited damped-least-squares step of the TCP toward a target position."""
@@ -57,17 +59,19 @@ class IKStep:
         max_speed: float | None = None,
     ) -> np.ndarray:
         """Next configuration ``U`` (7,) moving the TCP from ``phi(q)`` toward ``target`` (3,)."""
-        x, rot, jac = self.kin.pose_and_jacobian(q)
+        kin = self.kin
+        jac = pin.computeFrameJacobian(kin.model, kin.data, q, kin.frame_id, _WORLD_ALIGNED)
+        placement = kin.data.oMf[kin.frame_id]  # computed by the Jacobian's kinematics pass
         twist = self._twist
         v = twist[:3]
-        np.subtract(target, x, out=v)
+        np.subtract(target, placement.translation, out=v)
         v *= self.gain
         speed = math.sqrt(v.dot(v))
         limit = self.max_speed if max_speed is None else max_speed
         if speed > limit:
             v *= limit / speed
         w = twist[3:]
-        w[:] = pin.log3((self.rotation if rotation is None else rotation) @ rot.T)
+        w[:] = pin.log3((self.rotation if rotation is None else rotation) @ placement.rotation.T)
         w *= self.rotation_gain
         wn = math.sqrt(w.dot(w))
         if wn > self.max_angular_speed:
@@ -75,9 +79,12 @@ class IKStep:
         z = None
         if self.posture is not None:
             # dq = J+ twist + (I - J+ J) z  =  z + J+ (twist - J z), z the posture velocity
-            z = self.posture_gain * (self.posture - q)
+            z = self.posture - q
+            z *= self.posture_gain
             twist -= jac @ z
-        _, y, info = dposv(jac @ jac.T + self._damp, twist)  # (J J^T + l^2 I) y = twist
+        jjt = jac @ jac.T
+        jjt += self._damp
+        _, y, info = dposv(jjt, twist, overwrite_a=1)  # (J J^T + l^2 I) y = twist
         if info != 0:  # pragma: no cover - J J^T + l^2 I is positive definite
             return q.copy()
         dq = jac.T @ y
@@ -88,4 +95,4 @@ class IKStep:
         if biggest > self.max_joint_step:
             dq *= self.max_joint_step / biggest
         dq += q
-        return np.minimum(np.maximum(dq, self.kin.lower), self.kin.upper)
+        return dq.clip(kin.lower, kin.upper, out=dq)

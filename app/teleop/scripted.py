@@ -60,13 +60,16 @@ class ScriptedInput:
         dt = 1.0 / obs.rate_hz
         goal = obs.target_index if self.goal is None else self.goal
         grasp_point = obs.goal_positions[goal]
-        hover = grasp_point + np.array([0.0, 0.0, self.approach_height])
+        hover = grasp_point.copy()
+        hover[2] += self.approach_height
         if self._target is None:
             self._target = obs.ee.copy()
         stalled = self._stalled(obs)
         if self._phase == "hover":
+            ee = obs.ee
             near = (
-                np.linalg.norm(obs.ee[:2] - hover[:2]) < 0.015 and abs(obs.ee[2] - hover[2]) < 0.03
+                math.hypot(ee[0] - hover[0], ee[1] - hover[1]) < 0.015
+                and abs(ee[2] - hover[2]) < 0.03
             )
             if near or stalled:
                 self._phase = "descend"
@@ -80,7 +83,7 @@ class ScriptedInput:
         self._target = self._target + step
         if self.noise > 0:
             a = math.exp(-dt / self.noise_time_s)
-            self._offset = a * self._offset + math.sqrt(1 - a * a) * self.noise * (
+            self._offset = a * self._offset + (math.sqrt(1 - a * a) * self.noise) * (
                 self.rng.standard_normal(3)
             )
         grasp = False

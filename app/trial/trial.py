@@ -59,6 +59,8 @@ class Trial:
         scene: Scene | None = None,
     ) -> None:
         self.config = config
+        self._dt = config.dt
+        self._substeps = config.substeps
         self.input_source = input_source
         self.seed = seed
         self.scene = scene if scene is not None else build_scene(config.scene)
@@ -83,6 +85,10 @@ class Trial:
         self._knocked: set[int] = set()
         n = len(self.scene.goals)
         self.user_target = self.scene.start_ee.copy()
+        # the state after the last physics step (fresh arrays each tick, never written to):
+        # read once per tick, shared by the next observation, the control step and the record
+        self._q = self.sim.q
+        self._ee = self.sim.ee
         self._last = (0.0, 0.0, np.full(n, 1.0 / n), -1)
         self.records: list[TickRecord] = []
         self.events: list[tuple[float, str]] = []
@@ -91,7 +97,7 @@ class Trial:
     @property
     def t(self) -> float:
         """Simulated time, seconds (pauses excluded)."""
-        return self.ticks * self.config.dt
+        return self.ticks * self._dt
 
     @property
     def done(self) -> bool:
@@ -138,8 +144,8 @@ class Trial:
         held = self._held
         return TrialObservation(
             t=self.t,
-            q=self.sim.q,
-            ee=self.sim.ee,
+            q=self._q.copy(),
+            ee=self._ee.copy(),
             gripper_closed=self._phase in ("closing", "lifting"),
             user_target=self.user_target.copy(),
             reach=self.scene.reach,
@@ -191,7 +197,7 @@ class Trial:
                 return None
             events: list[str] = self._pause_events
             self._pause_events = []
-            q = self.sim.q
+            q = self._q
             cmd = self._ask_input(events)
             self._set_user_target(cmd, events)
             request = cmd.grasp and not self._grasp_prev
@@ -201,14 +207,18 @@ class Trial:
                 self.sim.step(
                     command,
                     gripper_closed=self._phase in ("closing", "lifting"),
-                    substeps=self.config.substeps,
+                    substeps=self._substeps,
                 )
             except SimulationError as exc:  # pragma: no cover - guarded by clipping
                 events.append(f"physics_error:{exc}")
                 self.ticks += 1
+                self._q = self.sim.q
+                self._ee = self.sim.ee
                 self._finish("aborted", events)
                 return self._record(q, q, q, events)
             self.ticks += 1
+            self._q = self.sim.q
+            self._ee = self.sim.ee
             self._judge(events)
             if not self.done and self.t >= self.config.time_limit_s - 1e-9:
                 self._finish("timeout", events)
@@ -270,6 +280,9 @@ class Trial:
             events.append(event)
 
     def _judge(self, events: list[str]) -> None:
+        check_tilts = self.ticks % 10 == 0
+        if self._phase == "reach" and not check_tilts:
+            return  # nothing to judge while reaching, except now and then a knocked object
         t = self.t
         names = self.scene.object_names
         if self._phase == "closing" and t - self._phase_t >= CLOSE_S:
@@ -299,7 +312,7 @@ class Trial:
             elif t - self._phase_t >= LIFT_TIMEOUT_S:
                 events.append(f"lift_failed:{names[i]}")
                 self._finish("dropped", events)
-        if self.ticks % 10 == 0 and not self.done:
+        if check_tilts and not self.done:
             for i in np.flatnonzero(self.sim.object_tilts() > TILT_RAD):
                 if int(i) not in self._knocked:
                     self._knocked.add(int(i))
@@ -322,13 +335,14 @@ class Trial:
         if self._phase != "reach":
             alpha = 0.0
         t = self.t
-        self.events.extend((t, e) for e in events)
+        if events:
+            self.events.extend((t, e) for e in events)
         # u, p, command, probabilities and user_target are fresh arrays each tick (or the
         # unchanging hold configuration), never written to afterwards: no copies needed.
         rec = TickRecord(
             tick=self.ticks,
             t=t,
-            q=self.sim.q,
+            q=self._q,
             u=u,
             p=p,
             command=command,
@@ -337,7 +351,7 @@ class Trial:
             probabilities=probabilities,
             predicted=int(predicted),
             user_target=self.user_target,
-            ee=self.sim.ee,
+            ee=self._ee,
             gripper=self.sim.gripper_opening,
             events=tuple(events),
         )
