@@ -100,14 +100,15 @@ def main() -> int:
 
     # 2. whole trials, as fast as possible
     sim_s = 0.0
-    outcomes: dict[str, int] = {}
+    outcomes: dict[str, dict[str, int]] = {}  # per mode ("none": unassisted, Hard fails)
     start = time.perf_counter()
     cpu_start = time.process_time()
     for cfg in configs:
         for seed in seeds:
             result = run_trial(cfg, ScriptedInput(seed=seed + 100), seed=seed)
             sim_s += result.duration_s
-            outcomes[result.outcome] = outcomes.get(result.outcome, 0) + 1
+            counts = outcomes.setdefault(cfg.mode or "none", {})
+            counts[result.outcome] = counts.get(result.outcome, 0) + 1
     wall_s = time.perf_counter() - start
     cpu_s = time.process_time() - cpu_start
     rtf = sim_s / wall_s
@@ -132,7 +133,7 @@ def main() -> int:
         f"  ({cpu_s:.2f} s of this process's CPU -> {rtf_cpu:.1f}x per CPU second;"
         f" load average {load:.1f} on {os.cpu_count()} cores while measuring)"
     )
-    print(f"outcomes: {outcomes}")
+    print(f"outcomes per mode: {outcomes}")
     print(
         json.dumps(
             {
@@ -142,6 +143,7 @@ def main() -> int:
                 "load_average": load,
                 "parts_us": parts,
                 "trial_setup_ms": setup["median"] / 1e6,
+                "outcomes": outcomes,
                 "ticks": len(ticks),
                 "substeps": configs[0].substeps,
                 "rate_hz": configs[0].rate_hz,

@@ -69,6 +69,25 @@ def test_knocking_the_target_over_ends_the_trial(config) -> None:
     assert "knocked_over:bottle" in result.records[-1].events
 
 
+def test_observation_follows_objects_that_move(config) -> None:
+    # The user sees where the objects are now: a lifted bottle's centre and grasp point rise.
+    trial = Trial(config("easy-right", "none", time_limit_s=30), ScriptedInput(seed=0))
+    start = trial.observation()
+    bottle = start.target_index
+    np.testing.assert_allclose(start.grasp_points, start.goal_positions)
+    np.testing.assert_allclose(start.object_positions[bottle], [0.55, 0.3, 0.08], atol=1e-6)
+    rises = []
+    while not trial.done:
+        trial.tick()
+        if trial.outcome is None:
+            obs = trial.observation()
+            rises.append(obs.object_positions[bottle, 2] - 0.08)
+            lift = obs.grasp_points - obs.goal_positions
+            np.testing.assert_allclose(lift, obs.object_positions - start.object_positions)
+    assert trial.outcome == "success" and max(rises) > 0.03
+    np.testing.assert_allclose(trial.observation().goal_positions, start.goal_positions)
+
+
 def test_aggressive_gives_more_help_than_timid(config) -> None:
     peak = {}
     for mode in ("timid", "aggressive"):

@@ -48,6 +48,7 @@ class Simulation:
         self._body_of_geom = self.model.geom_bodyid
         self._qadr = np.array(scene.object_qpos_addr)
         self._rest_xpos = np.zeros((len(scene.object_body_ids), 3))
+        self._any_live = False
         self._open = min(scene.spec.gripper_open, GRIPPER_MAX)
         if scene.gripper_actuator_id != 7:  # pragma: no cover - fixed by Arm.spec()
             raise SimulationError("the gripper actuator must be ctrl[7]")
@@ -143,6 +144,7 @@ class Simulation:
         m.body_contype[self._object_bodies] = contype  # the broadphase filters bodies first
         m.body_conaffinity[self._object_bodies] = affinity
         m.body_gravcomp[self._object_bodies] = np.where(live, 0.0, 1.0)
+        self._any_live = bool(live.any())
         for k in np.flatnonzero(~live):
             self.data.qvel[self._object_dofs[6 * k : 6 * k + 6]] = 0.0
 
@@ -150,6 +152,16 @@ class Simulation:
         """Indices of the objects whose centre lies within ``radius`` of ``point`` in the xy plane."""
         xy = self.data.xpos[self._object_bodies, :2] - np.asarray(point)[:2]
         return [int(k) for k in np.flatnonzero(np.hypot(xy[:, 0], xy[:, 1]) < radius)]
+
+    @property
+    def objects_live(self) -> bool:
+        """True while any object is live; resting objects stay exactly where they are."""
+        return self._any_live
+
+    @property
+    def rest_positions(self) -> np.ndarray:
+        """Object centres (n, 3) as the scene placed them (at the last ``reset``)."""
+        return self._rest_xpos
 
     def object_positions(self) -> np.ndarray:
         """Object centres (n, 3) in the order of the scene's objects."""

@@ -31,7 +31,10 @@ class TrialObservation:
     ``q``: arm configuration (7,); ``ee``: end-effector (tool centre point) position (3,);
     ``user_target``: last clamped target (3,); ``goal_positions``: (n, 3) grasp points in the
     order of ``goal_names``; ``target_index``: which goal the participant was asked to pick up;
-    ``alpha``/``predicted``: the last arbitration value and predicted goal index.
+    ``alpha``/``predicted``: the last arbitration value and predicted goal index;
+    ``object_positions``: the objects' centres now (n, 3), same order; ``grasp_points``: the
+    grasp points now (n, 3), ``goal_positions`` moved with their objects (a nudged object is
+    re-aimed at there; defaults to ``goal_positions``). Arrays are read-only views of the trial.
     """
 
     t: float
@@ -47,6 +50,12 @@ class TrialObservation:
     predicted: int = -1
     grasped: str | None = None
     rate_hz: float = 100.0
+    object_positions: np.ndarray | None = None
+    grasp_points: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.grasp_points is None:
+            object.__setattr__(self, "grasp_points", self.goal_positions)
 
 
 @runtime_checkable

@@ -89,6 +89,8 @@ class Trial:
         # read once per tick, shared by the next observation, the control step and the record
         self._q = self.sim.q
         self._ee = self.sim.ee
+        self._object_positions = self.sim.object_positions()
+        self._grasp_points = self.scene.goals.positions
         self._last = (0.0, 0.0, np.full(n, 1.0 / n), -1)
         self.records: list[TickRecord] = []
         self.events: list[tuple[float, str]] = []
@@ -156,7 +158,15 @@ class Trial:
             predicted=predicted,
             grasped=None if held is None else self.scene.object_names[held],
             rate_hz=self.config.rate_hz,
+            object_positions=self._object_positions,
+            grasp_points=self._grasp_points,
         )
+
+    def _objects_moved(self) -> None:
+        """Refresh the objects' positions and the grasp points that move with them."""
+        pos = self.sim.object_positions()
+        self._object_positions = pos
+        self._grasp_points = self.scene.goals.positions + (pos - self.sim.rest_positions)
 
     def result(self) -> TrialResult:
         return TrialResult(
@@ -219,6 +229,8 @@ class Trial:
             self.ticks += 1
             self._q = self.sim.q
             self._ee = self.sim.ee
+            if self.sim.objects_live:
+                self._objects_moved()
             self._judge(events)
             if not self.done and self.t >= self.config.time_limit_s - 1e-9:
                 self._finish("timeout", events)

@@ -92,7 +92,7 @@ class SimulatedUser:
             self._goal_point = self._goal(obs)
             self._start(obs)
         assert self._view is not None
-        goal = self._goal_point
+        goal = self._goal(obs)  # where the object is now: a nudged object is re-aimed at
         lo, hi = obs.reach.lo, obs.reach.hi
         dt = 1.0 / obs.rate_hz if self._t_prev is None else max(obs.t - self._t_prev, 0.0)
         self._t_prev = obs.t
@@ -202,7 +202,7 @@ class SimulatedUser:
         return gap
 
     def _goal(self, obs: TrialObservation) -> np.ndarray:
-        positions = np.asarray(obs.goal_positions, dtype=float)
+        positions = np.asarray(obs.grasp_points, dtype=float)
         if not 0 <= obs.target_index < len(positions):
             raise ObservationError(
                 f"target_index {obs.target_index} does not index the {len(positions)} goals"
