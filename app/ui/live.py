@@ -246,12 +246,7 @@ class LiveSession:
         if run is None or source is None:
             return
         trial = run.trial
-        key = (page.client.client_id, str(trial.scene.name))
-        if self._view_key != key:
-            page.client.scene.reset()
-            self._view = SceneView(page.client, trial.sim.model)
-            self._view_key = key
-            self._rendered_seq = -1
+        self._ensure_view(page, trial.scene, trial.sim.model)
         start = source.last_target if source.last_target is not None else trial.user_target
         page.add_gizmo(np.asarray(start, float), on_target=self._on_target)
         page.add_keys(on_nudge=self._on_nudge, on_grasp=self._grasp)
@@ -269,17 +264,23 @@ class LiveSession:
         scene = build_scene(config.scene)
         sim = Simulation(scene, physics_dt=config.physics_dt)
         with self._lock:
-            key = (page.client.client_id, str(scene.name))
-            if self._view_key != key:
-                page.client.scene.reset()
-                self._view = SceneView(page.client, sim.model)
-                self._view_key = key
-                self._rendered_seq = -1
-                center, distance = task_center(
-                    np.vstack([scene.start_ee, np.asarray(scene.goals.positions, float)])
-                )
-                frame_task(page.client.camera, look_at=center, distance=distance)
-            self._view.render(sim.data.xpos, sim.data.xmat)
+            view = self._ensure_view(page, scene, sim.model)
+            view.render(sim.data.xpos, sim.data.xmat)
+
+    def _ensure_view(self, page: ParticipantPage, scene: Any, model: Any) -> SceneView:
+        """The tab's view of ``scene``: rebuilt (and the camera framed on the task) when the
+        tab or the scene changed (``self._lock`` held)."""
+        key = (page.client.client_id, str(scene.name))
+        if self._view is None or self._view_key != key:
+            page.client.scene.reset()
+            self._view = SceneView(page.client, model)
+            self._view_key = key
+            self._rendered_seq = -1
+            center, distance = task_center(
+                np.vstack([scene.start_ee, np.asarray(scene.goals.positions, float)])
+            )
+            frame_task(page.client.camera, look_at=center, distance=distance)
+        return self._view
 
     def _render_step(self) -> None:
         view, snap, page, source = self._view, self._snapshot, self.page, self._input
