@@ -11,6 +11,7 @@ Keyboard (second input): W/S move the target away/back, A/D sideways, R/F up/dow
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import logging
 import threading
@@ -282,12 +283,15 @@ class ParticipantPage:
             )
             self._gizmo = gizmo
 
+        # async: runs on viser's event loop in arrival order (thread-pool callbacks may run
+        # out of order, and a stale pose must never overwrite a newer one); ``on_target`` only
+        # takes a lock. A rejection (notice + store event) goes to a worker thread.
         @gizmo.on_update
-        def _(event: object) -> None:
+        async def _(event: object) -> None:
             try:
                 target = parse_position(gizmo.position)
             except InputRejected as exc:
-                self.reject(str(exc))
+                asyncio.get_running_loop().run_in_executor(None, self.reject, str(exc))
                 return
             on_target(target)
 
