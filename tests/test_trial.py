@@ -64,9 +64,27 @@ def test_hard_task_needs_assistance(config, task: str) -> None:
 
 
 def test_knocking_the_target_over_ends_the_trial(config) -> None:
+    trial = Trial(config("easy-right", "timid", time_limit_s=30), ScriptedInput(seed=0))
+    for _ in range(20):
+        trial.tick()
+    assert not trial.done
+    trial.sim.set_grip_contacts(True)  # the bottle comes alive and is tipped onto its side
+    adr = trial.scene.object_qpos_addr[trial.scene.target_index]
+    trial.sim.data.qpos[adr + 2] = 0.03
+    trial.sim.data.qpos[adr + 3 : adr + 7] = [np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0]
+    while not trial.done:
+        trial.tick()
+    assert trial.outcome == "dropped" and trial.t < 0.5
+    assert "knocked_over:bottle" in trial.records[-1].events
+
+
+def test_unassisted_rim_grasp_in_the_hard_task_slips_gently(config) -> None:
+    # At the reach limit the fingers close on the bottle's near rim: it slips out when
+    # lifted, but the gripper closes gently enough not to fling the bottle away.
     result = run_trial(config("hard-right", "none", time_limit_s=30), ScriptedInput(seed=0))
     assert result.outcome == "dropped"
-    assert "knocked_over:bottle" in result.records[-1].events
+    assert "dropped:bottle" in result.records[-1].events
+    assert not any(e.startswith("knocked_over") for _, e in result.events)
 
 
 def test_observation_follows_objects_that_move(config) -> None:

@@ -24,6 +24,7 @@ from app.robot.errors import RobotError
 from app.robot.scene import Scene
 
 _BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
+GRIPPER_SPEED = 0.15  # m/s per finger, how fast the gripper's setpoint opens or closes
 
 
 class SimulationError(RobotError):
@@ -110,7 +111,16 @@ class Simulation:
         np.clip(command, self._lower, self._upper, out=target)
         np.subtract(target, data.qpos[:7], out=ctrl[8:15])
         ctrl[8:15] *= 1.0 / span
-        ctrl[7] = ctrl[15] = 0.0 if gripper_closed else self._open
+        # the fingers' setpoint moves at GRIPPER_SPEED (a real hand closes gently; a setpoint
+        # jump would slam the fingers into the object at about 1 m/s and fling it away)
+        goal = 0.0 if gripper_closed else self._open
+        setpoint = ctrl[7]
+        if setpoint != goal:
+            reach = GRIPPER_SPEED * span
+            setpoint = (
+                max(goal, setpoint - reach) if goal < setpoint else min(goal, setpoint + reach)
+            )
+            ctrl[7] = ctrl[15] = setpoint
         expected = data.time + span
         mujoco.mj_step(model, data, nstep=substeps)
         mujoco.mj_kinematics(model, data)  # poses of the new qpos, not the last step's
