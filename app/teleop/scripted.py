@@ -1,7 +1,7 @@
 """A scripted user for tests and simulated participants: straight toward the target, noisy.
 
 The user moves their target at ``speed`` (m/s) toward a hover point ``approach_height`` above
-the goal's grasp point, then down to it, with Ornstein-Uhlenbeck noise of standard deviation
+the goal's grasp point (where its object is now, ``obs.grasp_points``), then down to it, with Ornstein-Uhlenbeck noise of standard deviation
 ``noise`` (m). The raw target is not clamped: at the interface's limit the user keeps pushing.
 They ask for a grasp when the TCP is within ``grasp_tolerance`` of the grasp point, or (with
 ``grasp_when_stalled``) when the TCP has stalled for ``stall_s`` seconds within
@@ -59,7 +59,7 @@ class ScriptedInput:
     def command(self, obs: TrialObservation) -> TeleopCommand:
         dt = 1.0 / obs.rate_hz
         goal = obs.target_index if self.goal is None else self.goal
-        grasp_point = obs.goal_positions[goal]
+        grasp_point = obs.grasp_points[goal]  # where the object is now
         hover = grasp_point.copy()
         hover[2] += self.approach_height
         if self._target is None:
