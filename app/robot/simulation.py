@@ -2,8 +2,8 @@
 
 ``Simulation(scene)`` owns one ``MjData`` for the scene's shared, compiled model. Each control
 tick ``step(command, gripper_closed=..., substeps=n)`` sets the seven joint servos to the
-command (clipped to the joint limits; a non-finite command is refused) and the gripper servo
-to open or closed, then advances ``n`` physics steps. Queries report what a trial needs to
+command (clipped to the joint limits; a non-finite command is refused) and moves the gripper
+servo's setpoint toward open or closed at ``GRIPPER_SPEED``, then advances ``n`` physics steps. Queries report what a trial needs to
 judge the outcome: the TCP position, which object both fingers hold, object heights and tilt.
 The arm passes through objects while reaching and the objects rest (no contacts to solve); they
 come alive when a grasp starts (``set_grip_contacts``), so assistance never knocks a bottle over

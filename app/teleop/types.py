@@ -34,7 +34,7 @@ class TrialObservation:
     ``alpha``/``predicted``: the last arbitration value and predicted goal index;
     ``object_positions``: the objects' centres now (n, 3), same order; ``grasp_points``: the
     grasp points now (n, 3), ``goal_positions`` moved with their objects (a nudged object is
-    re-aimed at there; defaults to ``goal_positions``). Arrays are read-only views of the trial.
+    re-aimed at there; defaults to ``goal_positions``). The arrays are shared: read, never write.
     """
 
     t: float
