@@ -5,7 +5,8 @@ debrief, done) with a protocol shortened to one practice run and 15 s trials: th
 dragged with the mouse and the arm follows in the stored samples, keys nudge the target, the
 grasp button is logged, answers land in the ratings table, a reload mid-trial pauses and
 resumes the trial (paused time excluded), a second tab is refused, and no condition name
-reaches the page or its websocket. Screenshots of each phase go to tests/browser/screenshots.
+reaches the page or its websocket. Screenshots of each phase go to a temporary folder, or to
+tests/browser/screenshots (linked from the README) with UPDATE_SCREENSHOTS=1.
 """
 
 from __future__ import annotations
