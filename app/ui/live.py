@@ -98,13 +98,18 @@ class LiveSession:
         return self._view
 
     def _event(self, kind: str, detail: Mapping[str, Any]) -> None:
-        """Append an event to the store (UI events: tabs, refusals, rejected input)."""
+        """Append an event to the session's log (UI events: tabs, refusals, rejected input),
+        through ``Session.record_event``: written only while this process holds the lease."""
+        from study.session import SessionClosedError
+
         self.log.append(f"{time.strftime('%H:%M:%S')} {kind}")
         if self._stop.is_set():
             return  # shutting down: the store may already be closed
         try:
-            with self.session.store.transaction() as tx:
-                tx.event(self.session.session_id, self.participant, kind, dict(detail))
+            self.session.record_event(kind, detail)
+        except SessionClosedError as exc:
+            # finished and released, or taken over by another process: not ours to log into
+            LOGGER.info("event %s not recorded: %s", kind, exc)
         except Exception:
             LOGGER.exception("could not record event %s", kind)
 

@@ -164,13 +164,10 @@ def run_participant(
     )
     error: str | None = None
     try:
-        with store.transaction() as tx:
-            tx.event(
-                session.session_id,
-                job.participant,
-                "simulated_participant",
-                {"population": str(population_path), "params": asdict(params)},
-            )
+        session.record_event(
+            "simulated_participant",
+            {"population": str(population_path), "params": asdict(params)},
+        )
         run_headless(
             session,
             answerer=person,
