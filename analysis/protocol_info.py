@@ -1,7 +1,10 @@
-"""What the report needs from a protocol file: its id and hash, the arbitration of each mode.
+"""What the report needs from a protocol: its id and hash, the arbitration of each mode.
 
-Read through ``study.protocol.load_protocol`` (validated, canonical content hash); if that
-package is unavailable, the TOML is read directly and hashed byte for byte (said in the notes).
+The protocol the data were collected with comes first: the text a study store keeps
+(``study.protocol.protocol_from_store``) or an export folder's ``protocol.toml``; then the file
+passed with --protocol (by default protocols/dragan2013.toml), which may have been edited since.
+Read through ``study.protocol`` (validated, canonical content hash); if that package is
+unavailable, the TOML is read directly and hashed byte for byte (said in the notes).
 """
 
 from __future__ import annotations
@@ -9,7 +12,7 @@ from __future__ import annotations
 import hashlib
 import tomllib
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -36,8 +39,74 @@ def _temperature(prediction: Mapping[str, Any] | None) -> float:
     return 0.05
 
 
-def load_protocol_info(path: str | Path = DEFAULT_PROTOCOL) -> ProtocolInfo:
-    """Mode arbitration tables, id and content hash of the protocol at ``path``."""
+def load_protocol_info(
+    path: str | Path = DEFAULT_PROTOCOL, *, stored: str | Path | None = None
+) -> ProtocolInfo:
+    """Mode arbitration tables, id and content hash of the protocol the data were collected with:
+    the one kept in ``stored`` (a study store, or an export folder with ``protocol.toml``) if it
+    keeps one, else the protocol file at ``path``."""
+    if stored is not None:
+        info, why = _stored_info(Path(stored))
+        if info is not None:
+            return replace(info, notes=info.notes + _ignored_file_note(info, path))
+        if why:
+            file_info = _file_info(path)
+            return replace(file_info, notes=(why, *file_info.notes))
+    return _file_info(path)
+
+
+def _stored_info(source: Path) -> tuple[ProtocolInfo | None, str | None]:
+    """The protocol kept with the data at ``source``, or ``None`` and why (``None`` if there is
+    nothing to say: the source cannot keep a protocol)."""
+    if source.is_dir():
+        kept = source / "protocol.toml"
+        if not kept.is_file():
+            return None, None
+        try:
+            return _file_info(kept), None
+        except SourceError as e:
+            return None, f"the protocol exported with the data was not used: {e}"
+    if not source.is_file():
+        return None, None
+    try:
+        from study.protocol import protocol_from_store
+        from study.store import Store
+    except ImportError:
+        return None, None
+    try:
+        with Store.open_readonly(source) as store:
+            proto = protocol_from_store(store)
+    except Exception as e:  # no stored text (old store), altered text, or no longer valid
+        return None, f"the protocol stored with the data was not used: {e}"
+    return _info(proto, path=f"{source} (stored protocol)"), None
+
+
+def _ignored_file_note(info: ProtocolInfo, path: str | Path | None) -> tuple[str, ...]:
+    """A note if the protocol file at ``path`` differs from the stored protocol ``info``."""
+    if path is None or not Path(path).is_file():
+        return ()
+    try:
+        other = _file_info(path).content_hash
+    except SourceError:
+        other = None
+    if other == info.content_hash:
+        return ()
+    return (f"read the protocol stored with the data ({info.content_hash}); the protocol file "
+            f"{path} differs ({other or 'unreadable'}) and was not used",)
+
+
+def _info(proto: Any, *, path: str) -> ProtocolInfo:
+    return ProtocolInfo(
+        path=path, study_id=proto.id, content_hash=proto.content_hash,
+        arbitrations={m.name: dict(m.arbitration) for m in proto.modes
+                      if m.arbitration is not None},
+        amnesic_temperature=_temperature(proto.prediction),
+        factors={k: tuple(map(str, v)) for k, v in dict(proto.factors).items()},
+    )
+
+
+def _file_info(path: str | Path) -> ProtocolInfo:
+    """The protocol file at ``path``."""
     p = Path(path)
     if not p.exists():
         raise SourceError(f"no protocol file at {p}; pass --protocol PATH")
@@ -50,13 +119,7 @@ def load_protocol_info(path: str | Path = DEFAULT_PROTOCOL) -> ProtocolInfo:
             proto = load_protocol(p)
         except Exception as e:  # the protocol's typed errors name file, key and problem
             raise SourceError(f"cannot load the protocol {p}: {e}") from e
-        return ProtocolInfo(
-            path=str(p), study_id=proto.id, content_hash=proto.content_hash,
-            arbitrations={m.name: dict(m.arbitration) for m in proto.modes
-                          if m.arbitration is not None},
-            amnesic_temperature=_temperature(proto.prediction),
-            factors={k: tuple(map(str, v)) for k, v in dict(proto.factors).items()},
-        )
+        return _info(proto, path=str(p))
     raw = p.read_bytes()
     try:
         doc = tomllib.loads(raw.decode("utf-8"))

@@ -295,14 +295,17 @@ def write_report(
     predictors: Mapping[str, Mapping[str, Any]] = PREDICTORS,
     successful_only: bool = False,
 ) -> ReportFiles:
-    """Analyse ``tables`` and write report.html, report.md, results.json and figures/."""
+    """Analyse ``tables`` and write report.html, report.md, results.json and figures/.
+
+    Fig. 7 and the protocol hash describe the protocol kept with the data (the store's text or
+    the export's protocol.toml); ``protocol_path`` is read when the source keeps none."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     proto: ProtocolInfo | None = None
     proto_notes: list[str] = []
     if protocol_path is not None:
         try:
-            proto = load_protocol_info(protocol_path)
+            proto = load_protocol_info(protocol_path, stored=tables.source)
             proto_notes += list(proto.notes)
         except AnalysisError as e:
             proto_notes.append(f"protocol not read (no Fig. 7, no hash): {e}")

@@ -19,7 +19,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     src.add_argument("--export-dir", help="a folder written by `python -m study export`")
     parser.add_argument("--out", required=True, help="output folder (created if needed)")
     parser.add_argument("--protocol", default=str(DEFAULT_PROTOCOL),
-                        help="protocol TOML the study ran with (Fig. 7 and the hash)")
+                        help="protocol TOML the study ran with (Fig. 7 and the hash), read "
+                             "only if the store or export keeps no protocol text")
     parser.add_argument("--successful-only", action="store_true",
                         help="leave out completed trials that ended without success")
 
