@@ -211,7 +211,12 @@ class PolicyBlender:
                 f"x: expected shape ({self.xdim},) in {self.space} space, got {x.shape}"
             )
         # one cheap check: NaN compares False, so this rejects NaN, inf and absurd magnitudes
-        if not np.abs(np.concatenate((q, u, x))).max() < MAX_ABS_INPUT:
+        # (a sum of magnitudes below MAX_ABS_INPUT bounds every entry; only when it is not does
+        # the exact per-entry test run, which raises for NaN, inf or magnitudes >= the bound)
+        if (
+            not sum(map(abs, q.tolist() + u.tolist() + x.tolist())) < MAX_ABS_INPUT
+            and not np.abs(np.concatenate((q, u, x))).max() < MAX_ABS_INPUT
+        ):
             raise self._bad_input(q, u, x)
 
         pred = self._update(x)
@@ -225,13 +230,15 @@ class PolicyBlender:
         if not 0.0 <= alpha <= 1.0:
             raise BlendingError(f"arbitration: returned alpha = {alpha!r}, outside [0, 1]")
         p = self.policy.step(q, self._targets[i])
-        if not np.isfinite(p).all():
+        pv = p - q
+        pp = pv.dot(pv)
+        if not math.isfinite(pp) and not np.isfinite(p).all():  # NaN/inf in P make pp so
             raise BlendingError(f"policy: returned a non-finite P {p!r}")
         cmd = u * (1.0 - alpha)
-        cmd += alpha * p
-        pv = p - q
+        if alpha != 0.0:  # alpha = 0 (no assistance yet): the command is U itself
+            cmd += alpha * p
         uv = u - q
-        nn = math.sqrt(pv.dot(pv) * uv.dot(uv))
+        nn = math.sqrt(pp * uv.dot(uv))
         agreement = float(pv.dot(uv)) / nn if nn > 0.0 else 0.0
         agreement = 1.0 if agreement > 1.0 else (-1.0 if agreement < -1.0 else agreement)
         return BlendRecord(cmd, p, alpha, c, distance, pred.probabilities.copy(), i, agreement)

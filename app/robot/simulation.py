@@ -56,6 +56,14 @@ class Simulation:
         self._object_dofs = np.concatenate(
             [np.arange(6) + self.model.body_dofadr[b] for b in scene.object_body_ids]
         )
+        # views into MjData's buffers (they live as long as ``data``): no per-tick slicing
+        d = self.data
+        self._qpos_arm = d.qpos[:7]
+        self._ctrl_arm = d.ctrl[:7]
+        self._ctrl_vel = d.ctrl[8:15]
+        self._ctrl = d.ctrl
+        self._tcp = d.site_xpos[scene.tcp_site_id]
+        self._dt = physics_dt
         self.reset()
 
     def reset(self) -> None:
@@ -83,12 +91,12 @@ class Simulation:
     @property
     def q(self) -> np.ndarray:
         """Arm configuration ``Q`` (7,), a copy."""
-        return self.data.qpos[:7].copy()
+        return self._qpos_arm.copy()
 
     @property
     def ee(self) -> np.ndarray:
         """TCP position (3,), world frame, a copy."""
-        return self.data.site_xpos[self.scene.tcp_site_id].copy()
+        return self._tcp.copy()
 
     @property
     def gripper_opening(self) -> float:
@@ -102,18 +110,19 @@ class Simulation:
         """
         if type(command) is not np.ndarray or command.dtype != np.float64:
             command = np.asarray(command, dtype=float)
-        if command.shape != (7,) or not math.isfinite(command.sum()):
+        if command.shape != (7,) or not math.isfinite(sum(command.tolist())):
             raise SimulationError(f"command must be 7 finite joint angles, got {command!r}")
-        data, model = self.data, self.model
-        span = substeps * model.opt.timestep
-        ctrl = data.ctrl
-        target = ctrl[:7]  # written in place: clip(command, lower, upper)
-        np.clip(command, self._lower, self._upper, out=target)
-        np.subtract(target, data.qpos[:7], out=ctrl[8:15])
-        ctrl[8:15] *= 1.0 / span
+        data = self.data
+        span = substeps * self._dt
+        target = self._ctrl_arm  # written in place: clip(command, lower, upper)
+        np.minimum(np.maximum(command, self._lower, out=target), self._upper, out=target)
+        vel = self._ctrl_vel
+        np.subtract(target, self._qpos_arm, out=vel)
+        vel *= 1.0 / span
         # the fingers' setpoint moves at GRIPPER_SPEED (a real hand closes gently; a setpoint
         # jump would slam the fingers into the object at about 1 m/s and fling it away)
         goal = 0.0 if gripper_closed else self._open
+        ctrl = self._ctrl
         setpoint = ctrl[7]
         if setpoint != goal:
             reach = GRIPPER_SPEED * span
@@ -122,10 +131,11 @@ class Simulation:
             )
             ctrl[7] = ctrl[15] = setpoint
         expected = data.time + span
+        model = self.model
         mujoco.mj_step(model, data, nstep=substeps)
         mujoco.mj_kinematics(model, data)  # poses of the new qpos, not the last step's
         # MuJoCo resets a diverging simulation (bad acceleration) to time 0: catch that too.
-        if not math.isfinite(data.qpos[0]) or data.time < expected - 1e-9:
+        if not math.isfinite(self._qpos_arm[0]) or data.time < expected - 1e-9:
             raise SimulationError("physics diverged (non-finite state); the trial cannot go on")
 
     @property

@@ -48,7 +48,7 @@ class IKStep:
         self.posture = None if posture is None else np.asarray(posture, dtype=float).copy()
         self.posture_gain = posture_gain
         self.rotation = downward_rotation(0.0) if rotation is None else np.asarray(rotation)
-        self._twist = np.zeros(6)  # scratch: [v; w], rewritten every call
+        self._z = np.zeros(kinematics.nq)  # scratch: posture velocity times dt
 
     def __call__(
         self,
@@ -60,27 +60,27 @@ class IKStep:
     ) -> np.ndarray:
         """Next configuration ``U`` (7,) moving the TCP from ``phi(q)`` toward ``target`` (3,)."""
         kin = self.kin
+        dt = self.dt
         jac = pin.computeFrameJacobian(kin.model, kin.data, q, kin.frame_id, _WORLD_ALIGNED)
         placement = kin.data.oMf[kin.frame_id]  # computed by the Jacobian's kinematics pass
-        twist = self._twist
-        v = twist[:3]
-        np.subtract(target, placement.translation, out=v)
-        v *= self.gain
-        speed = math.sqrt(v.dot(v))
+        # the twist [v; w] (scaled by dt, so the solve yields dq directly) in scalars
+        ex, ey, ez = (target - placement.translation).tolist()
+        en = math.sqrt(ex * ex + ey * ey + ez * ez)
         limit = self.max_speed if max_speed is None else max_speed
-        if speed > limit:
-            v *= limit / speed
-        w = twist[3:]
-        w[:] = pin.log3((self.rotation if rotation is None else rotation) @ placement.rotation.T)
-        w *= self.rotation_gain
-        wn = math.sqrt(w.dot(w))
-        if wn > self.max_angular_speed:
-            w *= self.max_angular_speed / wn
+        sv = (self.gain if self.gain * en <= limit else limit / en) * dt
+        rot = self.rotation if rotation is None else rotation
+        rx, ry, rz = pin.log3(rot @ placement.rotation.T).tolist()
+        rn = math.sqrt(rx * rx + ry * ry + rz * rz)
+        sw = self.rotation_gain
+        if sw * rn > self.max_angular_speed:
+            sw = self.max_angular_speed / rn
+        sw *= dt
+        twist = np.array((sv * ex, sv * ey, sv * ez, sw * rx, sw * ry, sw * rz))
         z = None
         if self.posture is not None:
             # dq = J+ twist + (I - J+ J) z  =  z + J+ (twist - J z), z the posture velocity
-            z = self.posture - q
-            z *= self.posture_gain
+            z = np.subtract(self.posture, q, out=self._z)
+            z *= self.posture_gain * dt
             twist -= jac @ z
         jjt = jac @ jac.T
         jjt += self._damp
@@ -90,9 +90,8 @@ class IKStep:
         dq = jac.T @ y
         if z is not None:
             dq += z
-        dq *= self.dt
-        biggest = max(dq.max(), -dq.min())
+        biggest = max(map(abs, dq.tolist()))
         if biggest > self.max_joint_step:
             dq *= self.max_joint_step / biggest
         dq += q
-        return dq.clip(kin.lower, kin.upper, out=dq)
+        return np.minimum(np.maximum(dq, kin.lower, out=dq), kin.upper, out=dq)

@@ -51,6 +51,7 @@ class ScriptedInput:
         self._phase = "hover"
         self._last_grasp_t = -math.inf
         self._stall_ref: tuple[float, np.ndarray] | None = None
+        self._noise_cache: tuple[float, float, float] | None = None
 
     @property
     def phase(self) -> str:
@@ -60,35 +61,37 @@ class ScriptedInput:
         dt = 1.0 / obs.rate_hz
         goal = obs.target_index if self.goal is None else self.goal
         grasp_point = obs.grasp_points[goal]  # where the object is now
-        hover = grasp_point.copy()
-        hover[2] += self.approach_height
+        ee = obs.ee
         if self._target is None:
-            self._target = obs.ee.copy()
+            self._target = ee.copy()
         stalled = self._stalled(obs)
         if self._phase == "hover":
-            ee = obs.ee
+            ex, ey, ez = ee.tolist()
+            gx, gy, gz = grasp_point.tolist()
             near = (
-                math.hypot(ee[0] - hover[0], ee[1] - hover[1]) < 0.015
-                and abs(ee[2] - hover[2]) < 0.03
+                math.hypot(ex - gx, ey - gy) < 0.015
+                and abs(ez - (gz + self.approach_height)) < 0.03
             )
             if near or stalled:
                 self._phase = "descend"
                 self._stall_ref = None
                 stalled = False
-        waypoint = hover if self._phase == "hover" else grasp_point
+        if self._phase == "hover":
+            waypoint = grasp_point.copy()
+            waypoint[2] += self.approach_height
+        else:
+            waypoint = grasp_point
         step = waypoint - self._target
         dist = math.sqrt(step.dot(step))
         if dist > self.speed * dt:
             step *= self.speed * dt / dist
         self._target = self._target + step
         if self.noise > 0:
-            a = math.exp(-dt / self.noise_time_s)
-            self._offset = a * self._offset + (math.sqrt(1 - a * a) * self.noise) * (
-                self.rng.standard_normal(3)
-            )
+            a, b = self._noise_factors(dt)
+            self._offset = a * self._offset + b * self.rng.standard_normal(3)
         grasp = False
         if self._phase == "descend" and not obs.gripper_closed:
-            gap = obs.ee - grasp_point
+            gap = ee - grasp_point
             dist = math.sqrt(gap.dot(gap))
             close = dist < self.grasp_tolerance
             stuck = stalled and self.grasp_when_stalled and dist < self.stalled_grasp_radius
@@ -98,10 +101,21 @@ class ScriptedInput:
                 self._stall_ref = None
         return TeleopCommand(self._target + self._offset, grasp)
 
+    def _noise_factors(self, dt: float) -> tuple[float, float]:
+        """Ornstein-Uhlenbeck step ``o' = a o + b n``: ``a = exp(-dt / tau)``,
+        ``b = sqrt(1 - a^2) sigma`` (cached per ``dt``)."""
+        cached = self._noise_cache
+        if cached is None or cached[0] != dt:
+            a = math.exp(-dt / self.noise_time_s)
+            cached = self._noise_cache = (dt, a, math.sqrt(1 - a * a) * self.noise)
+        return cached[1], cached[2]
+
     def _stalled(self, obs: TrialObservation) -> bool:
         """True when the TCP moved less than 5 mm during the last ``stall_s`` seconds."""
-        moved = np.inf if self._stall_ref is None else obs.ee - self._stall_ref[1]
-        if self._stall_ref is None or math.sqrt(moved.dot(moved)) > 0.005:
-            self._stall_ref = (obs.t, obs.ee.copy())
-            return False
-        return obs.t - self._stall_ref[0] >= self.stall_s
+        ref = self._stall_ref
+        if ref is not None:
+            moved = obs.ee - ref[1]
+            if not math.sqrt(moved.dot(moved)) > 0.005:
+                return obs.t - ref[0] >= self.stall_s
+        self._stall_ref = (obs.t, obs.ee.copy())
+        return False

@@ -85,6 +85,8 @@ class Trial:
         self._knocked: set[int] = set()
         n = len(self.scene.goals)
         self.user_target = self.scene.start_ee.copy()
+        reach = self.scene.reach
+        self._reach_box = (tuple(reach.lo.tolist()), tuple(reach.hi.tolist()))
         # the state after the last physics step (fresh arrays each tick, never written to):
         # read once per tick, shared by the next observation, the control step and the record
         self._q = self.sim.q
@@ -245,19 +247,22 @@ class Trial:
 
     def _set_user_target(self, cmd: TeleopCommand, events: list[str]) -> None:
         try:
-            raw = np.asarray(cmd.target, dtype=float).reshape(-1)
+            raw = np.asarray(cmd.target, dtype=float).reshape(-1).tolist()
         except (TypeError, ValueError):
-            raw = np.empty(0)
-        if raw.shape != (3,) or not math.isfinite(raw[0] + raw[1] + raw[2]):
+            raw = []
+        if len(raw) != 3 or not math.isfinite(raw[0] + raw[1] + raw[2]):
             events.append("invalid_target")
             return
-        reach = self.scene.reach
-        clamped = np.minimum(np.maximum(raw, reach.lo), reach.hi)
-        diff = raw - clamped
-        outside = math.sqrt(diff.dot(diff))
+        # clamp to the reach box in scalars (three numbers: cheaper than array operations)
+        x, y, z = raw
+        (lx, ly, lz), (hx, hy, hz) = self._reach_box
+        cx = lx if x < lx else (hx if x > hx else x)
+        cy = ly if y < ly else (hy if y > hy else y)
+        cz = lz if z < lz else (hz if z > hz else z)
+        outside = math.sqrt((x - cx) ** 2 + (y - cy) ** 2 + (z - cz) ** 2)
         if outside > 0.0:
             events.append("target_far_outside" if outside > FAR_OUTSIDE_M else "target_clamped")
-        self.user_target = clamped
+        self.user_target = np.array((cx, cy, cz))
 
     def _control(
         self, q: np.ndarray, request: bool, events: list[str]
