@@ -141,6 +141,7 @@ class PolicyBlender:
             raise InvalidInputError(f"goals: configurations are {dof}-D, the robot is {self.dof}-D")
         self.goals = goals
         self._points = points
+        self._point_lists = points.tolist()
         self._targets = targets
         self.xdim = points.shape[1]
         if dof is not None:
@@ -214,15 +215,14 @@ class PolicyBlender:
         # (a sum of magnitudes below MAX_ABS_INPUT bounds every entry; only when it is not does
         # the exact per-entry test run, which raises for NaN, inf or magnitudes >= the bound)
         if (
-            not sum(map(abs, q.tolist() + u.tolist() + x.tolist())) < MAX_ABS_INPUT
+            not sum(map(abs, q.tolist() + u.tolist() + (xs := x.tolist()))) < MAX_ABS_INPUT
             and not np.abs(np.concatenate((q, u, x))).max() < MAX_ABS_INPUT
         ):
             raise self._bad_input(q, u, x)
 
         pred = self._update(x)
         i = pred.index
-        diff = x - self._points[i]
-        distance = math.sqrt(diff.dot(diff))
+        distance = math.dist(xs, self._point_lists[i])
         c = float(self.confidence(pred, distance))
         if not 0.0 <= c <= 1.0:
             raise BlendingError(f"confidence: returned {c!r}, outside [0, 1]")

@@ -50,7 +50,7 @@ class ScriptedInput:
         self._offset = np.zeros(3)
         self._phase = "hover"
         self._last_grasp_t = -math.inf
-        self._stall_ref: tuple[float, np.ndarray] | None = None
+        self._stall_ref: tuple[float, list[float]] | None = None
         self._noise_cache: tuple[float, float, float] | None = None
 
     @property
@@ -58,48 +58,43 @@ class ScriptedInput:
         return self._phase
 
     def command(self, obs: TrialObservation) -> TeleopCommand:
+        # three-vectors in scalars (lists): cheaper per tick than small array operations
         dt = 1.0 / obs.rate_hz
         goal = obs.target_index if self.goal is None else self.goal
-        grasp_point = obs.grasp_points[goal]  # where the object is now
-        ee = obs.ee
+        gx, gy, gz = obs.grasp_points[goal].tolist()  # where the object is now
+        ee = obs.ee.tolist()
         if self._target is None:
-            self._target = ee.copy()
-        stalled = self._stalled(obs)
+            self._target = obs.ee.copy()
+        stalled = self._stalled(obs.t, ee)
+        hz = gz + self.approach_height  # hover point: above the grasp point
         if self._phase == "hover":
-            ex, ey, ez = ee.tolist()
-            gx, gy, gz = grasp_point.tolist()
-            near = (
-                math.hypot(ex - gx, ey - gy) < 0.015
-                and abs(ez - (gz + self.approach_height)) < 0.03
-            )
+            near = math.hypot(ee[0] - gx, ee[1] - gy) < 0.015 and abs(ee[2] - hz) < 0.03
             if near or stalled:
                 self._phase = "descend"
                 self._stall_ref = None
                 stalled = False
-        if self._phase == "hover":
-            waypoint = grasp_point.copy()
-            waypoint[2] += self.approach_height
-        else:
-            waypoint = grasp_point
-        step = waypoint - self._target
-        dist = math.sqrt(step.dot(step))
-        if dist > self.speed * dt:
-            step *= self.speed * dt / dist
-        self._target = self._target + step
+        wz = hz if self._phase == "hover" else gz
+        tx, ty, tz = self._target.tolist()
+        sx, sy, sz = gx - tx, gy - ty, wz - tz
+        dist = math.sqrt(sx * sx + sy * sy + sz * sz)
+        reach = self.speed * dt
+        if dist > reach:
+            f = reach / dist
+            sx, sy, sz = sx * f, sy * f, sz * f
+        self._target = target = np.array((tx + sx, ty + sy, tz + sz))
         if self.noise > 0:
             a, b = self._noise_factors(dt)
             self._offset = a * self._offset + b * self.rng.standard_normal(3)
         grasp = False
         if self._phase == "descend" and not obs.gripper_closed:
-            gap = ee - grasp_point
-            dist = math.sqrt(gap.dot(gap))
+            dist = math.dist(ee, (gx, gy, gz))
             close = dist < self.grasp_tolerance
             stuck = stalled and self.grasp_when_stalled and dist < self.stalled_grasp_radius
             if (close or stuck) and obs.t - self._last_grasp_t > self.retry_s:
                 grasp = True
                 self._last_grasp_t = obs.t
                 self._stall_ref = None
-        return TeleopCommand(self._target + self._offset, grasp)
+        return TeleopCommand(target + self._offset, grasp)
 
     def _noise_factors(self, dt: float) -> tuple[float, float]:
         """Ornstein-Uhlenbeck step ``o' = a o + b n``: ``a = exp(-dt / tau)``,
@@ -110,12 +105,10 @@ class ScriptedInput:
             cached = self._noise_cache = (dt, a, math.sqrt(1 - a * a) * self.noise)
         return cached[1], cached[2]
 
-    def _stalled(self, obs: TrialObservation) -> bool:
+    def _stalled(self, t: float, ee: list[float]) -> bool:
         """True when the TCP moved less than 5 mm during the last ``stall_s`` seconds."""
         ref = self._stall_ref
-        if ref is not None:
-            moved = obs.ee - ref[1]
-            if not math.sqrt(moved.dot(moved)) > 0.005:
-                return obs.t - ref[0] >= self.stall_s
-        self._stall_ref = (obs.t, obs.ee.copy())
+        if ref is not None and not math.dist(ee, ref[1]) > 0.005:
+            return t - ref[0] >= self.stall_s
+        self._stall_ref = (t, ee)
         return False
