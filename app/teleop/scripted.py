@@ -46,8 +46,8 @@ class ScriptedInput:
         self.goal = goal
         self.grasp_when_stalled = grasp_when_stalled
         self.stalled_grasp_radius = stalled_grasp_radius
-        self._target: np.ndarray | None = None
-        self._offset = np.zeros(3)
+        self._target: tuple[float, float, float] | None = None  # noise-free target
+        self._offset = (0.0, 0.0, 0.0)  # Ornstein-Uhlenbeck noise on top of it
         self._phase = "hover"
         self._last_grasp_t = -math.inf
         self._stall_ref: tuple[float, list[float]] | None = None
@@ -64,7 +64,7 @@ class ScriptedInput:
         gx, gy, gz = obs.grasp_points[goal].tolist()  # where the object is now
         ee = obs.ee.tolist()
         if self._target is None:
-            self._target = obs.ee.copy()
+            self._target = (ee[0], ee[1], ee[2])
         stalled = self._stalled(obs.t, ee)
         hz = gz + self.approach_height  # hover point: above the grasp point
         if self._phase == "hover":
@@ -74,17 +74,19 @@ class ScriptedInput:
                 self._stall_ref = None
                 stalled = False
         wz = hz if self._phase == "hover" else gz
-        tx, ty, tz = self._target.tolist()
+        tx, ty, tz = self._target
         sx, sy, sz = gx - tx, gy - ty, wz - tz
         dist = math.sqrt(sx * sx + sy * sy + sz * sz)
         reach = self.speed * dt
         if dist > reach:
             f = reach / dist
             sx, sy, sz = sx * f, sy * f, sz * f
-        self._target = target = np.array((tx + sx, ty + sy, tz + sz))
+        self._target = tx, ty, tz = tx + sx, ty + sy, tz + sz
         if self.noise > 0:
             a, b = self._noise_factors(dt)
-            self._offset = a * self._offset + b * self.rng.standard_normal(3)
+            nx, ny, nz = self.rng.standard_normal(3).tolist()
+            ox, oy, oz = self._offset
+            self._offset = (a * ox + b * nx, a * oy + b * ny, a * oz + b * nz)
         grasp = False
         if self._phase == "descend" and not obs.gripper_closed:
             dist = math.dist(ee, (gx, gy, gz))
@@ -94,7 +96,8 @@ class ScriptedInput:
                 grasp = True
                 self._last_grasp_t = obs.t
                 self._stall_ref = None
-        return TeleopCommand(target + self._offset, grasp)
+        ox, oy, oz = self._offset
+        return TeleopCommand(np.array((tx + ox, ty + oy, tz + oz)), grasp)
 
     def _noise_factors(self, dt: float) -> tuple[float, float]:
         """Ornstein-Uhlenbeck step ``o' = a o + b n``: ``a = exp(-dt / tau)``,
