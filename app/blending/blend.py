@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from operator import mul, sub
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -215,7 +216,8 @@ class PolicyBlender:
         # (a sum of magnitudes below MAX_ABS_INPUT bounds every entry; only when it is not does
         # the exact per-entry test run, which raises for NaN, inf or magnitudes >= the bound)
         if (
-            not sum(map(abs, q.tolist() + u.tolist() + (xs := x.tolist()))) < MAX_ABS_INPUT
+            not sum(map(abs, (qs := q.tolist()) + (us := u.tolist()) + (xs := x.tolist())))
+            < MAX_ABS_INPUT
             and not np.abs(np.concatenate((q, u, x))).max() < MAX_ABS_INPUT
         ):
             raise self._bad_input(q, u, x)
@@ -230,15 +232,19 @@ class PolicyBlender:
         if not 0.0 <= alpha <= 1.0:
             raise BlendingError(f"arbitration: returned alpha = {alpha!r}, outside [0, 1]")
         p = self.policy.step(q, self._targets[i])
-        pv = p - q
-        pp = pv.dot(pv)
+        ps = np.asarray(p, dtype=np.float64).tolist()
+        if len(ps) != dof:
+            raise BlendingError(f"policy: returned P of {len(ps)} values, the robot has {dof}")
+        # the velocities P - Q and U - Q in scalars (seven numbers: cheaper than arrays)
+        pv = list(map(sub, ps, qs))
+        uv = list(map(sub, us, qs))
+        pp = sum(map(mul, pv, pv))
         if not math.isfinite(pp) and not np.isfinite(p).all():  # NaN/inf in P make pp so
             raise BlendingError(f"policy: returned a non-finite P {p!r}")
         cmd = u * (1.0 - alpha)
         if alpha != 0.0:  # alpha = 0 (no assistance yet): the command is U itself
             cmd += alpha * p
-        uv = u - q
-        nn = math.sqrt(pp * uv.dot(uv))
-        agreement = float(pv.dot(uv)) / nn if nn > 0.0 else 0.0
+        nn = math.sqrt(pp * sum(map(mul, uv, uv)))
+        agreement = sum(map(mul, pv, uv)) / nn if nn > 0.0 else 0.0
         agreement = 1.0 if agreement > 1.0 else (-1.0 if agreement < -1.0 else agreement)
         return BlendRecord(cmd, p, alpha, c, distance, pred.probabilities.copy(), i, agreement)
