@@ -101,7 +101,7 @@ def test_probabilities_sum_to_one_and_index_is_argmax(sc) -> None:
 @given(scene(), st.integers(0, 2**32 - 1), st.sampled_from(["length", "sqvel"]))
 def test_path_cost_cancels_across_goals(sc, seed, cost_name) -> None:
     """C(xi_{S->U}) is shared by every goal: two different trajectories from S to the same U
-    give the same posterior, although their costs differ."""
+    give the same posterior, although their costs (generally) differ."""
     goals, traj = sc
     rng = np.random.default_rng(seed)
     s, u = traj[0], traj[-1]
@@ -114,7 +114,8 @@ def test_path_cost_cancels_across_goals(sc, seed, cost_name) -> None:
     p_direct = direct.update(u).probabilities
     for x in detour[1:]:
         p_winding = winding.update(x).probabilities
-    assert winding.path_cost >= direct.path_cost - 1e-9  # triangle inequality, up to rounding
+    if cost_name == "length":  # triangle inequality (squared velocity favours more steps)
+        assert winding.path_cost >= direct.path_cost - 1e-9
     np.testing.assert_allclose(p_winding, p_direct, atol=1e-9)
 
 
