@@ -11,6 +11,7 @@ adversarial: for every non-zero user velocity ``u``, ``p = -k u`` with ``alpha =
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -63,13 +64,14 @@ def check_arbitration(
         )
 
 
-class Arbitration:
+class Arbitration(ABC):
     """Base: ``__call__(c) -> alpha``; subclasses set up, then call ``self._validate()``."""
 
     _breakpoints: tuple[float, ...] = ()
 
-    def __call__(self, c: float) -> float:  # pragma: no cover - abstract
-        raise NotImplementedError
+    @abstractmethod
+    def __call__(self, c: float) -> float:
+        """``alpha(c)`` in [0, 1], non-decreasing in the confidence ``c``."""
 
     def _validate(self) -> None:
         check_arbitration(self, name=type(self).__name__, extra=self._breakpoints)
