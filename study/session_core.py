@@ -10,6 +10,7 @@ with ``_`` are called with ``self._lock`` held.
 from __future__ import annotations
 
 import json
+import logging
 import threading
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
@@ -23,13 +24,14 @@ from study.sample_writer import SampleWriter
 from study.screen import Phase, Screen
 from study.session_errors import SessionClosedError, SessionError, SessionStateError
 from study.session_store import check_protocol
-from study.store import Store, Transaction
+from study.store import SessionLockedError, Store, Transaction
 from study.trial_run import TrialFactory, TrialRun
 
 if TYPE_CHECKING:
     from app.trial import TrialConfig
     from study.protocol import Protocol
 
+_LOG = logging.getLogger("study.session")
 FINAL_STATUSES = ("completed", "withdrawn", "ended")
 Listener = Callable[[Screen], None]
 PARTICIPANT_ACTIONS: dict[str, tuple[str, ...]] = {
@@ -154,10 +156,17 @@ class SessionCore:
                 if not self._keeper.lost and self._status not in FINAL_STATUSES:
                     where, run = self._where(), self._active
                     self._stop(run)
-                    with self._tx() as tx:
-                        if run is not None:
-                            self._record_abort(tx, run, status="interrupted", note="session closed")
-                        tx.event(self.session_id, self.participant, "close", where)
+                    try:
+                        with self._tx() as tx:
+                            if run is not None:
+                                self._record_abort(
+                                    tx, run, status="interrupted", note="session closed"
+                                )
+                            tx.event(self.session_id, self.participant, "close", where)
+                    except SessionLockedError:
+                        # Another process took the session over before the keeper noticed:
+                        # the data are now theirs to write, and there is nothing to release.
+                        _LOG.warning("session %s was taken over; closed without writing", self.participant)
             finally:
                 self._closed = True
                 try:

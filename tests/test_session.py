@@ -537,6 +537,23 @@ def test_lost_lease_stops_writes(store: Store, protocol: Protocol) -> None:
     assert len(store.events()) == events
 
 
+def test_close_after_a_takeover_writes_nothing_and_does_not_raise(
+    store: Store, protocol: Protocol
+) -> None:
+    """A simulator or server closing a session that another process has just taken over (before
+    the lease keeper noticed) must not crash on the way out, nor write into the new owner's
+    session."""
+    session = enrol(store, protocol)
+    session.start()
+    events = len(store.events())
+    with store.transaction() as tx:
+        tx.cur.execute("UPDATE leases SET token = 'other', pid = 1 WHERE participant = 'P01'")
+    session.close()
+    session.close()  # idempotent
+    assert len(store.events()) == events
+    assert store.session("P01").cursor == 0
+
+
 def test_end_before_start_and_waiting_screen(store: Store, protocol: Protocol) -> None:
     session = enrol(store, protocol)
     screen = session.screen()
