@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import re
 from pathlib import Path
 
 import pytest
@@ -23,15 +22,6 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, dict, str]
     code = dispatch("python -m study", "", COMMANDS, ["run", *argv])
     out, err = capsys.readouterr()
     return code, json.loads(out.strip().splitlines()[-1]), err
-
-
-@pytest.fixture(scope="module")
-def short_protocol(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The study protocol with a 20 s time limit, so runs that cannot finish end sooner."""
-    text = re.sub(r"time_limit_s = \d+(\.\d+)?", "time_limit_s = 20", PROTOCOL.read_text())
-    path = tmp_path_factory.mktemp("protocol") / "short.toml"
-    path.write_text(text)
-    return path
 
 
 def digest(path: Path) -> str:

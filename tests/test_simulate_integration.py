@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 from pathlib import Path
 
 import pytest
@@ -19,16 +18,6 @@ from study.protocol import load_protocol
 from study.store import Store
 
 pytestmark = pytest.mark.slow
-
-
-@pytest.fixture(scope="module")
-def short_protocol(tmp_path_factory: pytest.TempPathFactory, protocol_path: Path) -> Path:
-    text = protocol_path.read_text(encoding="utf-8")
-    text, n = re.subn(r"(?m)^time_limit_s = \d+", "time_limit_s = 20", text)
-    assert n >= 1, "the protocol's [control] time_limit_s moved; update this fixture"
-    path = tmp_path_factory.mktemp("protocol") / "dragan2013-short.toml"
-    path.write_text(text, encoding="utf-8")
-    return path
 
 
 @pytest.fixture(scope="module")

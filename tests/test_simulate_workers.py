@@ -7,7 +7,6 @@ The protocol is the study's own with a 20 s time limit to keep the test short.
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import pytest
@@ -16,16 +15,6 @@ from study.simulated import simulate
 from study.store import Store
 
 pytestmark = pytest.mark.slow
-
-
-@pytest.fixture(scope="module")
-def short_protocol(tmp_path_factory: pytest.TempPathFactory, protocol_path: Path) -> Path:
-    text = protocol_path.read_text(encoding="utf-8")
-    text, n = re.subn(r"(?m)^time_limit_s = \d+", "time_limit_s = 20", text)
-    assert n >= 1, "the protocol's [control] time_limit_s moved; update this fixture"
-    path = tmp_path_factory.mktemp("protocol") / "dragan2013-short.toml"
-    path.write_text(text, encoding="utf-8")
-    return path
 
 
 def content(db: Path) -> tuple[list[tuple], list[tuple], list[int]]:

@@ -15,7 +15,8 @@ import pytest
 
 from app.ui.blinding import find_condition_words
 from app.ui.server import new_join_code
-from tests.browser.harness import ROOT, iter_strings, run_async, start_server, wait_until
+from tests.browser.harness import iter_strings, run_async, start_server, wait_until
+from tests.protocol_copies import PAPER_PROTOCOL
 from tests.test_ui_malformed import RawClient
 
 
@@ -116,11 +117,11 @@ def test_serve_command_prints_both_urls_and_stops_cleanly(tmp_path: Path) -> Non
     proc = subprocess.Popen(
         [
             sys.executable, "-m", "app", "serve",
-            "--protocol", str(ROOT / "protocols" / "dragan2013.toml"),
+            "--protocol", str(PAPER_PROTOCOL),
             "--db", str(tmp_path / "study.db"),
             "--port", "0", "--experimenter-port", "0",
         ],
-        cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        cwd=PAPER_PROTOCOL.parents[1], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
     )  # fmt: skip
     try:
         lines: list[str] = []

@@ -152,22 +152,14 @@ def wait_until(predicate: Any, *, timeout: float = 20.0, interval: float = 0.05)
 
 
 # -- a study server on free ports, with a shortened copy of the paper's protocol -----------------
-ROOT = __import__("pathlib").Path(__file__).resolve().parents[2]
 
 
 def short_protocol(directory: Any, *, time_limit_s: float = 6.0, training_runs: int = 1) -> Any:
-    """A copy of protocols/dragan2013.toml whose trials time out after ``time_limit_s`` and with
-    ``training_runs`` practice runs, so a test walks through every kind of screen quickly."""
-    import re
-    from pathlib import Path
+    """A copy of the paper's protocol with short trials and ``training_runs`` practice runs, so a
+    test walks through every kind of screen quickly."""
+    from tests.protocol_copies import short_protocol as copy
 
-    text = (ROOT / "protocols" / "dragan2013.toml").read_text()
-    text, n1 = re.subn(r"(?m)^time_limit_s = \S+", f"time_limit_s = {time_limit_s}", text)
-    text, n2 = re.subn(r"(?m)^runs = \d+", f"runs = {training_runs}", text)
-    assert n1 == 1 and n2 == 1, "protocol layout changed: update short_protocol()"
-    path = Path(directory) / "short.toml"
-    path.write_text(text)
-    return path
+    return copy(directory, time_limit_s=time_limit_s, training_runs=training_runs)
 
 
 @dataclass
