@@ -15,7 +15,7 @@ import numpy as np
 
 from .._checks import as_points, positive
 from ..errors import InvalidInputError
-from .base import GoalPrediction, check_x, softmax
+from .base import GoalPoints, GoalPrediction, check_x, softmax
 
 __all__ = ["AmnesicPredictor", "Metric", "euclidean"]
 
@@ -31,7 +31,7 @@ def euclidean(x: np.ndarray, points: np.ndarray) -> np.ndarray:
     return np.sqrt(s, out=s)
 
 
-class AmnesicPredictor:
+class AmnesicPredictor(GoalPoints):
     """Softmin of the distance from the current input to each goal.
 
     Args:
@@ -53,14 +53,6 @@ class AmnesicPredictor:
         self.metric: Metric = metric if metric is not None else euclidean
         self.space = space
         self.set_points(points)
-
-    @property
-    def n_goals(self) -> int:
-        return self.points.shape[0]
-
-    @property
-    def dim(self) -> int:
-        return self.points.shape[1]
 
     def set_points(self, points: Any) -> None:
         """Replace the goals (any number, any place); the dimension may not change once reset."""

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 
-__all__ = ["GoalPrediction", "Predictor", "softmax"]
+__all__ = ["GoalPoints", "GoalPrediction", "Predictor", "softmax"]
 
 
 class GoalPrediction(NamedTuple):
@@ -33,6 +33,20 @@ class Predictor(Protocol):
     def reset(self, start: np.ndarray) -> None: ...
 
     def update(self, x: np.ndarray) -> GoalPrediction: ...
+
+
+class GoalPoints:
+    """Shared by the predictors that hold the goals as points ``(n, d)`` in their space."""
+
+    points: np.ndarray
+
+    @property
+    def n_goals(self) -> int:
+        return self.points.shape[0]
+
+    @property
+    def dim(self) -> int:
+        return self.points.shape[1]
 
 
 def softmax(logits: np.ndarray) -> GoalPrediction:

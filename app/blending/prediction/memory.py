@@ -18,13 +18,13 @@ import numpy as np
 
 from .._checks import as_points, positive, probability_vector
 from ..errors import InvalidInputError
-from .base import GoalPrediction, check_x, softmax
+from .base import GoalPoints, GoalPrediction, check_x, softmax
 from .costs import Cost, PathLengthCost
 
 __all__ = ["MemoryPredictor"]
 
 
-class MemoryPredictor:
+class MemoryPredictor(GoalPoints):
     """Eq. 9 with a pluggable goal-independent cost.
 
     Args:
@@ -54,14 +54,6 @@ class MemoryPredictor:
         self.points: np.ndarray | None = None
         self._start: np.ndarray | None = None
         self.set_points(points, prior=prior)
-
-    @property
-    def n_goals(self) -> int:
-        return self.points.shape[0]
-
-    @property
-    def dim(self) -> int:
-        return self.points.shape[1]
 
     @property
     def path_cost(self) -> float:
