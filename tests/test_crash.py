@@ -29,7 +29,9 @@ PROTOCOL = ROOT / "protocols" / "dragan2013.toml"
 pytestmark = pytest.mark.slow
 
 
-def start(db: Path, *extra: str) -> subprocess.Popen[str]:
+def start(db: Path, *extra: str, realtime: bool = True) -> subprocess.Popen[str]:
+    """``study run`` for P01; paced like a real session unless ``realtime`` is false (then the
+    whole session takes about 3 s, too fast to kill mid-trial reliably)."""
     protocol = db.parent / "protocol.toml"  # a snapshot: the shared file may change meanwhile
     if not protocol.exists():
         protocol.write_text(PROTOCOL.read_text())
@@ -48,6 +50,7 @@ def start(db: Path, *extra: str) -> subprocess.Popen[str]:
         "scripted",
         "--seed",
         "1",
+        *(["--realtime"] if realtime else []),
         *extra,
     ]
     env = {**os.environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl"}
@@ -173,7 +176,7 @@ def test_kill9_mid_trial_then_resume_loses_nothing(tmp_path: Path) -> None:
             proc = None
             break
     else:
-        proc = start(db, "--resume")
+        proc = start(db, "--resume", realtime=False)  # the rest of the session, unpaced
     if proc is not None:
         out, err = proc.communicate(timeout=120)
         assert proc.returncode == 0, err
