@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import copy
-import time
 import tomllib
 
 import mujoco
@@ -97,10 +96,8 @@ def test_scene_goals_are_grasp_configurations(scenes, arm) -> None:
 def test_scene_is_compiled_once_and_cached(scenes) -> None:
     spec = scenes["easy"]
     first = build_scene(spec)
-    start = time.perf_counter()
     again = build_scene(copy.deepcopy(spec))
-    assert again is first
-    assert time.perf_counter() - start < 0.01
+    assert again is first  # an equal spec, not just the same object, hits the cache
 
 
 def test_task_scenes_follow_the_study_design(scenes, arm) -> None:
