@@ -7,6 +7,9 @@ the same ``app.blending`` predictors the study runs (``reset(x_0)``, then ``upda
 - time to the first lasting correct prediction = ``t`` (from the trial's first tick) from which
   the prediction stays correct to the end (NaN when the last prediction is wrong).
 
+A goal the robot moved during the trial (its object was nudged: a ``goal_moved`` event in the
+samples) moves in the replay at the same tick, so both predictors see the goals the robot saw.
+
 The factorial ANOVA on predictor x difficulty x correctness x mode (OLS, sum-to-zero, type III)
 has 128 - 16 = 112 residual df with 8 participants, as in the paper.
 """
@@ -29,6 +32,7 @@ from analysis.errors import DataError, SchemaError
 
 if TYPE_CHECKING:
     from analysis.anova import FactorialAnovaResult
+    from app.blending import GoalMoves
 
 PREDICTORS: dict[str, dict[str, Any]] = {
     "amnesic": {"kind": "amnesic", "temperature": 0.05},
@@ -65,8 +69,10 @@ def make_predictor(config: Mapping[str, Any], points: np.ndarray) -> Any:
 
 
 def replay(points: np.ndarray, trajectory: np.ndarray, predictor: Any, *,
-           t: np.ndarray | None = None, target: int | None = None) -> Replay:
-    """Feed ``trajectory`` (T, d) to ``predictor`` over goals ``points`` (n, d), tick by tick."""
+           t: np.ndarray | None = None, target: int | None = None,
+           moves: GoalMoves | None = None) -> Replay:
+    """Feed ``trajectory`` (T, d) to ``predictor`` over goals ``points`` (n, d), tick by tick;
+    ``moves`` (logged goal moves) are applied before the prediction of their row."""
     from app.blending import BlendingError
 
     traj = np.ascontiguousarray(trajectory, dtype=float)
@@ -83,10 +89,16 @@ def replay(points: np.ndarray, trajectory: np.ndarray, predictor: Any, *,
     n_ticks, n_goals = traj.shape[0], points.shape[0]
     probs = np.empty((n_ticks, n_goals))
     pred = np.empty(n_ticks, dtype=int)
+    at = moves.by_row() if moves is not None and len(moves) else {}
+    current = np.array(points, dtype=float)
     try:
         predictor.reset(traj[0])
         update = predictor.update
         for i in range(n_ticks):
+            if i in at:
+                for goal, position in at[i]:
+                    current[goal] = position
+                predictor.set_points(current.copy())
             g = update(traj[i])
             probs[i] = g.probabilities
             pred[i] = g.index
@@ -121,7 +133,13 @@ def trial_goals(row: Mapping[str, Any]) -> tuple[list[str], np.ndarray, int]:
     return list(names), pts, names.index(target)
 
 
-def _trajectories(samples: pd.DataFrame) -> dict[Any, tuple[np.ndarray, np.ndarray]]:
+Trajectory = tuple[np.ndarray, np.ndarray, list[tuple[int, Any]]]
+"""``(t, user targets, [(row, events), ...] of the rows that move a goal)`` of one trial."""
+
+
+def trial_trajectories(samples: pd.DataFrame) -> dict[Any, Trajectory]:
+    from app.blending import GOAL_MOVED
+
     require_columns(samples, ["trial_id", "t", *TARGET_COLUMNS], what="the samples table")
     order = ["trial_id", "tick"] if "tick" in samples.columns else ["trial_id", "t"]
     s = samples.sort_values(order, kind="stable")
@@ -130,19 +148,41 @@ def _trajectories(samples: pd.DataFrame) -> dict[Any, tuple[np.ndarray, np.ndarr
     t = s["t"].to_numpy(dtype=float)
     if len(ids) == 0:
         return {}
+    moving = np.zeros(len(ids), dtype=bool)
+    if "events" in s.columns:  # JSON text (store, CSV) or lists (Parquet): search their text
+        moving = s["events"].astype(str).str.contains(GOAL_MOVED, regex=False).to_numpy()
+    events = s["events"].to_numpy() if moving.any() else None
     cuts = np.flatnonzero(ids[1:] != ids[:-1]) + 1
     starts, ends = np.r_[0, cuts], np.r_[cuts, len(ids)]
-    return {ids[a]: (t[a:b], xyz[a:b]) for a, b in zip(starts, ends, strict=True)}
+    out: dict[Any, Trajectory] = {}
+    for a, b in zip(starts, ends, strict=True):
+        rows = [] if events is None else [(int(i - a), events[i])
+                                          for i in np.flatnonzero(moving[a:b]) + a]
+        out[ids[a]] = (t[a:b], xyz[a:b], rows)
+    return out
+
+
+def goal_moves(rows: list[tuple[int, Any]], names: Sequence[str], tid: Any) -> GoalMoves | None:
+    """The logged goal moves of trial ``tid`` (``None`` when its goals never moved)."""
+    from app.blending import BlendingError, GoalMoves
+
+    if not rows:
+        return None
+    try:
+        return GoalMoves.from_events(
+            [(row, list(ev) if isinstance(ev, np.ndarray) else ev) for row, ev in rows], names)
+    except (BlendingError, ValueError) as e:
+        raise SchemaError(f"trial {tid}: a goal_moved event cannot be read: {e}") from e
 
 
 def score_trajectory(
     points: np.ndarray, t: np.ndarray, xyz: np.ndarray, target: int,
-    predictors: Mapping[str, Mapping[str, Any]],
+    predictors: Mapping[str, Mapping[str, Any]], moves: GoalMoves | None = None,
 ) -> list[dict[str, Any]]:
     """Success rate and time to the first lasting correct prediction, per predictor."""
     out = []
     for name, cfg in predictors.items():
-        rep = replay(points, xyz, make_predictor(cfg, points), t=t, target=target)
+        rep = replay(points, xyz, make_predictor(cfg, points), t=t, target=target, moves=moves)
         assert rep.correct is not None
         first = first_lasting_correct(rep.correct)
         span = rep.t[-1] if rep.t[-1] > 0 else np.nan
@@ -175,16 +215,16 @@ def evaluate_predictions(
     """
     require_columns(cells, ["trial_id", "goal_names", "goal_positions", "target"],
                     what="the trials table")
-    trajs = _trajectories(samples)
+    trajs = trial_trajectories(samples)
     jobs, meta, missing = [], [], []
     for _, row in cells.iterrows():
         tid = row["trial_id"]
         if tid not in trajs:
             missing.append(str(tid))
             continue
-        _, pts, target = trial_goals(row)
-        t, xyz = trajs[tid]
-        jobs.append((pts, t, xyz, target, dict(predictors)))
+        names, pts, target = trial_goals(row)
+        t, xyz, moved = trajs[tid]
+        jobs.append((pts, t, xyz, target, dict(predictors), goal_moves(moved, names, tid)))
         meta.append({"trial_id": tid, "participant": row["participant"], "task": row["task"],
                      "difficulty": row["difficulty"], "correctness": row["correctness"],
                      "mode": row["mode"], "duration_s": row.get("duration_s", np.nan)})

@@ -25,7 +25,14 @@ import pandas as pd
 from analysis import figures as figs
 from analysis.errors import AnalysisError
 from analysis.load import StudyTables
-from analysis.prediction_eval import PREDICTORS, make_predictor, replay, trial_goals
+from analysis.prediction_eval import (
+    PREDICTORS,
+    goal_moves,
+    make_predictor,
+    replay,
+    trial_goals,
+    trial_trajectories,
+)
 from analysis.protocol_info import DEFAULT_PROTOCOL, ProtocolInfo, load_protocol_info
 from analysis.render import (
     TITLE,
@@ -236,11 +243,10 @@ def _figures(res: StudyResults, tables: StudyTables, proto: ProtocolInfo | None,
     row = _example_trial(res)
     if row is not None and res.evals is not None:
         names, pts, target = trial_goals(row)
-        smp = tables.samples[tables.samples["trial_id"] == row["trial_id"]]
-        smp = smp.sort_values("tick" if "tick" in smp.columns else "t")
-        xyz = smp[["target_x", "target_y", "target_z"]].to_numpy(dtype=float)
-        t = smp["t"].to_numpy(dtype=float)
-        reps = {name: replay(pts, xyz, make_predictor(cfg, pts), t=t, target=target)
+        tid = row["trial_id"]
+        t, xyz, moved = trial_trajectories(tables.samples[tables.samples["trial_id"] == tid])[tid]
+        moves = goal_moves(moved, names, tid)
+        reps = {name: replay(pts, xyz, make_predictor(cfg, pts), t=t, target=target, moves=moves)
                 for name, cfg in list(predictors.items())[:2]}
         title = (f"trial {row['trial_id']} ({row['participant']}, {row['task']}, "
                  f"{row['mode']})")

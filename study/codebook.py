@@ -73,7 +73,9 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
         "ee_y": ("end-effector position, y", "m"),
         "ee_z": ("end-effector position, z", "m"),
         "gripper": ("gripper opening", "m"),
-        "events": ("JSON list of events at this tick (grasp, release, lifted ...)", ""),
+        "events": ("JSON list of events at this tick (grasp_requested, grasped:<object>, "
+                   "lifted:<object>, goal_moved:<object>@x,y,z when the robot re-aims at a moved "
+                   "object, outcome:<outcome> ...)", ""),
     },
     "ratings": {
         "participant": ("participant id", ""),

@@ -16,9 +16,11 @@ from analysis.prediction_eval import (
     PREDICTORS,
     evaluate_predictions,
     first_lasting_correct,
+    goal_moves,
     make_predictor,
     prediction_anova,
     replay,
+    trial_trajectories,
 )
 from analysis.synthetic import synthetic_tables
 
@@ -130,3 +132,43 @@ def test_parallel_replay_gives_the_same_table() -> None:
     serial, _ = evaluate_predictions(cells, d["samples"], workers=1)
     parallel, _ = evaluate_predictions(cells, d["samples"], workers=2)
     pd.testing.assert_frame_equal(serial, parallel)
+
+
+def test_replay_moves_goals_where_the_robot_moved_them(protocol_path: Path) -> None:
+    """A trial whose box was nudged: replaying its samples reproduces the robot's own amnesic
+    prediction tick by tick only when the logged goal moves are applied."""
+    import dataclasses
+    import json
+
+    from app.teleop import GizmoInput
+    from app.trial import Trial
+    from app.trial.cli import trial_config_from_protocol
+
+    cfg = trial_config_from_protocol(protocol_path, "easy-wrong", "timid")
+    gizmo = GizmoInput()
+    trial = Trial(dataclasses.replace(cfg, time_limit_s=30), gizmo)
+    k = trial.scene.goals.index("box")
+    trial.tick()
+    trial.sim.set_grip_contacts(True, only=[k])
+    addr = trial.scene.object_qpos_addr[k]
+    trial.sim.data.qpos[addr : addr + 2] += (-0.05, 0.04)
+    gizmo.set_target(trial.scene.goals.positions[k] + (-0.05, 0.04, 0.05))  # to the box, moved
+    for _ in range(80):
+        trial.tick()
+    recs = trial.records
+    samples = pd.DataFrame({
+        "trial_id": 1, "tick": [r.tick for r in recs], "t": [r.t for r in recs],
+        "target_x": [r.user_target[0] for r in recs], "target_y": [r.user_target[1] for r in recs],
+        "target_z": [r.user_target[2] for r in recs],
+        "events": [json.dumps(list(r.events)) for r in recs],
+    })
+    _, xyz, moved = trial_trajectories(samples)[1]
+    names = list(trial.scene.goals.names)
+    moves = goal_moves(moved, names, 1)
+    assert moves is not None and set(moves.goals) == {k}
+    online = np.array([r.probabilities for r in recs])
+    pts = np.asarray(trial.scene.goals.positions)
+    with_moves = replay(pts, xyz, make_predictor(PREDICTORS["amnesic"], pts), moves=moves)
+    without = replay(pts, xyz, make_predictor(PREDICTORS["amnesic"], pts))
+    np.testing.assert_allclose(with_moves.probabilities, online, atol=1e-4)
+    assert np.abs(without.probabilities - online).max() > 1e-2

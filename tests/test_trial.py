@@ -12,6 +12,7 @@ import time
 import numpy as np
 import pytest
 
+from app.blending import parse_goal_moved
 from app.teleop import GizmoInput, ScriptedInput, TeleopCommand, TrialObservation
 from app.trial import OUTCOMES, Trial, run_trial
 from app.trial.cli import IdleInput, trial_config_from_protocol
@@ -242,3 +243,27 @@ def test_cli_prints_json_last(repo_root) -> None:
         timeout=120,
     )
     assert proc.returncode == 2 and "medium" in proc.stderr
+
+
+def test_the_robot_re_aims_at_an_object_that_was_moved(config) -> None:
+    """A nudged object's goal follows it (position and grasp configuration), logged per move."""
+    trial = Trial(config("easy-wrong", "aggressive", time_limit_s=30), GizmoInput())
+    k, other = trial.scene.goals.index("box"), trial.scene.goals.index("bottle")
+    start = trial.blender.goals.positions.copy()
+    trial.tick()
+    trial.sim.set_grip_contacts(True, only=[k])  # a grasp woke the box ...
+    addr = trial.scene.object_qpos_addr[k]
+    trial.sim.data.qpos[addr : addr + 2] += (0.04, -0.03)  # ... and pushed it 5 cm
+    for _ in range(40):
+        trial.tick()
+    moves = [e for r in trial.records for e in r.events if e.startswith("goal_moved:")]
+    assert moves and all(e.startswith("goal_moved:box@") for e in moves)
+    goals = trial.blender.goals
+    assert np.allclose(goals.positions[k], start[k] + (0.04, -0.03, 0.0), atol=3e-3)
+    assert np.array_equal(goals.positions[other], start[other])
+    # the robot's policy now steers to a grasp configuration over the box where it stands
+    assert np.linalg.norm(trial.kinematics.fk(goals.configurations[k]) - goals.positions[k]) < 1e-3
+    assert np.array_equal(trial.observation().goal_positions, goals.positions)
+    # the logged position is the one the robot used, to the micrometre
+    name, logged = parse_goal_moved(moves[-1])
+    assert name == "box" and np.allclose(logged, goals.positions[k], atol=1e-6)

@@ -18,7 +18,7 @@ Example (the study's "wrong" condition, timid mode)::
     blender.reset(start_target)                      # S, in the predictor's space
     record = blender.step(q, u, x=user_target)       # per tick; record.command -> actuators
 
-Modules: goals, prediction/ (base, amnesic, memory, laplace, oracle, costs), confidence,
+Modules: goals, goal_moves (goals that follow moved objects, logged for replay), prediction/ (base, amnesic, memory, laplace, oracle, costs), confidence,
 arbitration, policy, blend, config (factories from protocol tables), errors, reference (exact
 soft value iteration on a 2-D grid, to test eq. 9 against).
 """
@@ -49,6 +49,7 @@ from .config import (
     predictor_from_config,
 )
 from .errors import BlendingError, ConfigError, InvalidArbitrationError, InvalidInputError
+from .goal_moves import GOAL_MOVED, GoalMoves, goal_moved_event, moved_goals, parse_goal_moved
 from .goals import GoalSet
 from .policy import Policy, StraightLinePolicy, WorkspaceLinePolicy
 from .prediction import (
@@ -68,6 +69,7 @@ from .prediction import (
 )
 
 __all__ = [
+    "GOAL_MOVED",
     "Aggressive",
     "AmnesicPredictor",
     "Arbitration",
@@ -79,6 +81,7 @@ __all__ = [
     "DistanceHinge",
     "EntropyConfidence",
     "FunctionArbitration",
+    "GoalMoves",
     "GoalPrediction",
     "GoalSet",
     "HessianCost",
@@ -106,7 +109,10 @@ __all__ = [
     "check_arbitration",
     "confidence_from_config",
     "euclidean",
+    "goal_moved_event",
     "is_adversarial",
+    "moved_goals",
+    "parse_goal_moved",
     "policy_from_config",
     "predictor_from_config",
     "softmax",

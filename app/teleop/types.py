@@ -29,12 +29,12 @@ class TrialObservation:
     """The state an input source may look at (server side only; never sent to a browser as is).
 
     ``q``: arm configuration (7,); ``ee``: end-effector (tool centre point) position (3,);
-    ``user_target``: last clamped target (3,); ``goal_positions``: (n, 3) grasp points in the
-    order of ``goal_names``; ``target_index``: which goal the participant was asked to pick up;
+    ``user_target``: last clamped target (3,); ``goal_positions``: (n, 3) the robot's goals (grasp
+    points) in the order of ``goal_names``; they follow an object once it was moved; ``target_index``: which goal the participant was asked to pick up;
     ``alpha``/``predicted``: the last arbitration value and predicted goal index;
     ``object_positions``: the objects' centres now (n, 3), same order; ``grasp_points``: the
-    grasp points now (n, 3), ``goal_positions`` moved with their objects (a nudged object is
-    re-aimed at there; defaults to ``goal_positions``). The arrays are shared: read, never write.
+    grasp points now (n, 3), moved with their objects at once (a nudged object is re-aimed at
+    there; defaults to ``goal_positions``). The arrays are shared: read, never write.
     """
 
     t: float

@@ -27,6 +27,8 @@ from app.blending import (
     PolicyBlender,
     arbitration_from_config,
     confidence_from_config,
+    goal_moved_event,
+    moved_goals,
     policy_from_config,
     predictor_from_config,
 )
@@ -45,6 +47,7 @@ DROP_S = 0.15  # contact lost this long while lifting = dropped
 FAR_OUTSIDE_M = 0.5  # a raw target this far outside the reach region is logged as such
 TILT_RAD = 0.7  # an object tilted beyond this is logged as knocked over
 WAKE_M = 0.15  # a grasp wakes the objects within this horizontal distance of the gripper
+GOAL_MOVED_M = 0.005  # a goal follows its object once the object has moved this far from it
 
 
 class Trial:
@@ -154,7 +157,7 @@ class Trial:
             user_target=self.user_target.copy(),
             reach=self.scene.reach,
             goal_names=self.scene.goals.names,
-            goal_positions=self.scene.goals.positions,
+            goal_positions=self.blender.goals.positions,
             target_index=self.scene.target_index,
             alpha=alpha,
             predicted=predicted,
@@ -169,6 +172,33 @@ class Trial:
         pos = self.sim.object_positions()
         self._object_positions = pos
         self._grasp_points = self.scene.goals.positions + (pos - self.sim.rest_positions)
+
+    def _follow_objects(self, events: list[str]) -> None:
+        """Re-aim the robot at objects a grasp moved: ``G_k <-`` object ``k``'s grasp point now,
+        with its grasp configuration by IK from the old one, once ``G_k`` is ``GOAL_MOVED_M``
+        off. Each move is logged (``goal_moved:<name>@x,y,z``) at the tick it takes effect, so
+        a replay can apply it. A knocked-over object keeps its goal (no top-down grasp there).
+        """
+        goals = self.blender.goals
+        off = np.linalg.norm(self._grasp_points - goals.positions, axis=1)
+        moves = {}
+        for k in np.flatnonzero(off > GOAL_MOVED_M).tolist():
+            if k in self._knocked:
+                continue
+            position = self._grasp_points[k].copy()
+            q0 = goals.configurations[k] if goals.configurations is not None else self._q
+            solved = self.kinematics.ik(
+                position,
+                rotation=self.scene.grasp_rotations[k],
+                q0=q0,
+                posture=self.scene.start_q,
+                tol=5e-4,
+                rot_tol=5e-3,
+            )
+            moves[k] = (position, solved.q)
+            events.append(goal_moved_event(goals.names[k], position))
+        if moves:
+            self.blender.set_goals(moved_goals(goals, moves))
 
     def result(self) -> TrialResult:
         return TrialResult(
@@ -210,6 +240,8 @@ class Trial:
             events: list[str] = self._pause_events
             self._pause_events = []
             q = self._q
+            if self.sim.objects_live and self._phase == "reach" and self.ticks % 10 == 0:
+                self._follow_objects(events)
             cmd = self._ask_input(events)
             self._set_user_target(cmd, events)
             request = cmd.grasp and not self._grasp_prev
