@@ -31,3 +31,34 @@ def dispatch(
     args = parser.parse_args(args_list)
     module = importlib.import_module(commands[args.command][0])
     return int(module.main(args) or 0)
+
+
+def non_negative_int(text: str) -> int:
+    """argparse type: an integer >= 0 (seeds, indices)."""
+    value = _parse(text, int, "an integer")
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text}")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer > 0 (counts, pixel sizes)."""
+    value = _parse(text, int, "an integer")
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be an integer > 0, got {text}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0 (rates, durations)."""
+    value = _parse(text, float, "a number")
+    if not 0.0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return value
+
+
+def _parse(text: str, kind: type, what: str):  # type: ignore[no-untyped-def]
+    try:
+        return kind(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}") from None

@@ -218,7 +218,7 @@ def test_records_round_trip(config, tmp_path) -> None:
     assert records[-1].events == result.records[-1].events
 
 
-def test_cli_prints_json_last(repo_root) -> None:
+def test_cli_prints_one_json_line(repo_root) -> None:
     def run(*args: str) -> dict:
         proc = subprocess.run(
             [sys.executable, "-m", "app", "trial", *args],
@@ -228,7 +228,8 @@ def test_cli_prints_json_last(repo_root) -> None:
             timeout=120,
         )
         assert proc.returncode == 0, proc.stderr
-        return json.loads(proc.stdout.strip().splitlines()[-1])
+        assert "after" in proc.stderr  # the human-readable line; stdout is the JSON alone
+        return json.loads(proc.stdout)
 
     out = run("--task", "hard-right", "--mode", "aggressive", "--input", "scripted", "--seed", "1")
     assert out["success"] is True and out["outcome"] == "success"
@@ -243,6 +244,15 @@ def test_cli_prints_json_last(repo_root) -> None:
         timeout=120,
     )
     assert proc.returncode == 2 and "medium" in proc.stderr
+    for bad in (["--seed", "-1"], ["--time-limit", "0"], ["--speed", "fast"]):
+        proc = subprocess.run(
+            [sys.executable, "-m", "app", "trial", *bad],
+            cwd=repo_root,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert proc.returncode == 2 and bad[0] in proc.stderr and "Traceback" not in proc.stderr
 
 
 def test_the_robot_re_aims_at_an_object_that_was_moved(config) -> None:

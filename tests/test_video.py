@@ -78,8 +78,15 @@ def test_render_cli_replays_saved_records(config, repo_root, tmp_path) -> None:
         cwd=repo_root, capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
-    summary = json.loads(proc.stdout.strip().splitlines()[-1])
+    summary = json.loads(proc.stdout)  # stdout is one JSON line; progress goes to stderr
     assert summary["frames"] == frame_count(out) > 0
+    for bad in (["--fps", "0"], ["--width", "-5"], ["--trial-id", "x"]):
+        proc = subprocess.run(
+            [sys.executable, "-m", "app", "render", *bad, "--out", str(tmp_path / "bad.mp4")],
+            cwd=repo_root, capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+        assert proc.returncode == 2 and bad[0] in proc.stderr and "Traceback" not in proc.stderr
+        assert not (tmp_path / "bad.mp4").exists()
 
 
 def test_replay_from_store_rows(config, tmp_path) -> None:

@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from app.cli import non_negative_int, positive_float
 from app.teleop import InputSource, ScriptedInput, TeleopCommand, TrialObservation
 from app.trial.config import TrialConfig
 from app.trial.records import save_records
@@ -36,12 +37,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--task", default="hard-right", help="task name, or 'training'")
     parser.add_argument("--mode", default="timid", help="mode name, or 'none' (unassisted)")
     parser.add_argument("--input", choices=INPUTS, default="scripted", help="input source")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the scripted user")
+    parser.add_argument(
+        "--seed", type=non_negative_int, default=0, help="seed of the scripted user"
+    )
     parser.add_argument("--protocol", type=Path, default=DEFAULT_PROTOCOL, help="protocol TOML")
     parser.add_argument("--realtime", action="store_true", help="pace to wall-clock time")
-    parser.add_argument("--speed", type=float, default=0.15, help="scripted user speed, m/s")
+    parser.add_argument(
+        "--speed", type=positive_float, default=0.15, help="scripted user speed, m/s"
+    )
     parser.add_argument("--noise", type=float, default=0.002, help="scripted user noise, m")
-    parser.add_argument("--time-limit", type=float, default=None, help="override, seconds")
+    parser.add_argument("--time-limit", type=positive_float, default=None, help="override, s")
     parser.add_argument("--save", type=Path, default=None, help="write the records (.npz)")
 
 
@@ -96,9 +101,10 @@ def main(args: argparse.Namespace) -> int:
     summary.update(task=args.task, mode=args.mode, input=args.input, wall_s=round(wall, 3))
     print(
         f"{args.task} / {args.mode} / {args.input} seed {args.seed}: {result.outcome}"
-        f" after {result.duration_s:.2f} s ({result.ticks} ticks, {wall:.2f} s wall)"
+        f" after {result.duration_s:.2f} s ({result.ticks} ticks, {wall:.2f} s wall)",
+        file=sys.stderr,
     )
     if args.save is not None:
-        print(f"records written to {save_records(result, args.save)}")
+        print(f"records written to {save_records(result, args.save)}", file=sys.stderr)
     print(json.dumps(summary))
     return 0

@@ -1,6 +1,8 @@
 """``python -m app render``: film a trial to MP4, live or replayed from saved records.
 
-Live: ``python -m app render --task hard-right --mode aggressive --seed 1 --out trial.mp4``.
+Live: ``python -m app render --task hard-right --mode aggressive --seed 1`` (writes
+``data/videos/trial.mp4`` unless ``--out`` says otherwise). Standard output is one JSON line;
+progress and errors go to standard error.
 Replay: ``python -m app trial ... --save run.npz`` then
 ``python -m app render --replay run.npz --task hard-right --out trial.mp4`` (the task names
 the scene), or from a study store: ``--store data/study.sqlite --trial-id 12`` (the scene
@@ -18,6 +20,7 @@ from typing import Any
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
+from app.cli import non_negative_int, positive_float, positive_int
 from app.trial.cli import (
     DEFAULT_PROTOCOL,
     INPUTS,
@@ -31,16 +34,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--task", default="hard-right", help="task name, or 'training'")
     parser.add_argument("--mode", default="timid", help="mode name, or 'none' (unassisted)")
     parser.add_argument("--input", choices=INPUTS, default="scripted")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--protocol", type=Path, default=DEFAULT_PROTOCOL)
+    parser.add_argument(
+        "--seed", type=non_negative_int, default=0, help="seed of the scripted user (live)"
+    )
+    parser.add_argument("--protocol", type=Path, default=DEFAULT_PROTOCOL, help="protocol TOML")
     parser.add_argument("--replay", type=Path, default=None, help="records (.npz) to replay")
     parser.add_argument("--store", type=Path, default=None, help="study store (SQLite) to replay")
-    parser.add_argument("--trial-id", type=int, default=None, help="trial to replay from --store")
-    parser.add_argument("--out", type=Path, default=Path("trial.mp4"), help="MP4 to write")
-    parser.add_argument("--fps", type=float, default=30.0)
-    parser.add_argument("--width", type=int, default=640)
-    parser.add_argument("--height", type=int, default=480)
-    parser.add_argument("--time-limit", type=float, default=None)
+    parser.add_argument(
+        "--trial-id", type=non_negative_int, default=None, help="trial to replay from --store"
+    )
+    parser.add_argument(
+        "--out", type=Path, default=Path("data/videos/trial.mp4"), help="MP4 to write"
+    )
+    parser.add_argument("--fps", type=positive_float, default=30.0, help="frames per second")
+    parser.add_argument("--width", type=positive_int, default=640, help="pixels")
+    parser.add_argument("--height", type=positive_int, default=480, help="pixels")
+    parser.add_argument(
+        "--time-limit", type=positive_float, default=None, help="override, seconds (live)"
+    )
 
 
 def _stored_config(store: Any, task: str, fallback: Path) -> Any:
@@ -94,6 +105,6 @@ def main(args: argparse.Namespace) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     summary.update(video=str(args.out), frames=frames)
-    print(f"wrote {frames} frames to {args.out}")
+    print(f"wrote {frames} frames to {args.out}", file=sys.stderr)
     print(json.dumps(summary))
     return 0
