@@ -139,3 +139,25 @@ def test_serve_command_prints_both_urls_and_stops_cleanly(tmp_path: Path) -> Non
     finally:
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=30) == 0
+
+
+def test_serve_refuses_a_port_in_use_instead_of_moving(tmp_path: Path) -> None:
+    """Participants open the URL they were given: a taken port is an error, not another port."""
+    import socket
+
+    with socket.socket() as busy:
+        busy.bind(("0.0.0.0", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        proc = subprocess.run(
+            [
+                sys.executable, "-m", "app", "serve",
+                "--protocol", str(PAPER_PROTOCOL),
+                "--db", str(tmp_path / "study.db"),
+                "--port", str(port), "--experimenter-port", "0",
+            ],
+            cwd=PAPER_PROTOCOL.parents[1], capture_output=True, text=True, timeout=60,
+        )  # fmt: skip
+    assert proc.returncode == 2
+    assert f"port {port} (participant view) is in use" in proc.stderr and "--port" in proc.stderr
+    assert not (tmp_path / "study.db").exists()

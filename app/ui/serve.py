@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import logging
 import signal
+import socket
 import sys
 import threading
 from pathlib import Path
@@ -50,6 +51,19 @@ def main(args: argparse.Namespace) -> int:
     except Exception as exc:  # a typed ProtocolError naming file, key and problem
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    for what, host, port in (
+        ("participant", args.host, args.port),
+        ("experimenter", "127.0.0.1", args.experimenter_port),
+    ):
+        if port and not _port_free(host, port):
+            # viser would quietly move to the next free port, and participants would open the
+            # URL they were given -- perhaps another server's
+            print(
+                f"error: port {port} ({what} view) is in use, perhaps by another study server;"
+                f" stop it or choose another port with --{'port' if what == 'participant' else 'experimenter-port'}",
+                file=sys.stderr,
+            )
+            return 2
     args.db.parent.mkdir(parents=True, exist_ok=True)
     try:
         store = open_store(args.db, protocol)
@@ -76,3 +90,14 @@ def main(args: argparse.Namespace) -> int:
         server.stop()
         store.close()
     return 0
+
+
+def _port_free(host: str, port: int) -> bool:
+    """True when a TCP server could listen on ``host:port`` now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind((host, port))
+        except OSError:
+            return False
+    return True
