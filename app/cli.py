@@ -20,7 +20,8 @@ def dispatch(
 
     ``commands`` maps a command name to ``(module path, one-line help)``.
     """
-    parser = argparse.ArgumentParser(prog=prog, description=description)
+    # the description is the package's module docstring: shown without its reST backticks
+    parser = argparse.ArgumentParser(prog=prog, description=description.replace("``", ""))
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     args_list = list(sys.argv[1:] if argv is None else argv)
     chosen = next((a for a in args_list if not a.startswith("-")), None)
