@@ -3,6 +3,8 @@ lease-checked path), before driving the session."""
 
 from __future__ import annotations
 
+import hashlib
+import json
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +41,11 @@ def test_simulated_parameters_are_recorded_through_the_session(
         assert [kind for kind, _ in recorded] == ["simulated_participant"]
         (event,) = [e for e in store.events() if e.kind == "simulated_participant"]
         assert event.detail == recorded[0][1]
-        assert event.detail["population"] == str(DEFAULT_POPULATION_PATH)
+        # provenance without the researcher's directories: the file's name and content hash
+        assert event.detail["population"] == DEFAULT_POPULATION_PATH.name
+        digest = hashlib.sha256(DEFAULT_POPULATION_PATH.read_bytes()).hexdigest()
+        assert event.detail["population_sha256"] == digest
+        assert str(DEFAULT_POPULATION_PATH.parent) not in json.dumps(event.detail)
         assert event.detail["params"]
     finally:
         store.close()

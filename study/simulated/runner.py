@@ -17,6 +17,7 @@ samples are batched by each session's ``SampleWriter``, so concurrent sessions a
 
 from __future__ import annotations
 
+import hashlib
 import multiprocessing as mp
 import queue
 import sys
@@ -166,7 +167,12 @@ def run_participant(
     try:
         session.record_event(
             "simulated_participant",
-            {"population": str(population_path), "params": asdict(params)},
+            {
+                # the file's name and content hash, not the researcher's absolute path
+                "population": Path(population_path).name,
+                "population_sha256": hashlib.sha256(Path(population_path).read_bytes()).hexdigest(),
+                "params": asdict(params),
+            },
         )
         run_headless(
             session,
