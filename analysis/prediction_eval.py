@@ -41,6 +41,65 @@ PREDICTORS: dict[str, dict[str, Any]] = {
 """The paper's two predictors: amnesic (nearest goal) and memory-based with the workspace sum
 of squared velocities (eq. 9); configs for ``app.blending.predictor_from_config``."""
 
+DEFAULTS = {"amnesic": {"temperature": 0.05}, "memory": {"cost": "length", "rationality": 1.0}}
+"""``app.blending.predictor_from_config``'s defaults for keys a protocol table leaves out."""
+
+
+@dataclass(frozen=True)
+class PredictorChoice:
+    """One replayed predictor: its config and where it came from, for the report."""
+
+    name: str
+    config: dict[str, Any]
+    source: str  # e.g. "the protocol's [prediction.memory]", "the paper's default"
+
+    def describe(self) -> str:
+        cfg = {**DEFAULTS.get(str(self.config.get("kind")), {}), **self.config}
+        params = ", ".join(f"{k} {_fmt_param(v)}" for k, v in cfg.items()
+                           if k not in ("kind", "space"))
+        return f"{self.name}: {params or 'no parameters'} ({self.source})"
+
+
+def _fmt_param(v: Any) -> str:
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def protocol_predictors(
+    prediction: Mapping[str, Mapping[str, Any]] | None,
+    defaults: Mapping[str, Mapping[str, Any]] = PREDICTORS,
+) -> tuple[dict[str, dict[str, Any]], list[PredictorChoice]]:
+    """The predictors to replay for a protocol with these [prediction.<name>] tables.
+
+    For each default (amnesic, memory-based) the protocol's first table of the same ``kind`` is
+    used as the study ran it (keys it leaves out take app.blending's defaults); if the protocol
+    has none, or only one in configuration space (the replay sees workspace targets), the
+    paper's default stays. Returns the configs and how each was chosen.
+    """
+    configs: dict[str, dict[str, Any]] = {}
+    chosen: list[PredictorChoice] = []
+    tables = {k: dict(v) for k, v in (prediction or {}).items() if isinstance(v, Mapping)}
+    for name, default in defaults.items():
+        kind = default.get("kind")
+        same = [(k, t) for k, t in tables.items() if t.get("kind") == kind]
+        usable = [(k, t) for k, t in same if t.get("space", "workspace") == "workspace"]
+        if usable:
+            key, table = usable[0]
+            cfg = {k: v for k, v in table.items() if k != "space"}
+            source = f"the protocol's [prediction.{key}]"
+        elif same:
+            cfg = dict(default)
+            source = ("the paper's default; the protocol's "
+                      + ", ".join(f"[prediction.{k}]" for k, _ in same)
+                      + " predicts in configuration space, which a replay of the logged "
+                        "workspace targets cannot reproduce")
+        else:
+            cfg = dict(default)
+            source = f"the paper's default; the protocol has no prediction table of kind {kind!r}"
+        configs[name] = cfg
+        chosen.append(PredictorChoice(name, cfg, source))
+    return configs, chosen
+
+
 TARGET_COLUMNS = ("target_x", "target_y", "target_z")
 EVAL_COLUMNS = ["trial_id", "participant", "task", "difficulty", "correctness", "mode",
                 "predictor", "n_ticks", "success_rate", "time_to_correct_s",

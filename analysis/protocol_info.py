@@ -1,8 +1,10 @@
-"""What the report needs from a protocol: its id and hash, the arbitration of each mode.
+"""What the report needs from a protocol: its id and hash, the arbitration of each mode, the
+factor levels and the prediction tables.
 
 The protocol the data were collected with comes first: the text a study store keeps
 (``study.protocol.protocol_from_store``) or an export folder's ``protocol.toml``; then the file
-passed with --protocol (by default protocols/dragan2013.toml), which may have been edited since.
+passed with --protocol (by default protocols/dragan2013.toml), which may have been edited since;
+only a file the user named is reported as differing from the stored protocol.
 Read through ``study.protocol`` (validated, canonical content hash); if that package is
 unavailable, the TOML is read directly and hashed byte for byte (said in the notes).
 """
@@ -18,7 +20,8 @@ from typing import Any
 
 from analysis.errors import SourceError
 
-DEFAULT_PROTOCOL = Path(__file__).resolve().parents[1] / "protocols" / "dragan2013.toml"
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_PROTOCOL = ROOT / "protocols" / "dragan2013.toml"
 
 
 @dataclass(frozen=True)
@@ -30,6 +33,7 @@ class ProtocolInfo:
     amnesic_temperature: float = 0.05
     notes: tuple[str, ...] = field(default_factory=tuple)
     factors: dict[str, tuple[str, ...]] = field(default_factory=dict)  # [factors], in order
+    prediction: dict[str, dict[str, Any]] = field(default_factory=dict)  # [prediction.<name>]
 
 
 def _temperature(prediction: Mapping[str, Any] | None) -> float:
@@ -39,16 +43,27 @@ def _temperature(prediction: Mapping[str, Any] | None) -> float:
     return 0.05
 
 
+def _prediction_tables(prediction: Mapping[str, Any] | None) -> dict[str, dict[str, Any]]:
+    """The protocol's [prediction.<name>] tables as plain dicts, in the protocol's order."""
+    return {str(k): dict(v) for k, v in (prediction or {}).items() if isinstance(v, Mapping)}
+
+
 def load_protocol_info(
-    path: str | Path = DEFAULT_PROTOCOL, *, stored: str | Path | None = None
+    path: str | Path = DEFAULT_PROTOCOL, *, stored: str | Path | None = None,
+    explicit: bool = True,
 ) -> ProtocolInfo:
     """Mode arbitration tables, id and content hash of the protocol the data were collected with:
     the one kept in ``stored`` (a study store, or an export folder with ``protocol.toml``) if it
-    keeps one, else the protocol file at ``path``."""
+    keeps one, else the protocol file at ``path``.
+
+    ``explicit``: the user named ``path`` (--protocol); only then does a note say that it differs
+    from the stored protocol and was not used (a default path the user never gave is not news).
+    """
     if stored is not None:
         info, why = _stored_info(Path(stored))
         if info is not None:
-            return replace(info, notes=info.notes + _ignored_file_note(info, path))
+            ignored = _ignored_file_note(info, path) if explicit else ()
+            return replace(info, notes=info.notes + ignored)
         if why:
             file_info = _file_info(path)
             return replace(file_info, notes=(why, *file_info.notes))
@@ -102,6 +117,7 @@ def _info(proto: Any, *, path: str) -> ProtocolInfo:
                       if m.arbitration is not None},
         amnesic_temperature=_temperature(proto.prediction),
         factors={k: tuple(map(str, v)) for k, v in dict(proto.factors).items()},
+        prediction=_prediction_tables(proto.prediction),
     )
 
 
@@ -132,6 +148,7 @@ def _file_info(path: str | Path) -> ProtocolInfo:
         arbitrations={k: v["arbitration"] for k, v in modes.items()
                       if isinstance(v, dict) and isinstance(v.get("arbitration"), dict)},
         amnesic_temperature=_temperature(doc.get("prediction")),
+        prediction=_prediction_tables(doc.get("prediction")),
         factors={k: tuple(map(str, v)) for k, v in doc.get("factors", {}).items()
                  if isinstance(v, list)},
         notes=("study.protocol is unavailable: the protocol was read as plain TOML and its hash "

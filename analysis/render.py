@@ -82,8 +82,8 @@ def _header(meta: Mapping[str, Any]) -> list[tuple[str, str]]:
                           f"{sw['python']}, numpy {sw['numpy']}, pandas {sw['pandas']}, scipy "
                           f"{sw['scipy']}, statsmodels {sw['statsmodels']}, matplotlib "
                           f"{sw['matplotlib']}"),
-             ("Protocol", f"{pr.get('id') or '?'} ({pr.get('path') or 'not given'}), content "
-                          f"hash {pr.get('content_hash') or 'unknown'}")]
+             ("Protocol", f"{pr.get('id') or '?'} from {pr.get('path') or 'no protocol file'}; "
+                          f"content hash {pr.get('content_hash') or 'unknown'}")]
     if pr.get("store_hash"):
         match = "matches" if pr.get("store_hash") == pr.get("content_hash") else "DIFFERS"
         items.append(("Protocol hash recorded with the data", f"{pr['store_hash']} ({match})"))

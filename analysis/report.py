@@ -2,8 +2,10 @@
 
 ``write_report(tables, out_dir)`` runs :func:`analysis.results.analyse`, draws the figures, and
 writes ``report.html``, ``report.md``, ``results.json`` and ``figures/*.png|svg`` into
-``out_dir``. Every table puts the paper's published value beside ours; the header names the
-data source, the software version and the protocol's content hash.
+``out_dir``. Where the design (and for prediction, the predictors) are the paper's, tables put
+the paper's published value beside ours; otherwise the report says why none are shown. The
+header names the data source, the software version and the protocol's content hash; the
+prediction section names the predictor parameters replayed (the protocol's, else the paper's).
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import json
 import math
 import platform
 import subprocess
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
@@ -27,8 +29,10 @@ from analysis.errors import AnalysisError
 from analysis.load import StudyTables
 from analysis.prediction_eval import (
     PREDICTORS,
+    PredictorChoice,
     goal_moves,
     make_predictor,
+    protocol_predictors,
     replay,
     trial_goals,
     trial_trajectories,
@@ -44,6 +48,7 @@ from analysis.render import (
     render_markdown,
 )
 from analysis.results import StudyResults, analyse
+from analysis.timing import FACTORS, LEVELS
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -81,33 +86,60 @@ def software_info() -> dict[str, str]:
             "statsmodels": statsmodels.__version__, "matplotlib": matplotlib.__version__}
 
 
-def _anova_table(table: pd.DataFrame, analysis: str, stats: pd.DataFrame) -> pd.DataFrame:
+def _anova_table(table: pd.DataFrame, analysis: str, stats: pd.DataFrame,
+                 with_paper: bool = True) -> pd.DataFrame:
+    """An ANOVA table; with the paper's F and p beside ours when ``with_paper``."""
     pub = stats[stats.analysis == analysis].set_index("effect")
     rows = []
     for r in table.itertuples():
         paper = pub.loc[r.effect] if r.effect in pub.index else None
-        rows.append({
-            "effect": r.effect, "df": f"{fmt(r.df1, 0)}, {fmt(r.df2, 0)}", "F": fmt(r.F),
-            "p": fmt_p(r.p), "partial η²": fmt(r.np2, 3),
-            "paper F": fmt(paper["paper_value"]) if paper is not None else "",
-            "paper p": fmt(paper["paper_p"]) if paper is not None else "",
-        })
+        row = {"effect": r.effect, "df": f"{fmt(r.df1, 0)}, {fmt(r.df2, 0)}", "F": fmt(r.F),
+               "p": fmt_p(r.p), "partial η²": fmt(r.np2, 3)}
+        if with_paper:
+            row["paper F"] = fmt(paper["paper_value"]) if paper is not None else ""
+            row["paper p"] = fmt(paper["paper_p"]) if paper is not None else ""
+        rows.append(row)
     return pd.DataFrame(rows)
 
 
+def _per_participant(cells: pd.DataFrame) -> str:
+    n = cells.groupby("participant").size()
+    lo, hi = int(n.min()), int(n.max())
+    return f"{lo} per participant" if lo == hi else f"{lo} to {hi} per participant"
+
+
+def _design_text(levels: Mapping[str, tuple[str, ...]]) -> str:
+    return "; ".join(f"{f}: {', '.join(v)}" for f, v in levels.items())
+
+
+PAPER_DESIGN = ("the paper's 2 x 2 x 2 (" + _design_text({f: LEVELS[f] for f in FACTORS})
+                + ")")
+
+
+def _no_paper_values(res: StudyResults, what: str = "design") -> str:
+    if what == "predictors":
+        return ("The predictors replayed differ from the paper's (amnesic, and memory-based "
+                "with the squared-velocity cost of eq. 9), so the paper's values are not shown.")
+    levels = res.timing.levels if res.timing is not None else None
+    ours = f" ({_design_text(levels)})" if levels else ""
+    return (f"This design{ours} differs from {PAPER_DESIGN}, so the paper's values are not "
+            "shown.")
+
+
 def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
-              trials: pd.DataFrame | None = None) -> list[Section]:
+              trials: pd.DataFrame | None = None,
+              choices: Sequence[PredictorChoice] = ()) -> list[Section]:
     s = res.statistics
     out: list[Section] = []
     cells = res.cells
     data = Section("Data")
     if not cells.empty:
         n_part = cells["participant"].nunique()
+        paper = " (paper: about 28 s)" if res.paper_design else ""
         data.paragraphs.append(
             f"{n_part} participant(s), {len(cells)} completed task trials "
-            f"({cells.groupby('participant').size().min()}-"
-            f"{cells.groupby('participant').size().max()} per participant). Mean time per task "
-            f"{cells['duration_s'].mean():.1f} s (paper: about 28 s).")
+            f"({_per_participant(cells)}). Mean time per task "
+            f"{cells['duration_s'].mean():.1f} s{paper}.")
     if trials is not None and not trials.empty:
         cols = [c for c in ("phase", "status", "outcome") if c in trials.columns]
         counts = trials.groupby(cols, dropna=False).size().reset_index(name="trials")
@@ -120,45 +152,55 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
             figures=[figures["fig7"]]))
     if res.timing is not None:
         t = res.timing
+        with_paper = res.paper_comparable["timing"]
         sec = Section("Timing (section 5.1)")
+        paper_fit = (" (the paper reports R² = 0.66 for N = 64, residual df = 53)"
+                     if with_paper else "")
         sec.paragraphs.append(
             f"Factorial ANOVA with covariates: duration ~ {' × '.join(t.factors)}, "
             f"sum-to-zero contrasts, type {t.ancova.ss_type} sums of squares, covariates "
             f"{', '.join(t.covariates) or 'none'}; N = {t.ancova.n}, residual df = "
-            f"{t.ancova.df_resid}, R² = {t.ancova.r2:.2f} (paper: R² = 0.66 on F(1, 53)). "
+            f"{t.ancova.df_resid}, R² = {t.ancova.r2:.2f}{paper_fit}. "
             "Type III tests each effect at the unweighted cell means adjusted for all other "
             "terms and the covariates (SPSS GLM's default, the form the paper reports). Like "
-            "the paper's, this model treats the 64 times as independent given the covariates; "
-            "the repeated-measures ANOVA below models the participant instead.")
+            f"the paper's, this model treats the {t.ancova.n} times as independent given the "
+            "covariates; the repeated-measures ANOVA below models the participant instead.")
+        if not with_paper:
+            sec.paragraphs.append(_no_paper_values(res))
         sec.tables.append(Table("Factorial ANOVA with covariates",
-                                _anova_table(t.ancova.table, "timing_ancova", s)))
+                                _anova_table(t.ancova.table, "timing_ancova", s, with_paper)))
         me = s[s.analysis == "timing_effects"]
-        sec.tables.append(Table("Main effects as mean differences (s)", pd.DataFrame({
+        effects = pd.DataFrame({
             "factor": me["effect"],
             "contrast": me["test"].str.replace("mean difference ", "").str.replace(" (s)", ""),
-            "ours": me["statistic"].map(fmt), "paper": me["paper_value"].map(fmt)})))
+            "ours": me["statistic"].map(fmt)})
+        if with_paper:
+            effects["paper"] = me["paper_value"].map(fmt)
+        sec.tables.append(Table("Main effects as mean differences (s)", effects))
         sec.tables.append(Table(f"Repeated-measures ANOVA ({t.rm.n_subjects} participants)",
-                                _anova_table(t.rm.table, "timing_rm", s),
-                                "Subjects as error strata: F(1, n - 1); the paper reports the "
-                                "covariate model above."))
+                                _anova_table(t.rm.table, "timing_rm", s, with_paper=False),
+                                "Subjects as error strata: each effect's error df is its df "
+                                "times (n - 1); the paper reports only the covariate model "
+                                "above."))
         c = t.comparisons
         if len(c):
             comp = s[s.analysis.isin(["timing_posthoc", "timing_planned", "timing_pairwise"])]
             comp = comp.reset_index(drop=True)
-            sec.tables.append(Table("Paired comparisons (Bonferroni within each family)",
-                                    pd.DataFrame({
-                                        "family": c["family"], "comparison": c["comparison"],
-                                        "t": [f"t({fmt(d, 0)}) = {fmt(v)}" for d, v in
-                                              zip(c["df"], c["t"], strict=True)],
-                                        "p": c["p"].map(fmt_p),
-                                        "p (Bonferroni)": c["p_bonf"].map(fmt_p),
-                                        "mean diff (s)": c["mean_diff"].map(fmt),
-                                        "95% CI": [f"[{fmt(a)}, {fmt(b)}]" for a, b in
-                                                   zip(c["ci_low"], c["ci_high"], strict=True)],
-                                        "d_z": c["d_z"].map(fmt),
-                                        "paper |t|": comp["paper_value"].map(fmt)}),
-                                    "Differences are first minus second; the paper reports "
-                                    "|t|."))
+            paired = pd.DataFrame({
+                "family": c["family"], "comparison": c["comparison"],
+                "t": [f"t({fmt(d, 0)}) = {fmt(v)}" for d, v in
+                      zip(c["df"], c["t"], strict=True)],
+                "p": c["p"].map(fmt_p),
+                "p (Bonferroni)": c["p_bonf"].map(fmt_p),
+                "mean diff (s)": c["mean_diff"].map(fmt),
+                "95% CI": [f"[{fmt(a)}, {fmt(b)}]" for a, b in
+                           zip(c["ci_low"], c["ci_high"], strict=True)],
+                "d_z": c["d_z"].map(fmt)})
+            if with_paper:
+                paired["paper |t|"] = comp["paper_value"].map(fmt)
+            sec.tables.append(Table("Paired comparisons (Bonferroni within each family)", paired,
+                                    "Differences are first minus second"
+                                    + ("; the paper reports |t|." if with_paper else ".")))
         summ = t.summary.copy()
         sec.tables.append(Table("Time per task and mode (s)", pd.DataFrame({
             "task": summ["task"], "mode": summ["mode"], "mean": summ["mean"].map(fmt),
@@ -172,27 +214,39 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
             "Preference for the aggressive run (-3..+3) per participant and task against the "
             "time advantage of aggressive (timid minus aggressive duration), and each rating's "
             "aggressive-minus-timid difference against the preference.")
-        pub = s[s.analysis == "preference"]["paper_value"].map(fmt).to_numpy()
-        sec.tables.append(Table("Pearson correlations", pd.DataFrame({
+        corr = pd.DataFrame({
             "measure": c["measure"], "versus": c["versus"],
             "r": [f"r({fmt(d, 0)}) = {fmt(r)}" for d, r in zip(c["df"], c["r"], strict=True)],
             "p": c["p"].map(fmt_p),
             "95% CI": [f"[{fmt(a)}, {fmt(b)}]" for a, b in zip(c["ci_low"], c["ci_high"],
-                                                              strict=True)],
-            "paper r": pub})))
+                                                              strict=True)]})
+        if res.paper_comparable["preference"]:
+            corr["paper r"] = s[s.analysis == "preference"]["paper_value"].map(fmt).to_numpy()
+        else:
+            sec.paragraphs.append(_no_paper_values(res))
+        sec.tables.append(Table("Pearson correlations", corr))
         out.append(sec)
     if res.prediction_summary is not None:
         sec = Section("Prediction (section 5.2)")
         p = res.prediction
+        with_paper = res.paper_comparable["prediction"]
         sec.paragraphs.append(
             "Every logged user-target trajectory replayed through app.blending's predictors "
             f"({', '.join(res.prediction_summary['predictor'].unique())}); success rate = share "
             "of ticks predicting the target; time to the first lasting correct prediction from "
             "the trial's start.")
+        if choices:
+            sec.paragraphs.append("Predictor parameters: "
+                                  + "; ".join(c.describe() for c in choices) + ".")
         if p is not None:
+            paper_fit = (" (the paper reports R² = 0.9 for N = 128, residual df = 112)"
+                         if with_paper else "")
             sec.paragraphs.append(
                 f"Factorial ANOVA (type {p.ss_type} SS): N = {p.n}, residual df = "
-                f"{p.df_resid}, R² = {p.r2:.2f} (paper: R² = 0.9 on F(1, 112)).")
+                f"{p.df_resid}, R² = {p.r2:.2f}{paper_fit}.")
+        if not with_paper:
+            sec.paragraphs.append(_no_paper_values(
+                res, "design" if not res.paper_design else "predictors"))
         ps = res.prediction_summary
         sec.tables.append(Table("Success rate and time to a lasting correct prediction",
                                 pd.DataFrame({
@@ -205,7 +259,7 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
                                     "trials": ps["n"]})))
         if p is not None:
             sec.tables.append(Table("Factorial ANOVA on the success rate",
-                                    _anova_table(p.table, "prediction_anova", s)))
+                                    _anova_table(p.table, "prediction_anova", s, with_paper)))
         sec.figures += [f for k, f in figures.items() if k == "fig9"]
         out.append(sec)
     if res.timing is not None:
@@ -297,27 +351,36 @@ def write_report(
     tables: StudyTables,
     out_dir: str | Path,
     *,
-    protocol_path: str | Path | None = DEFAULT_PROTOCOL,
-    predictors: Mapping[str, Mapping[str, Any]] = PREDICTORS,
+    protocol_path: str | Path | None = None,
+    predictors: Mapping[str, Mapping[str, Any]] | None = None,
     successful_only: bool = False,
 ) -> ReportFiles:
     """Analyse ``tables`` and write report.html, report.md, results.json and figures/.
 
-    Fig. 7 and the protocol hash describe the protocol kept with the data (the store's text or
-    the export's protocol.toml); ``protocol_path`` is read when the source keeps none."""
+    Fig. 7, the protocol hash, the factor levels and the replayed predictors come from the
+    protocol kept with the data (the store's text or the export's protocol.toml); the file
+    ``protocol_path`` is read when the source keeps none (default: protocols/dragan2013.toml,
+    and then a differing default file is not mentioned).
+
+    ``predictors``: the configs to replay; by default the paper's two (amnesic, memory-based
+    with eq. 9's squared velocity), each replaced by the protocol's table of the same kind if
+    it has one."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     proto: ProtocolInfo | None = None
     proto_notes: list[str] = []
-    if protocol_path is not None:
-        try:
-            proto = load_protocol_info(protocol_path, stored=tables.source)
-            proto_notes += list(proto.notes)
-        except AnalysisError as e:
-            proto_notes.append(f"protocol not read (no Fig. 7, no hash): {e}")
-    if proto is not None and "amnesic" in predictors:
-        predictors = {**predictors, "amnesic": {**predictors["amnesic"],
-                                                "temperature": proto.amnesic_temperature}}
+    try:
+        proto = load_protocol_info(protocol_path or DEFAULT_PROTOCOL, stored=tables.source,
+                                   explicit=protocol_path is not None)
+        proto_notes += list(proto.notes)
+    except AnalysisError as e:
+        proto_notes.append(f"protocol not read (no Fig. 7, no hash): {e}")
+    if predictors is not None:
+        choices = [PredictorChoice(n, dict(c), "given by the caller")
+                   for n, c in predictors.items()]
+    else:
+        predictors, choices = protocol_predictors(proto.prediction if proto else None,
+                                                  PREDICTORS)
     res = analyse(tables, predictors=predictors, successful_only=successful_only,
                   levels=proto.factors if proto is not None else None)
     res.notes = proto_notes + res.notes
@@ -331,12 +394,13 @@ def write_report(
                      "content_hash": proto.content_hash if proto else None,
                      "store_hash": tables.protocol_hash},
         "participants": int(res.cells["participant"].nunique()) if not res.cells.empty else 0,
+        "predictors": {c.name: {"config": c.config, "source": c.source} for c in choices},
     }
     if (tables.protocol_hash and proto and proto.content_hash
             and tables.protocol_hash != proto.content_hash):
         res.notes.insert(0, "the protocol file's hash differs from the one recorded with the "
                             "data: pass the protocol the study ran with (--protocol)")
-    sections = _sections(res, figures, tables.trials)
+    sections = _sections(res, figures, tables.trials, choices)
     html_path, md_path, json_path = out / "report.html", out / "report.md", out / "results.json"
     html_path.write_text(render_html(sections, meta), encoding="utf-8")
     md_path.write_text(render_markdown(sections, meta), encoding="utf-8")

@@ -21,7 +21,14 @@ from analysis.errors import AnalysisError
 from analysis.load import StudyTables, task_cells
 from analysis.prediction_eval import PREDICTORS, evaluate_predictions, prediction_anova
 from analysis.published import published
-from analysis.timing import TimingAnalysis, summarise, timing_analysis
+from analysis.timing import (
+    FACTORS,
+    LEVELS,
+    TimingAnalysis,
+    design_levels,
+    summarise,
+    timing_analysis,
+)
 
 STAT_COLUMNS = ["analysis", "effect", "test", "df1", "df2", "statistic", "p", "p_bonf",
                 "effect_size", "effect_size_name", "ci_low", "ci_high", "paper_value",
@@ -39,6 +46,27 @@ class StudyResults:
     prediction_summary: pd.DataFrame | None = None
     statistics: pd.DataFrame = field(default_factory=lambda: pd.DataFrame(columns=STAT_COLUMNS))
     notes: list[str] = field(default_factory=list)
+    paper_design: bool = True      # difficulty x correctness x mode, the paper's two levels each
+    paper_predictors: bool = True  # amnesic and memory-based with eq. 9's squared velocity
+
+    @property
+    def paper_comparable(self) -> dict[str, bool]:
+        """Per analysis family: are the paper's values comparable with ours?"""
+        return {"timing": self.paper_design, "preference": self.paper_design,
+                "prediction": self.paper_design and self.paper_predictors}
+
+
+def is_paper_design(cells: pd.DataFrame,
+                    levels: Mapping[str, Sequence[str]] | None = None) -> bool:
+    """The data's design is the paper's: difficulty, correctness and mode, two levels each."""
+    return design_levels(cells, levels) == {f: LEVELS[f] for f in FACTORS}
+
+
+def is_paper_predictors(predictors: Mapping[str, Mapping[str, Any]]) -> bool:
+    """The replayed predictors are the paper's two: amnesic and eq. 9 with squared velocity."""
+    kinds = {n: dict(c).get("kind") for n, c in predictors.items()}
+    return (kinds == {"amnesic": "amnesic", "memory": "memory"}
+            and dict(predictors["memory"]).get("cost") == "squared_velocity")
 
 
 def _row(analysis: str, effect: str, test: str, df1: float, df2: float | None, stat: float,
@@ -56,8 +84,19 @@ def _anova_rows(analysis: str, table: pd.DataFrame, test: str) -> list[dict[str,
                  es_name="partial eta squared") for r in table.itertuples()]
 
 
+def _paper_df1(df: object) -> float | None:
+    try:
+        return float(str(df).split(",")[0])
+    except ValueError:
+        return None
+
+
 def statistics_table(res: StudyResults) -> pd.DataFrame:
-    """Every statistic of ``res`` as rows of ``STAT_COLUMNS``."""
+    """Every statistic of ``res`` as rows of ``STAT_COLUMNS``.
+
+    The paper's value is given only where the design (and, for prediction, the predictors)
+    match the paper's and an F test has the paper's numerator df; elsewhere it is empty.
+    """
     rows: list[dict[str, Any]] = []
     if res.timing is not None:
         t = res.timing
@@ -85,6 +124,14 @@ def statistics_table(res: StudyResults) -> pd.DataFrame:
                             f"factorial ANOVA (OLS, type {res.prediction.ss_type} SS)")
         rows.append(_row("prediction_anova", "R^2", "coefficient of determination", np.nan,
                          None, res.prediction.r2, np.nan))
+    comparable = res.paper_comparable
+    for r in rows:
+        family = ("prediction" if r["analysis"].startswith("prediction")
+                  else "preference" if r["analysis"] == "preference" else "timing")
+        df1 = _paper_df1(r["paper_df"]) if r["paper_value"] is not None else None
+        f_mismatch = df1 is not None and "ANOVA" in r["test"] and r["df1"] != df1
+        if not comparable[family] or f_mismatch:
+            r.update(paper_value=None, paper_df=None, paper_p=None)
     return pd.DataFrame(rows, columns=STAT_COLUMNS)
 
 
@@ -97,10 +144,12 @@ def analyse(tables: StudyTables, *,
     ``levels``: the protocol's factor levels, to order them as the protocol does.
     """
     cells, notes = task_cells(tables.trials, successful_only=successful_only)
-    res = StudyResults(cells=cells, notes=[*tables.notes, *notes])
+    res = StudyResults(cells=cells, notes=[*tables.notes, *notes],
+                       paper_predictors=is_paper_predictors(predictors))
     if cells.empty:
         res.notes.append("no completed task trials: nothing to analyse")
         return res
+    res.paper_design = is_paper_design(cells, levels)
     try:
         res.timing = timing_analysis(cells, levels=levels)
         res.notes += [f"timing: {n}" for n in res.timing.notes]

@@ -172,3 +172,22 @@ def test_replay_moves_goals_where_the_robot_moved_them(protocol_path: Path) -> N
     without = replay(pts, xyz, make_predictor(PREDICTORS["amnesic"], pts))
     np.testing.assert_allclose(with_moves.probabilities, online, atol=1e-4)
     assert np.abs(without.probabilities - online).max() > 1e-2
+
+
+def test_protocol_predictors_take_the_protocols_tables() -> None:
+    from analysis.prediction_eval import protocol_predictors
+    from analysis.protocol_info import load_protocol_info
+
+    paper, how = protocol_predictors(load_protocol_info(ROOT / "protocols" / "dragan2013.toml")
+                                     .prediction)
+    assert paper == PREDICTORS  # [prediction.wrong] is amnesic at 0.05; no memory table
+    assert "[prediction.wrong]" in how[0].source and "paper's default" in how[1].source
+    m3, how = protocol_predictors(load_protocol_info(ROOT / "protocols" / "memory3.toml")
+                                  .prediction)
+    assert m3["memory"] == {"kind": "memory", "cost": "length", "rationality": 30.0}
+    assert how[1].describe() == ("memory: cost length, rationality 30 (the protocol's "
+                                 "[prediction.memory])")
+    joint, how = protocol_predictors({"m": {"kind": "memory", "space": "configuration"},
+                                      "a": {"kind": "amnesic", "temperature": 0.1}})
+    assert joint["memory"] == PREDICTORS["memory"] and "configuration space" in how[1].source
+    assert joint["amnesic"] == {"kind": "amnesic", "temperature": 0.1}

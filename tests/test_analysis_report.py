@@ -189,3 +189,97 @@ def test_other_designs_three_modes_and_a_single_difficulty(tmp_path: Path) -> No
     assert any("preference analysis skipped" in n for n in res.notes)
     assert any("differs from the paper" in n for n in res.notes)
     assert files.html.read_text().count("<svg") == 3
+
+
+MEMORY3 = ROOT / "protocols" / "memory3.toml"
+
+
+@pytest.fixture(scope="module")
+def memory3_report(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, dict, str]:
+    """Two simulated participants through protocols/memory3.toml, reported without --protocol."""
+    from analysis.load import load_tables
+    from analysis.report import write_report
+    from study.simulated.runner import simulate
+
+    d = tmp_path_factory.mktemp("memory3")
+    db = d / "m3.db"
+    simulate(protocol_path=MEMORY3, db=db, participants=2, seed=1, progress=False)
+    files = write_report(load_tables(db=db), d / "report")
+    return db, d / "report", json.loads(files.results_json.read_text()), \
+        files.markdown.read_text()
+
+
+def test_memory3_report_replays_the_protocols_own_predictors(memory3_report) -> None:
+    _, _, doc, md = memory3_report
+    assert doc["predictors"]["memory"]["config"] == {"kind": "memory", "cost": "length",
+                                                     "rationality": 30.0}
+    assert doc["predictors"]["amnesic"]["config"] == {"kind": "amnesic", "temperature": 0.05}
+    assert ("Predictor parameters: amnesic: temperature 0.05 (the protocol's "
+            "[prediction.amnesic]); memory: cost length, rationality 30 (the protocol's "
+            "[prediction.memory])") in md
+    rate = pd.DataFrame(doc["prediction_summary"]).groupby("predictor")["success_rate"].mean()
+    # with eq. 9's squared velocity (the paper's default) it was right a few % of the time
+    assert rate["memory"] > 0.6
+
+
+def test_memory3_report_shows_no_paper_values_for_its_three_level_design(memory3_report) -> None:
+    _, _, doc, md = memory3_report
+    stats = pd.DataFrame(doc["statistics"])
+    mode = stats[(stats.analysis == "timing_ancova") & (stats.effect == "mode")].iloc[0]
+    assert mode["df1"] == 2 and mode["paper_value"] is None
+    assert stats["paper_value"].isna().all()
+    assert "paper F" not in md and "paper |t|" not in md and "about 28 s" not in md
+    assert "R² = 0.66" not in md and "R² = 0.9 " not in md
+    assert md.count("differs from the paper's 2 x 2 x 2 (difficulty: easy, hard; correctness: "
+                    "right, wrong; mode: timid, aggressive), so the paper's values are not "
+                    "shown") == 2  # timing and prediction
+
+
+def test_memory3_report_wording(memory3_report) -> None:
+    db, _, doc, md = memory3_report
+    n = doc["fits"]["timing_ancova"]["n"]
+    assert n == 18 and f"this model treats the {n} times as independent" in md
+    assert "(9 per participant)" in md and "9-9" not in md
+    assert f"memory3 from {db} (stored protocol); content hash" in md
+    # no --protocol given: the default file (dragan2013.toml) is not news
+    assert not any("dragan2013" in n for n in doc["notes"])
+
+
+def test_count_sentence_and_paper_values_follow_the_data(tmp_path: Path) -> None:
+    from analysis.load import from_frames
+    from analysis.report import write_report
+
+    trials = synthetic_tables(3, seed=4, with_samples=False)["trials"]
+    files = write_report(from_frames(trials), tmp_path)
+    md = files.markdown.read_text()
+    assert "this model treats the 24 times as independent" in md
+    assert "(8 per participant)" in md
+    # the paper's design (2 x 2 x 2): its values are shown, with its own N and df
+    assert "(the paper reports R² = 0.66 for N = 64, residual df = 53)" in md
+    assert "| effect | df | F | p | partial η² | paper F | paper p |" in md
+
+
+def test_other_predictors_than_the_papers_get_no_paper_values(tmp_path: Path) -> None:
+    from analysis.load import from_frames
+    from analysis.report import write_report
+
+    t = synthetic_tables(8, seed=5, rate_hz=5.0)
+    files = write_report(from_frames(t["trials"], t["samples"]), tmp_path, predictors={
+        "amnesic": {"kind": "amnesic", "temperature": 0.05},
+        "memory": {"kind": "memory", "cost": "length", "rationality": 30.0}})
+    stats = files.results.statistics
+    pred = stats[stats.analysis == "prediction_anova"]
+    assert pred["paper_value"].isna().all()
+    assert stats[(stats.analysis == "timing_ancova")
+                 & (stats.effect == "mode")]["paper_value"].iloc[0] == 13.2
+    md = files.markdown.read_text()
+    assert "The predictors replayed differ from the paper's" in md
+    assert "memory: cost length, rationality 30 (given by the caller)" in md
+
+
+def test_a_differing_protocol_file_is_named_only_when_the_user_gave_it(memory3_report,
+                                                                      protocol_path: Path) -> None:
+    db = memory3_report[0]
+    assert load_protocol_info(protocol_path, stored=db, explicit=False).notes == ()
+    given = load_protocol_info(protocol_path, stored=db)
+    assert any(str(protocol_path) in n and "not used" in n for n in given.notes)

@@ -10,7 +10,7 @@ import sys
 import time
 
 from analysis.cli import fail, friendly, note
-from analysis.protocol_info import DEFAULT_PROTOCOL
+from analysis.protocol_info import DEFAULT_PROTOCOL, ROOT
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -18,9 +18,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     src.add_argument("--db", help="the study's SQLite store")
     src.add_argument("--export-dir", help="a folder written by `python -m study export`")
     parser.add_argument("--out", required=True, help="output folder (created if needed)")
-    parser.add_argument("--protocol", default=str(DEFAULT_PROTOCOL),
-                        help="protocol TOML the study ran with (Fig. 7 and the hash), read "
-                             "only if the store or export keeps no protocol text")
+    parser.add_argument("--protocol", default=None,
+                        help="protocol TOML the study ran with (Fig. 7, the hash, factor levels "
+                             "and predictors), read only if the store or export keeps no "
+                             f"protocol text (default: {DEFAULT_PROTOCOL.relative_to(ROOT)})")
     parser.add_argument("--successful-only", action="store_true",
                         help="leave out completed trials that ended without success")
 
