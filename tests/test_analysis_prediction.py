@@ -110,6 +110,10 @@ def test_predict_command(tmp_path: Path) -> None:
     mem = _predict("--goals", str(goals), "--trajectory", str(tr), "--method", "memory",
                    "--cost", "length")
     assert mem.returncode == 0 and mem.stdout.count("\n") == 61
+    # the protocol format's cost name and the short one are the same cost
+    named = [_predict("--goals", str(goals), "--trajectory", str(tr), "--method", "memory",
+                      "--cost", cost) for cost in ("squared_velocity", "sqvel")]
+    assert named[0].returncode == 0 and named[0].stdout == named[1].stdout != mem.stdout
     # configuration-space columns q1..qn work the same way
     pd.DataFrame({"goal": ["a", "b"], "q1": [0, 1], "q2": [0, 1]}).to_csv(goals, index=False)
     pd.DataFrame({"t": [0, 1, 2], "q1": [0.1, 0.6, 0.9], "q2": [0, 0.5, 1]}).to_csv(tr, index=False)

@@ -21,7 +21,8 @@ from analysis.design import numeric_column, require_columns
 from analysis.errors import DataError, SchemaError
 from analysis.prediction_eval import make_predictor, replay
 
-COSTS = {"length": "length", "sqvel": "squared_velocity"}
+COSTS = {"length": "length", "squared_velocity": "squared_velocity", "sqvel": "squared_velocity"}
+"""``--cost`` values: the protocol format's names, plus the short ``sqvel``."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -29,9 +30,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--trajectory", required=True,
                         help="CSV with columns t,x,y[,z] or t,q1..qn")
     parser.add_argument("--method", required=True, choices=["amnesic", "memory"])
-    parser.add_argument("--cost", choices=list(COSTS), default="sqvel",
+    parser.add_argument("--cost", choices=list(COSTS), default="squared_velocity",
                         help="memory-based cost: path length or sum of squared velocities "
-                             "(default sqvel, the paper's offline analysis)")
+                             "(default squared_velocity, as protocols name it and the paper's "
+                             "offline analysis uses; sqvel for short)")
     parser.add_argument("--temperature", type=float, default=0.05,
                         help="amnesic softmin temperature (distance units)")
     parser.add_argument("--rationality", type=float, default=1.0,
