@@ -143,27 +143,90 @@ def _store_protocol_hash(path: Path) -> str | None:
         return None
 
 
-def _read_table(directory: Path, name: str) -> pd.DataFrame | None:
-    for suffix, reader in ((".parquet", pd.read_parquet), (".csv", pd.read_csv)):
-        f = directory / f"{name}{suffix}"
+FORMATS = {"parquet": pd.read_parquet, "csv": pd.read_csv}
+"""Table file formats of an export folder, in the order they are preferred."""
+
+
+def _export_metadata(directory: Path) -> dict[str, Any]:
+    """``metadata.json`` of an export folder (``{}`` without one, e.g. for hand-made folders)."""
+    f = directory / "metadata.json"
+    if not f.is_file():
+        return {}
+    try:
+        meta = json.loads(f.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as e:
+        raise SourceError(f"cannot read {f}: {e}; export the store again (`python -m study "
+                          "export`) or remove the file") from e
+    if not isinstance(meta, dict):
+        raise SourceError(f"{f} is not an export's metadata (not a JSON object); export the "
+                          "store again (`python -m study export`) or remove the file")
+    return meta
+
+
+def _export_formats(directory: Path, meta: dict[str, Any]) -> tuple[str, ...]:
+    """The table formats to read: those ``metadata.json`` says were written, else all."""
+    listed = meta.get("formats")
+    if listed is None:
+        return tuple(FORMATS)
+    if not isinstance(listed, list) or not listed or any(f not in FORMATS for f in listed):
+        raise SourceError(f"{directory / 'metadata.json'} lists table formats {listed!r}; "
+                          f"expected a list of {', '.join(FORMATS)}; export the store again")
+    return tuple(f for f in FORMATS if f in listed)
+
+
+def _read_table(
+    directory: Path, name: str, formats: tuple[str, ...] = tuple(FORMATS)
+) -> tuple[pd.DataFrame, Path] | None:
+    for suffix in formats:
+        f = directory / f"{name}.{suffix}"
         if f.exists():
             try:
-                return reader(f)
+                return FORMATS[suffix](f), f
             except Exception as e:
                 raise SourceError(f"cannot read {f}: {e}") from e
     return None
 
 
+def _check_rows(directory: Path, name: str, found: tuple[pd.DataFrame, Path] | None,
+                meta: dict[str, Any]) -> None:
+    """The table has as many rows as ``metadata.json`` says the export wrote."""
+    rows = meta.get("rows")
+    expected = rows.get(name) if isinstance(rows, dict) else None
+    if not isinstance(expected, int) or isinstance(expected, bool):
+        return
+    again = ("; the folder mixes files of different exports or a file was changed - export "
+             "the store again (`python -m study export`) into this folder or a new one")
+    if found is None:
+        if expected:
+            raise SourceError(f"{directory} has no {name} table, but its metadata.json says "
+                              f"the export wrote {expected} rows{again}")
+        return
+    df, f = found
+    if len(df) != expected:
+        raise SourceError(f"{f} has {len(df)} rows, but {directory / 'metadata.json'} says the "
+                          f"export wrote {expected}{again}")
+
+
 def from_export(directory: str | Path) -> StudyTables:
-    """Read ``trials``/``samples``/``ratings``/``events`` as Parquet (preferred) or CSV files."""
+    """Read ``trials``/``samples``/``ratings``/``events`` as Parquet (preferred) or CSV files.
+
+    With a ``metadata.json`` (``python -m study export`` writes one) only the formats it lists
+    are read, and each table must have the number of rows it records (``SourceError`` if not,
+    e.g. when the folder holds files of an earlier export)."""
     d = Path(directory)
     if not d.is_dir():
         raise SourceError(f"{d} is not a directory; pass the folder `python -m study export` "
                           "wrote")
-    tables = {name: _read_table(d, name) for name in TABLES}
-    if tables["trials"] is None:
-        raise SourceError(f"{d} holds no trials.parquet or trials.csv; pass the folder "
-                          "`python -m study export` wrote")
+    meta = _export_metadata(d)
+    formats = _export_formats(d, meta)
+    found = {name: _read_table(d, name, formats) for name in TABLES}
+    if found["trials"] is None:
+        wanted = " or ".join(f"trials.{f}" for f in formats)
+        raise SourceError(f"{d} holds no {wanted}; pass the folder `python -m study export` "
+                          "wrote")
+    for name in TABLES:
+        _check_rows(d, name, found[name], meta)
+    tables = {name: (v[0] if v is not None else None) for name, v in found.items()}
     return from_frames(
         tables["trials"], tables["samples"], tables["ratings"], tables["events"],
         source=str(d), protocol_hash=_export_protocol_hash(d),

@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
+import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -308,13 +310,26 @@ def _typed(
     return df
 
 
-def write_tables(
-    tables: Mapping[str, pd.DataFrame], out: str | os.PathLike[str], *,
-    formats: tuple[str, ...] = ("csv", "parquet"),
+EXPORT_FORMATS = ("csv", "parquet")
+"""Table file formats an export can write, as ``<table>.<format>``."""
+
+EXPORT_EXTRAS = ("codebook.csv", "codebook.md", "metadata.json", "protocol.toml")
+"""The other files an export writes beside the tables."""
+
+
+def _check_formats(formats: Sequence[str]) -> tuple[str, ...]:
+    unknown = [f for f in formats if f not in EXPORT_FORMATS]
+    if unknown or not formats:
+        raise ExportError(
+            f"export formats must be one or both of {', '.join(EXPORT_FORMATS)}, got"
+            f" {list(formats)}"
+        )
+    return tuple(dict.fromkeys(formats))
+
+
+def _write_table_files(
+    tables: Mapping[str, pd.DataFrame], out_dir: Path, formats: tuple[str, ...]
 ) -> list[Path]:
-    """Write each table as ``<out>/<name>.csv`` and ``.parquet``; returns the paths written."""
-    out_dir = Path(out)
-    out_dir.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     for name, df in tables.items():
         if "csv" in formats:
@@ -328,13 +343,95 @@ def write_tables(
     return written
 
 
+def stale_export_files(
+    out: str | os.PathLike[str], *, formats: Sequence[str], protocol_text: bool = True
+) -> list[Path]:
+    """Files of an earlier export in ``out`` that an export of ``formats`` would not overwrite:
+    ``<table>.<format>`` of the other formats (and ``protocol.toml`` when this export writes
+    none). Only names an export writes are considered; other files are never listed."""
+    out_dir = Path(out)
+    others = [f for f in EXPORT_FORMATS if f not in formats]
+    stale = [out_dir / f"{name}.{f}" for name in TABLE_NAMES for f in others]
+    if not protocol_text:
+        stale.append(out_dir / "protocol.toml")
+    return [p for p in stale if p.is_file()]
+
+
+def write_tables(
+    tables: Mapping[str, pd.DataFrame], out: str | os.PathLike[str], *,
+    formats: tuple[str, ...] = EXPORT_FORMATS,
+) -> list[Path]:
+    """Write each table as ``<out>/<name>.csv`` and/or ``.parquet``; returns the paths written.
+
+    Table files of the formats not written now, left by an earlier export into ``out``, are
+    removed (``stale_export_files``), so the folder never holds tables from two exports."""
+    formats = _check_formats(formats)
+    out_dir = Path(out)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = _write_table_files(tables, out_dir, formats)
+    for path in stale_export_files(out_dir, formats=formats):
+        path.unlink()
+    return written
+
+
+def write_export(
+    out: str | os.PathLike[str],
+    tables: Mapping[str, pd.DataFrame],
+    *,
+    codebook: pd.DataFrame,
+    metadata: Mapping[str, Any],
+    protocol_text: str | None,
+    formats: Sequence[str] = EXPORT_FORMATS,
+) -> list[Path]:
+    """Write a whole export into ``out``: the tables in ``formats``, ``codebook.csv``/``.md``,
+    ``protocol.toml`` (when ``protocol_text`` is given) and ``metadata.json`` (``metadata`` plus
+    ``formats``, the table formats written). Returns the paths written.
+
+    Everything is first written into a hidden folder inside ``out`` and then moved in, with
+    ``metadata.json`` last, so a failed export leaves ``out`` as it was. Files of an earlier
+    export that this one does not replace (tables of another format, a ``protocol.toml``) are
+    removed; files an export does not write are left alone."""
+    from study.codebook import write_codebook
+
+    formats = _check_formats(formats)
+    out_dir = Path(out)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=".export-", dir=out_dir))
+    try:
+        staged = _write_table_files(tables, staging, formats)
+        staged += write_codebook(codebook, staging)
+        if protocol_text is not None:
+            path = staging / "protocol.toml"
+            path.write_text(protocol_text, encoding="utf-8")
+            staged.append(path)
+        meta_staged = staging / "metadata.json"
+        meta = {**metadata, "formats": list(formats)}
+        meta_staged.write_text(json.dumps(meta, indent=1) + "\n")
+        # the old metadata goes first: a folder without it is never mistaken for a whole export
+        (out_dir / "metadata.json").unlink(missing_ok=True)
+        written = []
+        for path in staged:
+            os.replace(path, out_dir / path.name)
+            written.append(out_dir / path.name)
+        for path in stale_export_files(
+            out_dir, formats=formats, protocol_text=protocol_text is not None
+        ):
+            path.unlink()
+        os.replace(meta_staged, out_dir / "metadata.json")
+        written.append(out_dir / "metadata.json")
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return written
+
+
 def export_metadata(
     store: Store, tables: Mapping[str, pd.DataFrame], *, protocol: Protocol | None
 ) -> dict[str, Any]:
     """Provenance written beside the tables as ``metadata.json``: which store, protocol (id,
     version, content hash, whether the store keeps its text) and software produced them, how
     many rows each table has, and ``orphaned_trials``: trials left running by a process that
-    died, exported as interrupted (resuming their sessions records that in the store)."""
+    died, exported as interrupted (resuming their sessions records that in the store).
+    ``write_export`` adds ``formats``, the table file formats it wrote."""
     import app
 
     return {

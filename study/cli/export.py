@@ -2,8 +2,10 @@
 
 Writes trials, samples, ratings and events (``.csv`` and ``.parquet``) and ``codebook.csv`` /
 ``codebook.md`` describing every column, ``metadata.json`` (store, protocol id, version and
-content hash, software version, row counts) and ``protocol.toml``, the exact protocol text the
-store keeps. The store is opened read-only. Item columns follow the protocol the store keeps;
+content hash, software version, row counts, table formats) and ``protocol.toml``, the exact
+protocol text the store keeps. Exporting again into the same folder replaces an earlier export's files, removing
+the ones this export does not write (e.g. the Parquet tables on ``--format csv``); other files
+are left alone. The store is opened read-only. Item columns follow the protocol the store keeps;
 ``--protocol`` overrides it (it must have the same content hash).
 """
 
@@ -14,13 +16,13 @@ import json
 import sys
 from pathlib import Path
 
-from study.codebook import codebook, write_codebook
+from study.codebook import codebook
 from study.export import (
     ExportError,
     export_metadata,
     resolve_protocol,
     tidy_tables,
-    write_tables,
+    write_export,
 )
 from study.protocol import ProtocolError, load_protocol
 from study.store import Store, StoreError
@@ -60,15 +62,10 @@ def main(args: argparse.Namespace) -> int:
                     file=sys.stderr,
                 )
         book = codebook(tables, protocol=protocol)
-        written = write_tables(tables, args.out, formats=formats)
-        written += write_codebook(book, args.out)
-        meta_path = Path(args.out) / "metadata.json"
-        meta_path.write_text(json.dumps(metadata, indent=1) + "\n")
-        written.append(meta_path)
-        if stored_text is not None:
-            protocol_path = Path(args.out) / "protocol.toml"
-            protocol_path.write_text(stored_text, encoding="utf-8")
-            written.append(protocol_path)
+        written = write_export(
+            args.out, tables, codebook=book, metadata=metadata, protocol_text=stored_text,
+            formats=formats,
+        )
     except (StoreError, ProtocolError, ExportError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
