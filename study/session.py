@@ -39,7 +39,9 @@ from study.session_core import (  # noqa: F401
     trial_seed,
 )
 from study.session_errors import (  # noqa: F401
+    MAX_SEED,
     InvalidAnswerError,
+    InvalidSeedError,
     MissingReasonError,
     SessionClosedError,
     SessionError,

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from numbers import Integral
+
 from study.protocol import AnswerError
 
 
@@ -27,3 +29,20 @@ class UnknownItemError(InvalidAnswerError):
 
 class MissingReasonError(SessionError, ValueError):
     """Skip, redo, withdraw and end need a non-empty reason for the record."""
+
+
+class InvalidSeedError(SessionError, ValueError):
+    """A session seed is not a whole number in 0 .. 2**63 - 1 (what the store and numpy accept)."""
+
+
+MAX_SEED = 2**63 - 1
+"""The largest session seed: the store keeps it as a signed 64-bit SQLite integer."""
+
+
+def check_seed(seed: object, *, what: str = "the session seed") -> int:
+    """``seed`` if it is a whole number in ``0..MAX_SEED``, else ``InvalidSeedError``."""
+    if isinstance(seed, bool) or not isinstance(seed, Integral) or not 0 <= seed <= MAX_SEED:
+        raise InvalidSeedError(
+            f"{what} must be a whole number from 0 to {MAX_SEED}, got {seed!r}; pass e.g. --seed 1"
+        )
+    return int(seed)

@@ -7,9 +7,9 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, Self
 
 from study.plan import run_label
-from study.schedule import Design, Enrollment, next_row
+from study.schedule import Design, Enrollment, ScheduleError, next_row
 from study.session_core import FINAL_STATUSES, SessionCore
-from study.session_errors import SessionStateError
+from study.session_errors import MAX_SEED, InvalidSeedError, SessionStateError, check_seed
 from study.session_store import check_protocol
 from study.store import Store, check_participant_id
 from study.trial_run import TrialFactory
@@ -38,8 +38,18 @@ class SessionOpening(SessionCore):
         """Enrol a new participant (pseudonymous ``participant`` ID; ``demographics`` go to their
         own table) and open their session. The schedule row comes from ``study.schedule.next_row``
         over everyone enrolled so far unless given. Raises ``DuplicateParticipantError`` if the ID
-        is taken, ``InvalidParticipantIdError`` if it is not a pseudonym."""
+        is taken, ``InvalidParticipantIdError`` if it is not a pseudonym, ``InvalidSeedError`` if
+        ``seed`` is not in ``0..MAX_SEED`` and ``ScheduleError`` for a negative ``schedule_row``;
+        nothing is written then."""
         check_participant_id(participant)
+        seed = check_seed(seed)
+        if schedule_row is not None and (
+            isinstance(schedule_row, bool) or not isinstance(schedule_row, int) or schedule_row < 0
+        ):
+            raise ScheduleError(
+                f"design rows are integers >= 0, got {schedule_row!r}; pass e.g. --schedule-row 0"
+                " (or leave it out to take the next row)"
+            )
         check_protocol(store, protocol)
         design = Design.from_protocol(protocol)
         with store.transaction() as tx:
@@ -89,7 +99,8 @@ class SessionOpening(SessionCore):
         """Continue ``participant``'s session where it stopped. A trial left running by a dead
         process is marked interrupted (its samples up to the last batch kept) and will run again
         as a new attempt. Raises ``UnknownParticipantError``, ``SessionLockedError`` (a live
-        process holds it) or ``SessionStateError`` (the session already ended)."""
+        process holds it), ``SessionStateError`` (the session already ended) or
+        ``InvalidSeedError`` (the store holds a seed no session can run with)."""
         check_protocol(store, protocol)
         record = store.session(participant)
         if record.status in FINAL_STATUSES:
@@ -97,6 +108,15 @@ class SessionOpening(SessionCore):
                 f"participant {participant}'s session is already {record.status}; there is "
                 "nothing to resume (enrol a new participant ID for a new session)"
             )
+        try:
+            check_seed(record.seed)
+        except InvalidSeedError:
+            raise InvalidSeedError(
+                f"participant {participant}'s session was enrolled with seed {record.seed!r}, "
+                f"which no session can run with (seeds are 0..{MAX_SEED}), so it cannot be "
+                "resumed; its records are kept - enrol the participant under a new ID with a "
+                "valid --seed"
+            ) from None
         session = cls(
             store=store,
             protocol=protocol,

@@ -85,7 +85,8 @@ def test_bad_inputs_name_the_problem(
         capsys, *base, "--protocol", str(short_protocol), "--participant", "P07", "--resume"
     )
     assert code == 2 and summary["status"] == "error"
-    assert "participant P07 is not enrolled" in summary["error"]
+    assert "--resume needs the store the session started in" in summary["error"]
+    assert not db.exists()  # a mistyped store path creates nothing
     code, summary, _ = run(
         capsys, *base, "--protocol", str(short_protocol), "--participant", "jane@example.org"
     )
@@ -93,6 +94,10 @@ def test_bad_inputs_name_the_problem(
     # a store written by one protocol refuses another, untouched
     protocol = load_protocol(short_protocol)
     open_store(db, protocol).close()
+    code, summary, _ = run(
+        capsys, *base, "--protocol", str(short_protocol), "--participant", "P07", "--resume"
+    )
+    assert code == 2 and "participant P07 is not enrolled" in summary["error"]
     before = digest(db)
     code, summary, _ = run(capsys, *base, "--protocol", str(PROTOCOL), "--participant", "P01")
     assert code == 2 and "was written by protocol 'dragan2013'" in summary["error"]

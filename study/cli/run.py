@@ -20,6 +20,8 @@ import traceback
 from pathlib import Path
 from typing import Any
 
+from app.cli import non_negative_int
+
 DEFAULT_PROTOCOL = Path(__file__).resolve().parents[2] / "protocols" / "dragan2013.toml"
 
 
@@ -30,7 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--input", choices=["scripted"], default="scripted", help="user input")
     parser.add_argument(
         "--seed",
-        type=int,
+        type=non_negative_int,
         default=0,
         help="session seed for a new session (trials, answers); a resumed one keeps its own",
     )
@@ -43,7 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="JSON object, stored apart from trial data, e.g. '{\"age\": 30}'",
     )
-    parser.add_argument("--schedule-row", type=int, default=None, help="override the design row")
+    parser.add_argument(
+        "--schedule-row", type=non_negative_int, default=None, help="override the design row (>= 0)"
+    )
     parser.add_argument("--realtime", action="store_true", help="pace trials to wall-clock time")
     parser.add_argument(
         "--synchronous", choices=["FULL", "NORMAL"], default="FULL", help="SQLite durability"
@@ -64,6 +68,7 @@ def main(args: argparse.Namespace) -> int:
     from study.answers import ScriptedAnswers
     from study.headless import run_headless
     from study.protocol import ProtocolError, load_protocol
+    from study.schedule import ScheduleError
     from study.session import Session, open_store
     from study.session_errors import SessionError
     from study.store import StoreError
@@ -79,6 +84,11 @@ def main(args: argparse.Namespace) -> int:
     previous = signal.signal(signal.SIGTERM, on_term)
     try:
         protocol = load_protocol(args.protocol)
+        if args.resume and not args.db.is_file():
+            # opening would create an empty store as a side effect of a mistyped path
+            raise StoreError(
+                f"no store at {args.db}; --resume needs the store the session started in"
+            )
         store = open_store(args.db, protocol, synchronous=args.synchronous)
         if args.resume:
             session = Session.reopen(store, protocol, args.participant)
@@ -106,7 +116,7 @@ def main(args: argparse.Namespace) -> int:
         report = run_headless(session, answerer=answers, realtime=args.realtime, on_trial=log)
         result = report.as_dict()
         code = 0
-    except (ProtocolError, StoreError, SessionError) as exc:
+    except (ProtocolError, StoreError, SessionError, ScheduleError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         result.update(status="error", error=str(exc))
         code = 2

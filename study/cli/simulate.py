@@ -19,6 +19,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from app.cli import non_negative_int, positive_int
+
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_PROTOCOL = ROOT / "protocols" / "dragan2013.toml"
 DEFAULT_POPULATION = ROOT / "protocols" / "population.toml"
@@ -27,16 +29,16 @@ DEFAULT_POPULATION = ROOT / "protocols" / "population.toml"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--protocol", type=Path, default=DEFAULT_PROTOCOL, help="protocol TOML")
     parser.add_argument("--db", type=Path, required=True, help="study store (SQLite file)")
-    parser.add_argument("--participants", type=int, default=8, help="how many to simulate")
-    parser.add_argument("--seed", type=int, default=0, help="population + session seed")
+    parser.add_argument("--participants", type=positive_int, default=8, help="how many to simulate")
+    parser.add_argument("--seed", type=non_negative_int, default=0, help="population + session seed")
     parser.add_argument(
-        "--workers", type=int, default=1, help="processes (each writes the same WAL store)"
+        "--workers", type=positive_int, default=1, help="processes (each writes the same WAL store)"
     )
     parser.add_argument(
         "--population", type=Path, default=DEFAULT_POPULATION, help="population TOML"
     )
     parser.add_argument(
-        "--first", type=int, default=0, help="first population index (to add to a store)"
+        "--first", type=non_negative_int, default=0, help="first population index (to add to a store)"
     )
     parser.add_argument(
         "--synchronous",
