@@ -46,6 +46,10 @@ def load_protocol(path: str | Path) -> Protocol:
         text = path.read_text(encoding="utf-8")
     except OSError as e:
         raise ProtocolError(f"cannot read the file ({e.strerror or e})", file=path, key="") from e
+    except UnicodeDecodeError as e:
+        raise ProtocolSyntaxError(
+            f"not UTF-8 text (byte offset {e.start}); re-save it as UTF-8", file=path, key=""
+        ) from None
     return parse_protocol(text, path=path)
 
 

@@ -184,6 +184,10 @@ def load_population(path: str | Path = DEFAULT_POPULATION_PATH) -> Population:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise PopulationError(f"{path}: cannot read population file ({exc.strerror})") from exc
+    except UnicodeDecodeError as exc:
+        raise PopulationError(
+            f"{path}: not UTF-8 text (byte offset {exc.start}); re-save it as UTF-8"
+        ) from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
