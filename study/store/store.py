@@ -135,7 +135,7 @@ class Store:
         """Open an existing store for reading only (any protocol; the schema version must match)."""
         p = Path(path)
         if not p.exists():
-            raise StoreError(f"no store at {p}: check the --db path")
+            raise StoreError(f"no store at {p}: the file does not exist; check the store path")
         conn = opening.connect(p, readonly=True, busy_timeout_s=10.0)
         try:
             meta = opening.read_meta(conn, p)
