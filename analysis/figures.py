@@ -105,7 +105,9 @@ def timing_preference_figure(summary: pd.DataFrame, preferences: pd.DataFrame | 
     present = [m for m in modes if m in set(summary["mode"])]
     _bars(axes[0], summary, "mean", "se", tasks, present, "mode", "task", MODE_COLORS)
     axes[0].set(ylabel="time to complete (s)", title="(a) Time per task and mode")
-    axes[0].legend(frameon=False)
+    top = axes[0].get_ylim()[1]
+    axes[0].set_ylim(0, top * 1.18)  # head-room: the legend sits above the bars, not on them
+    axes[0].legend(frameon=False, loc="upper left", ncols=len(present))
     if preferences is not None:
         ax2 = axes[1]
         g = preferences.groupby("task")["preference_aggressive"]
