@@ -99,3 +99,23 @@ def test_same_participant_cannot_be_simulated_twice(
 
     with pytest.raises(SimulationRunError, match=r"sim3-001 is already in .*--first 1"):
         simulate(protocol_path=short_protocol, db=db, participants=1, seed=3, progress=False)
+
+
+@pytest.mark.parametrize("bad", [{"seed": -1}, {"first": -2}, {"seed": 1.5}])
+def test_bad_seed_or_first_is_refused_before_a_store_exists(
+    tmp_path: Path, short_protocol: Path, bad: dict
+) -> None:
+    from study.simulated import SimulationRunError
+    from study.simulated.runner import simulate
+
+    options = {"seed": 1, **bad}
+    name = next(iter(bad))
+    with pytest.raises(SimulationRunError, match=rf"{name} must be an integer >= 0"):
+        simulate(
+            protocol_path=short_protocol,
+            db=tmp_path / "sim.db",
+            participants=1,
+            progress=False,
+            **options,
+        )
+    assert not (tmp_path / "sim.db").exists()

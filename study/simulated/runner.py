@@ -260,6 +260,9 @@ def simulate(
         raise SimulationRunError(f"participants must be at least 1, got {participants}")
     if workers < 1:
         raise SimulationRunError(f"workers must be at least 1, got {workers}")
+    for name, value in (("seed", seed), ("first", first)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise SimulationRunError(f"{name} must be an integer >= 0, got {value!r}")
     start = time.perf_counter()
     population_path = Path(population_path)
     load_population(population_path)  # fail early, in the parent, on a bad population file

@@ -34,14 +34,14 @@ def read_meta(conn: sqlite3.Connection, path: Path) -> StoreMeta | None:
         names = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
     except sqlite3.DatabaseError as exc:
         raise NotAStoreError(
-            f"{path} is not a SQLite database ({exc}); choose another --db path"
+            f"{path} is not a SQLite database ({exc}); check the store path"
         ) from exc
     if not names:
         return None
     if "schema_version" not in names:
         raise NotAStoreError(
             f"{path} is a SQLite database but not a study store (no schema_version table); "
-            "choose another --db path"
+            "check the store path"
         )
     row = conn.execute("SELECT * FROM schema_version").fetchone()
     if row is None:
