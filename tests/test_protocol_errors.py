@@ -174,7 +174,9 @@ CASES = [
      "listed twice"),
     (put("factors.mode", ["timid"]), UnknownKeyError, "modes.aggressive", "unknown key"),
     (rename("prediction.wrong", "wrnog"), UndefinedReferenceError, "prediction.wrong",
-     "correctness level 'wrong' needs"),
+     "needs a [prediction.wrong] table; is [prediction.wrnog] a misspelling of it?"),
+    (rename("modes.aggressive", "agressive"), UndefinedReferenceError, "modes.aggressive",
+     "needs a [modes.aggressive] table; is [modes.agressive] a misspelling of it?"),
     (change("questionnaire.scales.helpfulness.anchors", lambda a: a[:-1]), ScaleMismatchError,
      "questionnaire.scales.helpfulness.anchors",
      f"{len(_HELPFULNESS) - 1} anchors for a {DATA['questionnaire']['points']}-point "

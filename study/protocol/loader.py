@@ -10,6 +10,7 @@ blinding (no participant-facing text contains a condition word).
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import json
 import re
@@ -291,7 +292,8 @@ class _Loader:
             if level not in t:
                 raise self.error(
                     UndefinedReferenceError, t.where(level),
-                    f"missing: correctness level {level!r} needs a [prediction.{level}] table",
+                    f"missing: correctness level {level!r} needs a [prediction.{level}] table"
+                    + _misspelt(t, level, correctness),
                 )
             out[level] = MappingProxyType(component(t.table(level), "prediction"))
         t.close(allowed=f"the correctness levels {', '.join(correctness)}")
@@ -303,7 +305,8 @@ class _Loader:
             if level not in t:
                 raise self.error(
                     UndefinedReferenceError, t.where(level),
-                    f"missing: mode {level!r} (factors.mode) needs a [modes.{level}] table",
+                    f"missing: mode {level!r} (factors.mode) needs a [modes.{level}] table"
+                    + _misspelt(t, level, levels),
                 )
             sub = t.table(level)
             sub.only("arbitration", "confidence")
@@ -366,3 +369,10 @@ class _Loader:
         )
         t.close(allowed="runs, scene, time_limit_s, prediction")
         return training
+
+
+def _misspelt(t: Table, level: str, levels: tuple[str, ...]) -> str:
+    """``"; is [x.levl] a misspelling of it?"`` when the table has a key close to ``level``."""
+    spare = [str(k) for k in t.data if k not in levels]
+    close = difflib.get_close_matches(level, spare, n=1, cutoff=0.6)
+    return f"; is [{t.key}.{close[0]}] a misspelling of it?" if close else ""
