@@ -1,12 +1,14 @@
 """``python -m app render``: film a trial to MP4, live or replayed from saved records.
 
 Live: ``python -m app render --task hard-right --mode aggressive --seed 1`` (writes
-``data/videos/trial.mp4`` unless ``--out`` says otherwise). Standard output is one JSON line;
-progress and errors go to standard error.
+``data/videos/trial.mp4`` unless ``--out`` says otherwise).
 Replay: ``python -m app trial ... --save run.npz`` then
-``python -m app render --replay run.npz --task hard-right --out trial.mp4`` (the task names
-the scene), or from a study store: ``--store data/study.sqlite --trial-id 12`` (the scene
-comes from the protocol the store keeps, or ``--protocol`` for older stores). Rendering is headless (``MUJOCO_GL=egl`` by default).
+``python -m app render --replay run.npz --task hard-right`` (the task names the scene), or from
+a study store: ``--store data/study.db --trial-id 12`` (the scene comes from the protocol the
+store keeps, or ``--protocol`` for older stores).
+
+Standard output is one JSON line; progress and errors go to standard error. Rendering is
+headless (``MUJOCO_GL=egl`` by default).
 """
 
 from __future__ import annotations
