@@ -357,23 +357,6 @@ def stale_export_files(
     return [p for p in stale if p.is_file()]
 
 
-def write_tables(
-    tables: Mapping[str, pd.DataFrame], out: str | os.PathLike[str], *,
-    formats: tuple[str, ...] = EXPORT_FORMATS,
-) -> list[Path]:
-    """Write each table as ``<out>/<name>.csv`` and/or ``.parquet``; returns the paths written.
-
-    Table files of the formats not written now, left by an earlier export into ``out``, are
-    removed (``stale_export_files``), so the folder never holds tables from two exports."""
-    formats = _check_formats(formats)
-    out_dir = Path(out)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    written = _write_table_files(tables, out_dir, formats)
-    for path in stale_export_files(out_dir, formats=formats):
-        path.unlink()
-    return written
-
-
 def write_export(
     out: str | os.PathLike[str],
     tables: Mapping[str, pd.DataFrame],

@@ -33,6 +33,21 @@ def study(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str
     return code, out, err
 
 
+def resume(capsys: pytest.CaptureFixture[str], db: Path) -> tuple[int, str, str]:
+    """``python -m study run ... --participant P01 --resume`` on the store ``db``."""
+    return study(
+        capsys,
+        "run",
+        "--protocol",
+        str(PROTOCOL),
+        "--db",
+        str(db),
+        "--participant",
+        "P01",
+        "--resume",
+    )
+
+
 def participants(db: Path) -> list[str]:
     with Store.open_readonly(db) as store:
         return list(store.frame("participants")["participant"])
@@ -82,17 +97,7 @@ def test_resume_of_a_session_stored_with_a_bad_seed_is_refused(
         with pytest.raises(InvalidSeedError, match="enrolled with seed -1") as info:
             Session.reopen(store, protocol, "P01")
         assert isinstance(info.value, SessionError)
-    code, out, err = study(
-        capsys,
-        "run",
-        "--protocol",
-        str(PROTOCOL),
-        "--db",
-        str(db),
-        "--participant",
-        "P01",
-        "--resume",
-    )
+    code, out, err = resume(capsys, db)
     assert code == 2 and "Traceback" not in err
     assert "enrolled with seed -1" in json.loads(out.strip().splitlines()[-1])["error"]
 
@@ -127,17 +132,7 @@ def test_resume_with_a_missing_store_creates_nothing(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     db = tmp_path / "typo.db"
-    code, out, err = study(
-        capsys,
-        "run",
-        "--protocol",
-        str(PROTOCOL),
-        "--db",
-        str(db),
-        "--participant",
-        "P01",
-        "--resume",
-    )
+    code, out, err = resume(capsys, db)
     assert code == 2 and "Traceback" not in err
     message = f"no store at {db}; --resume needs the store the session started in"
     assert message in err

@@ -219,14 +219,17 @@ def test_records_round_trip(config, tmp_path) -> None:
 
 
 def test_cli_prints_one_json_line(repo_root) -> None:
-    def run(*args: str) -> dict:
-        proc = subprocess.run(
+    def cli(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
             [sys.executable, "-m", "app", "trial", *args],
             cwd=repo_root,
             capture_output=True,
             text=True,
             timeout=120,
         )
+
+    def run(*args: str) -> dict:
+        proc = cli(*args)
         assert proc.returncode == 0, proc.stderr
         assert "after" in proc.stderr  # the human-readable line; stdout is the JSON alone
         return json.loads(proc.stdout)
@@ -236,22 +239,10 @@ def test_cli_prints_one_json_line(repo_root) -> None:
     assert out["ticks"] > 0 and out["duration_s"] > 0
     alone = run("--task", "hard-right", "--mode", "none", "--seed", "1", "--time-limit", "8")
     assert alone["success"] is False
-    proc = subprocess.run(
-        [sys.executable, "-m", "app", "trial", "--task", "medium"],
-        cwd=repo_root,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    proc = cli("--task", "medium")
     assert proc.returncode == 2 and "medium" in proc.stderr
     for bad in (["--seed", "-1"], ["--time-limit", "0"], ["--speed", "fast"]):
-        proc = subprocess.run(
-            [sys.executable, "-m", "app", "trial", *bad],
-            cwd=repo_root,
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
+        proc = cli(*bad)
         assert proc.returncode == 2 and bad[0] in proc.stderr and "Traceback" not in proc.stderr
 
 
