@@ -106,24 +106,34 @@ def test_gizmo_is_thread_safe_and_rejects_bad_targets(scene) -> None:
     assert gizmo.command(obs).grasp and not gizmo.command(obs).grasp  # one press, one grasp
 
 
-def test_keyboard_nudges_stay_inside_the_reach(scene) -> None:
-    keys = KeyboardInput(step=0.01)
+def test_held_keys_move_at_the_key_speed_and_stay_inside_the_reach(scene) -> None:
+    keys = KeyboardInput(speed=0.1, tap_s=0.05)
     start = np.array([0.5, 0.0, 0.3])
-    obs = observe(scene, user_target=start)
-    for _ in range(3):
-        keys.press("w")
-    keys.press("a")
+    obs = observe(scene, user_target=start)  # 100 Hz: 1 mm per tick and held key
+    keys.hold("w")
+    keys.hold("w")  # auto-repeat: still one held key
+    keys.hold("A")
     cmd = keys.command(obs)
-    assert np.allclose(cmd.target, start + np.array([0.03, 0.01, 0.0]))
-    assert np.allclose(keys.command(obs).target, start)  # nudges are consumed once
-    for _ in range(100):
-        keys.press("q")  # down, far past the table
-    low = keys.command(obs).target
+    assert np.allclose(cmd.target, start + np.array([0.001, 0.001, 0.0]))
+    keys.release("a")  # held 10 ms of a 50 ms tap: the other 40 ms are owed once
+    assert np.allclose(keys.command(obs).target, start + np.array([0.001, 0.004, 0.0]))
+    assert np.allclose(keys.command(obs).target, start + np.array([0.001, 0.0, 0.0]))
+    keys.release("w")
+    assert keys.command(obs).target[0] == pytest.approx(start[0] + 0.002)  # w was held 30 ms
+    assert np.allclose(keys.command(obs).target, start) and not keys.moving
+    keys.press("s")  # a tap between two ticks still moves speed * tap_s
+    assert np.allclose(keys.command(obs).target, start - np.array([0.005, 0.0, 0.0]))
+    keys.hold("f")
+    low = start
+    for _ in range(1000):  # 10 s down, far past the table
+        low = keys.command(observe(scene, user_target=low)).target
     assert low[2] == pytest.approx(scene.reach.lo[2])
+    keys.release_all(discard=True)
+    assert not keys.moving
     keys.press("g")
-    assert keys.command(obs).grasp
+    assert keys.command(obs).grasp and not keys.command(obs).grasp
     with pytest.raises(TeleopError, match="does nothing"):
-        keys.press("z")
+        keys.hold("z")
 
 
 def test_scripted_user_is_seeded_and_speed_limited(scene) -> None:
