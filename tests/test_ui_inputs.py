@@ -7,7 +7,7 @@ import pytest
 
 from app.teleop import ReachRegion, TrialObservation
 from app.teleop.errors import InvalidTargetError
-from app.ui.inputs import ParticipantInput
+from app.ui.inputs import InputFrozen, ParticipantInput
 from app.ui.participant import InputRejected, LikertItem, parse_answer, parse_position
 
 REACH = ReachRegion(np.array([0.2, -0.5, 0.0]), np.array([0.75, 0.5, 0.6]))
@@ -28,16 +28,38 @@ def _obs(user_target: np.ndarray) -> TrialObservation:
 
 
 def test_gizmo_pose_wins_then_keys_move_from_the_clamped_target() -> None:
-    src = ParticipantInput(start_target=np.array([0.4, 0.0, 0.3]), key_step_m=0.02)
+    src = ParticipantInput(start_target=np.array([0.4, 0.0, 0.3]), key_speed_m_s=0.1)
     src.set_target(np.array([0.5, 0.1, 0.9]))  # above the reach: the trial clamps it
     cmd = src.command(_obs(np.array([0.4, 0.0, 0.3])))
     assert np.allclose(cmd.target, [0.5, 0.1, 0.9]) and len(src.latencies_s) == 1
-    src.nudge(np.array([0.0, 0.0, -0.02]))
+    src.key_down("f")
     cmd = src.command(_obs(np.array([0.5, 0.1, 0.6])))
-    assert np.allclose(cmd.target, [0.5, 0.1, 0.58])  # from the clamped 0.6, not from 0.9
-    assert src.key_moved.is_set() and np.allclose(src.gizmo.target, [0.5, 0.1, 0.58])
-    cmd = src.command(_obs(np.array([0.5, 0.1, 0.58])))  # nothing new: the target holds
-    assert np.allclose(cmd.target, [0.5, 0.1, 0.58]) and not cmd.grasp
+    assert np.allclose(cmd.target, [0.5, 0.1, 0.599])  # from the clamped 0.6, not from 0.9
+    assert src.key_moved.is_set() and np.allclose(src.gizmo.target, [0.5, 0.1, 0.599])
+    src.key_up("f")  # held 10 ms: topped up to a tap (80 ms at 0.1 m/s)
+    cmd = src.command(_obs(np.array([0.5, 0.1, 0.599])))
+    assert np.allclose(cmd.target, [0.5, 0.1, 0.592])
+    cmd = src.command(_obs(np.array([0.5, 0.1, 0.592])))  # nothing new: the target holds
+    assert np.allclose(cmd.target, [0.5, 0.1, 0.592]) and not cmd.grasp
+
+
+def test_a_frozen_input_refuses_everything_and_applies_nothing_later() -> None:
+    src = ParticipantInput(start_target=np.array([0.4, 0.0, 0.3]))
+    here = np.array([0.4, 0.0, 0.3])
+    src.key_down("r")
+    src.request_grasp()
+    src.freeze()  # the experimenter pauses with R held and a grasp pending
+    for call in (
+        lambda: src.key_down("r"),
+        lambda: src.set_target(np.array([0.5, 0.0, 0.3])),
+        src.request_grasp,
+    ):
+        with pytest.raises(InputFrozen):
+            call()
+    src.key_up("r")  # released during the pause: fine, nothing owed
+    src.thaw()
+    cmd = src.command(_obs(here))
+    assert np.allclose(cmd.target, here) and not cmd.grasp
 
 
 def test_grasp_request_lasts_one_tick() -> None:

@@ -204,7 +204,11 @@ class LiveSession:
     def _on_nudge(self, delta: np.ndarray) -> None:
         source = self._input
         if source is not None:
-            source.nudge(delta)
+            axis = int(np.argmax(np.abs(delta)))
+            key = {(0, 1): "w", (0, -1): "s", (1, 1): "a", (1, -1): "d", (2, 1): "r", (2, -1): "f"}[
+                (axis, 1 if delta[axis] > 0 else -1)
+            ]
+            source.keyboard.press(key)
 
     # -- the trial -----------------------------------------------------------------------------
     def _begin_run(self, run: Any, source: ParticipantInput) -> None:
