@@ -276,12 +276,15 @@ def _fit_distance(
 ) -> float | None:
     """The smallest distance (to 1 mm) at which ``pts`` fit the usable frame, or None."""
     lo, hi = 0.2, 6.0
-    kw = {"fov": fov, "aspect": aspect, "usable": usable, "m": m}
-    if not _fits(pts, centre, az, el, hi, **kw):  # type: ignore[arg-type]
+
+    def fits(d: float) -> bool:
+        return _fits(pts, centre, az, el, d, fov=fov, aspect=aspect, usable=usable, m=m)
+
+    if not fits(hi):
         return None
     while hi - lo > 1e-3:
         mid = (lo + hi) / 2
-        if _fits(pts, centre, az, el, mid, **kw):  # type: ignore[arg-type]
+        if fits(mid):
             hi = mid
         else:
             lo = mid
