@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from app.ui.blinding import find_condition_words
-from app.ui.server import new_join_code
+from app.ui.join import ALPHABET, CODE_LENGTH, JoinThrottle, new_join_code, normalize_code
 from tests.browser.harness import iter_strings, run_async, start_server, wait_until
 from tests.protocol_copies import PAPER_PROTOCOL
 from tests.test_ui_malformed import RawClient
@@ -63,12 +63,13 @@ def test_participant_socket_carries_nothing_of_the_console(tmp_path: Path) -> No
 
         async def run() -> list[str]:
             async with RawClient(srv.participant_port) as c:
-                await c.button("I agree")
+                await c.join(code)
                 await asyncio.sleep(0.5)
                 return [s for m in c.messages for s in iter_strings(m)]
 
         strings = run_async(run())
         assert any("agree" in s for s in strings)
+        strings = [s for s in strings if s != code]  # the code the participant typed, echoed
         for marker in ("Experimenter console", "Enrol", "Withdraw", "Arbitration", code):
             assert not any(marker in s for s in strings), marker
         assert not any(find_condition_words(s) for s in strings)
@@ -76,12 +77,24 @@ def test_participant_socket_carries_nothing_of_the_console(tmp_path: Path) -> No
         rs.stop()
 
 
-def test_join_codes_are_short_distinct_digits() -> None:
+def test_join_codes_use_an_unambiguous_alphabet_and_are_typed_loosely() -> None:
     taken: set[str] = set()
-    for _ in range(200):
+    for _ in range(500):
         code = new_join_code(taken)
-        assert code.isdigit() and len(code) == 4 and code not in taken
+        assert len(code) == CODE_LENGTH and set(code) <= set(ALPHABET) and code not in taken
         taken.add(code)
+    assert not set("0O1IL2Z5S8B6G") & set(ALPHABET)
+    assert normalize_code(" ac-d e9 ") == "ACDE9"
+    assert len(normalize_code("x" * 10_000)) <= 4 * CODE_LENGTH
+
+
+def test_the_join_throttle_counts_per_tab_and_per_address() -> None:
+    throttle = JoinThrottle(per_client=3, per_address=5, window_s=60.0)
+    assert [throttle.allow(client=1, address="10.0.0.9") for _ in range(4)] == [True] * 3 + [False]
+    assert throttle.allow(client=2, address="10.0.0.9")  # a new tab from the same machine ...
+    assert throttle.allow(client=2, address="10.0.0.9")
+    assert not throttle.allow(client=3, address="10.0.0.9")  # ... until the address is spent
+    assert throttle.allow(client=4, address="10.0.0.10")
 
 
 def test_several_sessions_ask_for_the_code_and_a_wrong_code_is_refused(tmp_path: Path) -> None:
@@ -94,15 +107,9 @@ def test_several_sessions_ask_for_the_code_and_a_wrong_code_is_refused(tmp_path:
 
         async def run() -> None:
             async with RawClient(srv.participant_port) as c:
-                join = await c.button("Join")
-                text = await c.wait_for(lambda m: m.get("type") == "GuiTextMessage")
-                for value in ("0000", codes[1]):
-                    await c.send("GuiUpdateMessage", uuid=text["uuid"], updates={"value": value})
-                    await asyncio.sleep(0.2)
-                    await c.send("GuiUpdateMessage", uuid=join, updates={"value": True})
-                    await asyncio.sleep(0.5)
-                await c.button("I agree")
-                assert c.notices() >= 1  # the wrong code was refused with a notice
+                await c.type_code("0000")
+                await asyncio.sleep(0.5)
+                await c.join(codes[1].lower())
                 assert srv.session(codes[1]).page is not None
                 assert srv.session(codes[0]).page is None
 

@@ -36,6 +36,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--render-hz", type=float, default=60.0, help="scene updates per second (max 60)"
     )
+    parser.add_argument(
+        "--kiosk",
+        action="store_true",
+        help="one participant machine at a time: a tab joins the one open session without a code",
+    )
+    parser.add_argument(
+        "--share",
+        action="store_true",
+        help="allow viser's public share link (off by default: a study is never published)",
+    )
     parser.add_argument("--verbose", action="store_true", help="log viser connections")
 
 
@@ -77,6 +87,8 @@ def main(args: argparse.Namespace) -> int:
         experimenter_port=args.experimenter_port,
         render_hz=min(args.render_hz, 60.0),
         verbose=args.verbose,
+        kiosk=args.kiosk,
+        allow_share=args.share,
     )
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):

@@ -1,11 +1,13 @@
 """The study server: two viser servers in one process and the registry of live sessions.
 
-* Participant view: a ``ViserServer`` on the LAN (``0.0.0.0``), guarded by the blinding guard.
-  A tab that connects is offered a session: none running -> it waits; one -> it binds to it;
-  several -> the participant types the join code the experimenter's console shows. A session
-  is bound to one tab at a time: a second tab is refused (and the refusal logged as an
-  event); when the bound tab goes away (reload, lost connection) its running trial pauses
-  and a tab that connects next binds again.
+* Participant view: a ``ViserServer`` on the LAN (``0.0.0.0``), guarded outbound by the
+  blinding guard and inbound by a :class:`~app.ui.firewall.Firewall` (an allow-list of message
+  types, bounded values and sizes, no share links). A tab that connects types the join code
+  the experimenter's console shows (guesses are throttled per tab and per address, and every
+  failed code gets the same reply); only on a kiosk (``kiosk=True``, one machine, one
+  participant at a time) does a tab bind to the one open session without a code. A session is
+  bound to one tab at a time; when that tab goes away (reload, lost connection) its running
+  trial pauses and the session waits for its code again.
 * Experimenter view: a second ``ViserServer`` on ``127.0.0.1`` only, so the participant's
   machine has no route to it. The two servers share nothing but this object.
 
@@ -15,13 +17,13 @@ viser runs callbacks in a thread pool; every registry change happens under ``sel
 from __future__ import annotations
 
 import logging
-import secrets
 import threading
 
 import viser
 
-from app.ui import blinding
+from app.ui import blinding, firewall
 from app.ui.experimenter import ACTIONS, ExperimenterConsole, SessionDetail, SessionSummary
+from app.ui.join import JoinThrottle, new_join_code, normalize_code
 from app.ui.live import LiveSession, SessionFactory
 from app.ui.participant import ParticipantPage
 from app.ui.scene import frame_task
@@ -35,12 +37,8 @@ class ServerError(RuntimeError):
     """The study server cannot do what was asked (unknown session code, duplicate ...)."""
 
 
-def new_join_code(taken: set[str]) -> str:
-    """A 4-digit code not in ``taken`` (digits only: nothing a participant could read into)."""
-    while True:
-        code = f"{secrets.randbelow(9000) + 1000}"
-        if code not in taken:
-            return code
+JOIN_FAILED = "That code did not work. Please check it with the experimenter and type it again."
+JOIN_THROTTLED = "Too many tries. Please wait a minute, then ask the experimenter for the code."
 
 
 class StudyServer:
@@ -57,9 +55,14 @@ class StudyServer:
         render_hz: float = 60.0,
         verbose: bool = False,
         console_refresh_hz: float = 5.0,
+        kiosk: bool = False,
+        allow_share: bool = False,
+        throttle: JoinThrottle | None = None,
     ) -> None:
         self.factory = factory
         self.render_hz = render_hz
+        self.kiosk = kiosk
+        self.throttle = throttle or JoinThrottle()
         self._lock = threading.RLock()
         self._sessions: dict[str, LiveSession] = {}
         self._pages: dict[int, ParticipantPage] = {}
@@ -67,13 +70,23 @@ class StudyServer:
 
         self.participant = viser.ViserServer(host=host, port=port, verbose=verbose)
         self.guard = blinding.install(self.participant)
-        self.participant.gui.configure_theme(show_share_button=False, control_width="large")
+        self.firewall = firewall.install(
+            self.participant, firewall.Firewall(allow_share=allow_share)
+        )
+        self.participant.gui.configure_theme(
+            show_share_button=False, show_logo=False, control_width="large"
+        )
         self.participant.scene.world_axes.visible = False
         self.participant.on_client_connect(self._participant_connected)
         self.participant.on_client_disconnect(self._participant_disconnected)
 
         self.experimenter = viser.ViserServer(
             host=experimenter_host, port=experimenter_port, verbose=verbose
+        )
+        # the console may use every message type; only share links stay off unless asked for
+        self.experimenter_firewall = firewall.install(
+            self.experimenter,
+            firewall.Firewall(allowed=None, allow_share=allow_share, max_bytes=8 * 2**20),
         )
         self.console = ExperimenterConsole(self.experimenter, self, refresh_hz=console_refresh_hz)
 
@@ -102,6 +115,8 @@ class StudyServer:
         for live in sessions:
             live.close()
         blinding.uninstall(self.participant)
+        firewall.uninstall(self.participant)
+        firewall.uninstall(self.experimenter)
         self.participant.stop()
         self.experimenter.stop()
 
@@ -152,7 +167,9 @@ class StudyServer:
 
     # -- participant tabs ----------------------------------------------------------------------
     def _participant_connected(self, client: viser.ClientHandle) -> None:
+        self.firewall.limit_connection(self.participant, client.client_id)
         page = ParticipantPage(client, title=PAGE_TITLE)
+        page.address = _address(self.participant, client.client_id)
         frame_task(client.camera, look_at=(0.45, 0.0, 0.15))
         with self._lock:
             self._pages[client.client_id] = page
@@ -163,6 +180,7 @@ class StudyServer:
             page = self._pages.pop(client.client_id, None)
             code = self._page_session.pop(client.client_id, None)
             live = self._sessions.get(code) if code is not None else None
+        self.throttle.forget_client(client.client_id)
         if live is not None and page is not None:
             live.detach(page)
         self._offer_all()
@@ -174,40 +192,63 @@ class StudyServer:
             self._offer(page)
 
     def _offer(self, page: ParticipantPage) -> None:
-        """Bind ``page`` to the one open session, or ask for a code, or make it wait."""
+        """Ask ``page`` for a join code (on a kiosk: bind it to the one free session, or ask
+        it to wait)."""
         with self._lock:
             if page.client.client_id in self._page_session:
                 return
             open_ = self.open_sessions()
-        if len(open_) == 1:
-            self._bind(page, open_[0])
-        elif not open_:
-            if page.screen_name != "join" or page.asks_code:
-                page.show_join(ask_code=False, on_code=lambda _c: None)
-        elif page.screen_name != "join" or not page.asks_code:
+        if self.kiosk:
+            free = [s for s in open_ if s.page is None]
+            if len(open_) == 1 and free:
+                self._bind(page, free[0])
+                return
+            if not open_:
+                if page.screen_name != "join" or page.asks_code:
+                    page.show_join(ask_code=False, on_code=lambda _c: None)
+                return
+        if page.screen_name != "join" or not page.asks_code:
             page.show_join(ask_code=True, on_code=lambda code, p=page: self._join(p, code))
 
-    def _join(self, page: ParticipantPage, code: str) -> None:
+    def _join(self, page: ParticipantPage, typed: str) -> None:
+        """A typed code: bind on a match; the same reply for any failure (wrong, closed, in
+        use), and no check at all once this tab or its address tried too often."""
+        address = getattr(page, "address", "unknown")
+        if not self.throttle.allow(client=page.client.client_id, address=address):
+            LOGGER.warning(
+                "join attempts throttled for tab %s (%s)", page.client.client_id, address
+            )
+            page.show_join(
+                ask_code=True, on_code=lambda c, p=page: self._join(p, c), notice=JOIN_THROTTLED
+            )
+            return
+        code = normalize_code(typed)
         with self._lock:
             live = self._sessions.get(code)
-        if live is None or live.closed:
-            page.reject(f"unknown join code {code!r}")
-            return
-        self._bind(page, live)
+        if live is None or live.closed or not self._bind(page, live):
+            if live is not None and not live.closed:
+                live.note_refused_join(page)
+            page.show_join(
+                ask_code=True, on_code=lambda c, p=page: self._join(p, c), notice=JOIN_FAILED
+            )
 
-    def _bind(self, page: ParticipantPage, live: LiveSession) -> None:
+    def _bind(self, page: ParticipantPage, live: LiveSession) -> bool:
+        """Bind ``page`` to ``live`` unless another tab holds it; True when bound."""
         with self._lock:
             if page.client.client_id not in self._pages:
-                return  # the tab closed meanwhile
+                return True  # the tab closed meanwhile: nothing to tell it
             if live.page is not None and live.page is not page:
-                refused = True
-            else:
-                refused = False
-                self._page_session[page.client.client_id] = live.code
-        if refused:
-            live.refuse(page)
-            return
+                return False
+            self._page_session[page.client.client_id] = live.code
         live.attach(page)
+        return True
+
+
+def _address(server: viser.ViserServer, client_id: int) -> str:
+    """The network address a participant tab connected from ("unknown" if viser hides it)."""
+    connection = server._websock_server._live_connections.get(client_id)
+    remote = getattr(connection, "remote_address", None)
+    return str(remote[0]) if isinstance(remote, tuple) and remote else "unknown"
 
 
 def _lan_address() -> str:

@@ -181,8 +181,15 @@ class RunningServer:
         self.store.close()
 
 
-def start_server(directory: Any, *, host: str = "127.0.0.1", **protocol_kw: Any) -> RunningServer:
-    """A ``StudyServer`` on free ports over a fresh store in ``directory``."""
+def start_server(
+    directory: Any,
+    *,
+    host: str = "127.0.0.1",
+    server_kw: dict[str, Any] | None = None,
+    **protocol_kw: Any,
+) -> RunningServer:
+    """A ``StudyServer`` on free ports over a fresh store in ``directory`` (``server_kw`` go
+    to the ``StudyServer``, e.g. ``kiosk=True``)."""
     from pathlib import Path
 
     from app.ui.live import session_factory
@@ -192,7 +199,13 @@ def start_server(directory: Any, *, host: str = "127.0.0.1", **protocol_kw: Any)
 
     protocol = load_protocol(short_protocol(directory, **protocol_kw))
     store = open_store(Path(directory) / "study.db", protocol)
-    server = StudyServer(session_factory(store, protocol), host=host, port=0, experimenter_port=0)
+    server = StudyServer(
+        session_factory(store, protocol),
+        host=host,
+        port=0,
+        experimenter_port=0,
+        **(server_kw or {}),
+    )
     return RunningServer(server, store, protocol)
 
 
