@@ -6,7 +6,11 @@ string shown goes through :func:`app.ui.blinding.check_text` first (a condition 
 and the blinding guard checks every message again on the wire. Callbacks of a screen that is
 no longer shown are ignored, so a late click can never answer the next screen.
 
-Keyboard (second input): W/S move the target away/back, A/D sideways, R/F up/down, G grasp.
+Keyboard (second input): while W/S, A/D or R/F is held the target moves away/back, sideways or
+up/down; G grasps, V brings back the task view. The keys travel through the page script
+(:mod:`app.ui.page_script`), which keeps them from viser's camera, as the value of one hidden
+text element: ``"<seq> <held keys>"``; :meth:`ParticipantPage._on_key_state` turns each new
+value into key-down and key-up calls.
 """
 
 from __future__ import annotations
@@ -15,32 +19,27 @@ import asyncio
 import contextlib
 import logging
 import threading
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import viser
+from viser import _messages as viser_messages
 
 from app.ui.blinding import check_text
+from app.ui.firewall import MAX_POSITION_M
+from app.ui.page_script import ARROW_KEYCODES, MAX_KEY_MESSAGE, STEERING_CODES, page_script
 
 LOGGER = logging.getLogger("app.ui.participant")
 
-KEY_STEP_M = 0.02
-"""Keyboard nudge of the target per key press, metres."""
-
-KEY_NUDGES: dict[str, tuple[float, float, float]] = {
-    "W": (KEY_STEP_M, 0.0, 0.0),
-    "S": (-KEY_STEP_M, 0.0, 0.0),
-    "A": (0.0, KEY_STEP_M, 0.0),
-    "D": (0.0, -KEY_STEP_M, 0.0),
-    "R": (0.0, 0.0, KEY_STEP_M),
-    "F": (0.0, 0.0, -KEY_STEP_M),
-}
 KEY_HELP = (
-    "Drag the arrows of the handle at the gripper to move it, or use the keys "
+    "Drag an arrow or a square of the handle at the gripper to move it, or hold the keys "
     "**W**/**S** (away / back), **A**/**D** (sideways), **R**/**F** (up / down). "
-    "Press **G** or the button below to close or open the gripper."
+    "Press **G** or the button below to close or open the gripper. Drag the background to "
+    "look around, scroll to zoom; **V** brings back the starting view."
 )
+KEY_LETTERS = frozenset(STEERING_CODES.values()) | frozenset(ARROW_KEYCODES.values())
 
 
 class InputRejected(ValueError):
@@ -79,14 +78,28 @@ def parse_answer(value: object, *, points: int) -> int:
 
 
 def parse_position(position: object) -> np.ndarray:
-    """A finite 3-vector from a gizmo pose, else :class:`InputRejected`."""
+    """A finite 3-vector within ``MAX_POSITION_M`` of the origin, else :class:`InputRejected`
+    (whose message is short: never the whole payload)."""
     try:
         p = np.asarray(position, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise InputRejected(f"gizmo position {position!r} is not numeric") from None
-    if p.shape != (3,) or not np.all(np.isfinite(p)):
-        raise InputRejected(f"gizmo position {p.tolist()} is not a finite 3-vector")
+    except (TypeError, ValueError, OverflowError):
+        raise InputRejected("gizmo position is not numeric") from None
+    if p.shape != (3,):
+        raise InputRejected(f"gizmo position has {p.size} values, not 3")
+    if not np.all(np.isfinite(p)) or float(np.max(np.abs(p))) > MAX_POSITION_M:
+        raise InputRejected(f"gizmo position is not finite or beyond {MAX_POSITION_M:g} m")
     return p
+
+
+def parse_key_state(value: object) -> tuple[int, frozenset[str]]:
+    """``"<seq> <letters>"`` -> (seq, held keys), else :class:`InputRejected`."""
+    text = str(value)
+    if len(text) > MAX_KEY_MESSAGE:
+        raise InputRejected(f"key state of {len(text)} characters")
+    seq_text, _, letters = text.partition(" ")
+    if not seq_text.isdigit() or not set(letters) <= KEY_LETTERS:
+        raise InputRejected("key state is not '<number> <keys>'")
+    return int(seq_text), frozenset(letters)
 
 
 class ParticipantPage:
@@ -100,11 +113,41 @@ class ParticipantPage:
         self._lock = threading.RLock()
         self._handles: list[object] = []
         self._gizmo: viser.TransformControlsHandle | None = None
-        self._commands: list[object] = []
-        self.rejected: list[str] = []
+        self.rejected: deque[str] = deque(maxlen=50)
         self.asks_code = False
+        self.address = "unknown"
+        """The network address the tab connected from (set by the server)."""
         self.on_reject: Callable[[str], None] | None = None
         """Called with each rejected input's problem (the server records it as an event)."""
+        self.on_keys: Callable[[frozenset[str], frozenset[str]], None] | None = None
+        """Called with (keys that went down, keys that went up) on each key-state change."""
+        self._key_seq = -1
+        self._keys_held: frozenset[str] = frozenset()
+        self._keys = client.gui.add_text("keys", initial_value="", visible=False)
+        self._keys.on_update(self._on_key_state)
+        client.gui.set_panel_label(self.title)
+        self.run_script(page_script(keys_uuid=self._keys._impl.uuid, title=self.title))
+
+    def run_script(self, source: str) -> None:
+        """Run ``source`` (JavaScript) in this tab once."""
+        self.client._websock_connection.queue_message(
+            viser_messages.RunJavascriptMessage(source=source)
+        )
+
+    async def _on_key_state(self, _event: object) -> None:
+        """A new key state from the page script (async: in arrival order, never reordered)."""
+        try:
+            seq, held = parse_key_state(self._keys.value)
+        except InputRejected as exc:
+            asyncio.get_running_loop().run_in_executor(None, self.reject, str(exc), False)
+            return
+        if seq <= self._key_seq:
+            return  # a reload restarts the count: a new page object starts at -1
+        self._key_seq = seq
+        down, up = held - self._keys_held, self._keys_held - held
+        self._keys_held = held
+        if self.on_keys is not None and (down or up):
+            asyncio.get_running_loop().run_in_executor(None, self.on_keys, down, up)
 
     # -- plumbing ----------------------------------------------------------------------------
     def _new_screen(self, name: str) -> int:
@@ -130,13 +173,16 @@ class ParticipantPage:
     def _current(self, screen: int) -> bool:
         return screen == self.screen
 
-    def reject(self, problem: str) -> None:
-        """Tell the participant an input was ignored (the server keeps running)."""
+    def reject(self, problem: str, notify: bool = True) -> None:
+        """Record an ignored input (the server keeps running); ``notify`` tells the participant."""
+        problem = problem[:200]
         self.rejected.append(problem)
-        LOGGER.warning("participant client %s: rejected input: %s", self.client.client_id, problem)
+        LOGGER.debug("participant client %s: rejected input: %s", self.client.client_id, problem)
         if self.on_reject is not None:
             with contextlib.suppress(Exception):
                 self.on_reject(problem)
+        if not notify:
+            return
         with contextlib.suppress(Exception):
             self.client.add_notification(
                 "Input ignored",
@@ -174,17 +220,27 @@ class ParticipantPage:
 
             return screen
 
-    def show_join(self, *, ask_code: bool, on_code: Callable[[str], None]) -> int:
-        """Waiting for a session; with several running, ask for the join code."""
+    def show_join(
+        self, *, ask_code: bool, on_code: Callable[[str], None], notice: str | None = None
+    ) -> int:
+        """Before a session: ask for the join code (or, on a kiosk, ask to wait)."""
         with self._lock:
             screen = self._new_screen("join")
             self.asks_code = ask_code
             self._header(None)
             if not ask_code:
-                self._md("**Welcome.**\n\nPlease wait: the experimenter will start your session.")
+                self._md(
+                    "**Welcome.**\n\nPlease wait: the experimenter will start your session"
+                    " in a moment. This page will change by itself."
+                )
                 return screen
-            self._md("**Welcome.**\n\nPlease type the join code the experimenter gives you.")
-            text = self.client.gui.add_text(check_text("Join code"), initial_value="")
+            self._md(
+                "**Welcome.**\n\nPlease type the join code the experimenter gives you, then"
+                " press Join." + (f"\n\n_{notice}_" if notice else "")
+            )
+            text = self.client.gui.add_text(
+                check_text("Join code"), initial_value="", hint="six letters and digits"
+            )
             self._handles.append(text)
             b = self._button("Join")
 
@@ -195,8 +251,10 @@ class ParticipantPage:
 
             return screen
 
-    def show_consent(self, text: str, *, on_agree: Callable[[], None]) -> int:
-        return self.show_message("Consent", text, button="I agree", on_button=on_agree)
+    def show_consent(
+        self, text: str, *, on_agree: Callable[[], None], agree: str = "I agree"
+    ) -> int:
+        return self.show_message("Consent", text, button=agree, on_button=on_agree)
 
     def show_questions(
         self,
@@ -214,24 +272,27 @@ class ParticipantPage:
             self._md(f"**{heading}**\n\n{intro}")
             answers: dict[str, int] = {}
             submit = None
-            for index, item in enumerate(items, 1):
+            for item in items:
                 self._md(f"**{item.prompt}**\n\n{item.anchor_text()}")
-                group = self.client.gui.add_button_group(
-                    f"Answer {index}",
-                    [str(k) for k in range(1, item.points + 1)],
-                )
+                plain = tuple(str(k) for k in range(1, item.points + 1))
+                group = self.client.gui.add_button_group(" ", plain)
                 self._handles.append(group)
                 chosen = self._md("Your answer: none yet")
 
-                def on_click(event: object, item: LikertItem = item, group=group, chosen=chosen):
+                def on_click(
+                    event: object, item: LikertItem = item, group=group, chosen=chosen, plain=plain
+                ) -> None:
                     if not self._current(screen):
                         return
                     try:
-                        answers[item.key] = parse_answer(group.value, points=item.points)
+                        answer = parse_answer(str(group.value).strip("[] "), points=item.points)
                     except InputRejected as exc:
                         self.reject(str(exc))
                         return
-                    chosen.content = f"Your answer: **{answers[item.key]}**"
+                    answers[item.key] = answer
+                    marked = [f"[{o}]" if int(o) == answer else o for o in plain]
+                    group.options = tuple(marked)  # the chosen button reads [k]
+                    chosen.content = f"Your answer: **{answer}** ({item.anchors[answer - 1]})"
                     if submit is not None and len(answers) == len(items):
                         submit.disabled = False
 
@@ -251,25 +312,36 @@ class ParticipantPage:
             return screen
 
     def show_trial(
-        self, *, heading: str, instruction: str, progress: str | None, on_grasp: Callable[[], None]
+        self,
+        *,
+        heading: str,
+        instruction: str,
+        progress: str | None,
+        on_grasp: Callable[[], None],
+        on_view: Callable[[], None],
     ) -> int:
-        """The trial screen: the instruction, key help and a grasp button."""
+        """The trial screen: the instruction, key help, a grasp and a view button."""
         with self._lock:
             screen = self._new_screen("trial:" + heading)
             self._header(progress)
             self._md(f"**{heading}**\n\n{instruction}\n\n{KEY_HELP}")
             b = self._button("Grasp / release (G)")
+            v = self._button("Back to the starting view (V)")
 
             @b.on_click
             def _(_: object) -> None:
                 if self._current(screen):
                     on_grasp()
 
+            @v.on_click
+            def _(_: object) -> None:
+                on_view()
+
             return screen
 
     # -- teleoperation -----------------------------------------------------------------------
     def add_gizmo(
-        self, position: np.ndarray, *, on_target: Callable[[np.ndarray], None], scale: float = 0.3
+        self, position: np.ndarray, *, on_target: Callable[[np.ndarray], None], scale: float = 0.22
     ) -> viser.TransformControlsHandle:
         """The transform handle at the end effector; every pose update goes to ``on_target``."""
         with self._lock:
@@ -279,6 +351,7 @@ class ParticipantPage:
                 scale=scale,
                 disable_rotations=True,
                 depth_test=False,
+                opacity=0.75,
                 position=tuple(np.asarray(position, float)),
             )
             self._gizmo = gizmo
@@ -291,7 +364,7 @@ class ParticipantPage:
             try:
                 target = parse_position(gizmo.position)
             except InputRejected as exc:
-                asyncio.get_running_loop().run_in_executor(None, self.reject, str(exc))
+                asyncio.get_running_loop().run_in_executor(None, self.reject, str(exc), False)
                 return
             on_target(target)
 
@@ -302,31 +375,14 @@ class ParticipantPage:
             if self._gizmo is not None:
                 self._gizmo.position = tuple(np.asarray(position, float))
 
+    def show_gizmo(self, visible: bool) -> None:
+        with self._lock:
+            if self._gizmo is not None:
+                self._gizmo.visible = visible
+
     def remove_gizmo(self) -> None:
         with self._lock:
             if self._gizmo is not None:
                 with contextlib.suppress(Exception):
                     self._gizmo.remove()
                 self._gizmo = None
-
-    def add_keys(
-        self, *, on_nudge: Callable[[np.ndarray], None], on_grasp: Callable[[], None]
-    ) -> None:
-        """Hotkeys: W/S/A/D/R/F nudge the target, G toggles the gripper."""
-        with self._lock:
-            if self._commands:
-                return
-            for key, delta in KEY_NUDGES.items():
-                cmd = self.client.gui.add_command(f"Move {key}", hotkey=key)  # type: ignore[arg-type]
-                cmd.on_trigger(lambda _e, d=delta: on_nudge(np.array(d)))
-                self._commands.append(cmd)
-            cmd = self.client.gui.add_command("Grasp", hotkey="G")
-            cmd.on_trigger(lambda _e: on_grasp())
-            self._commands.append(cmd)
-
-    def remove_keys(self) -> None:
-        with self._lock:
-            for cmd in self._commands:
-                with contextlib.suppress(Exception):
-                    cmd.remove()  # type: ignore[attr-defined]
-            self._commands = []

@@ -11,6 +11,7 @@ Poses come from the control thread as snapshots ``(xpos (nbody,3), xmat (nbody,9
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from collections import deque
@@ -21,6 +22,10 @@ import mujoco
 import numpy as np
 import viser
 from mjviser import ViserMujocoScene
+
+from app.robot.task_view import TaskViewError, task_view
+
+LOGGER = logging.getLogger("app.ui.scene")
 
 _KEEP = frozenset({"", "fixed_bodies", "bodies"})
 
@@ -44,7 +49,10 @@ class NeutralNames:
 
 
 class _NeutralSceneApi:
-    """Proxy of a viser ``SceneApi`` whose ``add_*`` methods get neutral node names."""
+    """Proxy of a viser ``SceneApi`` whose ``add_*`` methods get neutral node names. The
+    floor's grid is not drawn: its shader runs on most of the screen and cost a third of a
+    software-WebGL frame (12 -> 19 frames/s while the arm moves); the table is the scene's
+    ground for the participant."""
 
     def __init__(self, scene: Any, names: NeutralNames) -> None:
         self._scene = scene
@@ -56,6 +64,8 @@ class _NeutralSceneApi:
             return value
 
         def add(name: str, *args: Any, **kwargs: Any) -> Any:
+            if attr == "add_grid":
+                return None
             return value(self._names(name), *args, **kwargs)
 
         return add
@@ -96,8 +106,30 @@ def task_center(points: np.ndarray) -> tuple[np.ndarray, float]:
     return center, max(1.1, 1.0 + 2.0 * spread)
 
 
+def frame_scene(camera: viser.CameraHandle, scene: Any) -> None:
+    """Point ``camera`` at ``scene``'s task view (:func:`app.robot.task_view.task_view`: every
+    object and the gripper unoccluded by the arm, left of the control panel); a scene no view
+    can show well enough falls back to the plain framing, with a warning in the log."""
+    try:
+        view = task_view(scene)
+    except TaskViewError as exc:
+        LOGGER.warning("scene %s: %s; using the plain framing", scene.name, exc)
+        center, distance = task_center(
+            np.vstack([scene.start_ee, np.asarray(scene.goals.positions, float)])
+        )
+        frame_task(camera, look_at=center, distance=distance)
+        return
+    camera.fov = view.fov_rad
+    camera.up_direction = view.up
+    camera.position = view.position
+    camera.look_at = view.look_at
+
+
 class SceneView:
-    """One participant's view of one simulated scene (per-client nodes, neutral names)."""
+    """One participant's view of one simulated scene (per-client nodes, neutral names), with
+    a depth cue under the gripper: a thin vertical line down to the table and a dark disc on
+    the table (two small nodes moved per frame; no shadows, which software WebGL cannot
+    afford)."""
 
     def __init__(
         self,
@@ -106,6 +138,7 @@ class SceneView:
         *,
         on_frame: Callable[[], None] | None = None,
         shadows: bool = False,
+        table_top: float | None = None,
     ) -> None:
         # Shadow maps cost a 10-50x frame rate drop in software WebGL (measured: 0.2-1.3 fps
         # with, 13-30 fps without, for the Panda scene in headless Chromium on 2 cores).
@@ -113,18 +146,49 @@ class SceneView:
         self.names = NeutralNames()
         self._scene = ViserMujocoScene(_NeutralTarget(target, self.names), model, num_envs=1)  # type: ignore[arg-type]
         self._scene.camera_tracking_enabled = False
+        # Image-based lighting costs about two thirds of a software-WebGL frame (measured: 8
+        # -> 21 frames/s while the arm moves); plain lights light the scene well enough.
+        target.scene.configure_environment_map(hdri=None)
+        target.scene.add_light_ambient("/lights/ambient", intensity=1.4)
         self._on_frame = on_frame
         self._flush = target.flush
+        self._table_top = table_top
+        self._drop = self._disc = None
+        if table_top is not None:
+            scene = target.scene
+            self._drop = scene.add_line_segments(
+                "/cue/line",
+                np.array([[[0.0, 0.0, 0.0], [0.0, 0.0, -1.0]]]),
+                (40, 40, 40),
+                thickness=2.0,
+                thickness_units="screen",
+                visible=False,
+            )
+            self._disc = scene.add_cylinder(
+                "/cue/disc", radius=0.018, height=0.002, color=(30, 30, 30), visible=False
+            )
         self.frames_sent = 0
         self.render_s: deque[float] = deque(maxlen=4096)
         """Wall time of the last renders (seconds), for the server benchmark."""
 
-    def render(self, xpos: np.ndarray, xmat: np.ndarray) -> None:
-        """Send one frame with body poses ``xpos (nbody,3)``, ``xmat (nbody,9)``."""
+    def render(
+        self, xpos: np.ndarray, xmat: np.ndarray, *, gripper: np.ndarray | None = None
+    ) -> None:
+        """Send one frame with body poses ``xpos (nbody,3)``, ``xmat (nbody,9)`` and the
+        depth cue under ``gripper`` (3,)."""
         t = time.perf_counter()
         self._scene.update_from_arrays(
             np.asarray(xpos, float)[None], np.asarray(xmat, float).reshape(1, -1, 3, 3)
         )
+        if gripper is not None and self._drop is not None and self._disc is not None:
+            top = float(self._table_top or 0.0)
+            x, y, z = (float(v) for v in gripper)
+            height = max(z - top, 1e-3)
+            self._drop.position = (x, y, z)
+            self._drop.scale = (1.0, 1.0, height)
+            self._disc.position = (x, y, top + 0.001)
+            if not self._drop.visible:
+                self._drop.visible = self._disc.visible = True
         # mjviser flushes inside its atomic block, where viser cannot send yet; flushing again
         # here sends the frame now instead of after viser's 1/60 s window.
         self._flush()

