@@ -22,6 +22,9 @@ import websockets
 
 from tests.browser.harness import decode_frame, run_async, start_server, wait_until
 
+AGREE = "I have read this and agree to take part"
+"""The paper protocol's consent button (``[consent] agree``)."""
+
 
 class RawClient:
     """A minimal viser client: collects decoded messages, sends msgpack messages."""
@@ -83,6 +86,29 @@ class RawClient:
     async def click(self, label: str) -> None:
         await self.send("GuiUpdateMessage", uuid=await self.button(label), updates={"value": True})
 
+    async def type_code(self, code: str) -> None:
+        """Type ``code`` into the join screen's text field and press Join."""
+        text = await self.wait_for(
+            lambda m: m.get("type") == "GuiTextMessage" and m["props"]["label"] == "Join code"
+        )
+        await self.send("GuiUpdateMessage", uuid=text["uuid"], updates={"value": code})
+        await asyncio.sleep(0.1)
+        await self.click("Join")
+
+    async def join(self, code: str, *, then: str = AGREE) -> None:
+        """Join the session with ``code`` and wait for the button ``then``."""
+        await self.type_code(code)
+        await self.button(then)
+
+    async def pose(self, position: Any, *, owner: str = "") -> None:
+        await self.send(
+            "TransformControlsUpdateMessage",
+            name="/handle",
+            wxyz=(1.0, 0.0, 0.0, 0.0),
+            position=position,
+            owner=owner,
+        )
+
     def notices(self) -> int:
         return sum(
             1
@@ -107,7 +133,8 @@ def test_malformed_client_messages_are_rejected_and_the_server_keeps_running(
 
         async def scenario() -> None:
             async with RawClient(srv.participant_port) as c:
-                await c.click("I agree")
+                await c.join(code)
+                await c.click(AGREE)
                 await c.click("Start")
                 gizmo = await c.wait_for(
                     lambda m: m.get("type") == "TransformControlsMessage" and m["name"] == "/handle"
@@ -115,42 +142,24 @@ def test_malformed_client_messages_are_rejected_and_the_server_keeps_running(
                 owner = gizmo.get("owner", "")
                 assert wait_until(lambda: live.participant_input is not None)
                 good = live.participant_input.gizmo.target
+                dropped = sum(srv.firewall.dropped.values())
 
-                # NaN pose, infinite pose: rejected, target unchanged, a notice, an event.
-                for bad in ((math.nan, 0.0, 0.3), (0.5, math.inf, 0.3)):
-                    await c.send(
-                        "TransformControlsUpdateMessage",
-                        name="/handle",
-                        wxyz=(1.0, 0.0, 0.0, 0.0),
-                        position=bad,
-                        owner=owner,
-                    )
+                # NaN, infinite and huge poses, a pose of the wrong shape, a property that is not
+                # a value, bytes that are not msgpack: refused at the door, target unchanged.
+                for bad in ((math.nan, 0.0, 0.3), (0.5, math.inf, 0.3), (1e200, 0.0, 0.3), (0.5,)):
+                    await c.pose(bad, owner=owner)
+                await c.send(
+                    "GuiUpdateMessage", uuid=await c.button("Grasp / release (G)"), updates={"x": 1}
+                )
+                await c.ws.send(b"\x00\x01 not msgpack")
                 await asyncio.sleep(0.5)
+                assert sum(srv.firewall.dropped.values()) == dropped + 6
                 assert (
                     live.participant_input.gizmo.target is None
                     or (live.participant_input.gizmo.target == good).all()
                 )
-                assert len(live.page.rejected) >= 2
-                # A pose of the wrong shape and bytes that are not msgpack: ignored by viser.
-                await c.send(
-                    "TransformControlsUpdateMessage",
-                    name="/handle",
-                    wxyz=(1.0, 0.0),
-                    position=(0.5,),
-                    owner=owner,
-                )
-                # A property that does not exist on a button.
-                await c.send(
-                    "GuiUpdateMessage", uuid=await c.button("Grasp / release (G)"), updates={"x": 1}
-                )
-                # A valid pose still works afterwards.
-                await c.send(
-                    "TransformControlsUpdateMessage",
-                    name="/handle",
-                    wxyz=(1.0, 0.0, 0.0, 0.0),
-                    position=(0.5, 0.1, 0.35),
-                    owner=owner,
-                )
+                # A valid pose still works afterwards; the control loop never stopped.
+                await c.pose((0.5, 0.1, 0.35), owner=owner)
                 assert wait_until(
                     lambda: (
                         live._run is not None
@@ -158,8 +167,17 @@ def test_malformed_client_messages_are_rejected_and_the_server_keeps_running(
                     ),
                     timeout=5,
                 )
+                assert live.control_loop is not None and live.control_loop.error is None
 
-                # Items after the (3 s) practice run: off-scale answers are refused.
+                # After the (3 s) practice run: a neutral sentence, then the items, where
+                # off-scale answers are refused.
+                await c.button("Continue")
+                assert any(
+                    m.get("type") == "GuiMarkdownMessage"
+                    and "Time is up" in m["props"]["_markdown"]
+                    for m in c.messages
+                )
+                await c.click("Continue")
                 groups = []
                 deadline = time.monotonic() + 20
                 while len(groups) < 3 and time.monotonic() < deadline:
@@ -181,15 +199,14 @@ def test_malformed_client_messages_are_rejected_and_the_server_keeps_running(
                 await c.click("Continue")
                 assert wait_until(lambda: len(rs.store.ratings()) == 3, timeout=5)
                 assert {r.value for r in rs.store.ratings()} == {6}
-                await c.ws.send(b"\x00\x01 not msgpack")
 
         run_async(scenario())
-        # The server still serves: a new client connects and gets the page.
+        # The server still serves: a new client connects, joins and gets the page.
         assert wait_until(lambda: live.page is None, timeout=5)
 
         async def second() -> None:
             async with RawClient(srv.participant_port) as c:
-                await c.button("Start")
+                await c.join(code, then="Start")
 
         run_async(second())
         assert "input_rejected" in _kinds(rs.store)

@@ -53,6 +53,10 @@ class SessionDetail:
     probabilities: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     goal_names: tuple[str, ...] = ()
     log: Sequence[str] = ()
+    fault: str | None = None
+    """The control loop's last error while the trial waits for the experimenter to resume."""
+    trials: Sequence[tuple[str, int, str, str, str]] = ()
+    """Every attempt so far: (label, attempt, status, outcome, duration)."""
 
 
 class Console(Protocol):
@@ -88,6 +92,16 @@ def schedule_markdown(detail: SessionDetail) -> str:
     for k, (label, task, mode) in enumerate(detail.schedule):
         mark = "**>**" if k == detail.cursor else ""
         lines.append(f"| {mark} {k + 1} | {label} | {task} | {mode} |")
+    return "\n".join(lines)
+
+
+def trials_markdown(detail: SessionDetail) -> str:
+    """Every attempt of the session so far, with how it ended."""
+    if not detail.trials:
+        return "_No runs yet._"
+    lines = ["| run | attempt | status | outcome | time |", "|---|---|---|---|---|"]
+    for label, attempt, status, outcome, duration in detail.trials:
+        lines.append(f"| {label} | {attempt} | {status} | {outcome} | {duration} |")
     return "\n".join(lines)
 
 
@@ -203,11 +217,16 @@ class ExperimenterConsole:
             f" {_fmt_time(detail.trial_elapsed_s)}; participant tab"
             f" {'connected' if s.connected else 'not connected'}"
         )
+        if detail.fault:
+            status += (
+                f"\n\n**Control error, trial paused:** `{detail.fault}`. Resume to try again;"
+                " redo or end if it comes back."
+            )
         if detail.log:
             status += "\n\nRecent: " + "; ".join(detail.log[-4:])
         if self.status_md.content != status:
             self.status_md.content = status
-        sched = schedule_markdown(detail)
+        sched = schedule_markdown(detail) + "\n\n" + trials_markdown(detail)
         if self.schedule_md.content != sched:
             self.schedule_md.content = sched
         self._update_plots(detail)

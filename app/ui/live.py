@@ -27,11 +27,12 @@ from typing import Any
 import numpy as np
 
 from app.teleop.errors import TeleopError
+from app.teleop.keyboard import KEYMAP
 from app.ui.experimenter import SessionDetail, SessionSummary
-from app.ui.inputs import ParticipantInput
+from app.ui.inputs import InputFrozen, ParticipantInput
 from app.ui.loop import PacedLoop
 from app.ui.participant import LikertItem, ParticipantPage
-from app.ui.scene import SceneView, frame_task, task_center
+from app.ui.scene import SceneView, frame_scene
 
 LOGGER = logging.getLogger("app.ui.live")
 
@@ -39,6 +40,20 @@ PLOT_WINDOW = 1500
 """Ticks kept for the console's live plots (15 s at 100 Hz)."""
 
 PARTICIPANT_ACTIONS = ("agree", "start_trial", "answer", "finish")
+
+MOVED_M = 1e-5
+"""A body that moved less than this (m, and the same in rotation-matrix entries) since the last
+frame sent is not re-sent: an arm standing still sends no scene updates."""
+
+OUTCOME_SENTENCES: dict[str, str] = {
+    "success": "You lifted the object.",
+    "wrong_object": "You lifted an object.",
+    "dropped": "The object slipped.",
+    "timeout": "Time is up.",
+}
+"""What the participant reads after a run (neutral: never a condition)."""
+
+WAIT_TEXT = "Please wait a moment: the experimenter will continue the session."
 
 
 class LiveSession:
@@ -64,8 +79,17 @@ class LiveSession:
         self._render: PacedLoop | None = None
         self._view: SceneView | None = None
         self._view_key: tuple[int, str] | None = None
-        self._snapshot: tuple[int, np.ndarray, np.ndarray] | None = None
+        self._view_scene: Any = None
+        # (run key, seq, xpos, xmat) after the last tick that moved something; the render loop
+        # sends it only while the view shows that run (``_frame_key``), never an old run's pose
+        self._snapshot: tuple[object, int, np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._frame_key: object = None
         self._rendered_seq = -1
+        self.fault: str | None = None
+        """The last control-loop error, shown to the experimenter until they resume."""
+        self._outcome: str | None = None
+        self._input_paused = False
+        self._render_lock = threading.Lock()
         self._plot_lock = threading.Lock()
         self._plot: deque[tuple[float, float, float, np.ndarray]] = deque(maxlen=PLOT_WINDOW)
         self.goal_names: tuple[str, ...] = ()
@@ -116,10 +140,14 @@ class LiveSession:
     # -- tabs ----------------------------------------------------------------------------------
     def attach(self, page: ParticipantPage) -> None:
         page.on_reject = lambda problem: self._event("input_rejected", {"problem": problem[:200]})
+        page.on_keys = self._on_keys
         with self._lock:
             self.page = page
             self._shown = None
-        self._event("participant_connected", {"client": page.client.client_id})
+        self._event(
+            "participant_connected",
+            {"client": page.client.client_id, "address": getattr(page, "address", "unknown")},
+        )
         with self._lock:
             if self._run is not None and not self._run.over:
                 self._show_trial_scene(page)
@@ -136,6 +164,7 @@ class LiveSession:
             running = run is not None and not run.over
         self._event("participant_disconnected", {"client": page.client.client_id})
         if running and not self.session.finished:
+            self._pause_input()
             try:
                 if not run.paused:
                     self.session.pause()
@@ -143,12 +172,12 @@ class LiveSession:
             except Exception as exc:
                 LOGGER.warning("could not pause after disconnect: %s", exc)
 
-    def refuse(self, page: ParticipantPage) -> None:
-        """A second tab for a session that already has one: view-only notice, logged."""
-        self._event("second_tab_refused", {"client": page.client.client_id})
-        page.show_message(
-            "Already open",
-            "This session is already open in another tab or window. Please use that one.",
+    def note_refused_join(self, page: ParticipantPage) -> None:
+        """The right code from a second tab while one holds the session: logged for the
+        experimenter; the tab is told only that the code did not work."""
+        self._event(
+            "second_tab_refused",
+            {"client": page.client.client_id, "address": getattr(page, "address", "unknown")},
         )
 
     # -- participant actions -------------------------------------------------------------------
@@ -185,10 +214,18 @@ class LiveSession:
 
         self._participant("resume", resume)
 
+    def _refused(self, exc: Exception) -> None:
+        """An input that arrived while paused: logged (rate-limited by the session), not shown."""
+        self._event("input_rejected", {"problem": str(exc)[:200]})
+
     def _grasp(self) -> None:
         source = self._input
-        if source is not None:
+        if source is None:
+            return
+        try:
             source.request_grasp()
+        except InputFrozen as exc:
+            self._refused(exc)
 
     def _on_target(self, target: np.ndarray) -> None:
         source = self._input
@@ -196,19 +233,78 @@ class LiveSession:
             return
         try:
             source.set_target(target)
+        except InputFrozen as exc:
+            self._refused(exc)
         except TeleopError as exc:
             page = self.page
             if page is not None:
                 page.reject(str(exc))
 
-    def _on_nudge(self, delta: np.ndarray) -> None:
+    def _on_keys(self, down: frozenset[str], up: frozenset[str]) -> None:
+        """Key-state changes from the page: steering keys to the input, G grasps, V re-frames."""
         source = self._input
         if source is not None:
-            axis = int(np.argmax(np.abs(delta)))
-            key = {(0, 1): "w", (0, -1): "s", (1, 1): "a", (1, -1): "d", (2, 1): "r", (2, -1): "f"}[
-                (axis, 1 if delta[axis] > 0 else -1)
-            ]
-            source.keyboard.press(key)
+            for key in up & set(KEYMAP):
+                source.key_up(key)
+        if "v" in down:
+            self._reframe()
+        if source is None:
+            return
+        for key in sorted(down):
+            try:
+                if key == "g":
+                    source.request_grasp()
+                elif key in KEYMAP:
+                    source.key_down(key)
+            except InputFrozen as exc:
+                self._refused(exc)
+
+    def _reframe(self) -> None:
+        """Put the tab's camera back on the task view."""
+        page, view_scene = self.page, self._view_scene
+        if page is not None and view_scene is not None:
+            frame_scene(page.client.camera, view_scene)
+
+    def _pause_input(self) -> None:
+        """Freeze the participant's input and hide the handle (idempotent)."""
+        self._input_paused = True
+        source, page = self._input, self.page
+        if source is not None:
+            source.freeze()
+        if page is not None:
+            page.show_gizmo(False)
+
+    def _resume_input(self) -> None:
+        """Thaw the input with the target at the gripper, the handle back on it and shown."""
+        run, source, page = self._run, self._input, self.page
+        self._input_paused = False
+        if run is None or source is None or run.over:
+            return
+        gripper = np.asarray(run.trial.sim.ee, float)
+        source.thaw()
+        try:
+            source.set_target(gripper)
+        except (InputFrozen, TeleopError):
+            LOGGER.debug("could not put the target on the gripper", exc_info=True)
+        if page is not None:
+            page.move_gizmo(gripper)
+            page.show_gizmo(True)
+
+    def _control_fault(self, run: Any, exc: Exception) -> None:
+        """A tick raised: pause the trial, record why, tell the experimenter; ticks stop until
+        the experimenter resumes (a fault that persists pauses again at once)."""
+        problem = f"{type(exc).__name__}: {exc}"[:300]
+        LOGGER.error("session %s: control tick failed: %s", self.code, problem, exc_info=exc)
+        self.fault = problem
+        self._pause_input()
+        self._event("control_fault", {"trial_id": getattr(run, "trial_id", None), "error": problem})
+        try:
+            if not run.paused and not run.over:
+                self.session.pause()
+        except Exception:
+            LOGGER.exception("session %s: could not pause after a control fault", self.code)
+        self._shown = None
+        self._dirty.set()
 
     # -- the trial -----------------------------------------------------------------------------
     def _begin_run(self, run: Any, source: ParticipantInput) -> None:
@@ -218,7 +314,11 @@ class LiveSession:
         self.goal_names = tuple(trial.scene.object_names)
         with self._plot_lock:
             self._plot.clear()
-        self._snap(trial)
+        self._frame_key = run
+        self._outcome = None
+        self.fault = None
+        self._input_paused = False
+        self._snap(run)
         self._control = PacedLoop(
             lambda: self._tick(run), rate_hz=run.config.rate_hz, name=f"control-{self.code}"
         ).start()
@@ -229,15 +329,30 @@ class LiveSession:
         if self.page is not None:
             self._show_trial_scene(self.page)
 
-    def _snap(self, trial: Any) -> None:
-        data = trial.sim.data
-        seq = 0 if self._snapshot is None else self._snapshot[0] + 1
-        self._snapshot = (seq, data.xpos.copy(), data.xmat.copy())
+    def _snap(self, run: Any) -> None:
+        """Keep the run's body poses for the render loop when something moved since the last."""
+        data = run.trial.sim.data
+        last = self._snapshot
+        if (
+            last is not None
+            and last[0] is run
+            and float(np.max(np.abs(data.xpos - last[2]))) < MOVED_M
+            and float(np.max(np.abs(data.xmat - last[3]))) < MOVED_M
+        ):
+            return
+        seq = 0 if last is None else last[1] + 1
+        self._snapshot = (run, seq, data.xpos.copy(), data.xmat.copy(), run.trial.sim.ee)
 
     def _tick(self, run: Any) -> bool:
-        record = run.tick()
+        if self.fault is not None:
+            return not run.over  # held until the experimenter resumes
+        try:
+            record = run.tick()
+        except Exception as exc:  # never let the loop die silently: pause and tell
+            self._control_fault(run, exc)
+            return not run.over
         if record is not None:
-            self._snap(run.trial)
+            self._snap(run)
             with self._plot_lock:
                 self._plot.append(
                     (
@@ -258,7 +373,8 @@ class LiveSession:
         self._ensure_view(page, trial.scene, trial.sim.model)
         start = source.last_target if source.last_target is not None else trial.user_target
         page.add_gizmo(np.asarray(start, float), on_target=self._on_target)
-        page.add_keys(on_nudge=self._on_nudge, on_grasp=self._grasp)
+        if self._input_paused or run.paused:
+            page.show_gizmo(False)
 
     def _preview_scene(self, page: ParticipantPage) -> None:
         """Show the next trial's scene at its start state on the ready screen, so the browser
@@ -272,9 +388,10 @@ class LiveSession:
             return
         scene = build_scene(config.scene)
         sim = Simulation(scene, physics_dt=config.physics_dt)
-        with self._lock:
+        with self._lock, self._render_lock:
+            self._frame_key = ("preview", str(scene.name))  # the render loop keeps off it
             view = self._ensure_view(page, scene, sim.model)
-            view.render(sim.data.xpos, sim.data.xmat)
+            view.render(sim.data.xpos, sim.data.xmat, gripper=sim.ee)
 
     def _ensure_view(self, page: ParticipantPage, scene: Any, model: Any) -> SceneView:
         """The tab's view of ``scene``: rebuilt (and the camera framed on the task) when the
@@ -282,23 +399,23 @@ class LiveSession:
         key = (page.client.client_id, str(scene.name))
         if self._view is None or self._view_key != key:
             page.client.scene.reset()
-            self._view = SceneView(page.client, model)
+            self._view = SceneView(page.client, model, table_top=scene.spec.table.top_z)
             self._view_key = key
+            self._view_scene = scene
             self._rendered_seq = -1
-            center, distance = task_center(
-                np.vstack([scene.start_ee, np.asarray(scene.goals.positions, float)])
-            )
-            frame_task(page.client.camera, look_at=center, distance=distance)
+            frame_scene(page.client.camera, scene)
         return self._view
 
     def _render_step(self) -> None:
         view, snap, page, source = self._view, self._snapshot, self.page, self._input
-        if view is not None and snap is not None and snap[0] != self._rendered_seq:
-            self._rendered_seq = snap[0]
-            try:
-                view.render(snap[1], snap[2])
-            except Exception:  # a tab closing mid-frame; the next frame goes to the next tab
-                LOGGER.debug("render failed", exc_info=True)
+        if view is not None and snap is not None and snap[1] != self._rendered_seq:
+            with self._render_lock:
+                if snap[0] is self._frame_key and view is self._view:
+                    self._rendered_seq = snap[1]
+                    try:
+                        view.render(snap[2], snap[3], gripper=snap[4])
+                    except Exception:  # a tab closing mid-frame; the next tab gets the next
+                        LOGGER.debug("render failed", exc_info=True)
         if page is not None and source is not None and source.key_moved.is_set():
             source.key_moved.clear()
             if source.last_target is not None:
@@ -309,10 +426,15 @@ class LiveSession:
             if self._control is not None:
                 self._control.stop()
             self._control = None
-            page = self.page
+            page, run = self.page, self._run
+            summary = getattr(run, "summary", None)
+            if summary is not None:
+                self._outcome = OUTCOME_SENTENCES.get(summary.outcome, "The run has ended.")
+            source = self._input
+        if source is not None:
+            source.freeze()
         if page is not None:
             page.remove_gizmo()
-            page.remove_keys()
 
     # -- the page --------------------------------------------------------------------------------
     def _page_loop(self) -> None:
@@ -339,11 +461,23 @@ class LiveSession:
                 self.session.close()  # release the lease; the record stays readable
             if self.on_closed is not None:
                 self.on_closed()
+        if run is not None and not run.over:
+            if run.paused and not self._input_paused:
+                self._pause_input()
+            elif not run.paused and self._input_paused and self.fault is None:
+                self._resume_input()
         page = self.page
         if page is None:
             return
         screen = self.session.screen()
-        key = (page.client.client_id, screen.revision, self._disconnect_paused, screen.paused)
+        key = (
+            page.client.client_id,
+            screen.revision,
+            self._disconnect_paused,
+            screen.paused,
+            self.fault is not None,
+            self._outcome,
+        )
         if key == self._shown:
             return
         self._shown = key
@@ -352,7 +486,11 @@ class LiveSession:
     def _show(self, page: ParticipantPage, screen: Any) -> None:
         progress = screen.progress.text if screen.progress.of else None
         title, text = screen.title, screen.text
-        if screen.paused and self._disconnect_paused:
+        if progress is not None and (progress in title or progress in text):
+            progress = None  # said once is enough
+        if self.fault is not None:
+            page.show_message("Please wait", WAIT_TEXT, progress=progress)
+        elif screen.paused and self._disconnect_paused:
             page.show_message(
                 "Paused",
                 "Your run was paused while this page was away. Press Continue when you are ready.",
@@ -361,9 +499,21 @@ class LiveSession:
                 on_button=self._continue_after_disconnect,
             )
         elif screen.paused:
-            page.show_message("Paused", text or "The session is paused.", progress=progress)
+            page.show_message("Please wait", WAIT_TEXT, progress=progress)
+        elif self._outcome is not None and screen.phase != "running":
+            page.show_message(
+                "Run finished",
+                self._outcome,
+                progress=progress,
+                button="Continue",
+                on_button=self._seen_outcome,
+            )
         elif screen.phase == "consent":
-            page.show_consent(text, on_agree=lambda: self._participant("agree", self.session.agree))
+            page.show_consent(
+                text,
+                on_agree=lambda: self._participant("agree", self.session.agree),
+                agree=self._agree_label(),
+            )
         elif screen.phase == "ready":
             self._preview_scene(page)
             page.show_message(
@@ -371,7 +521,11 @@ class LiveSession:
             )
         elif screen.phase == "running":
             page.show_trial(
-                heading=title, instruction=text, progress=progress, on_grasp=self._grasp
+                heading=title,
+                instruction=text,
+                progress=progress,
+                on_grasp=self._grasp,
+                on_view=self._reframe,
             )
         elif screen.phase == "questions":
             items = [
@@ -392,6 +546,14 @@ class LiveSession:
         else:  # waiting
             page.show_message(title, text or "Please wait: the experimenter will start soon.")
 
+    def _seen_outcome(self) -> None:
+        self._outcome = None
+        self._dirty.set()
+
+    def _agree_label(self) -> str:
+        texts = getattr(getattr(self.session, "protocol", None), "texts", None)
+        return str(getattr(texts, "consent_agree", "") or "I agree")
+
     # -- experimenter --------------------------------------------------------------------------
     def act(self, action: str, *, reason: str = "") -> str:
         """Run an experimenter action; returns a line for the console (errors raise)."""
@@ -401,6 +563,9 @@ class LiveSession:
         elif action in ("start", "pause", "resume"):
             if action == "resume":
                 self._disconnect_paused = False
+                self.fault = None
+            elif action == "pause":
+                self._pause_input()
             getattr(s, action)()
         else:
             raise ValueError(f"unknown action {action!r}; use one of start, pause, resume, ...")
@@ -412,7 +577,9 @@ class LiveSession:
         return SessionSummary(
             code=self.code,
             participant=self.participant,
-            state=o.status + (" (paused)" if o.paused else "") + f" / {o.phase}",
+            state=o.status
+            + (" / paused" if o.paused else "")
+            + (f" / {o.phase}" if o.phase != o.status else ""),
             position=f"{min(o.step + 1, o.steps)}/{o.steps}",
             connected=self.page is not None,
             elapsed_s=time.monotonic() - self.opened_at,
@@ -462,6 +629,26 @@ class LiveSession:
             probabilities=probs,
             goal_names=self.goal_names,
             log=tuple(self.log),
+            fault=self.fault,
+            trials=self._trial_rows(),
+        )
+
+    def _trial_rows(self) -> tuple[tuple[str, int, str, str, str], ...]:
+        """The console's list of attempts, from the store (runs of earlier processes too)."""
+        try:
+            records = self.session.store.trials(participant=self.participant)
+        except Exception:
+            LOGGER.debug("could not read the trials for the console", exc_info=True)
+            return ()
+        return tuple(
+            (
+                f"{r.trial_number}. {r.phase}" + (f": {r.task}, {r.mode}" if r.task else ""),
+                int(r.attempt),
+                str(r.status),
+                str(r.outcome or "-"),
+                "-" if r.duration_s is None else f"{r.duration_s:.1f} s",
+            )
+            for r in records
         )
 
     def close(self) -> None:

@@ -1,0 +1,311 @@
+"""The participant port under attack: raw websocket clients that speak viser's protocol.
+
+Each test does what a hostile or careless client on the lab network could do and checks what a
+researcher would notice: no share tunnel opens, a huge message costs one connection and no
+control ticks, a control-loop error pauses the trial and tells the experimenter instead of
+killing the loop, join codes cannot be guessed or used to take over a dropped session, and the
+ready screen never shows a previous run's end state.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import msgspec
+import numpy as np
+import pytest
+import viser
+import websockets
+
+from app.ui.join import ALPHABET, CODE_LENGTH
+from app.ui.server import JOIN_FAILED, JOIN_THROTTLED
+from tests.browser.harness import RunningServer, run_async, start_server, wait_until
+from tests.test_ui_malformed import AGREE, RawClient
+
+
+@pytest.fixture
+def study(tmp_path: Path) -> Any:
+    rs = start_server(tmp_path, time_limit_s=30.0, training_runs=1)
+    try:
+        yield rs
+    finally:
+        rs.stop()
+
+
+def _kinds(rs: RunningServer) -> list[str]:
+    return [e.kind for e in rs.store.events()]
+
+
+def _markdown(c: RawClient) -> list[str]:
+    return [
+        m["props"]["_markdown"]
+        for m in c.messages
+        if m.get("type") == "GuiMarkdownMessage" and "props" in m
+    ]
+
+
+async def _running(c: RawClient, code: str) -> None:
+    await c.join(code)
+    await c.click(AGREE)
+    await c.click("Start")
+    await c.wait_for(lambda m: m.get("type") == "TransformControlsMessage")
+
+
+def _wrong(code: str) -> str:
+    """A well-formed code that is not ``code``."""
+    return "".join(ALPHABET[(ALPHABET.index(ch) + 1) % len(ALPHABET)] for ch in code)
+
+
+def test_no_share_tunnel_from_either_port(study: RunningServer) -> None:
+    srv = study.server
+
+    async def ask(port: int) -> None:
+        async with RawClient(port) as c:
+            await c.send("ShareUrlRequest")
+            await asyncio.sleep(0.5)
+
+    run_async(ask(srv.participant_port))
+    run_async(ask(srv.experimenter_port))
+    time.sleep(0.5)
+    assert srv.participant._share_tunnel is None
+    assert srv.experimenter._share_tunnel is None
+    assert srv.firewall.dropped["ShareUrlRequest"] == 1
+    assert srv.experimenter_firewall.dropped["ShareUrlRequest"] == 1
+
+
+def test_a_huge_message_costs_its_connection_not_the_control_loop(study: RunningServer) -> None:
+    srv = study.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+    live = srv.session(code)
+
+    async def attack() -> None:
+        async with RawClient(srv.participant_port) as c:
+            await _running(c, code)
+            assert wait_until(lambda: live.control_loop is not None, timeout=10)
+            ticks = live.control_loop.ticks
+            t0 = time.monotonic()
+            big = msgspec.msgpack.encode(
+                {
+                    "type": "TransformControlsUpdateMessage",
+                    "name": "/handle",
+                    "wxyz": [1.0, 0.0, 0.0, 0.0],
+                    "position": [0.5, 0.0, 0.3],
+                    "owner": "x" * 5_000_000,
+                }
+            )
+            with contextlib.suppress(websockets.ConnectionClosed):
+                await c.ws.send(big)
+            await asyncio.wait_for(c.ws.wait_closed(), timeout=10)
+            await asyncio.sleep(1.0)
+            rate = (live.control_loop.ticks - ticks) / (time.monotonic() - t0)
+            assert c.ws.close_code == 1009  # "message too big"
+        # the loop ran on (it paused when the tab went away, as for any lost tab)
+        assert live.control_loop.error is None and rate > 50
+
+    run_async(attack())
+    assert wait_until(lambda: live.page is None, timeout=5)
+    assert "pause" in _kinds(study)
+
+
+def test_a_control_fault_pauses_the_trial_and_tells_the_experimenter(
+    study: RunningServer,
+) -> None:
+    srv = study.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+    live = srv.session(code)
+
+    async def scenario() -> None:
+        async with RawClient(srv.participant_port) as c:
+            await _running(c, code)
+            assert wait_until(lambda: live.control_loop is not None, timeout=10)
+            trial = live._run.trial
+            real_tick = trial.tick
+
+            def broken() -> Any:
+                trial.tick = real_tick  # fails once, like a transient fault
+                raise OverflowError("(34, 'Numerical result out of range')")
+
+            trial.tick = broken
+            assert wait_until(lambda: live.fault is not None, timeout=5)
+            await asyncio.sleep(0.5)
+            assert live._run.paused and live.control_loop.alive
+            assert any("experimenter will continue" in t for t in _markdown(c))
+            detail = srv.detail(code)
+            assert detail is not None and "OverflowError" in (detail.fault or "")
+            # input during the fault is refused, not queued
+            await c.pose((0.55, 0.05, 0.3))
+            await asyncio.sleep(0.3)
+            srv.act(code, "resume")
+            assert wait_until(lambda: live.fault is None and not live._run.paused, timeout=5)
+            t = live._run.trial.t
+            assert wait_until(lambda: live._run.trial.t > t + 0.5, timeout=5)
+
+    run_async(scenario())
+    kinds = _kinds(study)
+    assert "control_fault" in kinds and "pause" in kinds and "resume" in kinds
+    fault = next(e for e in study.store.events() if e.kind == "control_fault")
+    assert "OverflowError" in str(fault.detail)
+
+
+def test_join_codes_resist_guessing_and_every_failure_reads_the_same(
+    study: RunningServer,
+) -> None:
+    srv = study.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+    assert len(code) == CODE_LENGTH and set(code) <= set(ALPHABET)
+
+    async def guesser() -> None:
+        async with RawClient(srv.participant_port) as c:
+            for k in range(5):
+                await c.type_code(_wrong(code) if k else "0000")
+                await asyncio.sleep(0.2)
+            assert sum(JOIN_FAILED in t for t in _markdown(c)) >= 5
+            await c.type_code(code)  # the right code, but this tab has used up its tries
+            await asyncio.sleep(0.3)
+            assert any(JOIN_THROTTLED in t for t in _markdown(c))
+            assert srv.session(code).page is None
+
+    run_async(guesser())
+
+    async def holder_and_intruder() -> None:
+        async with RawClient(srv.participant_port) as a, RawClient(srv.participant_port) as b:
+            await a.join(code)
+            await b.type_code(code)  # right code while another tab holds the session
+            await asyncio.sleep(0.4)
+            assert any(JOIN_FAILED in t for t in _markdown(b))
+            assert srv.session(code).page.client.client_id != -1
+            held_by = srv.session(code).page.client.client_id
+            await a.ws.close()
+            assert wait_until(lambda: srv.session(code).page is None, timeout=5)
+            await asyncio.sleep(0.5)
+            # b is still connected but is not bound to the dropped session without its code
+            assert srv.session(code).page is None
+            await b.type_code(code)
+            assert wait_until(lambda: srv.session(code).page is not None, timeout=5)
+            assert srv.session(code).page.client.client_id != held_by
+
+    run_async(holder_and_intruder())
+    assert "second_tab_refused" in _kinds(study)
+    joins = [e for e in study.store.events() if e.kind == "participant_connected"]
+    assert len(joins) == 2 and all("address" in str(e.detail) for e in joins)
+
+
+def test_a_kiosk_binds_its_one_session_without_a_code(tmp_path: Path) -> None:
+    rs = start_server(tmp_path, server_kw={"kiosk": True})
+    try:
+        code = rs.server.enrol("P01")
+        rs.server.act(code, "start")
+
+        async def tab() -> None:
+            async with RawClient(rs.server.participant_port) as c:
+                await c.button(AGREE)
+                assert not any(
+                    m.get("type") == "GuiTextMessage" and m["props"]["label"] == "Join code"
+                    for m in c.messages
+                )
+
+        run_async(tab())
+    finally:
+        rs.stop()
+
+
+def test_the_ready_screen_shows_the_next_trials_start_never_the_last_end(tmp_path: Path) -> None:
+    """After a run that moved the arm, every frame sent while the next run's ready screen
+    shows is that run's start state (the render loop used to re-send the old end pose)."""
+    rs = start_server(tmp_path, time_limit_s=4.0, training_runs=1)
+    srv = rs.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+    live = srv.session(code)
+    sent: list[tuple[str, np.ndarray]] = []
+
+    async def scenario() -> None:
+        async with RawClient(srv.participant_port) as c:
+            await _running(c, code)
+            assert wait_until(lambda: live.scene_view is not None, timeout=10)
+            for k in range(20):  # drag the target up and away: the arm ends far from its start
+                await c.pose((0.45 + 0.01 * k, 0.1, 0.3 + 0.01 * k))
+                await asyncio.sleep(0.05)
+            await asyncio.sleep(1.0)
+            end = live._run.trial.sim.data.xpos.copy()
+            view_render = type(live.scene_view).render
+
+            def spy(view: Any, xpos: np.ndarray, xmat: np.ndarray, **kw: Any) -> None:
+                sent.append((live.session.phase(), np.array(xpos)))
+                view_render(view, xpos, xmat, **kw)
+
+            type(live.scene_view).render = spy  # type: ignore[method-assign]
+            try:
+                await c.button("Continue")  # the practice run timed out: its outcome
+                await c.click("Continue")
+                items = []
+                while len(items) < 3:
+                    items = [m for m in c.messages if m.get("type") == "GuiButtonGroupMessage"]
+                    await asyncio.sleep(0.1)
+                for g in items:
+                    await c.send("GuiUpdateMessage", uuid=g["uuid"], updates={"value": "4"})
+                await asyncio.sleep(0.3)
+                await c.click("Continue")
+                await c.button("Start")
+                await asyncio.sleep(1.5)  # many render-loop periods on the ready screen
+            finally:
+                type(live.scene_view).render = view_render  # type: ignore[method-assign]
+            ready = [x for phase, x in sent if phase == "ready"]
+            assert ready, "the ready screen sent no frame of the next scene"
+            start = ready[0]
+            for xpos in ready:
+                assert np.allclose(xpos, start), "a ready-screen frame left the start state"
+            assert not np.allclose(start[: len(end)], end, atol=1e-3)
+
+    try:
+        run_async(scenario())
+    finally:
+        rs.stop()
+
+
+def test_nan_and_huge_poses_never_reach_the_trial(study: RunningServer) -> None:
+    srv = study.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+    live = srv.session(code)
+
+    async def scenario() -> None:
+        async with RawClient(srv.participant_port) as c:
+            await _running(c, code)
+            assert wait_until(lambda: live.participant_input is not None, timeout=10)
+            for position in ((1e200, 0.0, 0.3), (math.nan,) * 3, (11.0, 0.0, 0.3), "abc"):
+                await c.pose(position)
+            await asyncio.sleep(0.5)
+            assert live.control_loop.error is None and live.fault is None
+            assert float(np.max(np.abs(live._run.trial.user_target))) < 2.0
+
+    run_async(scenario())
+    assert sum(srv.firewall.dropped.values()) >= 4
+
+
+def test_an_unknown_message_type_is_dropped_and_the_client_keeps_working(
+    study: RunningServer,
+) -> None:
+    srv = study.server
+    code = srv.enrol("P01")
+
+    async def scenario() -> None:
+        async with RawClient(srv.participant_port) as c:
+            for kind in ("FileTransferStartUpload", "GetRenderResponseMessage", "NoSuchThing"):
+                await c.send(kind, uuid="x")
+            await c.send("ScenePointerMessage", event_type="click")
+            await asyncio.sleep(0.3)
+            await c.join(code)
+
+    srv.act(code, "start")
+    run_async(scenario())
+    assert srv.firewall.dropped["FileTransferStartUpload is not accepted here"] == 1
+    assert viser.__version__.startswith("1.1.")
