@@ -543,8 +543,13 @@ class LiveSession:
             )
         elif screen.phase == "done":
             page.show_message(title or "Done", text or "Thank you. You may close this page now.")
-        else:  # waiting
-            page.show_message(title, text or "Please wait: the experimenter will start soon.")
+        else:  # waiting: the protocol's welcome, and that the experimenter starts the session
+            page.show_message(
+                title,
+                (text + "\n\n" if text else "")
+                + "Please wait: the experimenter will start your session in a moment."
+                " This page will change by itself.",
+            )
 
     def _seen_outcome(self) -> None:
         self._outcome = None

@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from tests.browser.harness import RunningServer, start_server, wait_until
-from tests.browser.test_participant_flow import _connect, _shot
+from tests.browser.test_participant_flow import _connect, _shot, join
 
 pytestmark = pytest.mark.browser
 
@@ -37,12 +37,6 @@ def _text_input(page: Any, label: str) -> Any:
     )
 
 
-def _join(page: Any, code: str) -> None:
-    _text_input(page, "Join code").fill(code)
-    page.get_by_role("button", name="Join").click()
-    page.get_by_role("button", name="I agree").wait_for()
-
-
 def test_console_enrols_and_participant_joins_by_code(
     study: RunningServer, context: Any, screenshots: Path
 ) -> None:
@@ -53,7 +47,7 @@ def test_console_enrols_and_participant_joins_by_code(
     console.get_by_role("button", name="Enrol and open session").click()
     status = console.get_by_text(re.compile(r"join code"))
     status.wait_for()
-    code = re.search(r"\d{4}", status.inner_text()).group(0)  # type: ignore[union-attr]
+    code = re.search(r"code ([A-Z0-9]{6})", status.inner_text()).group(1)  # type: ignore[union-attr]
     assert srv.session(code).participant == "P01"
     assert study.store.session("P01").status == "enrolled"
     console.get_by_role("button", name="Start", exact=True).click()
@@ -66,16 +60,14 @@ def test_console_enrols_and_participant_joins_by_code(
     _connect(page, study.url)
     _text_input(page, "Join code").wait_for()
     _shot(page, screenshots, "00-join-code")
-    _text_input(page, "Join code").fill("1")  # no such code: refused, still asking
-    page.get_by_role("button", name="Join").click()
-    page.get_by_text("Input ignored").first.wait_for()
-    _join(page, code)
+    join(page, "ACDEFH" if code != "ACDEFH" else "HFEDCA", then=None)  # no such code
+    page.get_by_text("That code did not work").wait_for()
+    join(page, code)
     assert srv.session(code).page is not None and srv.session(other).page is None
 
     page.reload()
     page.get_by_text("Connected").first.wait_for()
-    _text_input(page, "Join code").wait_for()
-    _join(page, code)
+    join(page, code)
     assert wait_until(lambda: srv.session(code).page is not None)
     kinds = [e.kind for e in study.store.events()]
     assert kinds.count("participant_connected") == 2

@@ -47,9 +47,34 @@ def study(tmp_path: Path) -> Any:
         rs.stop()
 
 
+AGREE = "I have read this and agree to take part"
+
+
 def _connect(page: Any, url: str) -> None:
     page.goto(url)
     page.get_by_text("Connected").first.wait_for(timeout=30_000)
+
+
+def join(page: Any, code: str, *, then: str | None = AGREE) -> None:
+    """Type the join code as a participant would and wait for the button ``then``."""
+    page.get_by_text("Please type the join code").wait_for()
+    field = page.get_by_role("textbox").first
+    field.click()
+    field.fill("")
+    page.keyboard.type(code.lower(), delay=40)  # typed into the field: no key reaches the arm
+    page.get_by_role("button", name="Join").click()
+    if then is not None:
+        page.get_by_role("button", name=then).wait_for()
+
+
+def hold(page: Any, key: str, seconds: float, *, repeat_hz: float = 30.0) -> None:
+    """Hold ``key`` for ``seconds`` with auto-repeat, as a keyboard does."""
+    page.keyboard.down(key)
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        page.wait_for_timeout(1000 / repeat_hz)
+        page.keyboard.down(key)  # a repeat: KeyboardEvent.repeat is true
+    page.keyboard.up(key)
 
 
 def _shot(page: Any, folder: Path, name: str) -> None:
@@ -81,8 +106,9 @@ def _answer_all(page: Any, n_items: int, value: int) -> None:
     cont = page.get_by_role("button", name="Continue")
     expect(cont).to_be_disabled()
     for k in range(n_items):
-        page.get_by_role("button", name=str(value), exact=True).nth(k).click()
+        page.get_by_role("button", name=str(value), exact=True).first.click()
         page.get_by_text(f"Your answer: {value}").nth(k).wait_for()
+    expect(page.get_by_role("button", name=f"[{value}]", exact=True)).to_have_count(n_items)
     expect(cont).to_be_enabled()
     cont.click()
 
@@ -120,20 +146,22 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
         seen.append(_without_client_warning(body))
         return body
 
-    # Waiting: no session yet, then the experimenter enrols and starts one.
+    # The join screen, then the code; the session waits for the experimenter's start.
     _connect(page, study.url)
-    page.get_by_text("Please wait").wait_for()
     code = srv.enrol("P01")
-    page.get_by_text("Welcome").first.wait_for()
+    page.get_by_text("Please type the join code").wait_for()
+    assert page.title() == "Robot arm study"
+    join(page, code, then=None)
+    page.get_by_text("Please wait").first.wait_for()
     _shot(page, screenshots, "01-waiting")
     text_now()
     srv.act(code, "start")
 
-    # Consent.
-    page.get_by_role("button", name="I agree").wait_for()
+    # Consent, with the protocol's own button.
+    page.get_by_role("button", name=AGREE).wait_for()
     _shot(page, screenshots, "02-consent")
     text_now()
-    page.get_by_role("button", name="I agree").click()
+    page.get_by_role("button", name=AGREE).click()
 
     # Practice run: ready, then the trial screen with the scene and the gizmo.
     page.get_by_role("button", name="Start").wait_for()
@@ -154,16 +182,20 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     drag(page, grab, (grab[0], grab[1] - 40), steps=5)
     print(f"drag took {time.monotonic() - t_drag:.1f} s; trial time {run.trial.t:.1f} s")
     assert wait_until(lambda: run.trial.user_target[2] > start[2] + 0.03, timeout=5)
-    # Keyboard: F lowers the target by one step (2 cm).
+    # Keyboard: holding F lowers the target while it is held (0.1 m/s).
     before = float(run.trial.user_target[2])
-    page.keyboard.press("f")
-    print(f"key pressed at trial time {run.trial.t:.1f} s")
-    assert wait_until(lambda: run.trial.user_target[2] < before - 0.015, timeout=5)
+    hold(page, "f", 0.6)
+    print(f"key held until trial time {run.trial.t:.1f} s")
+    assert wait_until(lambda: run.trial.user_target[2] < before - 0.03, timeout=5)
     page.get_by_role("button", name="Grasp / release (G)").click()
     trial_id = run.trial_id
     _shot(page, screenshots, "04-trial")
 
-    # Items after practice: three 7-point rows with anchors; Continue needs every answer.
+    # How the run ended (a neutral sentence), then three 7-point rows with anchors.
+    page.get_by_text("Run finished").wait_for(timeout=30_000)
+    assert "Time is up." in text_now()
+    _shot(page, screenshots, "04b-outcome")
+    page.get_by_role("button", name="Continue").click()
     page.get_by_text("Your answer: none yet").first.wait_for(timeout=30_000)
     body = text_now()
     assert "Not at all helpful" in body and "Extremely helpful" in body
@@ -187,18 +219,19 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     page.wait_for_timeout(1500)
     page.reload()
     page.get_by_text("Connected").first.wait_for(timeout=30_000)
-    page.get_by_role("button", name="Continue").wait_for()
+    join(page, code, then="Continue")
     paused_at = time.monotonic()
     text_now()
     _shot(page, screenshots, "06-paused-after-reload")
     kinds = [e.kind for e in _events(study)]
     assert "participant_disconnected" in kinds and "pause" in kinds
 
-    # A second tab cannot take the session over.
+    # A second tab cannot take the session over, even with the code.
     intruder = context.new_page()
     intruder_frames = FrameLog().attach(intruder)
     _connect(intruder, study.url)
-    intruder.get_by_text("Already open", exact=True).wait_for()
+    join(intruder, code, then=None)
+    intruder.get_by_text("That code did not work").wait_for()
     _shot(intruder, screenshots, "07-second-tab-refused")
     intruder.close()
     assert "second_tab_refused" in [e.kind for e in _events(study)]
@@ -207,6 +240,8 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     page.wait_for_timeout(1000)
     page.get_by_role("button", name="Continue").click()
     pause_s = time.monotonic() - paused_at
+    page.get_by_text("Run finished").wait_for(timeout=30_000)
+    page.get_by_role("button", name="Continue").click()
     page.get_by_text("Your answer: none yet").first.wait_for(timeout=30_000)
     task_trial = next(t for t in _trial_rows(study) if t.phase == "task")
     assert task_trial.status == "completed"
@@ -230,6 +265,8 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     console.close()
 
     # After-run items, then the preference item naming "first run" and "second run".
+    page.get_by_text("Run finished").wait_for(timeout=30_000)
+    page.get_by_role("button", name="Continue").click()
     page.get_by_text("Your answer: none yet").first.wait_for(timeout=30_000)
     _answer_all(page, 3, 3)
     page.get_by_text("Which of the two runs of this task did you prefer?").wait_for()
