@@ -69,9 +69,9 @@ ASSUMES = {
     "timing_rm": "one mean per participant and cell; normal contrast scores; sphericity for "
                  "effects with more than 1 df (GG/HF-corrected p and Mauchly's test given); "
                  "2-level effects need none",
-    "timing_posthoc": "16 pairs treated as independent although each participant gives two "
-                      "(one per difficulty): anti-conservative; normal differences; Bonferroni "
-                      "within the family",
+    "timing_posthoc": "two pairs per participant (one per difficulty; 16 for 8 people) "
+                      "treated as independent: anti-conservative; normal differences; "
+                      "Bonferroni within the family",
     "timing_posthoc_subject": "one difference per participant (the two difficulties averaged); "
                               "normal differences; Bonferroni within the family",
     "timing_planned": "one difference per participant (already the reviewer's form); normal "
@@ -157,7 +157,9 @@ def _anova_rows(analysis: str, table: pd.DataFrame, test: str,
                                              "mauchly_p") if hasattr(r, k)}
         rows.append(_row(analysis, r.effect, test, r.df1, r.df2, r.F, r.p, es=r.np2,
                          es_name="partial eta squared", ci=np2_ci(r.F, r.df1, r.df2),
-                         method=getattr(r, "method", method), ci_level=NP2_CI, **extra))
+                         method=getattr(r, "method", method),
+                         ci_level=NP2_CI + ("; sphericity-assumed df" if "eps_gg" in extra
+                                            and r.df1 > 1 else ""), **extra))
     return rows
 
 
