@@ -175,7 +175,7 @@ def timing_analysis(cells: pd.DataFrame, *, covariates: Sequence[str] = COVARIAT
         mixed = mixed_anova(data, dv="duration_s", subject="participant", factors=factors,
                             covariates=covs)
         notes += [f"mixed model: {n}" for n in mixed.notes]
-    except (AnalysisError, np.linalg.LinAlgError) as e:
+    except (AnalysisError, np.linalg.LinAlgError, ValueError) as e:  # a failed fit stays a note
         notes.append(f"mixed model skipped: {e}")
     marg = []
     for f in factors:

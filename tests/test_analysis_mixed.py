@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import statsmodels.api as sm
+import statsmodels.formula.api as smf
 from scipy import stats
 from statsmodels.regression.mixed_linear_model import MixedLM
 
@@ -186,3 +187,25 @@ def test_cli_mixed_option(tmp_path: Path) -> None:
         timeout=120,
     )
     assert bad.returncode == 2 and "--mixed" in bad.stderr
+
+
+def test_zero_subject_variance_reduces_to_ordinary_least_squares() -> None:
+    """Subject means removed: REML puts s_u^2 on its boundary; the F test is then OLS's on
+    N - p df (statsmodels stops short of this optimum; the polish completes it)."""
+    rng = np.random.default_rng(1)
+    d = pd.DataFrame(
+        [
+            {"sub": f"s{s}", "a": a, "y": rng.normal() + 0.3 * (a == "y")}
+            for s in range(6)
+            for a in ("x", "y")
+            for _ in range(3)
+        ]
+    )
+    d["y"] -= d.groupby("sub")["y"].transform("mean")
+    res = mixed_anova(d, dv="y", subject="sub", factors=["a"])
+    row = res.table.iloc[0]
+    ols = smf.ols("y ~ C(a, Sum)", data=d).fit()
+    assert res.var_subject == 0.0
+    assert row["df2"] == pytest.approx(len(d) - 2, rel=1e-4)
+    assert row["F"] == pytest.approx(ols.fvalue, rel=1e-6)
+    assert any("boundary" in n for n in res.notes)
