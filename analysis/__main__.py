@@ -10,6 +10,7 @@ COMMANDS = {
     "report": ("analysis.cli.report", "Write the HTML/Markdown report and results.json."),
     "anova": ("analysis.cli.anova", "Repeated-measures ANOVA on any tidy long-format CSV."),
     "predict": ("analysis.cli.predict", "Run goal predictors over an external trajectory CSV."),
+    "power": ("analysis.cli.power", "Power of the paper's hypotheses at several N from a pilot."),
 }
 
 if __name__ == "__main__":

@@ -5,6 +5,8 @@
 - Fig. 8: time per task and mode, and the preference per task, means with standard errors.
 - Fig. 9: prediction success rate per predictor and mode (means +- SE), and one trajectory
   coloured by whether each predictor was right at each point (green) or wrong (red).
+- Power curves: power per test against the number of participants, Monte-Carlo 95% CI, one
+  panel per hypothesis, the paper's form dashed and the reviewer's solid.
 Every figure is written as PNG and SVG.
 """
 
@@ -165,4 +167,37 @@ def prediction_figure(evals: pd.DataFrame, example: Mapping[str, Replay],
                title=f"({letter}) {name}: correct {share:.0%} of the time")
     if title:
         fig.suptitle(title, fontsize=9)
+    return fig
+
+
+FORM_STYLES = {"as in the paper": ("--", "paper's form"), "reviewer": ("-", "reviewer's form"),
+               "both (participant-level already)": (":", "both forms")}
+
+
+def power_figure(table: pd.DataFrame, *, target: float = 0.8) -> Figure:
+    """Power against N per test (``analysis.power.COLUMNS``), error bars = Wilson 95% CI."""
+    hyps = list(dict.fromkeys(table["hypothesis"]))
+    fig = _new(5.2 * len(hyps), 5.6)
+    axes = fig.subplots(1, len(hyps), squeeze=False)[0]
+    colours = [f"C{i}" for i in range(10)]
+    for ax, h in zip(axes, hyps, strict=True):
+        sub = table[table["hypothesis"] == h]
+        names = list(dict.fromkeys(sub["test"]))
+        for i, name in enumerate(names):
+            for form, g in sub[sub["test"] == name].groupby("form", sort=False):
+                g = g.sort_values("n")
+                ax.errorbar(g["n"], g["power"], yerr=[g["power"] - g["ci_low"],
+                                                      g["ci_high"] - g["power"]],
+                            color=colours[i % 10],
+                            linestyle=FORM_STYLES.get(str(form), ("-", ""))[0],
+                            marker="o", markersize=3, capsize=2, linewidth=1.2,
+                            label=f"{name} ({FORM_STYLES.get(str(form), ('', form))[1]})")
+        ax.axhline(target, color="0.5", linewidth=0.8, linestyle=":")
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_xticks(sorted(sub["n"].unique()))
+        ax.set_xlabel("participants N")
+        ax.set_ylabel("power")
+        ax.set_title(h)
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), frameon=False)
+        ax.grid(alpha=0.3)
     return fig

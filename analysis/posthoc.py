@@ -3,7 +3,8 @@
 For pairs ``(a_i, b_i)`` with differences ``d_i = a_i - b_i``:
 ``t = mean(d) / (sd(d) / sqrt(n))`` on ``n - 1`` df, ``d_z = mean(d) / sd(d)``, the 95% CI of
 ``mean(d)`` is ``mean(d) +- t_{.975, n-1} sd(d) / sqrt(n)`` (not adjusted), and within a family
-of ``m`` comparisons ``p_bonf = min(1, m p)``.
+of ``m`` comparisons ``p_bonf = min(1, m p)`` with the matching Bonferroni CI
+``mean(d) +- t_{1 - .025/m, n-1} sd(d) / sqrt(n)`` (it excludes 0 exactly when ``p_bonf < .05``).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from scipy import special
 from analysis.errors import DesignError
 
 COLUMNS = ["family", "comparison", "test", "n", "df", "t", "p", "m", "p_bonf", "mean_a",
-           "mean_b", "mean_diff", "ci_low", "ci_high", "d_z"]
+           "mean_b", "mean_diff", "ci_low", "ci_high", "ci_low_bonf", "ci_high_bonf", "d_z"]
 
 
 @dataclass(frozen=True)
@@ -57,8 +58,14 @@ def paired_comparisons(comparisons: Sequence[Comparison]) -> pd.DataFrame:
     """Run every comparison; Bonferroni-correct within each family (``m`` = family size)."""
     rows = [{"family": c.family, "comparison": c.label, "test": "paired t",
              **paired_t(c.a, c.b)} for c in comparisons]
-    out = pd.DataFrame(rows, columns=[c for c in COLUMNS if c not in ("m", "p_bonf")])
+    out = pd.DataFrame(rows, columns=[c for c in COLUMNS if c not in
+                                      ("m", "p_bonf", "ci_low_bonf", "ci_high_bonf")])
     sizes = out.groupby("family")["family"].transform("size")
     out.insert(out.columns.get_loc("p") + 1, "m", sizes.astype(int))
     out.insert(out.columns.get_loc("m") + 1, "p_bonf", np.minimum(1.0, out["p"] * out["m"]))
+    df = out["df"].to_numpy(dtype=float)
+    widen = special.stdtrit(df, 1 - 0.025 / out["m"].to_numpy()) / special.stdtrit(df, 0.975)
+    half = (out["ci_high"] - out["ci_low"]).to_numpy() / 2 * widen
+    out["ci_low_bonf"] = out["mean_diff"] - half
+    out["ci_high_bonf"] = out["mean_diff"] + half
     return out[COLUMNS]

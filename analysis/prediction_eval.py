@@ -29,6 +29,7 @@ import pandas as pd
 
 from analysis.design import require_columns
 from analysis.errors import DataError, SchemaError
+from analysis.rm_anova import RMAnovaResult
 
 if TYPE_CHECKING:
     from analysis.anova import FactorialAnovaResult
@@ -319,3 +320,21 @@ def prediction_anova(evals: pd.DataFrame, *, dv: str = "success_rate",
     for f in factors:
         data[f] = pd.Categorical(data[f].astype(str), categories=list(orders[f]))
     return factorial_anova(data, dv=dv, factors=factors)
+
+
+def prediction_rm_anova(evals: pd.DataFrame, *, dv: str = "success_rate",
+                        levels: Mapping[str, Sequence[str]] | None = None) -> RMAnovaResult:
+    """Repeated-measures ANOVA of ``dv`` over participant x condition x predictor: each
+    participant's mean per predictor and condition (repeated trials averaged), so a trajectory's
+    two replays and a participant's trials are not counted as independent observations;
+    participants lacking a cell are dropped (named in the notes)."""
+    from analysis.rm_anova import rm_anova
+    from analysis.timing import design_levels
+
+    data = evals.copy()
+    orders = {"predictor": tuple(dict.fromkeys(evals["predictor"])),
+              **design_levels(evals, levels)}
+    factors = [f for f, lv in orders.items() if len(lv) >= 2]
+    for f in factors:
+        data[f] = pd.Categorical(data[f].astype(str), categories=list(orders[f]))
+    return rm_anova(data, dv=dv, subject="participant", within=factors, drop_incomplete=True)

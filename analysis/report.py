@@ -47,7 +47,7 @@ from analysis.render import (
     render_html,
     render_markdown,
 )
-from analysis.results import StudyResults, analyse
+from analysis.results import ASSUMES, StudyResults, analyse, form_pairs
 from analysis.timing import FACTORS, LEVELS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -102,6 +102,84 @@ def _anova_table(table: pd.DataFrame, analysis: str, stats: pd.DataFrame,
     return pd.DataFrame(rows)
 
 
+def _assumes(analysis: str) -> str:
+    return f"Assumes: {ASSUMES[analysis]}."
+
+
+def _with_ci(value: float, lo: float, hi: float, digits: int = 2) -> str:
+    if pd.isna(value):
+        return ""
+    ci = f" [{fmt(lo, digits)}, {fmt(hi, digits)}]" if pd.notna(lo) else ""
+    return f"{fmt(value, digits)}{ci}"
+
+
+def _df(v: float) -> str:
+    """Integer df as integers, Satterthwaite df to one decimal."""
+    return fmt(v, 0) if float(v).is_integer() else fmt(v, 1)
+
+
+def _stat_text(stat: str, df1: float, df2: float, value: float, p: float) -> str:
+    df = _df(df1) if pd.isna(df2) else f"{_df(df1)}, {_df(df2)}"
+    return f"{stat}({df}) = {fmt(value)}, p {'' if fmt_p(p).startswith('<') else '= '}{fmt_p(p)}"
+
+
+def _rm_table(table: pd.DataFrame, analysis: str, stats: pd.DataFrame) -> pd.DataFrame:
+    """F-test rows with partial eta squared [95% CI]; for an RM ANOVA with an effect of more
+    than 1 df also GG/HF epsilon and p and Mauchly's test."""
+    st = stats[stats.analysis == analysis].set_index("effect")
+    out = pd.DataFrame({
+        "effect": table["effect"],
+        "df": [f"{fmt(a, 0)}, {fmt(b, 0)}" for a, b in zip(table["df1"], table["df2"],
+                                                           strict=True)],
+        "F": table["F"].map(fmt), "p": table["p"].map(fmt_p),
+        "partial η² [95% CI]": [_with_ci(r.np2, st.loc[r.effect, "ci_low"],
+                                         st.loc[r.effect, "ci_high"], 3)
+                                for r in table.itertuples()]})
+    if "eps_gg" in table.columns and (table["df1"] > 1).any():
+        multi = table["df1"] > 1
+        out["ε GG"] = np.where(multi, table["eps_gg"].map(lambda v: fmt(v, 3)), "")
+        out["p GG"] = np.where(multi, table["p_gg"].map(fmt_p), "")
+        out["ε HF"] = np.where(multi, table["eps_hf"].map(lambda v: fmt(v, 3)), "")
+        out["p HF"] = np.where(multi, table["p_hf"].map(fmt_p), "")
+        out["Mauchly W"] = table["mauchly_W"].map(lambda v: fmt(v, 3))
+        out["Mauchly p"] = table["mauchly_p"].map(fmt_p)
+    return out
+
+
+def _form_pairs_section(res: StudyResults) -> Section | None:
+    pairs = form_pairs(res.statistics)
+    if pairs.empty:
+        return None
+    stat = {"timing_ancova": "F", "timing_posthoc": "t", "preference": "r",
+            "prediction_anova": "F"}
+    family = {"timing_ancova": "timing model", "timing_posthoc": "post-hoc (Bonferroni p)",
+              "preference": "preference correlation", "prediction_anova": "prediction model"}
+    frame = pd.DataFrame({
+        "analysis": pairs["analysis"].map(family), "effect": pairs["effect"],
+        "as in the paper": [_stat_text(stat[r.analysis], r.paper_df1, r.paper_df2,
+                                       r.paper_statistic, r.paper_p)
+                            for r in pairs.itertuples()],
+        "reviewer's form": [_stat_text(stat[r.analysis], r.reviewer_df1, r.reviewer_df2,
+                                       r.reviewer_statistic, r.reviewer_p)
+                            for r in pairs.itertuples()],
+        "paper's p smaller": pairs["paper_form_smaller_p"].map(
+            lambda v: "yes" if v is True else ("" if v is None else "no"))})
+    sec = Section("The paper's tests beside the reviewer's forms")
+    sec.paragraphs.append(
+        "Each of the paper's tests (kept below, labelled \"as in the paper\") treats repeated "
+        "measurements of one participant as independent somewhere. Beside each is the analysis a "
+        "reviewer would ask for: the timing model as a linear mixed model with a random intercept "
+        "per participant (type III Wald F, Satterthwaite df); the post-hoc tests on one mean per "
+        "participant; the preference correlations as repeated-measures correlations (Bakdash & "
+        "Marusich 2017); the prediction model as a repeated-measures ANOVA over participant x "
+        "condition x predictor. Where the paper's form gives the smaller p, counting "
+        "repeated measurements as independent worked in its favour. The planned t(7) comparisons are already on one difference per "
+        "participant and have no second form.")
+    sec.tables.append(Table("Paper's form and reviewer's form, side by side", frame,
+                            "Post-hoc p are Bonferroni-adjusted within their family."))
+    return sec
+
+
 def _per_participant(cells: pd.DataFrame) -> str:
     n = cells.groupby("participant").size()
     lo, hi = int(n.min()), int(n.max())
@@ -150,6 +228,9 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
             "α as a function of the confidence c for each mode, from the protocol's "
             "[modes.*].arbitration tables through app.blending.arbitration_from_config."],
             figures=[figures["fig7"]]))
+    pairs = _form_pairs_section(res)
+    if pairs is not None:
+        out.append(pairs)
     if res.timing is not None:
         t = res.timing
         with_paper = res.paper_comparable["timing"]
@@ -167,8 +248,34 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
             "covariates; the repeated-measures ANOVA below models the participant instead.")
         if not with_paper:
             sec.paragraphs.append(_no_paper_values(res))
-        sec.tables.append(Table("Factorial ANOVA with covariates",
-                                _anova_table(t.ancova.table, "timing_ancova", s, with_paper)))
+        sec.tables.append(Table("Factorial ANOVA with covariates (as in the paper)",
+                                _anova_table(t.ancova.table, "timing_ancova", s, with_paper),
+                                _assumes("timing_ancova")))
+        if t.mixed is not None:
+            m = t.mixed
+            sec.tables.append(Table(
+                "Linear mixed model with a random intercept per participant (reviewer's form)",
+                _rm_table(m.table, "timing_mixed", s).assign(
+                    df=[f"{_df(a)}, {_df(b)}" for a, b in zip(m.table["df1"], m.table["df2"],
+                                                              strict=True)]),
+                f"Same fixed effects and covariates; REML (statsmodels MixedLM): participant "
+                f"variance {fmt(m.var_subject, 3)}, residual variance {fmt(m.var_resid, 3)} "
+                f"(ICC {fmt(m.icc, 2)}); type III Wald F on {m.df_method} df; partial η² from "
+                f"F and df. {_assumes('timing_mixed')}"))
+            est = m.estimates
+            sec.tables.append(Table("Mixed-model estimates (Satterthwaite t, 95% CI)",
+                                    pd.DataFrame({
+                                        "term": est["term"], "contrast": est["contrast"],
+                                        "estimate": est["estimate"].map(lambda v: fmt(v, 3)),
+                                        "SE": est["se"].map(lambda v: fmt(v, 3)),
+                                        "t": [f"t({_df(d)}) = {fmt(v)}" for d, v in
+                                              zip(est["df"], est["t"], strict=True)],
+                                        "p": est["p"].map(fmt_p),
+                                        "95% CI": [f"[{fmt(a, 3)}, {fmt(b, 3)}]" for a, b in
+                                                   zip(est["ci_low"], est["ci_high"],
+                                                       strict=True)]}),
+                                    "Factor contrasts are differences of unweighted marginal "
+                                    "means (seconds); covariates are slopes per unit."))
         me = s[s.analysis == "timing_effects"]
         effects = pd.DataFrame({
             "factor": me["effect"],
@@ -178,13 +285,14 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
             effects["paper"] = me["paper_value"].map(fmt)
         sec.tables.append(Table("Main effects as mean differences (s)", effects))
         sec.tables.append(Table(f"Repeated-measures ANOVA ({t.rm.n_subjects} participants)",
-                                _anova_table(t.rm.table, "timing_rm", s, with_paper=False),
+                                _rm_table(t.rm.table, "timing_rm", s),
                                 "Subjects as error strata: each effect's error df is its df "
                                 "times (n - 1); the paper reports only the covariate model "
-                                "above."))
+                                f"above. {_assumes('timing_rm')}"))
         c = t.comparisons
         if len(c):
-            comp = s[s.analysis.isin(["timing_posthoc", "timing_planned", "timing_pairwise"])]
+            comp = s[s.analysis.isin(["timing_posthoc", "timing_planned", "timing_pairwise",
+                                      "timing_posthoc_subject"])]
             comp = comp.reset_index(drop=True)
             paired = pd.DataFrame({
                 "family": c["family"], "comparison": c["comparison"],
@@ -193,14 +301,26 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
                 "p": c["p"].map(fmt_p),
                 "p (Bonferroni)": c["p_bonf"].map(fmt_p),
                 "mean diff (s)": c["mean_diff"].map(fmt),
-                "95% CI": [f"[{fmt(a)}, {fmt(b)}]" for a, b in
-                           zip(c["ci_low"], c["ci_high"], strict=True)],
-                "d_z": c["d_z"].map(fmt)})
+                "95% CI (unadjusted)": [f"[{fmt(a)}, {fmt(b)}]" for a, b in
+                                        zip(c["ci_low"], c["ci_high"], strict=True)],
+                "Bonferroni CI": [f"[{fmt(a)}, {fmt(b)}]" for a, b in
+                                  zip(c["ci_low_bonf"], c["ci_high_bonf"], strict=True)],
+                "d_z": c["d_z"].map(fmt),
+                "form": c["analysis"].map({"timing_posthoc": "as in the paper",
+                                           "timing_planned": "as in the paper",
+                                           "timing_posthoc_subject": "reviewer",
+                                           "timing_pairwise": "reviewer"})})
             if with_paper:
                 paired["paper |t|"] = comp["paper_value"].map(fmt)
             sec.tables.append(Table("Paired comparisons (Bonferroni within each family)", paired,
                                     "Differences are first minus second"
-                                    + ("; the paper reports |t|." if with_paper else ".")))
+                                    + ("; the paper reports |t|" if with_paper else "")
+                                    + ". The Bonferroni CI uses t at 1 - .025/m, matching "
+                                    "p (Bonferroni); the 95% CI is unadjusted. Assumes - "
+                                    + "; ".join(f"{fam}: {ASSUMES[a]}" for fam, a in
+                                                dict(zip(c["family"], c["analysis"],
+                                                         strict=True)).items())
+                                    + "."))
         summ = t.summary.copy()
         sec.tables.append(Table("Time per task and mode (s)", pd.DataFrame({
             "task": summ["task"], "mode": summ["mode"], "mean": summ["mean"].map(fmt),
@@ -224,7 +344,20 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
             corr["paper r"] = s[s.analysis == "preference"]["paper_value"].map(fmt).to_numpy()
         else:
             sec.paragraphs.append(_no_paper_values(res))
-        sec.tables.append(Table("Pearson correlations", corr))
+        sec.tables.append(Table("Pearson correlations (as in the paper)", corr,
+                                _assumes("preference")))
+        rc = res.rm_correlations
+        if rc is not None:
+            sec.tables.append(Table(
+                "Repeated-measures correlations (reviewer's form)", pd.DataFrame({
+                    "measure": rc["measure"], "versus": rc["versus"],
+                    "r_rm": [f"r({fmt(d, 0)}) = {fmt(r)}"
+                             for d, r in zip(rc["df"], rc["r"], strict=True)],
+                    "p": rc["p"].map(fmt_p),
+                    "95% CI": [f"[{fmt(a)}, {fmt(b)}]"
+                               for a, b in zip(rc["ci_low"], rc["ci_high"], strict=True)],
+                    "pairs": rc["n"], "participants": rc["n_subjects"]}),
+                _assumes("preference_rmcorr")))
         out.append(sec)
     if res.prediction_summary is not None:
         sec = Section("Prediction (section 5.2)")
@@ -258,8 +391,15 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
                                     "never lastingly correct": ps["never_lasting"],
                                     "trials": ps["n"]})))
         if p is not None:
-            sec.tables.append(Table("Factorial ANOVA on the success rate",
-                                    _anova_table(p.table, "prediction_anova", s, with_paper)))
+            sec.tables.append(Table("Factorial ANOVA on the success rate (as in the paper)",
+                                    _anova_table(p.table, "prediction_anova", s, with_paper),
+                                    _assumes("prediction_anova")))
+        if res.prediction_rm is not None:
+            sec.tables.append(Table(
+                f"Repeated-measures ANOVA on the success rate, participant x condition x "
+                f"predictor ({res.prediction_rm.n_subjects} participants; reviewer's form)",
+                _rm_table(res.prediction_rm.table, "prediction_rm", s),
+                _assumes("prediction_rm")))
         sec.figures += [f for k, f in figures.items() if k == "fig9"]
         out.append(sec)
     if res.timing is not None:
@@ -334,11 +474,20 @@ def results_document(res: StudyResults, meta: Mapping[str, Any]) -> dict[str, An
                                  "df_resid": a.df_resid, "ss_type": a.ss_type,
                                  "covariates": list(res.timing.covariates)}
         fits["timing_rm"] = {"n_subjects": res.timing.rm.n_subjects}
+        if res.timing.mixed is not None:
+            m = res.timing.mixed
+            fits["timing_mixed"] = {
+                "n": m.n, "n_subjects": m.n_subjects, "var_subject": m.var_subject,
+                "var_resid": m.var_resid, "icc": m.icc, "df_method": m.df_method,
+                "estimates": m.estimates.to_dict(orient="records")}
     if res.prediction is not None:
         p = res.prediction
         fits["prediction_anova"] = {"r2": p.r2, "r2_adj": p.r2_adj, "n": p.n,
                                     "df_resid": p.df_resid, "ss_type": p.ss_type}
+    if res.prediction_rm is not None:
+        fits["prediction_rm"] = {"n_subjects": res.prediction_rm.n_subjects}
     doc = {**meta, "fits": fits, "statistics": res.statistics.to_dict(orient="records"),
+           "paper_vs_reviewer": form_pairs(res.statistics).to_dict(orient="records"),
            "notes": list(res.notes)}
     if res.prediction_summary is not None:
         doc["prediction_summary"] = res.prediction_summary.to_dict(orient="records")

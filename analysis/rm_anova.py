@@ -7,6 +7,11 @@ for the factors in ``E`` and normalised averaging vectors for the rest), each su
 test, identical to the textbook ``SS_E`` vs ``SS_{E x subject}`` decomposition. Partial eta
 squared ``np2 = SS_E / (SS_E + SS_ExS)``; Greenhouse-Geisser epsilon from the covariance of ``z``
 (``eps = tr(S)^2 / (df_E tr(S^2))``, 1 for one-degree-of-freedom effects).
+
+Sphericity, for effects with ``df_E = k > 1``: Mauchly's ``W = det(S) / (tr(S) / k)^k`` with
+``chi2 = -(n - 1 - (2k^2 + k + 2) / (6k)) ln W`` on ``k(k+1)/2 - 1`` df; Huynh-Feldt epsilon
+``eps_HF = min(1, (n k eps_GG - 2) / (k (n - 1 - k eps_GG)))`` (one group of subjects, as R's
+``car`` and pingouin compute it). GG- and HF-corrected p multiply both df by epsilon.
 """
 
 from __future__ import annotations
@@ -20,7 +25,8 @@ from scipy import special
 
 from analysis.design import CellData, cell_means, effect_name, effect_terms
 
-COLUMNS = ["effect", "df1", "df2", "F", "p", "np2", "SS", "SS_error", "eps_gg", "p_gg"]
+COLUMNS = ["effect", "df1", "df2", "F", "p", "np2", "SS", "SS_error", "eps_gg", "p_gg", "eps_hf",
+           "p_hf", "mauchly_W", "mauchly_chi2", "mauchly_df", "mauchly_p"]
 
 
 @dataclass(frozen=True)
@@ -52,6 +58,30 @@ def effect_contrasts(n_levels: Sequence[int], term: Sequence[int]) -> np.ndarray
     return k
 
 
+def sphericity(z_resid: np.ndarray) -> dict[str, float]:
+    """GG and HF epsilon and Mauchly's test from centred contrast scores ``(n, k)``."""
+    n, k = z_resid.shape
+    nan = float("nan")
+    if k == 1:
+        return {"eps_gg": 1.0, "eps_hf": 1.0, "mauchly_W": nan, "mauchly_chi2": nan,
+                "mauchly_df": nan, "mauchly_p": nan}
+    s = z_resid.T @ z_resid / (n - 1)
+    tr, tr2 = float(np.trace(s)), float(np.trace(s @ s))
+    eps = min(1.0, max(tr * tr / (k * tr2), 1.0 / k)) if tr2 > 0 else 1.0
+    hf_den = k * (n - 1 - k * eps)
+    eps_hf = min(1.0, (n * k * eps - 2) / hf_den) if hf_den > 0 else 1.0
+    eps_hf = max(eps_hf, eps)
+    out = {"eps_gg": eps, "eps_hf": eps_hf, "mauchly_W": nan, "mauchly_chi2": nan,
+           "mauchly_df": float(k * (k + 1) // 2 - 1), "mauchly_p": nan}
+    if n > k and tr > 0:  # W needs a non-singular S (more subjects than contrasts)
+        sign, logdet = np.linalg.slogdet(s)
+        log_w = logdet - k * np.log(tr / k) if sign > 0 else -np.inf
+        chi2 = -(n - 1 - (2 * k * k + k + 2) / (6 * k)) * log_w
+        out.update(mauchly_W=float(np.exp(log_w)), mauchly_chi2=float(chi2),
+                   mauchly_p=float(special.chdtrc(out["mauchly_df"], chi2)))
+    return out
+
+
 def rm_anova_cells(cells: CellData) -> pd.DataFrame:
     """The ANOVA table of complete cell means (see the module docstring)."""
     y = cells.values
@@ -68,20 +98,21 @@ def rm_anova_cells(cells: CellData) -> pd.DataFrame:
         df2 = df1 * (n - 1)
         f = (ss / df1) / (ss_err / df2) if ss_err > 0 else np.inf
         p = float(special.fdtrc(df1, df2, f)) if np.isfinite(f) else 0.0
-        if df1 == 1:
-            eps = 1.0
-        else:
-            s = resid.T @ resid / (n - 1)
-            tr2 = float(np.trace(s @ s))
-            eps = float(np.trace(s) ** 2 / (df1 * tr2)) if tr2 > 0 else 1.0
-            eps = min(1.0, max(eps, 1.0 / df1))
-        p_gg = float(special.fdtrc(df1 * eps, df2 * eps, f)) if np.isfinite(f) else 0.0
+        sph = sphericity(resid)
+
+        def corrected(eps: float, f: float = f, df1: int = df1, df2: int = df2) -> float:
+            return float(special.fdtrc(df1 * eps, df2 * eps, f)) if np.isfinite(f) else 0.0
+
         total = ss + ss_err
         rows.append({
             "effect": effect_name(cells.factors, term),
             "df1": float(df1), "df2": float(df2), "F": float(f), "p": p,
             "np2": ss / total if total > 0 else np.nan,
-            "SS": ss, "SS_error": ss_err, "eps_gg": eps, "p_gg": p_gg,
+            "SS": ss, "SS_error": ss_err, "eps_gg": sph["eps_gg"],
+            "p_gg": corrected(sph["eps_gg"]), "eps_hf": sph["eps_hf"],
+            "p_hf": corrected(sph["eps_hf"]), "mauchly_W": sph["mauchly_W"],
+            "mauchly_chi2": sph["mauchly_chi2"], "mauchly_df": sph["mauchly_df"],
+            "mauchly_p": sph["mauchly_p"],
         })
     return pd.DataFrame(rows, columns=COLUMNS)
 

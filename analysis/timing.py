@@ -23,8 +23,9 @@ import pandas as pd
 
 from analysis.anova import FactorialAnovaResult, covariate_anova
 from analysis.design import cell_means
-from analysis.errors import DesignError
+from analysis.errors import AnalysisError, DesignError
 from analysis.load import COVARIATES
+from analysis.mixed import MixedModelResult, mixed_anova
 from analysis.posthoc import Comparison, paired_comparisons
 from analysis.rm_anova import RMAnovaResult, rm_anova
 
@@ -46,6 +47,7 @@ class TimingAnalysis:
     levels: dict[str, tuple[str, ...]]
     covariates: tuple[str, ...]
     notes: tuple[str, ...]
+    mixed: MixedModelResult | None = None  # the covariate model with a random intercept
 
     @property
     def paper_design(self) -> bool:
@@ -97,7 +99,12 @@ def _paper_comparisons(cells: pd.DataFrame) -> list[Comparison]:
     def both(cor: str, mode: str) -> np.ndarray:  # pairs = participant x difficulty
         return np.concatenate([col("easy", cor, mode), col("hard", cor, mode)])
 
+    def mean(cor: str, mode: str) -> np.ndarray:  # one value per participant
+        return (col("easy", cor, mode) + col("hard", cor, mode)) / 2
+
     family = "post-hoc: aggressive & wrong vs each other situation"
+    subject_family = ("post-hoc on participant means: aggressive & wrong vs each other "
+                      "situation")
     planned = "planned: timid vs aggressive per task"
     return [
         Comparison(family, "aggressive&wrong - timid&wrong (aggressive vs timid when wrong)",
@@ -110,6 +117,13 @@ def _paper_comparisons(cells: pd.DataFrame) -> list[Comparison]:
                    col("hard", "right", "aggressive"), col("hard", "right", "timid")),
         Comparison(planned, "Easy&Wrong: aggressive - timid",
                    col("easy", "wrong", "aggressive"), col("easy", "wrong", "timid")),
+        Comparison(subject_family,
+                   "aggressive&wrong - timid&wrong (aggressive vs timid when wrong)",
+                   mean("wrong", "aggressive"), mean("wrong", "timid")),
+        Comparison(subject_family, "aggressive&wrong - aggressive&right",
+                   mean("wrong", "aggressive"), mean("right", "aggressive")),
+        Comparison(subject_family, "aggressive&wrong - timid&right",
+                   mean("wrong", "aggressive"), mean("right", "timid")),
     ]
 
 
@@ -126,6 +140,8 @@ def _pairwise_mode_comparisons(cells: pd.DataFrame, modes: Sequence[str]) -> lis
 
 
 def _analysis_of(family: str) -> str:
+    if family.startswith("post-hoc on participant means"):
+        return "timing_posthoc_subject"
     if family.startswith("post-hoc"):
         return "timing_posthoc"
     return "timing_planned" if family.startswith("planned") else "timing_pairwise"
@@ -154,6 +170,13 @@ def timing_analysis(cells: pd.DataFrame, *, covariates: Sequence[str] = COVARIAT
     rm = rm_anova(data, dv="duration_s", subject="participant", within=factors)
     ancova = covariate_anova(data, dv="duration_s", subject="participant", within=factors,
                              covariates=covs)
+    mixed = None
+    try:
+        mixed = mixed_anova(data, dv="duration_s", subject="participant", factors=factors,
+                            covariates=covs)
+        notes += [f"mixed model: {n}" for n in mixed.notes]
+    except (AnalysisError, np.linalg.LinAlgError, ValueError) as e:  # a failed fit stays a note
+        notes.append(f"mixed model skipped: {e}")
     marg = []
     for f in factors:
         m = data.groupby(f, observed=True)["duration_s"].mean()
@@ -176,5 +199,5 @@ def timing_analysis(cells: pd.DataFrame, *, covariates: Sequence[str] = COVARIAT
         cells=data, ancova=ancova, rm=rm, comparisons=comparisons,
         summary=summarise(data, "duration_s"), main_effects=pd.DataFrame(marg),
         factors=factors, levels=lv, covariates=tuple(covs),
-        notes=tuple(dict.fromkeys(notes + list(ancova.notes))),
+        notes=tuple(dict.fromkeys(notes + list(ancova.notes))), mixed=mixed,
     )

@@ -93,7 +93,8 @@ def test_timing_analysis_has_the_papers_degrees_of_freedom(study: dict[str, pd.D
     assert set(t.rm.table["df2"]) == {7}
     assert 0 < t.ancova.r2 < 1
     comp = t.comparisons.set_index("comparison")
-    assert set(comp[comp.family.str.startswith("post-hoc")]["df"]) == {15}
+    assert set(comp[comp.analysis == "timing_posthoc"]["df"]) == {15}
+    assert set(comp[comp.analysis == "timing_posthoc_subject"]["df"]) == {7}  # reviewer's form
     assert set(comp[comp.family.str.startswith("planned")]["df"]) == {7}
     # The simulated study slows aggressive-and-wrong down: every comparison against it is > 0.
     assert (comp[comp.family.str.startswith("post-hoc")]["t"] > 0).all()

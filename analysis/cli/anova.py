@@ -3,13 +3,17 @@
 Without covariates: the univariate repeated-measures ANOVA (F(df_E, df_E (n-1)), partial eta
 squared, Greenhouse-Geisser epsilon). With ``--covariates``: the paper's factorial ANOVA with
 covariates on one row per subject and cell (OLS, sum-to-zero contrasts, type III SS).
-Prints one row per effect: effect, df1, df2, F, p, np2 (then eps_gg, p_gg for the RM model).
+With ``--mixed``: a linear mixed model with a random intercept per subject on every row (no
+averaging; incomplete subjects are kept), covariates allowed, type III Wald F on Satterthwaite
+df (:mod:`analysis.mixed`). Prints one row per effect: effect, df1, df2, F, p, np2 (then for the
+RM model eps_gg, p_gg, eps_hf, p_hf and Mauchly's test; for the mixed model the method).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 
 import pandas as pd
@@ -17,6 +21,7 @@ import pandas as pd
 from analysis.anova import covariate_anova
 from analysis.cli import fail, friendly, note
 from analysis.errors import SourceError
+from analysis.mixed import mixed_anova
 from analysis.rm_anova import rm_anova
 
 
@@ -33,6 +38,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(auto: factorial when covariates are given)")
     parser.add_argument("--ss-type", type=int, choices=[2, 3], default=3,
                         help="sums of squares of the factorial model (default 3)")
+    parser.add_argument("--mixed", action="store_true",
+                        help="linear mixed model with a random intercept per subject instead "
+                             "(covariates allowed, Satterthwaite df; uses every row)")
     parser.add_argument("--drop-incomplete", action="store_true",
                         help="drop subjects lacking cells instead of stopping")
     parser.add_argument("--format", choices=["csv", "json"], default="csv")
@@ -51,6 +59,17 @@ def read_csv(path: str) -> pd.DataFrame:
 @friendly
 def main(args: argparse.Namespace) -> int:
     data = read_csv(args.csv)
+    if args.mixed:
+        if args.model != "auto":
+            return fail("--mixed is its own model; leave out --model")
+        mres = mixed_anova(data, dv=args.dv, subject=args.subject, factors=args.within,
+                           covariates=args.covariates)
+        table = mres.table
+        notes = (*mres.notes, f"linear mixed model, random intercept per subject (REML), "
+                 f"{mres.n} rows from {mres.n_subjects} subjects; subject variance "
+                 f"{mres.var_subject:.4g}, residual variance {mres.var_resid:.4g}; type III "
+                 f"Wald F on {mres.df_method} df")
+        return _write(table, notes, args.format)
     model = args.model
     if model == "auto":
         model = "factorial" if args.covariates else "rm"
@@ -69,12 +88,21 @@ def main(args: argparse.Namespace) -> int:
         table = fres.table.drop(columns=["SS"])
         notes = (*fres.notes, f"factorial OLS ANOVA with covariates, type {fres.ss_type} SS, "
                  f"N = {fres.n}, R^2 = {fres.r2:.3f}")
+    return _write(table, notes, args.format)
+
+
+def _plain(v: object) -> object:
+    """JSON-ready scalar: numpy scalars unwrapped, NaN (e.g. no Mauchly test for 1 df) -> null."""
+    v = v.item() if hasattr(v, "item") else v
+    return None if isinstance(v, float) and math.isnan(v) else v
+
+
+def _write(table: pd.DataFrame, notes: tuple[str, ...], fmt: str) -> int:
     for n in notes:
         note(n)
-    if args.format == "json":
-        records = [{k: (v.item() if hasattr(v, "item") else v) for k, v in r.items()}
-                   for r in table.to_dict(orient="records")]
-        sys.stdout.write(json.dumps(records, allow_nan=True) + "\n")
+    if fmt == "json":
+        records = [{k: _plain(v) for k, v in r.items()} for r in table.to_dict(orient="records")]
+        sys.stdout.write(json.dumps(records, allow_nan=False) + "\n")
     else:
         sys.stdout.write(table.to_csv(index=False, float_format="%.10g"))
     return 0

@@ -1,0 +1,100 @@
+"""``python -m analysis power``: power of the paper's hypotheses at several N from a pilot.
+
+Resamples the study's participants (a pilot store, an export folder, or a simulated population)
+with replacement, B times for each N, and runs H1 and H2 in the paper's and the reviewer's forms
+on every replicate (see :mod:`analysis.power`). Writes OUT/power.csv (power per test, form and
+N with a Wilson 95% CI), OUT/power.json (that, the N needed for 80% power, and the settings) and
+OUT/power_curve.png|svg; prints the N-for-80% table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from analysis.cli import fail, friendly, note
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    src = parser.add_mutually_exclusive_group(required=True)
+    src.add_argument("--db", help="the pilot's (or simulated population's) SQLite store")
+    src.add_argument("--export-dir", help="a folder written by `python -m study export`")
+    parser.add_argument("--out", required=True, help="output folder (created if needed)")
+    parser.add_argument(
+        "--n",
+        type=int,
+        nargs="+",
+        default=[8, 12, 16, 24, 32],
+        metavar="N",
+        help="numbers of participants to evaluate (default 8 12 16 24 32)",
+    )
+    parser.add_argument(
+        "--b", type=int, default=1000, help="resampled studies per N (default 1000)"
+    )
+    parser.add_argument("--alpha", type=float, default=0.05, help="significance level")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the resampling")
+    parser.add_argument(
+        "--successful-only",
+        action="store_true",
+        help="leave out completed trials that ended without success",
+    )
+
+
+@friendly
+def main(args: argparse.Namespace) -> int:
+    from analysis.figures import power_figure, save
+    from analysis.load import load_tables, task_cells
+    from analysis.power import bootstrap_power, pilot_cells
+    from analysis.report import _jsonable
+
+    start = time.perf_counter()
+    tables = load_tables(db=args.db, export_dir=args.export_dir)
+    cells, notes = task_cells(tables.trials, successful_only=args.successful_only)
+    if cells.empty:
+        return fail(
+            f"{tables.source} holds no completed task trials; run a study (or a simulation) first"
+        )
+    pilot = pilot_cells(cells)
+    res = bootstrap_power(pilot, ns=args.n, b=args.b, alpha=args.alpha, seed=args.seed)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    res.table.to_csv(out / "power.csv", index=False, float_format="%.6g")
+    fig = save(
+        power_figure(res.table),
+        out,
+        "power_curve",
+        "Power against N (Wilson 95% CI); dashed = the paper's form",
+    )
+    doc = {
+        "source": tables.source,
+        "participants_in_pilot": res.n_pilot,
+        "b": res.b,
+        "alpha": res.alpha,
+        "seed": res.seed,
+        "ns": sorted(set(args.n)),
+        "method": "participants resampled with replacement from the pilot's cell "
+        "summaries; power = share of replicates with (Bonferroni) p < alpha in "
+        "the hypothesised direction (H2); Wilson 95% CI",
+        "power": res.table.to_dict(orient="records"),
+        "n_for_80_percent": res.summary.to_dict(orient="records"),
+        "notes": [*notes, *res.notes],
+    }
+    (out / "power.json").write_text(
+        json.dumps(_jsonable(doc), indent=1, allow_nan=False), encoding="utf-8"
+    )
+    for n in doc["notes"]:
+        note(n)
+    show = res.summary.copy()
+    show["n80"] = show["n80"].map(lambda v: f"{v:.0f}" if v == v else f"> {max(args.n)}")
+    show["n80_interpolated"] = show["n80_interpolated"].map(lambda v: f"{v:.1f}" if v == v else "")
+    sys.stdout.write(show.to_string(index=False) + "\n")
+    print(
+        f"wrote {out / 'power.csv'}, {out / 'power.json'} and {fig.png.name}/{fig.svg.name} "
+        f"in {time.perf_counter() - start:.1f} s ({res.n_pilot} pilot participants, "
+        f"B = {res.b} per N)",
+        file=sys.stderr,
+    )
+    return 0

@@ -1,0 +1,361 @@
+"""Linear mixed model with a random intercept per subject, type III F tests, Satterthwaite df.
+
+Model: ``y_ij = x_ij' b + u_i + e_ij`` with ``u_i ~ N(0, s_u^2)``, ``e_ij ~ N(0, s_e^2)``, i.e.
+``V = s_e^2 I + s_u^2 Z Z'``; factors in sum-to-zero coding with all interactions, covariates
+centred. The variance components are estimated by REML with statsmodels' ``MixedLM`` (polished on the
+same likelihood when statsmodels stops short of its optimum); the fixed
+effects are then the GLS estimate ``b = C X'V^-1 y``, ``C = (X'V^-1 X)^-1``.
+
+Each effect with hypothesis matrix ``L`` (``q`` rows) is tested with the Wald F
+``F = b'L'(L C L')^-1 L b / q`` on Satterthwaite's denominator df (the method of SAS PROC MIXED
+``ddfm=satterthwaite`` and R's lmerTest): for one contrast ``l``,
+``df = 2 (l'Cl)^2 / (g' A g)`` with ``g = d(l'C(theta)l)/d theta`` and ``A`` the inverse of the
+REML information at ``theta = (s_u^2, s_e^2)``; for ``q > 1`` each eigen-contrast of ``L C L'``
+gets its ``nu_m`` and ``df2 = 2E / (E - q)``, ``E = sum nu_m / (nu_m - 2)`` (Fai & Cornelius
+1996; 2 when any ``nu_m <= 2``). In a balanced design this reproduces the classical F tests: a
+within-subject effect on the pooled ``(n-1)(cells-1)`` error df, a subject-level covariate on
+``n - 1 - k`` df for ``k`` subject-level terms.
+
+Everything uses per-subject sums (``V^-1`` of a random-intercept block is
+``(I - c_i J) / s_e^2`` with ``c_i = s_u^2 / (s_e^2 + n_i s_u^2)``), so the cost is linear in the
+number of rows.
+"""
+
+from __future__ import annotations
+
+import itertools
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy import optimize, special
+
+from analysis.anova import effect_coding
+from analysis.design import effect_name, effect_terms, numeric_column, require_columns
+from analysis.errors import DesignError
+
+DF_METHOD = "Satterthwaite"
+METHOD = (
+    "linear mixed model, random intercept per subject (REML, statsmodels MixedLM); "
+    "type III Wald F, Satterthwaite df"
+)
+COLUMNS = ["effect", "df1", "df2", "F", "p", "np2", "method"]
+ESTIMATE_COLUMNS = ["term", "contrast", "estimate", "se", "df", "t", "p", "ci_low", "ci_high"]
+
+
+@dataclass(frozen=True)
+class MixedModelResult:
+    """``table``: one F test per effect and covariate (``np2`` = ``F df1 / (F df1 + df2)``);
+    ``estimates``: each main-effect level against the first level (unweighted marginal means)
+    and each covariate's slope, with Satterthwaite t, df and 95% CI."""
+
+    table: pd.DataFrame
+    estimates: pd.DataFrame
+    var_subject: float
+    var_resid: float
+    n: int
+    n_subjects: int
+    levels: dict[str, tuple[str, ...]]
+    notes: tuple[str, ...] = ()
+    df_method: str = DF_METHOD
+
+    @property
+    def icc(self) -> float:
+        """Intraclass correlation ``s_u^2 / (s_u^2 + s_e^2)``."""
+        total = self.var_subject + self.var_resid
+        return self.var_subject / total if total > 0 else float("nan")
+
+
+@dataclass(frozen=True)
+class _Stats:
+    """Sufficient statistics: ``X'X, X'y, y'y`` and per-subject column sums and sizes."""
+
+    xtx: np.ndarray
+    xty: np.ndarray
+    yty: float
+    sx: np.ndarray  # (m, p) per-subject sums of X
+    sy: np.ndarray  # (m,) per-subject sums of y
+    n_i: np.ndarray  # (m,) rows per subject
+    n: int
+
+    @classmethod
+    def of(cls, x: np.ndarray, y: np.ndarray, groups: np.ndarray) -> _Stats:
+        m = int(groups.max()) + 1
+        sx = np.zeros((m, x.shape[1]))
+        np.add.at(sx, groups, x)
+        sy = np.bincount(groups, weights=y, minlength=m)
+        n_i = np.bincount(groups, minlength=m).astype(float)
+        return cls(x.T @ x, x.T @ y, float(y @ y), sx, sy, n_i, len(y))
+
+    def gls(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(C, b, REML log-likelihood)`` at ``theta = (s_u^2, s_e^2)``."""
+        su2, se2 = float(theta[0]), float(theta[1])
+        c = su2 / (se2 + self.n_i * su2)
+        xwx = (self.xtx - (self.sx * c[:, None]).T @ self.sx) / se2
+        xwy = (self.xty - self.sx.T @ (c * self.sy)) / se2
+        ywy = (self.yty - float(c @ self.sy**2)) / se2
+        cov = np.linalg.inv(xwx)
+        b = cov @ xwy
+        rwr = ywy - float(b @ xwy)
+        logdet_v = float(self.n * np.log(se2) + np.log1p(self.n_i * su2 / se2).sum())
+        logdet_xwx = float(np.linalg.slogdet(xwx)[1])
+        p = len(b)
+        ll = -0.5 * (logdet_v + logdet_xwx + rwr + (self.n - p) * np.log(2 * np.pi))
+        return cov, b, ll
+
+
+def _steps(theta: np.ndarray) -> np.ndarray:
+    scale = max(float(theta.sum()), 1e-12)
+    return np.array([1e-4 * scale, 1e-4 * scale])
+
+
+def _theta_covariance(stats: _Stats, theta: np.ndarray) -> np.ndarray:
+    """``A``: inverse of the observed REML information (numerical Hessian of ``-ll``)."""
+    h = _steps(theta)
+
+    def ll(t: np.ndarray) -> float:
+        return stats.gls(t)[2]
+
+    hess = np.zeros((2, 2))
+    for i, j in itertools.product(range(2), repeat=2):
+        ei, ej = np.eye(2)[i] * h[i], np.eye(2)[j] * h[j]
+        hess[i, j] = (
+            ll(theta + ei + ej) - ll(theta + ei - ej) - ll(theta - ei + ej) + ll(theta - ei - ej)
+        ) / (4 * h[i] * h[j])
+    info = -hess
+    if theta[0] <= 1e-10 * max(theta[1], 1e-300) or np.linalg.eigvalsh(info).min() <= 0:
+        # s_u^2 on its boundary: only the residual variance is free
+        out = np.zeros((2, 2))
+        out[1, 1] = 1.0 / info[1, 1] if info[1, 1] > 0 else 0.0
+        return out
+    return np.linalg.inv(info)
+
+
+def _cov_gradient(stats: _Stats, theta: np.ndarray) -> np.ndarray:
+    """``dC/d theta_k`` by central differences, shape ``(2, p, p)``."""
+    h = _steps(theta)
+    out = []
+    for k in range(2):
+        e = np.eye(2)[k] * h[k]
+        out.append((stats.gls(theta + e)[0] - stats.gls(theta - e)[0]) / (2 * h[k]))
+    return np.array(out)
+
+
+def satterthwaite_df(
+    contrasts: np.ndarray, cov: np.ndarray, dcov: np.ndarray, a: np.ndarray
+) -> float:
+    """Denominator df of the F test of ``L b = 0`` (see the module docstring)."""
+    lcl = contrasts @ cov @ contrasts.T
+    vals, vecs = np.linalg.eigh(lcl)
+    rows = vecs.T @ contrasts
+    nus = []
+    for v, row in zip(vals, rows, strict=True):
+        g = np.array([row @ dc @ row for dc in dcov])
+        var = float(g @ a @ g)
+        nus.append(2 * v * v / var if var > 0 else np.inf)
+    nu = np.array(nus)
+    if len(nu) == 1 or np.allclose(nu, nu[0], rtol=1e-8):
+        return float(nu[0])
+    if (nu <= 2).any():
+        return 2.0
+    e = float((nu / (nu - 2)).sum())
+    return 2 * e / (e - len(nu))
+
+
+def _design(
+    data: pd.DataFrame, factors: Sequence[str], covariates: Sequence[str]
+) -> tuple[np.ndarray, list[tuple[str, slice]], dict[str, tuple[str, ...]]]:
+    levels: dict[str, tuple[str, ...]] = {}
+    blocks: dict[tuple[int, ...], np.ndarray] = {}
+    for i, f in enumerate(factors):
+        s = data[f]
+        if isinstance(s.dtype, pd.CategoricalDtype):
+            present = set(s.astype(str))
+            lv = tuple(str(c) for c in s.cat.categories if str(c) in present)
+        else:
+            lv = tuple(sorted(set(s.astype(str))))
+        if len(lv) < 2:
+            raise DesignError(
+                f"factor {f!r} has {len(lv)} level(s); a factor needs at least "
+                "two levels - drop it from the model"
+            )
+        levels[f] = lv
+        blocks[(i,)] = effect_coding(s, lv)
+    cols = [np.ones((len(data), 1))]
+    spans: list[tuple[str, slice]] = []
+    start = 1
+    for t in effect_terms(factors):
+        if len(t) > 1:
+            blocks[t] = np.column_stack(
+                [np.prod(c, axis=0) for c in itertools.product(*[list(blocks[(i,)].T) for i in t])]
+            )
+        cols.append(blocks[t])
+        spans.append((effect_name(factors, t), slice(start, start + blocks[t].shape[1])))
+        start += blocks[t].shape[1]
+    for c in covariates:
+        v = numeric_column(data, c).to_numpy()
+        if np.ptp(v) == 0:
+            raise DesignError(f"covariate {c!r} is constant; drop it from the covariates")
+        cols.append((v - v.mean())[:, None])
+        spans.append((c, slice(start, start + 1)))
+        start += 1
+    return np.column_stack(cols), spans, levels
+
+
+def _fit_variances(
+    x: np.ndarray, y: np.ndarray, groups: np.ndarray, stats: _Stats
+) -> tuple[np.ndarray, list[str]]:
+    """REML ``(s_u^2, s_e^2)``: statsmodels MixedLM's fit, then polished by maximising the same
+    REML likelihood (:meth:`_Stats.gls`) over ``s_u^2 >= 0`` with L-BFGS-B, so that a fit
+    statsmodels leaves short of its optimum (it warns; common on the boundary) is completed."""
+    from statsmodels.regression.mixed_linear_model import MixedLM
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fit = MixedLM(y, x, groups=groups, exog_re=np.ones((len(y), 1))).fit(reml=True)
+    start = np.array([max(float(np.asarray(fit.cov_re)[0, 0]), 0.0), float(fit.scale)])
+    scale = max(float(start.sum()), 1e-300)
+
+    def objective(v: np.ndarray) -> float:
+        return -stats.gls(v * scale)[2]
+
+    best = optimize.minimize(
+        objective,
+        start / scale,
+        method="L-BFGS-B",
+        bounds=[(0.0, None), (1e-10, None)],
+        options={"ftol": 1e-15, "gtol": 1e-12},
+    )
+    theta = best.x * scale if best.fun <= objective(start / scale) else start
+    notes = []
+    if not fit.converged or any("converge" in str(w.message).lower() for w in caught):
+        moved = float(np.abs(theta - start).max() / scale)
+        notes.append(
+            "statsmodels MixedLM did not converge; the REML optimum was completed by "
+            f"direct optimisation of the same likelihood (variances moved by "
+            f"{moved:.1%} of their sum)"
+        )
+    if theta[0] <= 1e-8 * theta[1]:
+        notes.append(
+            "the subject variance is estimated at zero (REML boundary): the tests "
+            "reduce to ordinary least squares"
+        )
+    return theta, notes
+
+
+def mixed_anova(
+    data: pd.DataFrame,
+    *,
+    dv: str,
+    subject: str,
+    factors: Sequence[str],
+    covariates: Sequence[str] = (),
+) -> MixedModelResult:
+    """Fit the random-intercept model to every row of ``data`` (repeated rows per subject and
+    cell are fine; cells need not be complete) and test each effect (see the module doc)."""
+    factors, covariates = list(factors), list(covariates)
+    names = [dv, subject, *factors, *covariates]
+    dupes = sorted({n for n in names if names.count(n) > 1})
+    if dupes:
+        raise DesignError(
+            f"column(s) {', '.join(map(repr, dupes))} given in two roles; each "
+            "role needs its own column"
+        )
+    if not factors and not covariates:
+        raise DesignError("no factor or covariate given; name at least one")
+    require_columns(data, names)
+    y = numeric_column(data, dv).to_numpy()
+    keep = ~np.isnan(y) & data[subject].notna().to_numpy()
+    for c in covariates:
+        keep &= ~np.isnan(numeric_column(data, c).to_numpy())
+    for f in factors:
+        keep &= data[f].notna().to_numpy()
+    notes = [] if keep.all() else [f"{int((~keep).sum())} row(s) with missing values were left out"]
+    d = data.loc[keep].reset_index(drop=True)
+    y = y[keep]
+    subjects, groups = np.unique(d[subject].astype(str).to_numpy(), return_inverse=True)
+    if len(subjects) < 3:
+        raise DesignError(
+            f"{len(subjects)} subject(s) with data; a random-intercept model needs at least three"
+        )
+    x, spans, levels = _design(d, factors, covariates)
+    p = x.shape[1]
+    if len(y) <= p + 1 or np.linalg.matrix_rank(x) < p:
+        raise DesignError(
+            f"{len(y)} rows cannot identify {p} fixed effects (empty cells, or a "
+            "covariate that is a function of the factors); collect more data or "
+            "drop terms"
+        )
+    stats = _Stats.of(x, y, groups)
+    theta, fit_notes = _fit_variances(x, y, groups, stats)
+    cov, b, _ = stats.gls(theta)
+    a = _theta_covariance(stats, theta)
+    dcov = _cov_gradient(stats, theta)
+    rows = []
+    for name, sl in spans:
+        lmat = np.eye(p)[sl]
+        lb = lmat @ b
+        q = lmat.shape[0]
+        f = float(lb @ np.linalg.solve(lmat @ cov @ lmat.T, lb) / q)
+        df2 = satterthwaite_df(lmat, cov, dcov, a)
+        rows.append(
+            {
+                "effect": name,
+                "df1": float(q),
+                "df2": df2,
+                "F": f,
+                "p": float(special.fdtrc(q, df2, f)),
+                "np2": f * q / (f * q + df2),
+                "method": f"LMM random intercept, {DF_METHOD} df",
+            }
+        )
+    est = []
+    for i, (f, lv) in enumerate(levels.items()):
+        sl = spans[i][1]
+        k = len(lv)
+
+        def level_vector(j: int, k: int = k, sl: slice = sl) -> np.ndarray:
+            v = np.zeros(p)
+            if j < k - 1:
+                v[sl.start + j] = 1.0
+            else:
+                v[sl] = -1.0
+            return v
+
+        for j in range(1, k):
+            est.append((f, f"{lv[j]} - {lv[0]}", level_vector(j) - level_vector(0)))
+    for name, sl in spans[len(effect_terms(factors)) :]:
+        v = np.zeros(p)
+        v[sl] = 1.0
+        est.append((name, "slope", v))
+    erows = []
+    for term, contrast, v in est:
+        e, se = float(v @ b), float(np.sqrt(v @ cov @ v))
+        df = satterthwaite_df(v[None, :], cov, dcov, a)
+        t = e / se if se > 0 else np.nan
+        half = float(special.stdtrit(df, 0.975) * se)
+        erows.append(
+            {
+                "term": term,
+                "contrast": contrast,
+                "estimate": e,
+                "se": se,
+                "df": df,
+                "t": t,
+                "p": float(2 * special.stdtr(df, -abs(t))),
+                "ci_low": e - half,
+                "ci_high": e + half,
+            }
+        )
+    return MixedModelResult(
+        table=pd.DataFrame(rows, columns=COLUMNS),
+        estimates=pd.DataFrame(erows, columns=ESTIMATE_COLUMNS),
+        var_subject=float(theta[0]),
+        var_resid=float(theta[1]),
+        n=len(y),
+        n_subjects=len(subjects),
+        levels=levels,
+        notes=tuple(notes + fit_notes),
+    )
