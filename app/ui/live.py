@@ -41,9 +41,10 @@ PLOT_WINDOW = 1500
 
 PARTICIPANT_ACTIONS = ("agree", "start_trial", "answer", "finish")
 
-MOVED_M = 1e-5
-"""A body that moved less than this (m, and the same in rotation-matrix entries) since the last
-frame sent is not re-sent: an arm standing still sends no scene updates."""
+MOVED_M = 2e-4
+"""Bodies that moved less than this (m; rotation-matrix entries by 10x this) since the last
+frame sent are not re-sent: an arm holding still, which jitters by micrometres under its
+controller, sends no scene updates (0.2 mm is a tenth of a pixel at the task view)."""
 
 OUTCOME_SENTENCES: dict[str, str] = {
     "success": "You lifted the object.",
@@ -126,7 +127,8 @@ class LiveSession:
         through ``Session.record_event``: written only while this process holds the lease."""
         from study.session import SessionClosedError
 
-        self.log.append(f"{time.strftime('%H:%M:%S')} {kind}")
+        where = detail.get("address")
+        self.log.append(f"{time.strftime('%H:%M:%S')} {kind}" + (f" ({where})" if where else ""))
         if self._stop.is_set():
             return  # shutting down: the store may already be closed
         try:
@@ -337,7 +339,7 @@ class LiveSession:
             last is not None
             and last[0] is run
             and float(np.max(np.abs(data.xpos - last[2]))) < MOVED_M
-            and float(np.max(np.abs(data.xmat - last[3]))) < MOVED_M
+            and float(np.max(np.abs(data.xmat - last[3]))) < 10 * MOVED_M
         ):
             return
         seq = 0 if last is None else last[1] + 1
@@ -575,7 +577,7 @@ class LiveSession:
         else:
             raise ValueError(f"unknown action {action!r}; use one of start, pause, resume, ...")
         self._dirty.set()
-        return f"{action}: done"
+        return f"{time.strftime('%H:%M:%S')} {action}: done"
 
     def summary(self) -> SessionSummary:
         o = self.session.overview()

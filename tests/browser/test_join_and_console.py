@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from tests.browser.harness import RunningServer, start_server, wait_until
-from tests.browser.test_participant_flow import _connect, _shot, join
+from tests.browser.test_participant_flow import _connect, _shot, join, text_input
 
 pytestmark = pytest.mark.browser
 
@@ -29,21 +29,13 @@ def study(tmp_path: Path) -> Any:
         rs.stop()
 
 
-def _text_input(page: Any, label: str) -> Any:
-    """viser's text input next to ``label`` (its <label for> does not name the input)."""
-    return page.locator(
-        f"xpath=//label[text()='{label}']/ancestor::div[contains(@class, 'mantine-Flex-root')][1]"
-        "//input"
-    )
-
-
 def test_console_enrols_and_participant_joins_by_code(
     study: RunningServer, context: Any, screenshots: Path
 ) -> None:
     srv = study.server
     console = context.new_page()
     _connect(console, study.console_url)
-    _text_input(console, "Participant ID").fill("P01")
+    text_input(console, "Participant ID").fill("P01")
     console.get_by_role("button", name="Enrol and open session").click()
     status = console.get_by_text(re.compile(r"join code"))
     status.wait_for()
@@ -58,7 +50,7 @@ def test_console_enrols_and_participant_joins_by_code(
 
     page = context.new_page()
     _connect(page, study.url)
-    _text_input(page, "Join code").wait_for()
+    text_input(page, "Join code").wait_for()
     _shot(page, screenshots, "00-join-code")
     join(page, "ACDEFH" if code != "ACDEFH" else "HFEDCA", then=None)  # no such code
     page.get_by_text("That code did not work").wait_for()

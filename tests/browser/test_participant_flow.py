@@ -55,10 +55,18 @@ def _connect(page: Any, url: str) -> None:
     page.get_by_text("Connected").first.wait_for(timeout=30_000)
 
 
+def text_input(page: Any, label: str) -> Any:
+    """viser's text input next to ``label`` (its <label for> does not name the input)."""
+    return page.locator(
+        f"xpath=//label[text()='{label}']/ancestor::div[contains(@class, 'mantine-Flex-root')][1]"
+        "//input"
+    )
+
+
 def join(page: Any, code: str, *, then: str | None = AGREE) -> None:
     """Type the join code as a participant would and wait for the button ``then``."""
     page.get_by_text("Please type the join code").wait_for()
-    field = page.get_by_role("textbox").first
+    field = text_input(page, "Join code")
     field.click()
     field.fill("")
     page.keyboard.type(code.lower(), delay=40)  # typed into the field: no key reaches the arm
@@ -151,6 +159,8 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     code = srv.enrol("P01")
     page.get_by_text("Please type the join code").wait_for()
     assert page.title() == "Robot arm study"
+    for chrome in ("adjustments", "share", "list-search"):  # viser's settings, share, commands
+        assert not page.locator(f"svg.tabler-icon-{chrome}").first.is_visible()
     join(page, code, then=None)
     page.get_by_text("Please wait").first.wait_for()
     _shot(page, screenshots, "01-waiting")
@@ -165,7 +175,8 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
 
     # Practice run: ready, then the trial screen with the scene and the gizmo.
     page.get_by_role("button", name="Start").wait_for()
-    assert "Trial 1 of" in text_now()
+    body = text_now()
+    assert body.count("Trial 1 of") == 1
     _shot(page, screenshots, "03-ready")
     _settle(page)  # the scene's first draw is slow in software WebGL
     page.get_by_role("button", name="Start").click()
@@ -213,7 +224,7 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
 
     # First task run: reload mid-trial -> paused (an event), Continue resumes.
     page.get_by_role("button", name="Start").wait_for()
-    assert "Trial 2 of" in text_now()
+    assert text_now().count("Trial 2 of") == 1
     page.get_by_role("button", name="Start").click()
     page.get_by_text("Grasp / release").wait_for()
     page.wait_for_timeout(1500)

@@ -1,0 +1,105 @@
+"""Frames per second the participant page draws during a trial, in headless Chromium.
+
+Debian's Chromium renders WebGL in software (SwiftShader) here, so this is a worst case: a
+participant's lab machine with a GPU draws far faster. The page is joined and a trial started
+as a participant would; then for ``--seconds`` each the script counts ``requestAnimationFrame``
+callbacks (the browser's frame rate) while
+
+* the arm moves: the handle's target follows a slow circle at 30 poses/s, as a drag does;
+* the arm holds still: no input (the server then sends no scene updates at all).
+
+It also counts the scene frames the server sent in each window. Run it on an idle machine;
+the load average is printed with the figures. Example::
+
+    .venv/bin/python benchmarks/page_fps.py --seconds 5 --repeats 3
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import threading
+import time
+
+import numpy as np
+from playwright.sync_api import sync_playwright
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+from benchmarks.server import feed_gizmo  # noqa: E402
+from tests.browser.harness import launch, start_server  # noqa: E402
+from tests.browser.test_participant_flow import AGREE, join  # noqa: E402
+
+FPS_JS = """(ms) => new Promise((done) => {
+  let n = 0; const t0 = performance.now();
+  const f = () => { n++; if (performance.now() - t0 < ms) requestAnimationFrame(f);
+                    else done(n / ((performance.now() - t0) / 1000)); };
+  requestAnimationFrame(f);
+})"""
+
+
+def _window(page, live, seconds: float) -> tuple[float, float]:
+    """(frames/s drawn by the page, scene frames/s sent by the server) over ``seconds``."""
+    sent = live.scene_view.frames_sent
+    t = time.monotonic()
+    fps = float(page.evaluate(FPS_JS, seconds * 1000))
+    return fps, (live.scene_view.frames_sent - sent) / (time.monotonic() - t)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=5.0, help="length of each window")
+    parser.add_argument("--repeats", type=int, default=3, help="windows per condition")
+    args = parser.parse_args()
+
+    rs = start_server(tempfile.mkdtemp(prefix="bench-fps-"), time_limit_s=600.0, training_runs=1)
+    srv = rs.server
+    result: dict = {"load_average_1min": float(os.getloadavg()[0])}
+    try:
+        code = srv.enrol("B01")
+        srv.act(code, "start")
+        live = srv.session(code)
+        with sync_playwright() as p:
+            browser = launch(p)
+            page = browser.new_page(viewport={"width": 1100, "height": 720})
+            page.set_default_timeout(120_000)
+            page.goto(rs.url)
+            page.get_by_text("Connected").first.wait_for()
+            join(page, code)
+            page.get_by_role("button", name=AGREE).click()
+            page.get_by_role("button", name="Start").click()
+            page.get_by_text("Grasp / release").wait_for()
+            page.wait_for_timeout(3000)  # the scene's first draw
+            stop = threading.Event()
+            feeder = threading.Thread(target=feed_gizmo, args=(live, stop), daemon=True)
+            feeder.start()
+            page.wait_for_timeout(1000)
+            moving = [_window(page, live, args.seconds) for _ in range(args.repeats)]
+            stop.set()
+            feeder.join()
+            page.wait_for_timeout(1500)  # the arm settles
+            still = [_window(page, live, args.seconds) for _ in range(args.repeats)]
+            browser.close()
+    finally:
+        rs.stop()
+    for name, rows in (("moving", moving), ("still", still)):
+        fps = np.array([r[0] for r in rows])
+        sent = np.array([r[1] for r in rows])
+        result[name] = {
+            "page_fps_median": round(float(np.median(fps)), 1),
+            "page_fps_min": round(float(fps.min()), 1),
+            "scene_frames_sent_per_s": round(float(np.median(sent)), 1),
+        }
+        print(
+            f"arm {name}: page draws {np.median(fps):.1f} frames/s (min {fps.min():.1f},"
+            f" {len(fps)} x {args.seconds:g} s); server sends {np.median(sent):.1f} scene frames/s"
+        )
+    print(json.dumps(result))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
