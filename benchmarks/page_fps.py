@@ -29,9 +29,9 @@ from playwright.sync_api import sync_playwright
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from benchmarks.server import feed_gizmo  # noqa: E402
-from tests.browser.harness import launch, start_server  # noqa: E402
-from tests.browser.test_participant_flow import AGREE, join  # noqa: E402
+from benchmarks.server import feed_gizmo
+from tests.browser.harness import launch, start_server
+from tests.browser.test_participant_flow import AGREE, join
 
 FPS_JS = """(ms) => new Promise((done) => {
   let n = 0; const t0 = performance.now();
