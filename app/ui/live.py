@@ -432,7 +432,7 @@ class LiveSession:
             summary = getattr(run, "summary", None)
             if summary is not None:
                 self._outcome = OUTCOME_SENTENCES.get(summary.outcome, "The run has ended.")
-            source = self._input
+            source, self._input = self._input, None  # no trial, no input: keys do nothing
         if source is not None:
             source.freeze()
         if page is not None:
