@@ -5,7 +5,10 @@ tuple and appends it to a buffer under a short lock (a few microseconds). A back
 commits the buffer with one ``executemany`` every ``flush_interval_s`` (at most 250 ms), so a
 killed process loses at most the last batch. ``flush()`` commits synchronously (the session
 calls it before marking a trial completed). A failed commit keeps the rows buffered and makes
-the next ``add``/``flush`` raise, so samples are never dropped silently.
+the next ``add``/``flush`` raise, so samples are never dropped silently; the error keeps the
+store's type (``StoreFullError`` for a full disk, ``StoreNotWritableError`` for a read-only
+one), so callers can tell the experimenter what to do, and the thread keeps retrying, so the
+rows held in memory reach the file once space is freed.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from study.store import DOF, SampleFormatError, Store, StoreError
+from study.store import DOF, SampleFormatError, Store, StoreError, StoreWriteError
 
 MAX_FLUSH_INTERVAL_S = 0.25
 
@@ -79,6 +82,13 @@ def sample_row(trial_id: int, tick: int, record: TickLike) -> tuple[Any, ...]:
         if isinstance(exc, SampleFormatError):
             raise
         raise SampleFormatError(f"tick {tick} cannot be stored as a sample: {exc}") from exc
+
+
+def _like(error: BaseException, context: str) -> StoreError:
+    """A ``StoreError`` of ``error``'s own type (full disk, read-only, ...) with ``context``."""
+    if isinstance(error, StoreWriteError):
+        return type(error)(f"{context}: {error}", path=error.path)
+    return StoreError(f"{context}: {error}")
 
 
 @dataclass
@@ -145,7 +155,7 @@ class SampleWriter:
                 with self._buffer_lock:
                     self._buffer[:0] = rows
                 self._error = exc
-                raise StoreError(f"could not commit {len(rows)} samples: {exc}") from exc
+                raise _like(exc, f"could not commit {len(rows)} samples") from exc
             self._error = None
             self.stats.commit_s.append(time.perf_counter() - start)
             self.stats.rows += len(rows)
@@ -160,10 +170,13 @@ class SampleWriter:
         self.flush()
 
     def _raise_pending(self) -> None:
-        if self._error is not None:
-            raise StoreError(
-                f"samples are not reaching the store ({self._error}); "
-                f"{self.pending} rows are held in memory"
+        error = self._error
+        if error is not None:
+            raise _like(
+                error,
+                f"samples are not reaching the store; {self.pending} rows are held in memory and "
+                "are written as soon as the store takes writes again (they are lost if this "
+                "process ends first)",
             )
 
     def _run(self) -> None:
