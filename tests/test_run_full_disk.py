@@ -19,6 +19,7 @@ import study.session
 from app.cli import dispatch
 from study.__main__ import COMMANDS
 from study.store import Store
+from tests.disk_full import cap
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, dict[str, Any], str]:
@@ -35,8 +36,7 @@ def full_after(extra_pages: int, monkeypatch: pytest.MonkeyPatch) -> None:
 
     def open_capped(path: Any, protocol: Any, **kw: Any) -> Store:
         store = real(path, protocol, **kw)
-        pages = store.conn.execute("PRAGMA page_count").fetchone()[0]
-        store.conn.execute(f"PRAGMA max_page_count = {pages + extra_pages}")
+        cap(store, extra_pages=extra_pages)
         return store
 
     monkeypatch.setattr(study.session, "open_store", open_capped)

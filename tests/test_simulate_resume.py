@@ -27,6 +27,7 @@ from app.cli import dispatch
 from study.__main__ import COMMANDS
 from study.simulated import simulate
 from study.store import Store
+from tests.disk_full import cap
 from tests.protocol_copies import short_protocol
 
 pytestmark = pytest.mark.slow
@@ -196,8 +197,7 @@ def test_simulation_on_a_full_disk_reports_it_and_resumes(
 
     def open_capped(path: Any, protocol: Any, **kw: Any) -> Store:
         store = real(path, protocol, **kw)
-        pages = store.conn.execute("PRAGMA page_count").fetchone()[0]
-        store.conn.execute(f"PRAGMA max_page_count = {pages + 1500}")
+        cap(store, extra_pages=1500)
         return store
 
     with monkeypatch.context() as patch:

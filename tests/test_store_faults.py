@@ -4,7 +4,8 @@ Read-only folders and files are real: the tests run as an unprivileged user for 
 the open (as root, whose writes no permission bit stops, they switch the effective user to
 ``nobody`` and back), so SQLite, the probes and the kernel's permission checks are the ones a
 lab's machine would use. A full disk is SQLite's own ``SQLITE_FULL``, made by capping the
-connection's ``max_page_count`` -- the same error code and path as a full file system.
+connections' ``max_page_count`` (``tests.disk_full``) -- the same error code and path as a full
+file system.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from study.store import (
     StoreNotWritableError,
     StoreWriteError,
 )
+from tests.disk_full import cap, uncap
 from tests.test_store import enrol, new_trial, open_store, tick
 
 NOBODY = 65534
@@ -131,12 +133,6 @@ def test_a_damaged_file_is_still_reported_as_not_a_store(tmp_path: Path) -> None
 
 
 # ---- full disk ----------------------------------------------------------------------------------
-def cap(store: Store, *, extra_pages: int) -> None:
-    """Let the store grow by ``extra_pages`` pages only (SQLite then answers SQLITE_FULL)."""
-    pages = store.conn.execute("PRAGMA page_count").fetchone()[0]
-    store.conn.execute(f"PRAGMA max_page_count = {pages + extra_pages}")
-
-
 def test_full_disk_is_a_typed_error_and_keeps_committed_data(tmp_path: Path) -> None:
     db = tmp_path / "s.db"
     with open_store(db) as store:
@@ -169,7 +165,7 @@ def test_sample_writer_keeps_the_type_and_writes_held_rows_once_space_is_freed(
             with pytest.raises(StoreFullError, match="401 rows are held in memory") as exc:
                 writer.add_row(sample_row(trial, 400, tick(400)))
             assert "the disk is full" in str(exc.value)
-            store.conn.execute("PRAGMA max_page_count = 1073741823")  # space freed
+            uncap(store)  # space freed
             assert writer.flush() == 401
             writer.add_row(sample_row(trial, 401, tick(401)))  # no error pending any more
         finally:
