@@ -144,6 +144,13 @@ class SampleWriter:
         self._raise_pending()
 
     @property
+    def error(self) -> BaseException | None:
+        """Why the last commit failed (``StoreFullError``, ...), or ``None`` once a commit
+        succeeded again -- the thread keeps retrying, so this clears by itself when the disk
+        has room again."""
+        return self._error
+
+    @property
     def pending(self) -> int:
         with self._buffer_lock:
             return len(self._buffer)

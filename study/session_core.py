@@ -113,6 +113,14 @@ class SessionCore:
         return self._active
 
     @property
+    def samples_error(self) -> BaseException | None:
+        """Why this session's samples are not reaching the store (a full or read-only disk:
+        ``StoreWriteError``), or ``None``. The rows are held in memory and retried every batch
+        period, so this turns ``None`` again by itself once the disk takes writes; a live
+        server can show it to the experimenter and hold the trial until then."""
+        return self._writer.error
+
+    @property
     def finished(self) -> bool:
         return self._status in FINAL_STATUSES
 

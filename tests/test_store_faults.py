@@ -165,8 +165,10 @@ def test_sample_writer_keeps_the_type_and_writes_held_rows_once_space_is_freed(
             with pytest.raises(StoreFullError, match="401 rows are held in memory") as exc:
                 writer.add_row(sample_row(trial, 400, tick(400)))
             assert "the disk is full" in str(exc.value)
+            assert isinstance(writer.error, StoreFullError)
             uncap(store)  # space freed
             assert writer.flush() == 401
+            assert writer.error is None
             writer.add_row(sample_row(trial, 401, tick(401)))  # no error pending any more
         finally:
             writer.close()
