@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 
 def dispatch(
@@ -56,6 +56,43 @@ def positive_float(text: str) -> float:
     if not 0.0 < value < float("inf"):
         raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
     return value
+
+
+def non_negative_float(text: str) -> float:
+    """argparse type: a finite number >= 0 (noise levels, margins)."""
+    value = _parse(text, float, "a number")
+    if not 0.0 <= value < float("inf"):  # False for NaN too
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
+    return value
+
+
+def port(text: str) -> int:
+    """argparse type: a TCP port, 0..65535 (0: any free port, which the server then prints)."""
+    value = _parse(text, int, "a port number")
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError(
+            f"must be a TCP port from 1 to 65535 (or 0 for any free port), got {text}"
+        )
+    return value
+
+
+def rate_hz(maximum: float) -> Callable[[str], float]:
+    """argparse type factory: a rate in (0, ``maximum``] per second.
+
+    A rate of 0 (or a negative or NaN one) would turn a period ``1 / rate`` into infinity or
+    nonsense deep inside a loop (a scene that freezes at its first frame, say); refusing it at
+    the command line names the flag instead."""
+
+    def parse(text: str) -> float:
+        value = _parse(text, float, "a number")
+        if not 0.0 < value <= maximum:  # False for NaN too
+            raise argparse.ArgumentTypeError(
+                f"must be a rate above 0 and at most {maximum:g} per second, got {text}"
+            )
+        return value
+
+    parse.__name__ = "rate"  # argparse names the type in "invalid rate value"
+    return parse
 
 
 def _parse(text: str, kind: type, what: str):  # type: ignore[no-untyped-def]

@@ -1,6 +1,8 @@
 """Store and session write costs: what the control loop pays per tick, what a commit takes.
 
-Measures, for SQLite ``synchronous`` FULL and NORMAL:
+Measures, for SQLite ``synchronous`` FULL and NORMAL (the store's setting for its main
+connection; sample batches go through the samples' own ``NORMAL`` connection either way, so
+their figures only differ by noise):
 
 - ``add_us``: ``SampleWriter.add`` in the calling (control) thread at 100 Hz (row conversion
   and buffer append; the only store work a control tick does);

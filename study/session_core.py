@@ -18,13 +18,14 @@ from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
 
+from study.event_limit import EventLimiter
 from study.lease_keeper import LeaseKeeper
 from study.plan import Plan, Step, build_plan
 from study.sample_writer import SampleWriter
 from study.screen import Phase, Screen
 from study.session_errors import SessionClosedError, SessionError, SessionStateError
 from study.session_store import check_protocol
-from study.store import SessionLockedError, Store, Transaction
+from study.store import SessionLockedError, Store, StoreError, Transaction
 from study.trial_run import TrialFactory, TrialRun
 
 if TYPE_CHECKING:
@@ -89,6 +90,7 @@ class SessionCore:
         self._lease = store.acquire_lease(participant)
         self._keeper = LeaseKeeper(store, self._lease, interval_s=heartbeat_s)
         self._writer = SampleWriter(store, flush_interval_s=flush_interval_s)
+        self._events = EventLimiter()
         self._started = False
         self._paused = False
         self._closed = False
@@ -111,6 +113,14 @@ class SessionCore:
         return self._active
 
     @property
+    def samples_error(self) -> BaseException | None:
+        """Why this session's samples are not reaching the store (a full or read-only disk:
+        ``StoreWriteError``), or ``None``. The rows are held in memory and retried every batch
+        period, so this turns ``None`` again by itself once the disk takes writes; a live
+        server can show it to the experimenter and hold the trial until then."""
+        return self._writer.error
+
+    @property
     def finished(self) -> bool:
         return self._status in FINAL_STATUSES
 
@@ -120,7 +130,11 @@ class SessionCore:
 
             session.record_event("participant_connected", {"client": 3})
 
-        ``detail`` must be JSON-serialisable. Thread-safe. The event is written in the same
+        ``detail`` must be JSON-serialisable. Thread-safe. Each kind is rate-limited (10 at
+        once, then 1 per second; ``study.event_limit``) because a client can trigger some at
+        will: an event over the limit is counted instead of written, and the next one written
+        carries ``"suppressed": k``; counts still pending at ``close()`` are written there as
+        one ``events_suppressed`` event. The event is written in the same
         transaction that checks this process still holds the participant's lease, so a session
         taken over by another process (``SessionLockedError``) or closed
         (``SessionClosedError``) cannot add to the log; nothing is written then. Prefer this to
@@ -137,8 +151,17 @@ class SessionCore:
             ) from None
         with self._lock:
             self._require_open()
-            with self._tx() as tx:
-                tx.event(self.session_id, self.participant, kind, detail)
+            suppressed = self._events.admit(kind)
+            if suppressed is None:
+                return  # over this kind's rate: counted, reported with the next one written
+            if suppressed:
+                detail["suppressed"] = suppressed
+            try:
+                with self._tx() as tx:
+                    tx.event(self.session_id, self.participant, kind, detail)
+            except BaseException:
+                self._events.restore(kind, suppressed)
+                raise
 
     def add_listener(self, listener: Listener) -> None:
         """Call ``listener(screen)`` after every transition (from the acting thread)."""
@@ -148,31 +171,55 @@ class SessionCore:
     # ---- release --------------------------------------------------------------------------------
     def close(self) -> None:
         """Release this process's hold on the session (a running trial is marked interrupted).
-        The session can be continued later with ``Session.reopen``. Idempotent."""
+        The session can be continued later with ``Session.reopen``. Idempotent.
+
+        If the store refuses writes (full disk, read-only: ``StoreWriteError``) the session is
+        still closed -- the writer and heartbeat threads stop, nothing more is written -- and the
+        first such error is raised afterwards. The file then stays consistent: a running trial
+        whose samples could not be committed stays ``running`` on file, which readers report as
+        interrupted (its ``ticks`` being the samples that did reach the file) and
+        ``Session.reopen`` records as such, so ``--resume`` continues once the disk is fixed."""
+        errors: list[StoreError] = []
         with self._lock:
             if self._closed:
                 return
             try:
                 if not self._keeper.lost and self._status not in FINAL_STATUSES:
-                    where, run = self._where(), self._active
-                    self._stop(run)
-                    try:
-                        with self._tx() as tx:
-                            if run is not None:
-                                self._record_abort(
-                                    tx, run, status="interrupted", note="session closed"
-                                )
-                            tx.event(self.session_id, self.participant, "close", where)
-                    except SessionLockedError:
-                        # Another process took the session over before the keeper noticed:
-                        # the data are now theirs to write, and there is nothing to release.
-                        _LOG.warning("session %s was taken over; closed without writing", self.participant)
+                    self._close_in_store(errors)
             finally:
                 self._closed = True
                 try:
                     self._writer.close()
-                finally:
+                except StoreError as exc:
+                    errors.append(exc)
+                try:
                     self._keeper.stop(release=True)
+                except StoreError as exc:
+                    errors.append(exc)
+        if errors:
+            raise errors[0]
+
+    def _close_in_store(self, errors: list[StoreError]) -> None:
+        where, run = self._where(), self._active
+        try:
+            self._stop(run)
+        except StoreError as exc:
+            # The run's last samples are not on file: recording it with run.ticks would claim
+            # samples the file does not have, so it is left to the orphan rule (see close).
+            errors.append(exc)
+            return
+        try:
+            with self._suppressed_reported() as report, self._tx() as tx:
+                if run is not None:
+                    self._record_abort(tx, run, status="interrupted", note="session closed")
+                report(tx)
+                tx.event(self.session_id, self.participant, "close", where)
+        except SessionLockedError:
+            # Another process took the session over before the keeper noticed: the data are
+            # now theirs to write, and there is nothing to release.
+            _LOG.warning("session %s was taken over; closed without writing", self.participant)
+        except StoreError as exc:
+            errors.append(exc)
 
     def __enter__(self) -> Self:
         return self
@@ -355,6 +402,22 @@ class SessionCore:
             target=target,
             **extra,
         )
+
+    @contextmanager
+    def _suppressed_reported(self) -> Iterator[Callable[[Transaction], None]]:
+        """``with self._suppressed_reported() as report: ... report(tx)`` writes the counts of
+        rate-limited events not yet reported (see ``record_event``) in ``tx``; they are cleared
+        only if the ``with`` block (holding the transaction) completes."""
+        pending = self._events.pending()
+
+        def report(tx: Transaction) -> None:
+            if pending:
+                tx.event(
+                    self.session_id, self.participant, "events_suppressed", {"counts": pending}
+                )
+
+        yield report
+        self._events.reported(pending)
 
     def _stop(self, run: TrialRun | None) -> None:
         """Stop ``run`` (no further ticks) and commit its samples; call before the transaction

@@ -142,11 +142,12 @@ class ExperimenterActions(SessionViews):
             if self._status in FINAL_STATUSES:
                 raise SessionStateError(f"the session is already {self._status}")
             self._stop(self._active)
-            with self._tx() as tx:
+            with self._suppressed_reported() as report, self._tx() as tx:
                 if self._active is not None:
                     self._record_abort(
                         tx, self._active, status="interrupted", note=f"{status}: {reason}"
                     )
+                report(tx)
                 tx.update_session(self.session_id, status=status)
                 tx.event(
                     self.session_id,

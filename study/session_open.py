@@ -7,6 +7,7 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, Self
 
 from study.plan import run_label
+from study.sample_writer import DEFAULT_FLUSH_INTERVAL_S
 from study.schedule import Design, Enrollment, ScheduleError, next_row
 from study.session_core import FINAL_STATUSES, SessionCore
 from study.session_errors import MAX_SEED, InvalidSeedError, SessionStateError, check_seed
@@ -33,7 +34,7 @@ class SessionOpening(SessionCore):
         schedule_row: int | None = None,
         trial_factory: TrialFactory | None = None,
         heartbeat_s: float = 2.0,
-        flush_interval_s: float = 0.1,
+        flush_interval_s: float = DEFAULT_FLUSH_INTERVAL_S,
     ) -> Self:
         """Enrol a new participant (pseudonymous ``participant`` ID; ``demographics`` go to their
         own table) and open their session. The schedule row comes from ``study.schedule.next_row``
@@ -94,7 +95,7 @@ class SessionOpening(SessionCore):
         *,
         trial_factory: TrialFactory | None = None,
         heartbeat_s: float = 2.0,
-        flush_interval_s: float = 0.1,
+        flush_interval_s: float = DEFAULT_FLUSH_INTERVAL_S,
     ) -> Self:
         """Continue ``participant``'s session where it stopped. A trial left running by a dead
         process is marked interrupted (its samples up to the last batch kept) and will run again

@@ -116,7 +116,8 @@ class ParticipantActions(SessionViews):
         """The participant has read the debrief: the session is completed."""
         with self._lock:
             self._require_phase("debrief", action="finish")
-            with self._tx() as tx:
+            with self._suppressed_reported() as report, self._tx() as tx:
+                report(tx)
                 tx.update_session(self.session_id, cursor=len(self.plan), status="completed")
                 tx.event(self.session_id, self.participant, "finish", {"cursor": len(self.plan)})
             self._cursor, self._status = len(self.plan), "completed"

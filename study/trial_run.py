@@ -16,6 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
+from study.sample_writer import sample_row
 from study.session_errors import SessionStateError
 
 if TYPE_CHECKING:
@@ -108,9 +109,12 @@ class TrialRun:
                 return None
             record = self.trial.tick()
             if record is not None:
-                self._writer.add(self.trial_id, self._ticks, record)
+                row = sample_row(self.trial_id, self._ticks, record)
                 self._ticks += 1
                 self._last_t = float(record.t)
+                # may raise StoreError (the store refused earlier batches) with the row queued:
+                # the tick is counted, so a retry never writes the same tick number twice
+                self._writer.add_row(row)
             finished = bool(self.trial.done)
         if finished:
             self._on_finished(self)

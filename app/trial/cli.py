@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from app.cli import non_negative_int, positive_float
+from app.cli import non_negative_float, non_negative_int, positive_float
 from app.teleop import InputSource, ScriptedInput, TeleopCommand, TrialObservation
 from app.trial.config import TrialConfig
 from app.trial.records import save_records
@@ -45,7 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--speed", type=positive_float, default=0.15, help="scripted user speed, m/s"
     )
-    parser.add_argument("--noise", type=float, default=0.002, help="scripted user noise, m")
+    parser.add_argument("--noise", type=non_negative_float, default=0.002, help="scripted user noise, m")
     parser.add_argument("--time-limit", type=positive_float, default=None, help="override, s")
     parser.add_argument("--save", type=Path, default=None, help="write the records (.npz)")
 

@@ -12,6 +12,11 @@ import sys
 import threading
 from pathlib import Path
 
+from app.cli import port as port_number
+from app.cli import rate_hz
+
+MAX_RENDER_HZ = 60.0
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
@@ -26,15 +31,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--host", default="0.0.0.0", help="participant view address (LAN); default: %(default)s"
     )
-    parser.add_argument("--port", type=int, default=8080, help="participant view port")
     parser.add_argument(
-        "--experimenter-port",
-        type=int,
-        default=8081,
-        help="experimenter view port (always bound to 127.0.0.1); default: %(default)s",
+        "--port",
+        type=port_number,
+        default=8080,
+        help="participant view port, 1-65535 (0: any free port); default: %(default)s",
     )
     parser.add_argument(
-        "--render-hz", type=float, default=60.0, help="scene updates per second (max 60)"
+        "--experimenter-port",
+        type=port_number,
+        default=8081,
+        help="experimenter view port (always bound to 127.0.0.1), 1-65535 (0: any free port); "
+        "default: %(default)s",
+    )
+    parser.add_argument(
+        "--render-hz",
+        type=rate_hz(MAX_RENDER_HZ),
+        default=MAX_RENDER_HZ,
+        help="scene updates per second, above 0 and at most %(default)g (viser sends at most "
+        "one pose update per 1/60 s)",
     )
     parser.add_argument(
         "--kiosk",
@@ -56,6 +71,13 @@ def main(args: argparse.Namespace) -> int:
     from study.session import open_store
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
+    if args.port and args.port == args.experimenter_port:
+        print(
+            f"error: --port and --experimenter-port are both {args.port}; the two views need "
+            "two ports (e.g. 8080 and 8081)",
+            file=sys.stderr,
+        )
+        return 2
     try:
         protocol = load_protocol(args.protocol)
     except Exception as exc:  # a typed ProtocolError naming file, key and problem
@@ -85,7 +107,7 @@ def main(args: argparse.Namespace) -> int:
         host=args.host,
         port=args.port,
         experimenter_port=args.experimenter_port,
-        render_hz=min(args.render_hz, 60.0),
+        render_hz=args.render_hz,
         verbose=args.verbose,
         kiosk=args.kiosk,
         allow_share=args.share,

@@ -5,9 +5,10 @@
 
 Items are answered by the scripted rule of ``study.answers``. Progress goes to stderr; the last
 line on stdout is one JSON object: participant, trials_completed, ratings, status (plus
-``error`` when the run could not go on: exit code 2 for bad input or a refused store, 1 for an
-unexpected failure, whose traceback goes to stderr; the session is closed with its running trial
-marked interrupted either way, so ``--resume`` continues it).
+``error`` when the run could not go on: exit code 2 for bad input, a refused store or a disk
+that is full or read-only, 1 for an unexpected failure, whose traceback goes to stderr; the
+session is closed with its running trial marked interrupted either way -- or, if the disk took
+no more writes, left for ``--resume`` to mark -- so ``--resume`` continues it).
 """
 
 from __future__ import annotations
@@ -82,6 +83,7 @@ def main(args: argparse.Namespace) -> int:
         raise KeyboardInterrupt
 
     previous = signal.signal(signal.SIGTERM, on_term)
+    code = 1
     try:
         protocol = load_protocol(args.protocol)
         if args.resume and not args.db.is_file():
@@ -141,7 +143,14 @@ def main(args: argparse.Namespace) -> int:
 
                 result = {**make_report(session).as_dict(), **result}
                 result.setdefault("status", session.status)
-            session.close()
+            try:
+                session.close()
+            except StoreError as exc:  # a full or read-only disk: closed, but not recorded
+                if str(exc) != result.get("error"):
+                    print(f"error: {exc}", file=sys.stderr)
+                result.setdefault("error", str(exc))
+                result["status"] = "error"
+                code = code or 2
         if store is not None:
             store.close()
     print(json.dumps(result))

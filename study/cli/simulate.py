@@ -1,14 +1,20 @@
 """``python -m study simulate``: simulated participants through the whole study, headless.
 
     python -m study simulate --protocol protocols/dragan2013.toml --participants 8 \\
-        --db data/sim.db --seed 1 [--workers N] [--population protocols/population.toml]
+        --db data/sim.db --seed 1 [--workers N] [--population protocols/population.toml] \\
+        [--resume]
 
 Every participant is drawn from the population file, enrolled, and driven through the real
 session engine and control loop (training, every task in both modes, questionnaires, debrief)
 as fast as the machine allows, writing the same store as a live study. A progress bar goes to
 stderr; the last line on stdout is one JSON object: participants, trials, ratings, wall_s
-(plus workers, db, seed, simulated_s, outcomes, errors). Exit code 2 on bad input or when a
-participant's session failed.
+(plus workers, db, seed, simulated_s, outcomes, errors; kept and redone after --resume; error
+when the store took no more writes). Exit code 2 on bad input, when a participant's session
+failed, or when the disk filled up or turned read-only: free space and re-run with --resume.
+
+A killed run is continued by the same command with ``--resume``: completed participants are
+kept, an unfinished one is simulated again from its start, so the store ends up with the data an
+uninterrupted run with the same seed would have written.
 """
 
 from __future__ import annotations
@@ -46,6 +52,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="NORMAL",
         help="SQLite durability (NORMAL: safe against a crash of the process, not of the OS)",
     )
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue a killed run (same arguments): keep completed participants, redo "
+        "unfinished ones from their start",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -67,11 +79,14 @@ def main(args: argparse.Namespace) -> int:
             first=args.first,
             synchronous=args.synchronous,
             progress=not args.no_progress,
+            resume=args.resume,
         )
         result = report.as_dict()
         for error in report.errors:
             print(f"error: {error}", file=sys.stderr)
-        code = 2 if report.errors else 0
+        if report.error is not None:
+            print(f"error: {report.error}", file=sys.stderr)
+        code = 2 if report.errors or report.error is not None else 0
     except (ProtocolError, StoreError, SimulationError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         result = {"participants": 0, "trials": 0, "ratings": 0, "wall_s": 0.0, "error": str(exc)}

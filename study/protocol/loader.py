@@ -33,6 +33,11 @@ from study.protocol.participant import check_blinding, read_questionnaire, read_
 from study.protocol.protocol import TRAINING_MODE, Protocol
 
 SCHEMA = 1
+MAX_NESTING = 32
+"""Deepest nesting of arrays and inline tables a protocol may have (the paper's has 3).
+
+Python's TOML parser recurses once per level, so a few thousand ``[`` would end in a
+``RecursionError`` (or worse, in code that walks the parsed value); the text is scanned first."""
 _NAME = re.compile(r"^[a-z][a-z0-9_-]{0,31}$")
 _TOP_LEVEL = (
     "schema", "study", "control", "factors", "tasks", "prediction", "confidence", "policy",
@@ -56,11 +61,73 @@ def load_protocol(path: str | Path) -> Protocol:
 
 def parse_protocol(text: str, *, path: str | Path = "<string>") -> Protocol:
     """Validate protocol ``text``; ``path`` is used in error messages and kept on the result."""
+    _check_nesting(text, path)
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise _syntax_error(e, text, path) from None
+    except RecursionError:  # not reachable after _check_nesting; kept as a typed last resort
+        raise ProtocolSyntaxError(
+            f"values are nested too deeply to read (more than {MAX_NESTING} levels)",
+            file=path,
+            key="",
+        ) from None
     return _Loader(raw, Path(path), source=text).protocol()
+
+
+def nesting_depth(text: str, *, stop_above: int | None = None) -> tuple[int, int]:
+    """The deepest nesting of ``[``/``{`` in TOML ``text`` outside strings and comments, and the
+    1-based line where it is first reached; stops scanning once ``stop_above`` is exceeded.
+
+    Table headers (``[a]``, ``[[a]]``) count as one or two levels, which only matters near the
+    limit. The scan is a single pass without recursion, so any input is safe to measure."""
+    depth = deepest = 0
+    deepest_line = line = 1
+    i, n = 0, len(text)
+    while i < n:
+        c = text[i]
+        if c == "\n":
+            line += 1
+        elif c == "#":
+            end = text.find("\n", i)
+            i = n if end < 0 else end
+            continue
+        elif c in "\"'":
+            quote = c * 3 if text.startswith(c * 3, i) else c
+            j = i + len(quote)
+            while j < n and not text.startswith(quote, j):
+                if c == '"' and text[j] == "\\":
+                    j += 1  # skip the escaped character
+                elif text[j] == "\n":
+                    if len(quote) == 1:
+                        break  # an unterminated one-line string: let the parser report it
+                    line += 1
+                j += 1
+            while len(quote) == 3 and text.startswith(c, j + 3):  # """a"""" ends in a quote
+                j += 1
+            i = j + len(quote)
+            continue
+        elif c in "[{":
+            depth += 1
+            if depth > deepest:
+                deepest, deepest_line = depth, line
+                if stop_above is not None and deepest > stop_above:
+                    break
+        elif c in "]}":
+            depth = max(depth - 1, 0)
+        i += 1
+    return deepest, deepest_line
+
+
+def _check_nesting(text: str, path: str | Path) -> None:
+    deepest, line = nesting_depth(text, stop_above=MAX_NESTING)
+    if deepest > MAX_NESTING:
+        raise ProtocolSyntaxError(
+            f"arrays or inline tables are nested more than {MAX_NESTING} levels deep (the "
+            "limit this reader accepts; a study definition needs 3 or 4); flatten the value",
+            file=path,
+            key=f"line {line}",
+        )
 
 
 def content_hash(raw: Mapping[str, Any]) -> str:

@@ -10,6 +10,18 @@ parameters, session seed and schedule row are fixed by ``(s, i)`` and the store'
 enrolments (rows are planned in the parent, in index order, with ``study.schedule.next_row``),
 so the data do not depend on the number of workers.
 
+Resuming (``resume=True``, ``python -m study simulate --resume``): a killed run is continued
+on the same store with the same arguments. Participants already completed are kept; one left
+unfinished (killed mid-session) is deleted and simulated again from the start with the same
+design row and session seed, and those never enrolled are run. A simulated person's behaviour
+depends on their whole history in the session (learning, fatigue), so redoing them is the only
+way the resumed store holds exactly the data an uninterrupted run would (apart from wall-clock
+stamps and row ids). Only simulated participants are ever deleted.
+
+A store that stops taking writes (full disk, read-only: ``StoreWriteError``) ends the whole run:
+no further participant is started, the report carries the error, and ``resume`` continues once
+the disk is fixed.
+
 Workers (``workers > 1``): processes (``spawn``), each opening its own connection to the same
 SQLite WAL store. The store serialises writers with ``BEGIN IMMEDIATE`` and a busy timeout, and
 samples are batched by each session's ``SampleWriter``, so concurrent sessions are safe.
@@ -86,8 +98,19 @@ class SimulationReport:
     sim_s: float
     errors: list[str] = field(default_factory=list)
     results: list[ParticipantResult] = field(default_factory=list)
+    error: str | None = None
+    """Why the run stopped before its end (a store that took no more writes), else ``None``."""
+    kept: list[str] = field(default_factory=list)
+    """``resume``: participants already completed in the store, left as they were."""
+    redone: list[str] = field(default_factory=list)
+    """``resume``: unfinished participants deleted and simulated again from the start."""
 
     def as_dict(self) -> dict[str, Any]:
+        extra: dict[str, Any] = {}
+        if self.kept or self.redone:
+            extra.update(kept=list(self.kept), redone=list(self.redone))
+        if self.error is not None:
+            extra.update(error=self.error)
         return {
             "participants": self.participants,
             "trials": self.trials,
@@ -99,6 +122,7 @@ class SimulationReport:
             "simulated_s": round(self.sim_s, 1),
             "outcomes": dict(sorted(self.outcomes.items())),
             "errors": list(self.errors),
+            **extra,
         }
 
 
@@ -112,29 +136,82 @@ def session_seed(index: int, *, seed: int) -> int:
     return int(np.random.SeedSequence([seed, index, 3]).generate_state(1)[0] >> 1)
 
 
+@dataclass(frozen=True)
+class Plan:
+    """What a run (or a resumed run) does: ``jobs`` to simulate (``redo``: IDs among them to
+    delete first) and ``kept``: participants already completed, with their session ids."""
+
+    jobs: list[ParticipantJob]
+    redo: list[str] = field(default_factory=list)
+    kept: list[tuple[ParticipantJob, int]] = field(default_factory=list)
+
+
 def plan_jobs(store: Store, *, n: int, seed: int, first: int = 0) -> list[ParticipantJob]:
+    """Participants ``first .. first + n - 1`` for a new run (``plan_run`` without resuming):
+    raises if an ID is already enrolled."""
+    return plan_run(store, n=n, seed=seed, first=first).jobs
+
+
+def plan_run(store: Store, *, n: int, seed: int, first: int = 0, resume: bool = False) -> Plan:
     """Participants ``first .. first + n - 1``: IDs, seeds and design rows continuing the store's
-    enrolment history in index order. Raises if an ID is already enrolled."""
+    enrolment history in index order.
+
+    Without ``resume`` an ID already enrolled is an error. With ``resume`` the design rows are
+    planned from the history as it stood before the first of these participants was enrolled,
+    which is what the interrupted run planned, and every enrolled participant's stored row and
+    seed must match that plan (else this is not the same run: wrong ``--seed`` or ``--first``)."""
     from study.schedule import Enrollment, next_row
 
+    ids = [participant_id(index, seed=seed) for index in range(first, first + n)]
     with store.transaction() as tx:
         history = tx.enrolment_history()
-    taken = {p for p, _, _ in history}
-    entries = [
-        Enrollment(p, withdrawn=status == "withdrawn", row=row) for p, row, status in history
-    ]
-    jobs: list[ParticipantJob] = []
-    for index in range(first, first + n):
-        pid = participant_id(index, seed=seed)
-        if pid in taken:
+    enrolled = {p: (row, status) for p, row, status in history}
+    if not resume:
+        taken = [pid for pid in ids if pid in enrolled]
+        if taken:
             raise SimulationRunError(
-                f"participant {pid} is already in {store.path}; simulate into a new --db, with "
-                f"another --seed, or continue numbering with --first {first + n}"
+                f"participant {taken[0]} is already in {store.path}; continue a killed run with "
+                f"--resume, or simulate into a new --db, with another --seed, or continue "
+                f"numbering with --first {first + n}"
             )
+    ours = set(ids)
+    cut = next((k for k, (p, _, _) in enumerate(history) if p in ours), len(history))
+    entries = [
+        Enrollment(p, withdrawn=status == "withdrawn", row=row) for p, row, status in history[:cut]
+    ]
+    plan = Plan(jobs=[])
+    for index, pid in zip(range(first, first + n), ids, strict=True):
         row = next_row(entries)
         entries.append(Enrollment(pid, withdrawn=False, row=row))
-        jobs.append(ParticipantJob(index, pid, row, session_seed(index, seed=seed)))
-    return jobs
+        job = ParticipantJob(index, pid, row, session_seed(index, seed=seed))
+        if pid not in enrolled:
+            plan.jobs.append(job)
+            continue
+        _check_resumable(store, job, stored_row=enrolled[pid][0])
+        if enrolled[pid][1] == "completed":
+            plan.kept.append((job, store.session(pid).session_id))
+        else:
+            plan.jobs.append(job)
+            plan.redo.append(pid)
+    return plan
+
+
+def _check_resumable(store: Store, job: ParticipantJob, *, stored_row: int) -> None:
+    """Refuse to resume over a participant this run would not have made identically."""
+    demographics = store.demographics(job.participant) or {}
+    session = store.session(job.participant)
+    if not demographics.get("simulated"):
+        raise SimulationRunError(
+            f"participant {job.participant} in {store.path} is not a simulated participant; "
+            "--resume only continues simulated runs and never touches other data"
+        )
+    if (stored_row, session.seed) != (job.schedule_row, job.session_seed):
+        raise SimulationRunError(
+            f"participant {job.participant} in {store.path} was enrolled with design row "
+            f"{stored_row} and session seed {session.seed}, but this run plans row "
+            f"{job.schedule_row} and seed {job.session_seed}: it is not the run being resumed; "
+            "use the original --seed, --first and --participants"
+        )
 
 
 def run_participant(
@@ -150,6 +227,7 @@ def run_participant(
     from study.headless import run_headless
     from study.session import Session
     from study.simulated.participant import SimulatedParticipant
+    from study.store import StoreWriteError
 
     start = time.perf_counter()
     params = load_population(population_path).draw(job.index, seed=seed)
@@ -164,6 +242,7 @@ def run_participant(
         flush_interval_s=SAMPLE_FLUSH_S,
     )
     error: str | None = None
+    fault: StoreWriteError | None = None
     try:
         session.record_event(
             "simulated_participant",
@@ -180,10 +259,17 @@ def run_participant(
             input_factory=person,
             on_trial=(lambda _summary: on_trial()) if on_trial else None,
         )
+    except StoreWriteError as exc:  # the disk, not this participant: the whole run stops
+        fault = exc
     except Exception as exc:  # recorded; the session is closed and the others go on
         error = f"{job.participant}: {type(exc).__name__}: {exc}"
     finally:
-        session.close()
+        try:
+            session.close()
+        except StoreWriteError as exc:
+            fault = fault or exc
+    if fault is not None:
+        raise fault
     return _result(job, store, session.session_id, time.perf_counter() - start, error)
 
 
@@ -249,12 +335,18 @@ def simulate(
     first: int = 0,
     synchronous: str = "NORMAL",
     progress: bool = True,
+    resume: bool = False,
 ) -> SimulationReport:
-    """Simulate ``participants`` people through the protocol into the store at ``db``."""
+    """Simulate ``participants`` people through the protocol into the store at ``db``;
+    ``resume`` continues a killed run with the same arguments (see module docstring).
+
+    A store that takes no more writes stops the run: the report's ``error`` says why, and the
+    participants finished before it are in ``results``."""
     from tqdm import tqdm
 
     from study.protocol import load_protocol
     from study.session import open_store
+    from study.store import StoreWriteError
 
     if participants < 1:
         raise SimulationRunError(f"participants must be at least 1, got {participants}")
@@ -267,13 +359,21 @@ def simulate(
     population_path = Path(population_path)
     load_population(population_path)  # fail early, in the parent, on a bad population file
     protocol = load_protocol(protocol_path)
+    if resume and not Path(db).is_file():
+        raise SimulationRunError(f"no store at {db}; --resume continues a run in its store")
     Path(db).parent.mkdir(parents=True, exist_ok=True)
     store = open_store(db, protocol, synchronous=synchronous)
+    results: list[ParticipantResult] = []
+    fault: str | None = None
     try:
-        jobs = plan_jobs(store, n=participants, seed=seed, first=first)
+        plan = plan_run(store, n=participants, seed=seed, first=first, resume=resume)
+        for pid in plan.redo:
+            store.discard_participant(pid)
+        results += [_result(job, store, sid, 0.0, None) for job, sid in plan.kept]
+        jobs = plan.jobs
         per_person = protocol.training.runs + len(protocol.tasks) * len(protocol.modes)
         bar = tqdm(
-            total=participants * per_person,
+            total=len(jobs) * per_person,
             unit="trial",
             desc=f"simulate {participants} participants",
             file=sys.stderr,
@@ -281,20 +381,24 @@ def simulate(
         )
         with bar:
             if workers == 1:
-                results = [
-                    run_participant(
-                        job,
-                        store=store,
-                        protocol=protocol,
-                        population_path=population_path,
-                        seed=seed,
-                        on_trial=lambda: bar.update(1),
-                    )
-                    for job in jobs
-                ]
-            else:
-                results = _run_pool(
+                try:
+                    for job in jobs:
+                        results.append(
+                            run_participant(
+                                job,
+                                store=store,
+                                protocol=protocol,
+                                population_path=population_path,
+                                seed=seed,
+                                on_trial=lambda: bar.update(1),
+                            )
+                        )
+                except StoreWriteError as exc:
+                    fault = str(exc)
+            elif jobs:
+                fault = _run_pool(
                     jobs,
+                    results,
                     workers=workers,
                     protocol_path=Path(protocol_path),
                     db=Path(db),
@@ -321,11 +425,15 @@ def simulate(
         sim_s=sum(r.sim_s for r in results),
         errors=[r.error for r in results if r.error],
         results=results,
+        error=fault,
+        kept=[job.participant for job, _ in plan.kept],
+        redone=list(plan.redo),
     )
 
 
 def _run_pool(
     jobs: list[ParticipantJob],
+    results: list[ParticipantResult],
     *,
     workers: int,
     protocol_path: Path,
@@ -334,10 +442,14 @@ def _run_pool(
     seed: int,
     synchronous: str,
     bar: Any,
-) -> list[ParticipantResult]:
+) -> str | None:
+    """Run ``jobs`` in worker processes, appending to ``results``; returns the store fault that
+    stopped the run (queued participants are then not started), else ``None``."""
+    from study.store import StoreWriteError
+
     ctx = mp.get_context("spawn")
     ticks = ctx.Queue()
-    results: list[ParticipantResult] = []
+    fault: str | None = None
     with ProcessPoolExecutor(
         max_workers=min(workers, len(jobs)),
         mp_context=ctx,
@@ -349,9 +461,16 @@ def _run_pool(
             done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
             _drain(ticks, bar)
             for future in done:
-                results.append(future.result())
+                if future.cancelled():
+                    continue
+                try:
+                    results.append(future.result())
+                except StoreWriteError as exc:
+                    fault = fault or str(exc)
+                    for other in pending:
+                        other.cancel()
         _drain(ticks, bar)
-    return results
+    return fault
 
 
 def _drain(ticks: Any, bar: Any) -> None:

@@ -17,6 +17,9 @@ from study.store.errors import (
     SchemaVersionError,
     SessionLockedError,
     StoreError,
+    StoreFullError,
+    StoreNotWritableError,
+    StoreWriteError,
     UnknownParticipantError,
 )
 from study.store.opening import changed_sections
@@ -59,7 +62,10 @@ __all__ = [
     "SessionRecord",
     "Store",
     "StoreError",
+    "StoreFullError",
     "StoreMeta",
+    "StoreNotWritableError",
+    "StoreWriteError",
     "Transaction",
     "TrialRecord",
     "UnknownParticipantError",

@@ -23,6 +23,33 @@ class ReadOnlyStoreError(StoreError):
     """A write was attempted on a store opened read-only."""
 
 
+class StoreWriteError(StoreError):
+    """The file system refused a write (disk full, read-only file or folder, I/O error).
+
+    Nothing of the refused write was kept; what was committed before is intact. The cause is
+    outside the program, so the message names the store and what to do; a session can be
+    continued (``--resume``, or re-opening it in the server) once it is fixed.
+
+    Attributes:
+        path: the store file.
+    """
+
+    def __init__(self, message: str, *, path: object = None) -> None:
+        super().__init__(message)
+        self.path = path
+
+
+class StoreFullError(StoreWriteError):
+    """The disk (or the file's size limit) is full: SQLite's "database or disk is full"."""
+
+
+class StoreNotWritableError(StoreWriteError):
+    """The store file or its folder cannot be written (read-only file, folder or file system).
+
+    SQLite keeps a store's journal (``-wal``, ``-shm``) beside the file, so the folder must be
+    writable too, not only the file."""
+
+
 class InvalidParticipantIdError(StoreError, ValueError):
     """A participant ID is not a short pseudonym (letters, digits, '-', '_')."""
 

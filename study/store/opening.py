@@ -11,14 +11,21 @@ import sqlite3
 import tomllib
 from pathlib import Path
 
+from study.store import faults
 from study.store.errors import NotAStoreError, ProtocolMismatchError, SchemaVersionError, StoreError
 from study.store.records import StoreMeta
 from study.store.schema import DDL, MIGRATIONS, READABLE_VERSIONS, SCHEMA_VERSION
 from study.store.values import now_iso
 
 
-def connect(path: Path, *, readonly: bool, busy_timeout_s: float) -> sqlite3.Connection:
+def connect(
+    path: Path, *, readonly: bool, busy_timeout_s: float, immutable: bool = False
+) -> sqlite3.Connection:
+    """A connection to ``path``; ``immutable`` (read-only only) tells SQLite nobody writes the
+    file, so it needs no journal files beside it (a store in a read-only folder)."""
     uri = f"file:{path.resolve()}?mode={'ro' if readonly else 'rwc'}"
+    if immutable:
+        uri += "&immutable=1"
     try:
         conn = sqlite3.connect(
             uri, uri=True, isolation_level=None, check_same_thread=False, timeout=busy_timeout_s
@@ -33,9 +40,13 @@ def read_meta(conn: sqlite3.Connection, path: Path) -> StoreMeta | None:
     try:
         names = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
     except sqlite3.DatabaseError as exc:
-        raise NotAStoreError(
-            f"{path} is not a SQLite database ({exc}); check the store path"
-        ) from exc
+        # Only these codes mean the bytes are not a database; anything else (a folder it may
+        # not write its journal into, a full disk) is about the file system, not the file.
+        if faults.primary_code(exc) in (faults.SQLITE_NOTADB, faults.SQLITE_CORRUPT):
+            raise NotAStoreError(
+                f"{path} is not a SQLite database ({exc}); check the store path"
+            ) from exc
+        raise faults.write_error(path, exc) from exc
     if not names:
         return None
     if "schema_version" not in names:

@@ -32,13 +32,15 @@ from typing import Any
 
 import pandas as pd
 
+from study.store import faults, opening
 from study.store import lease as lease_mod
-from study.store import opening
 from study.store.errors import (
     NotAStoreError,
     ReadOnlyStoreError,
     SessionLockedError,
     StoreError,
+    StoreNotWritableError,
+    StoreWriteError,
     UnknownParticipantError,
 )
 from study.store.orphans import ORPHAN_NOTE, STALE_AFTER_S, Orphan, orphaned_trials
@@ -67,10 +69,19 @@ class Store:
     ``Store.open_readonly`` (export and analysis; any protocol)."""
 
     def __init__(
-        self, conn: sqlite3.Connection, *, path: Path, meta: StoreMeta, readonly: bool
+        self,
+        conn: sqlite3.Connection,
+        *,
+        path: Path,
+        meta: StoreMeta,
+        readonly: bool,
+        busy_timeout_s: float = 10.0,
     ) -> None:
         self._conn = conn
         self._lock = threading.RLock()
+        self._samples_conn: sqlite3.Connection | None = None
+        self._samples_lock = threading.Lock()
+        self._busy_timeout_s = busy_timeout_s
         self.path = path
         self.meta = meta
         self.readonly = readonly
@@ -105,6 +116,9 @@ class Store:
         p = Path(path)
         if p.parent and not p.parent.exists():
             raise StoreError(f"cannot create store {p}: directory {p.parent} does not exist")
+        # Before SQLite: it reports a folder it cannot write its journal into as "unable to open
+        # database file", which reads like a damaged store.
+        faults.check_writable(p)
         conn = opening.connect(p, readonly=False, busy_timeout_s=busy_timeout_s)
         try:
             meta = opening.read_meta(conn, p)
@@ -125,10 +139,13 @@ class Store:
             meta = opening.migrate(conn, meta)
             if protocol_text is not None and opening.stored_text(conn, protocol_hash) is None:
                 opening.record_protocol(conn, meta, protocol_text)
+        except sqlite3.Error as exc:  # a disk that fills up or turns read-only while opening
+            conn.close()
+            raise faults.write_error(p, exc) from exc
         except BaseException:
             conn.close()
             raise
-        return cls(conn, path=p, meta=meta, readonly=False)
+        return cls(conn, path=p, meta=meta, readonly=False, busy_timeout_s=busy_timeout_s)
 
     @classmethod
     def open_readonly(cls, path: str | os.PathLike[str]) -> Store:
@@ -138,7 +155,25 @@ class Store:
             raise StoreError(f"no store at {p}: the file does not exist; check the store path")
         conn = opening.connect(p, readonly=True, busy_timeout_s=10.0)
         try:
-            meta = opening.read_meta(conn, p)
+            try:
+                meta = opening.read_meta(conn, p)
+            except StoreWriteError:
+                # SQLite could not create the journal index (-shm) beside the file: a store in
+                # a read-only folder. Nobody can write there, so read it as immutable -- unless
+                # a journal (-wal) holds commits that reading the file alone would miss.
+                conn.close()
+                wal = p.with_name(p.name + "-wal")
+                if faults.folder_problem(p.parent) is None:
+                    raise
+                if wal.exists() and wal.stat().st_size > 0:
+                    raise StoreNotWritableError(
+                        f"{p} lies in a read-only folder beside its journal {wal.name}, which "
+                        "holds commits SQLite cannot merge here; copy the folder (all "
+                        f"{p.name}* files) somewhere writable and read the copy",
+                        path=p,
+                    ) from None
+                conn = opening.connect(p, readonly=True, busy_timeout_s=10.0, immutable=True)
+                meta = opening.read_meta(conn, p)
             if meta is None:
                 raise NotAStoreError(f"{p} is an empty SQLite file, not a study store")
         except BaseException:
@@ -148,7 +183,10 @@ class Store:
 
     def close(self) -> None:
         """Close the connection (idempotent)."""
-        with self._lock:
+        with self._lock, self._samples_lock:
+            if self._samples_conn is not None:
+                self._samples_conn.close()
+                self._samples_conn = None
             if self._conn is not None:
                 self._conn.close()
                 self._conn = None  # type: ignore[assignment]
@@ -196,17 +234,57 @@ class Store:
                     if conn.in_transaction:
                         conn.execute("ROLLBACK")
                     raise
-            except sqlite3.Error as exc:
-                raise StoreError(
-                    f"store {self.path}: {exc} (nothing of this write was kept)"
-                ) from exc
+            except sqlite3.Error as exc:  # disk full, read-only, locked, constraint
+                raise faults.write_error(self.path, exc) from exc
 
     def insert_samples(self, rows: Sequence[Sequence[Any]]) -> None:
-        """Insert sample rows (``SAMPLE_COLUMNS`` order) in one transaction with ``executemany``."""
+        """Insert sample rows (``SAMPLE_COLUMNS`` order) in one transaction with ``executemany``.
+
+        Samples go through a second connection of their own, with ``synchronous=NORMAL``: a
+        batch's commit does not wait for the session's lock (held through other commits) and
+        does not fsync. Durability given up, and why it is bounded: a killed process loses
+        nothing committed (the WAL is in the OS's cache), but a power cut or OS crash may lose
+        the sample batches committed since the WAL was last synced -- and every commit of the
+        main connection (``synchronous=FULL`` by default) syncs it, including the earlier
+        batches: each session's lease heartbeat (every 2 s), every trial end (after its samples
+        are flushed), answer and event. Several concurrent sessions each fsyncing ten times a
+        second held sample batches up to a second apart on a loaded 2-core machine."""
         if not rows:
             return
-        with self.transaction() as tx:
-            tx.cur.executemany(_INSERT_SAMPLE, rows)
+        if self.readonly:
+            raise ReadOnlyStoreError(f"store {self.path} was opened read-only")
+        with self._samples_lock:
+            conn = self._sample_connection()
+            try:
+                conn.execute("BEGIN IMMEDIATE")
+                try:
+                    conn.executemany(_INSERT_SAMPLE, rows)
+                    conn.execute("COMMIT")
+                except BaseException:
+                    if conn.in_transaction:
+                        conn.execute("ROLLBACK")
+                    raise
+            except sqlite3.Error as exc:
+                raise faults.write_error(self.path, exc) from exc
+
+    def _sample_connection(self) -> sqlite3.Connection:
+        """The samples' own connection (opened on first use; see ``insert_samples``)."""
+        if self._samples_conn is None:
+            if self._conn is None:
+                raise StoreError(f"store {self.path} is closed")
+            conn = opening.connect(self.path, readonly=False, busy_timeout_s=self._busy_timeout_s)
+            try:
+                conn.execute("PRAGMA synchronous=NORMAL")
+                conn.execute("PRAGMA foreign_keys=ON")
+                # Checkpoints (copying the WAL into the file, with fsyncs) run on the main
+                # connection's commits -- a heartbeat at least every 2 s per session -- never
+                # inside a sample batch's commit, which the next batch would wait for.
+                conn.execute("PRAGMA wal_autocheckpoint=0")
+            except sqlite3.Error as exc:
+                conn.close()
+                raise faults.write_error(self.path, exc) from exc
+            self._samples_conn = conn
+        return self._samples_conn
 
     # ---- leases -------------------------------------------------------------------------------
     def acquire_lease(self, participant: str, *, stale_after_s: float = STALE_AFTER_S) -> Lease:
@@ -219,29 +297,7 @@ class Store:
         pid = os.getpid()
         with self.transaction() as tx:
             tx.require_participant(participant)
-            row = tx.cur.execute(
-                "SELECT token, pid, host, process_start, acquired_at, heartbeat_at FROM leases "
-                "WHERE participant = ?",
-                (participant,),
-            ).fetchone()
-            took_over = None
-            if row is not None:
-                _, holder_pid, host, started, acquired_at, heartbeat_at = row
-                age = time.time() - heartbeat_at
-                if (host == lease_mod.HOST and holder_pid == pid) or lease_mod.holder_is_live(
-                    pid=holder_pid,
-                    host=host,
-                    started=started,
-                    heartbeat_age_s=age,
-                    stale_after_s=stale_after_s,
-                ):
-                    where = "this process" if holder_pid == pid else f"process {holder_pid}"
-                    raise SessionLockedError(
-                        f"participant {participant}'s session is already open in {where} on "
-                        f"{host} (since {acquired_at}, last heartbeat {age:.1f} s ago); close it "
-                        "there first, or wait for that process to exit"
-                    )
-                took_over = {"pid": holder_pid, "host": host, "acquired_at": acquired_at}
+            took_over = _require_no_live_holder(tx, participant, stale_after_s=stale_after_s)
             tx.cur.execute(
                 "INSERT OR REPLACE INTO leases VALUES (?, ?, ?, ?, ?, ?, ?)",
                 (
@@ -255,6 +311,36 @@ class Store:
                 ),
             )
         return Lease(participant=participant, token=token, pid=pid, took_over=took_over)
+
+    def discard_participant(
+        self, participant: str, *, stale_after_s: float = STALE_AFTER_S
+    ) -> dict[str, int]:
+        """Delete everything stored for ``participant`` (samples, trials, ratings, events,
+        schedule, session, demographics, enrolment) in one transaction; returns rows deleted
+        per table.
+
+        Only for data that can be made again exactly -- ``study simulate --resume`` uses it to
+        redo a simulated participant whose run was killed, so the resumed store matches an
+        uninterrupted one. Raises ``SessionLockedError`` while a live process holds the
+        participant's session, and ``UnknownParticipantError`` if they are not enrolled."""
+        with self.transaction() as tx:
+            tx.require_participant(participant)
+            _require_no_live_holder(tx, participant, stale_after_s=stale_after_s)
+            deleted = {
+                "samples": tx.cur.execute(
+                    "DELETE FROM samples WHERE trial_id IN "
+                    "(SELECT trial_id FROM trials WHERE participant = ?)",
+                    (participant,),
+                ).rowcount
+            }
+            for table in (
+                "ratings", "events", "trials", "leases", "assignments", "sessions",
+                "demographics", "participants",
+            ):  # fmt: skip
+                deleted[table] = tx.cur.execute(
+                    f"DELETE FROM {table} WHERE participant = ?", (participant,)
+                ).rowcount
+        return deleted
 
     def heartbeat(self, lease: Lease) -> None:
         """Refresh ``lease``; raises ``SessionLockedError`` if another process took it over."""
@@ -418,6 +504,37 @@ class Store:
 
 
 # ---- helpers ------------------------------------------------------------------------------------
+def _require_no_live_holder(
+    tx: Transaction, participant: str, *, stale_after_s: float
+) -> dict[str, Any] | None:
+    """Raise ``SessionLockedError`` while a live process (or this one) holds ``participant``'s
+    lease; returns the dead holder's ``{pid, host, acquired_at}``, or ``None`` if no lease."""
+    row = tx.cur.execute(
+        "SELECT token, pid, host, process_start, acquired_at, heartbeat_at FROM leases "
+        "WHERE participant = ?",
+        (participant,),
+    ).fetchone()
+    if row is None:
+        return None
+    pid = os.getpid()
+    _, holder_pid, host, started, acquired_at, heartbeat_at = row
+    age = time.time() - heartbeat_at
+    if (host == lease_mod.HOST and holder_pid == pid) or lease_mod.holder_is_live(
+        pid=holder_pid,
+        host=host,
+        started=started,
+        heartbeat_age_s=age,
+        stale_after_s=stale_after_s,
+    ):
+        where = "this process" if holder_pid == pid else f"process {holder_pid}"
+        raise SessionLockedError(
+            f"participant {participant}'s session is already open in {where} on "
+            f"{host} (since {acquired_at}, last heartbeat {age:.1f} s ago); close it "
+            "there first, or wait for that process to exit"
+        )
+    return {"pid": holder_pid, "host": host, "acquired_at": acquired_at}
+
+
 def _where(
     sql: str, *, participant: str | None, session_id: int | None
 ) -> tuple[str, tuple[Any, ...]]:

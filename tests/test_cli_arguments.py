@@ -1,0 +1,150 @@
+"""Command-line values that would break a run later are refused at the command line, by flag.
+
+A rate of 0 froze the participant's scene at its first frame, ``--port 99999`` ended in a
+traceback, and a protocol with 5,000 nested arrays in a ``RecursionError``; each now ends in
+argparse's usage error (exit code 2, no traceback) or a typed ``ProtocolError``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from app.cli import non_negative_float, port, rate_hz
+from app.ui import serve
+from study.protocol import ProtocolSyntaxError, load_protocol, parse_protocol
+from study.protocol.loader import MAX_NESTING, nesting_depth
+
+ROOT = Path(__file__).resolve().parents[1]
+APP = (sys.executable, "-m", "app")
+
+
+def serve_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="python -m app serve")
+    serve.add_arguments(parser)
+    return parser
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--render-hz", "0"], "argument --render-hz: must be a rate above 0 and at most 60"),
+        (["--render-hz", "-5"], "argument --render-hz: must be a rate above 0"),
+        (["--render-hz", "nan"], "argument --render-hz: must be a rate above 0"),
+        (["--render-hz", "inf"], "argument --render-hz: must be a rate above 0"),
+        (["--render-hz", "61"], "at most 60 per second, got 61"),
+        (["--render-hz", "fast"], "argument --render-hz: must be a number, got 'fast'"),
+        (["--port", "99999"], "argument --port: must be a TCP port from 1 to 65535"),
+        (["--port", "-1"], "argument --port: must be a TCP port"),
+        (["--port", "80.5"], "argument --port: must be a port number, got '80.5'"),
+        (["--experimenter-port", "65536"], "argument --experimenter-port: must be a TCP port"),
+    ],
+)
+def test_serve_refuses_bad_rates_and_ports(
+    argv: list[str], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as exit_:
+        serve_parser().parse_args(argv)
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert message in err
+    assert "Traceback" not in err
+
+
+def test_serve_accepts_the_edges() -> None:
+    args = serve_parser().parse_args(
+        ["--render-hz", "60", "--port", "0", "--experimenter-port", "65535"]
+    )
+    assert (args.render_hz, args.port, args.experimenter_port) == (60.0, 0, 65535)
+    assert serve_parser().parse_args(["--render-hz", "0.5"]).render_hz == 0.5
+
+
+def test_serve_refuses_one_port_for_both_views(tmp_path: Path) -> None:
+    """Checked before anything is opened: no store file appears."""
+    proc = subprocess.run(
+        [*APP, "serve", "--port", "8123", "--experimenter-port", "8123", "--db", str(tmp_path)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode == 2
+    assert "--port and --experimenter-port are both 8123" in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert not any(tmp_path.iterdir())
+
+
+def test_serve_port_error_end_to_end() -> None:
+    """The real command line: one line of usage error, no traceback."""
+    proc = subprocess.run(
+        [*APP, "serve", "--port", "99999"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode == 2
+    assert "argument --port: must be a TCP port from 1 to 65535" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_argument_types() -> None:
+    assert port("8080") == 8080
+    assert rate_hz(100.0)("100") == 100.0
+    assert non_negative_float("0") == 0.0
+    for parse, text in [
+        (port, "65536"),
+        (rate_hz(100.0), "0"),
+        (rate_hz(100.0), "100.01"),
+        (non_negative_float, "-0.1"),
+        (non_negative_float, "nan"),
+    ]:
+        with pytest.raises(argparse.ArgumentTypeError):
+            parse(text)
+
+
+def test_trial_noise_must_be_finite_and_non_negative(capsys: pytest.CaptureFixture[str]) -> None:
+    from app.trial import cli as trial_cli
+
+    parser = argparse.ArgumentParser()
+    trial_cli.add_arguments(parser)
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--noise", "nan"])
+    assert "argument --noise: must be a finite number >= 0, got nan" in capsys.readouterr().err
+
+
+# ---- protocol nesting ---------------------------------------------------------------------------
+def test_deeply_nested_protocol_is_a_typed_error_not_a_recursion_error(tmp_path: Path) -> None:
+    path = tmp_path / "deep.toml"
+    path.write_text("schema = 1\n\nx = " + "[" * 5000 + "]" * 5000 + "\n", encoding="utf-8")
+    with pytest.raises(ProtocolSyntaxError) as exc:
+        load_protocol(path)
+    assert exc.value.key == "line 3"
+    assert f"nested more than {MAX_NESTING} levels deep" in exc.value.problem
+    assert str(path) in str(exc.value)
+
+
+def test_deep_inline_tables_are_refused_too() -> None:
+    text = "x = " + "{a = " * 1000 + "1" + "}" * 1000
+    with pytest.raises(ProtocolSyntaxError, match="nested more than"):
+        parse_protocol(text)
+
+
+def test_the_limit_leaves_real_protocols_alone() -> None:
+    text = (ROOT / "protocols" / "dragan2013.toml").read_text(encoding="utf-8")
+    depth, _ = nesting_depth(text)
+    assert depth < MAX_NESTING
+    # brackets inside strings and comments are not nesting
+    assert nesting_depth('a = "[[[[" # [[[[\nb = \'[[\'\nc = """\n[[[\n"""\nd = [[1]]') == (2, 6)
+
+
+def test_nesting_at_the_limit_reaches_the_validator() -> None:
+    """32 levels parse (the key is then refused as unknown, by name); 33 do not."""
+    with pytest.raises(Exception, match="unknown key 'x'"):
+        parse_protocol("x = " + "[" * MAX_NESTING + "]" * MAX_NESTING)
+    with pytest.raises(ProtocolSyntaxError, match="nested more than"):
+        parse_protocol("x = " + "[" * (MAX_NESTING + 1) + "]" * (MAX_NESTING + 1))

@@ -1,0 +1,216 @@
+"""``python -m study simulate --resume`` continues a killed or failed simulation, and the store
+ends up with the data an uninterrupted run with the same seed writes.
+
+The kill is real: a ``python -m study simulate`` process is sent SIGKILL while it is writing a
+participant's trials. The full disk is SQLite's own ``SQLITE_FULL`` (a capped ``max_page_count``
+on the connection the command opens). Either way, the resumed store is compared with an
+uninterrupted run's -- participants, schedule rows, seeds, trials, every sample value, ratings
+and event kinds -- leaving out only wall-clock stamps and row ids.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import study.session
+from app.cli import dispatch
+from study.__main__ import COMMANDS
+from study.simulated import simulate
+from study.store import Store
+from tests.disk_full import cap
+from tests.protocol_copies import short_protocol
+
+pytestmark = pytest.mark.slow
+
+ROOT = Path(__file__).resolve().parents[1]
+PARTICIPANTS = 6
+SEED = 4
+
+
+@pytest.fixture(scope="module")
+def protocol(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return short_protocol(tmp_path_factory.mktemp("protocol"), training_runs=1)
+
+
+@pytest.fixture(scope="module")
+def reference(protocol: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    db = tmp_path_factory.mktemp("reference") / "sim.db"
+    report = simulate(
+        protocol_path=protocol, db=db, participants=PARTICIPANTS, seed=SEED, progress=False
+    )
+    assert report.errors == [] and report.error is None
+    return content(db)
+
+
+def content(db: Path) -> dict[str, Any]:
+    """Everything a run writes, keyed by participant and step, without timestamps and ids."""
+    with Store.open_readonly(db) as store:
+        assert store.integrity_check() == "ok"
+        key = {t.trial_id: (t.participant, t.step, t.attempt) for t in store.trials()}
+        samples = store.samples()
+        digests = {}
+        for trial_id, rows in samples.groupby("trial_id"):
+            values = rows.drop(columns=["trial_id"]).to_csv(index=False)
+            digests[key[int(trial_id)]] = hashlib.sha256(values.encode()).hexdigest()
+        return {
+            "participants": [(p.participant, p.schedule_row) for p in store.participants()],
+            "demographics": {
+                p.participant: store.demographics(p.participant) for p in store.participants()
+            },
+            "sessions": sorted(
+                (s.participant, s.status, s.cursor, s.seed) for s in store.sessions()
+            ),
+            "trials": sorted(
+                (
+                    t.participant,
+                    t.step,
+                    t.attempt,
+                    t.task,
+                    t.mode,
+                    t.run,
+                    t.seed,
+                    t.status,
+                    t.outcome,
+                    t.success,
+                    t.duration_s,
+                    t.ticks,
+                    t.target,
+                )
+                for t in store.trials()
+            ),
+            "samples": digests,
+            "ratings": sorted(
+                (r.participant, r.step, r.item, r.value, key.get(r.trial_id))
+                for r in store.ratings()
+            ),
+            "events": sorted(
+                (e.participant or "", e.kind) for e in store.events() if e.kind != "close"
+            ),
+        }
+
+
+def progress(db: Path) -> tuple[int, int]:
+    """(trial rows, completed sessions) as another process sees the file; (0, 0) before it
+    has a schema."""
+    try:
+        conn = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=5)
+        try:
+            trials = conn.execute("SELECT count(*) FROM trials").fetchone()[0]
+            done = conn.execute(
+                "SELECT count(*) FROM sessions WHERE status = 'completed'"
+            ).fetchone()[0]
+        finally:
+            conn.close()
+    except sqlite3.Error:
+        return 0, 0
+    return int(trials), int(done)
+
+
+def cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, dict[str, Any], str]:
+    code = dispatch("python -m study", "", COMMANDS, ["simulate", *argv])
+    out, err = capsys.readouterr()
+    lines = out.strip().splitlines()
+    assert len(lines) == 1, out
+    return code, json.loads(lines[0]), err
+
+
+def test_killed_simulation_resumes_to_the_uninterrupted_data(
+    protocol: Path,
+    reference: dict[str, Any],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    db = tmp_path / "sim.db"
+    args = [
+        "--protocol",
+        str(protocol),
+        "--db",
+        str(db),
+        "--participants",
+        str(PARTICIPANTS),
+        "--seed",
+        str(SEED),
+        "--no-progress",
+    ]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "study", "simulate", *args],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while progress(db)[0] < 20 and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.01)
+        assert proc.poll() is None, "the simulation ended before it could be killed"
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    trials, completed = progress(db)
+    assert 0 < completed < PARTICIPANTS and trials >= 20
+
+    # re-running without --resume refuses, and says how to continue
+    code, summary, err = cli(capsys, *args)
+    assert code == 2 and "--resume" in summary["error"] and "continue a killed run" in err
+
+    code, summary, err = cli(capsys, *args, "--resume")
+    assert code == 0, err
+    assert summary["participants"] == PARTICIPANTS and summary["errors"] == []
+    assert len(summary["kept"]) == completed
+    assert len(summary["redone"]) == 1  # the one being written when the process died
+    assert content(db) == reference
+
+
+def test_simulation_on_a_full_disk_reports_it_and_resumes(
+    protocol: Path,
+    reference: dict[str, Any],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    db = tmp_path / "sim.db"
+    args = [
+        "--protocol",
+        str(protocol),
+        "--db",
+        str(db),
+        "--participants",
+        str(PARTICIPANTS),
+        "--seed",
+        str(SEED),
+        "--no-progress",
+    ]
+    real = study.session.open_store
+
+    def open_capped(path: Any, protocol: Any, **kw: Any) -> Store:
+        store = real(path, protocol, **kw)
+        cap(store, extra_pages=1500)
+        return store
+
+    with monkeypatch.context() as patch:
+        patch.setattr(study.session, "open_store", open_capped)
+        code, summary, err = cli(capsys, *args)
+    assert code == 2
+    assert "the disk is full" in summary["error"]
+    assert 0 < summary["participants"] < PARTICIPANTS  # those finished before the disk filled
+    assert "error: " in err and "Traceback" not in err
+    with Store.open_readonly(db) as store:
+        assert store.integrity_check() == "ok"
+
+    code, summary, err = cli(capsys, *args, "--resume")
+    assert code == 0, err
+    assert summary["participants"] == PARTICIPANTS and "error" not in summary
+    assert content(db) == reference
