@@ -24,6 +24,7 @@ import websockets
 
 from app.ui.join import ALPHABET, CODE_LENGTH
 from app.ui.server import JOIN_FAILED, JOIN_THROTTLED
+from tests import disk_full
 from tests.browser.harness import RunningServer, run_async, start_server, wait_until
 from tests.test_ui_malformed import AGREE, RawClient
 
@@ -309,3 +310,43 @@ def test_an_unknown_message_type_is_dropped_and_the_client_keeps_working(
     run_async(scenario())
     assert srv.firewall.dropped["FileTransferStartUpload is not accepted here"] == 1
     assert viser.__version__.startswith("1.1.")
+
+
+def test_a_full_disk_mid_trial_holds_the_trial_and_loses_no_sample(tmp_path: Path) -> None:
+    """The store stops taking writes while a participant steers: the trial is held (its clock
+    stops), the page asks to wait, the console names the fault; once space is back the
+    experimenter resumes and the completed trial has every tick's sample."""
+    rs = start_server(tmp_path, time_limit_s=4.0, training_runs=1)
+    srv = rs.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+    live = srv.session(code)
+
+    async def scenario() -> None:
+        async with RawClient(srv.participant_port) as c:
+            await _running(c, code)
+            assert wait_until(lambda: live._run is not None and live._run.trial.t > 0.5)
+            disk_full.cap(rs.store, extra_pages=0)
+            try:
+                assert wait_until(lambda: live.fault is not None, timeout=10)
+                held = live._run.trial.t
+                await asyncio.sleep(1.0)
+                assert live._run.trial.t == pytest.approx(held, abs=0.02)  # the clock stopped
+                assert any("experimenter will continue" in t for t in _markdown(c))
+                detail = srv.detail(code)
+                assert detail is not None and "full" in (detail.fault or "").lower()
+            finally:
+                disk_full.uncap(rs.store)
+            srv.act(code, "resume")
+            await c.button("Continue")  # the run went on to its time limit
+
+    try:
+        run_async(scenario())
+        trial = next(t for t in rs.store.trials() if t.status == "completed")
+        assert trial.duration_s == pytest.approx(4.0, abs=0.05)
+        assert rs.store.sample_count(trial.trial_id) == trial.ticks
+        assert trial.ticks == pytest.approx(400, abs=2)
+        faults = [e for e in rs.store.events() if e.kind == "control_fault"]
+        assert len(faults) == 1 and "full" in str(faults[0].detail).lower()
+    finally:
+        rs.stop()

@@ -91,6 +91,7 @@ class LiveSession:
         self._outcome: str | None = None
         self._input_paused = False
         self._render_lock = threading.Lock()
+        self._unrecorded_fault: dict[str, Any] | None = None
         self._plot_lock = threading.Lock()
         self._plot: deque[tuple[float, float, float, np.ndarray]] = deque(maxlen=PLOT_WINDOW)
         self.goal_names: tuple[str, ...] = ()
@@ -122,22 +123,26 @@ class LiveSession:
     def scene_view(self) -> SceneView | None:
         return self._view
 
-    def _event(self, kind: str, detail: Mapping[str, Any]) -> None:
+    def _event(self, kind: str, detail: Mapping[str, Any]) -> bool:
         """Append an event to the session's log (UI events: tabs, refusals, rejected input),
-        through ``Session.record_event``: written only while this process holds the lease."""
+        through ``Session.record_event``: written only while this process holds the lease.
+        False when the store refused it (it is in the server log then)."""
         from study.session import SessionClosedError
 
         where = detail.get("address")
         self.log.append(f"{time.strftime('%H:%M:%S')} {kind}" + (f" ({where})" if where else ""))
         if self._stop.is_set():
-            return  # shutting down: the store may already be closed
+            return False  # shutting down: the store may already be closed
         try:
             self.session.record_event(kind, detail)
         except SessionClosedError as exc:
             # finished and released, or taken over by another process: not ours to log into
             LOGGER.info("event %s not recorded: %s", kind, exc)
+            return False
         except Exception:
             LOGGER.exception("could not record event %s", kind)
+            return False
+        return True
 
     # -- tabs ----------------------------------------------------------------------------------
     def attach(self, page: ParticipantPage) -> None:
@@ -299,7 +304,9 @@ class LiveSession:
         LOGGER.error("session %s: control tick failed: %s", self.code, problem, exc_info=exc)
         self.fault = problem
         self._pause_input()
-        self._event("control_fault", {"trial_id": getattr(run, "trial_id", None), "error": problem})
+        detail = {"trial_id": getattr(run, "trial_id", None), "error": problem}
+        if not self._event("control_fault", detail):
+            self._unrecorded_fault = detail  # written once the store takes writes again
         try:
             if not run.paused and not run.over:
                 self.session.pause()
@@ -569,8 +576,18 @@ class LiveSession:
             getattr(s, action)(reason=reason or f"{action} by the experimenter")
         elif action in ("start", "pause", "resume"):
             if action == "resume":
+                self._store_takes_writes()
+                if self._unrecorded_fault is not None:
+                    late, self._unrecorded_fault = self._unrecorded_fault, None
+                    self._event("control_fault", {**late, "recorded_late": True})
                 self._disconnect_paused = False
-                self.fault = None
+                had_fault, self.fault = self.fault, None
+                run = self._run
+                if had_fault and run is not None and not run.over and not run.paused:
+                    # the fault left the session unpaused (a full disk refuses the pause's
+                    # own event): ticking again is the whole resume
+                    self._dirty.set()
+                    return f"{time.strftime('%H:%M:%S')} resume: control loop running again"
             elif action == "pause":
                 self._pause_input()
             getattr(s, action)()
@@ -578,6 +595,18 @@ class LiveSession:
             raise ValueError(f"unknown action {action!r}; use one of start, pause, resume, ...")
         self._dirty.set()
         return f"{time.strftime('%H:%M:%S')} {action}: done"
+
+    def _store_takes_writes(self, *, wait_s: float = 1.0) -> None:
+        """Raise while the store still refuses this session's samples (a full or read-only
+        disk); the writer retries every batch period, so give it ``wait_s`` to catch up."""
+        deadline = time.monotonic() + wait_s
+        while (error := getattr(self.session, "samples_error", None)) is not None:
+            if time.monotonic() > deadline:
+                raise RuntimeError(
+                    f"the store still refuses writes ({error}); free space or fix the folder,"
+                    " then resume again"
+                )
+            time.sleep(0.05)
 
     def summary(self) -> SessionSummary:
         o = self.session.overview()
@@ -636,7 +665,7 @@ class LiveSession:
             probabilities=probs,
             goal_names=self.goal_names,
             log=tuple(self.log),
-            fault=self.fault,
+            fault=self.fault or _text(getattr(self.session, "samples_error", None)),
             trials=self._trial_rows(),
         )
 
@@ -667,6 +696,10 @@ class LiveSession:
                 loop.stop()
         with contextlib.suppress(Exception):
             self.session.close()
+
+
+def _text(error: BaseException | None) -> str | None:
+    return None if error is None else f"{type(error).__name__}: {error}"[:300]
 
 
 SessionFactory = Callable[..., LiveSession]

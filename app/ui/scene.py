@@ -27,6 +27,9 @@ from app.robot.task_view import TaskViewError, task_view
 
 LOGGER = logging.getLogger("app.ui.scene")
 
+ORBIT_MIN_M = 0.25
+ORBIT_MAX_M = 2.5
+
 _KEEP = frozenset({"", "fixed_bodies", "bodies"})
 
 
@@ -123,6 +126,9 @@ def frame_scene(camera: viser.CameraHandle, scene: Any) -> None:
     camera.up_direction = view.up
     camera.position = view.position
     camera.look_at = view.look_at
+    # zoom stays between a close look at the gripper and the whole table in view
+    camera.min_orbit_distance = ORBIT_MIN_M
+    camera.max_orbit_distance = max(ORBIT_MAX_M, 1.5 * view.distance)
 
 
 class SceneView:
