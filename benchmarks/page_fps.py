@@ -71,7 +71,7 @@ def main() -> int:
             join(page, code)
             page.get_by_role("button", name=AGREE).click()
             page.get_by_role("button", name="Start").click()
-            page.get_by_text("Grasp / release").wait_for()
+            page.get_by_role("button", name="Close the gripper (G)").wait_for()
             page.wait_for_timeout(3000)  # the scene's first draw
             stop = threading.Event()
             feeder = threading.Thread(target=feed_gizmo, args=(live, stop), daemon=True)

@@ -8,7 +8,13 @@ import pytest
 from app.teleop import ReachRegion, TrialObservation
 from app.teleop.errors import InvalidTargetError
 from app.ui.inputs import InputFrozen, ParticipantInput
-from app.ui.participant import InputRejected, LikertItem, parse_answer, parse_position
+from app.ui.participant import (
+    InputRejected,
+    LikertItem,
+    parse_answer,
+    parse_key_state,
+    parse_position,
+)
 
 REACH = ReachRegion(np.array([0.2, -0.5, 0.0]), np.array([0.75, 0.5, 0.6]))
 
@@ -87,3 +93,11 @@ def test_answers_must_be_on_the_scale() -> None:
             parse_answer(bad, points=7)
     item = LikertItem("helpful", "How helpful?", tuple(f"a{k}" for k in range(1, 8)))
     assert item.points == 7 and item.anchor_text() == "1 = a1 · 4 = a4 · 7 = a7"
+
+
+def test_key_states_are_ascii_number_and_known_letters() -> None:
+    assert parse_key_state("12 ar") == (12, frozenset("ar"))
+    assert parse_key_state("3 ") == (3, frozenset())
+    for bad in ("² w", "٣ w", "12 az", "12", "-1 w", "1" * 40 + " w", "12  w"):
+        with pytest.raises(InputRejected):
+            parse_key_state(bad)

@@ -23,6 +23,7 @@ import asyncio
 import dataclasses
 import logging
 import threading
+import time
 from collections.abc import Iterable, Iterator
 from typing import Any
 
@@ -87,17 +88,40 @@ class Violation:
     words: tuple[str, ...]
 
 
+MAX_KEPT = 200
+LOG_EVERY_S = 10.0
+
+
 class BlindingGuard:
-    """Checks every outgoing message of one viser server; blocks and records violations."""
+    """Checks every outgoing message of one viser server; blocks and records violations (the
+    first ``MAX_KEPT`` of them; all are counted) and logs at most one a ``LOG_EVERY_S`` per
+    message type, so a client that types condition words into a field and has them echoed
+    cannot flood the log or the memory."""
 
     def __init__(self, *, words: Iterable[str] = CONDITION_WORDS, block: bool = True) -> None:
         self.words = tuple(w.lower() for w in words)
         self.block = block
         self.violations: list[Violation] = []
+        """The first ``MAX_KEPT`` violations (``blocked`` counts them all)."""
+        self.blocked = 0
         self.checked = 0
         self.serialized = 0
         self.redacted = 0
         self._lock = threading.Lock()
+        self._logged: dict[str, float] = {}
+
+    def _record(self, violation: Violation) -> bool:
+        """Keep and count ``violation``; True when it should be logged now."""
+        now = time.monotonic()
+        with self._lock:
+            self.blocked += 1
+            if len(self.violations) < MAX_KEPT:
+                self.violations.append(violation)
+            last = self._logged.get(violation.message_type)
+            if last is not None and now - last < LOG_EVERY_S:
+                return False
+            self._logged[violation.message_type] = now
+            return True
 
     def inspect(self, message: Any) -> Violation | None:
         """Return the first violation in ``message``, or ``None`` when it is clean."""
@@ -112,17 +136,17 @@ class BlindingGuard:
         violation = self.inspect(message)
         with self._lock:
             self.checked += 1
-            if violation is not None:
-                self.violations.append(violation)
         if violation is None:
             return True
-        LOGGER.error(
-            "blinding: %s %s carrying %r (words %s)",
-            "blocked" if self.block else "saw",
-            violation.message_type,
-            violation.text,
-            list(violation.words),
-        )
+        if self._record(violation):
+            LOGGER.error(
+                "blinding: %s %s carrying %r (words %s; %d blocked in all)",
+                "blocked" if self.block else "saw",
+                violation.message_type,
+                violation.text,
+                list(violation.words),
+                self.blocked,
+            )
         return not self.block
 
     def redact(self, obj: Any, *, message_type: str) -> Any:
@@ -133,9 +157,9 @@ class BlindingGuard:
                 return obj
             violation = Violation(message_type, obj[:120], tuple(found))
             with self._lock:
-                self.violations.append(violation)
                 self.redacted += 1
-            LOGGER.error("blinding: blanked %r in outgoing %s", violation.text, message_type)
+            if self._record(violation):
+                LOGGER.error("blinding: blanked %r in outgoing %s", violation.text, message_type)
             return ""
         if isinstance(obj, dict):
             return {

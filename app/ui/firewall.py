@@ -2,37 +2,53 @@
 
 viser decodes every websocket message a browser sends with ``Message.deserialize`` on the
 server's event loop and dispatches it to whatever handler is registered for its type -- among
-them ``ShareUrlRequest``, which opens a public tunnel. :func:`install` wraps that decoder once
-per process; for a server with a :class:`Firewall`, each incoming message is checked *before*
-it is decoded into a message object:
+them ``ShareUrlRequest``, which opens a public tunnel. Two hooks put a :class:`Firewall` in
+front of that:
 
-1. size: at most ``max_bytes`` (a pose is about 150 bytes); the websocket connection's own
-   limit is lowered to the same figure at connect (:meth:`Firewall.limit_connection`), so a
-   huge message closes that connection instead of being buffered;
-2. type: only the types in ``allowed`` (an explicit allow-list) pass;
-3. values: every number finite and bounded (a pose within ``max_position_m`` of the origin, a
-   unit-ish quaternion), strings and containers short, GUI updates carry only ``value``.
+* at the door, :func:`hardened_serve` (around the ``ViserServer`` constructor) gives the
+  websocket server a message-size limit of ``max_bytes`` from the handshake on (a bigger
+  message closes its connection before it is buffered), refuses a websocket whose ``Origin``
+  is another site's (a page elsewhere in the browser cannot drive the study), refuses more than
+  ``max_connections_per_address`` / ``max_connections`` open websockets, and answers a request
+  for a file it cannot even name (a 5,000-character path) with 404 instead of 500;
+* per message, :func:`install` wraps the decoder once per process; for a server with a
+  firewall each incoming message is checked *before* it becomes a message object:
+
+  1. rate: at most ``rate_per_s`` messages a second per connection (burst ``burst``); a
+     connection far over it, or with ``max_refused`` refused messages, is closed;
+  2. size: at most ``max_bytes`` (a pose is about 150 bytes);
+  3. type: only the types in ``allowed`` (an explicit allow-list) pass;
+  4. values: every number finite and bounded (a pose within ``max_position_m`` of the origin,
+     a unit-ish quaternion), strings and containers short, GUI updates carry only ``value``.
 
 A refused message is replaced by a :class:`Dropped` message that no handler listens to, counted
-per reason, and logged as a one-line summary (never its payload) at most once per reason every
-``log_every_s`` seconds. Servers without a firewall pass untouched.
+under a fixed reason (never a name the client chose), and logged as a one-line summary (never
+its payload) at most once per reason every ``log_every_s`` seconds. Servers without a firewall
+pass untouched.
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import http
 import logging
 import math
 import threading
 import time
+import weakref
 from collections import Counter
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
+from urllib.parse import urlsplit
 
 import msgspec
 import viser
+import websockets.asyncio.server as ws_server
 from viser import _messages as vm
+from websockets.datastructures import Headers
+from websockets.http11 import Response
 
 LOGGER = logging.getLogger("app.ui.firewall")
 
@@ -43,9 +59,11 @@ PARTICIPANT_TYPES: frozenset[str] = frozenset(
         "TransformControlsUpdateMessage",
         "TransformControlsDragStartMessage",
         "TransformControlsDragEndMessage",
+        "LocalStorageGetItemResponseMessage",
     }
 )
-"""What the participant page needs to send: its camera, GUI values and the handle's pose."""
+"""What the participant page needs to send: its camera, GUI values, the handle's pose, and the
+join code it kept for a reload (the answer to the server's local-storage request)."""
 
 SHARE_TYPES: frozenset[str] = frozenset({"ShareUrlRequest", "ShareUrlDisconnect"})
 
@@ -53,7 +71,8 @@ MAX_MESSAGE_BYTES = 16 * 1024
 """Largest message a participant's browser sends in normal use is well under 1 KiB."""
 
 MAX_POSITION_M = 10.0
-MAX_STRING = 256
+MAX_STRING = 64
+"""Longest string a page sends: a join code, an answer, a key state, a node name."""
 
 
 @dataclass(eq=False)
@@ -65,6 +84,10 @@ class Dropped(vm.Message, include_in_scene_serialization=False):
 
 class RefusedMessage(ValueError):
     """An incoming message broke a rule; the text says which (never the payload)."""
+
+
+class ConnectionFlood(ConnectionError):
+    """A connection sent far more, or far worse, than a page does; viser closes it."""
 
 
 def _finite(value: Any, *, bound: float, what: str) -> None:
@@ -106,6 +129,11 @@ def check_values(kind: str, body: dict[str, Any], *, max_position_m: float) -> N
             _string(value, what="GUI value")
         elif not isinstance(value, bool):
             _finite(value, bound=1e9, what="GUI value")
+    elif kind == "LocalStorageGetItemResponseMessage":
+        _string(body.get("request_uuid"), what="storage request id", limit=64)
+        for key in ("value", "error"):
+            if body.get(key) is not None:
+                _string(body.get(key), what=f"storage {key}", limit=64)
     elif kind == "ViewerCameraMessage":
         for key in ("wxyz", "position", "look_at", "up_direction"):
             n = 4 if key == "wxyz" else 3
@@ -128,6 +156,12 @@ class Firewall:
         max_position_m: float = MAX_POSITION_M,
         log_every_s: float = 60.0,
         on_drop: Callable[[str], None] | None = None,
+        rate_per_s: float = 200.0,
+        burst: float = 400.0,
+        max_refused: int = 200,
+        max_connections: int = 64,
+        max_connections_per_address: int = 8,
+        check_origin: bool = True,
     ) -> None:
         self.allowed = None if allowed is None else frozenset(allowed) - SHARE_TYPES
         if allow_share and self.allowed is not None:
@@ -137,17 +171,91 @@ class Firewall:
         self.max_position_m = max_position_m
         self.log_every_s = log_every_s
         self.on_drop = on_drop
+        self.rate_per_s = rate_per_s
+        self.burst = burst
+        self.max_refused = max_refused
+        self.max_connections = max_connections
+        self.max_connections_per_address = max_connections_per_address
+        self.check_origin = check_origin
         self.passed = 0
         self.dropped: Counter[str] = Counter()
+        self.closed_connections = 0
+        self.refused_connections: Counter[str] = Counter()
         self._logged: dict[str, float] = {}
         self._lock = threading.Lock()
+        self._server: viser.ViserServer | None = None
+        # per connection (its message-reading task): [tokens, last time, refused]
+        self._buckets: weakref.WeakKeyDictionary[asyncio.Task[Any], list[float]] = (
+            weakref.WeakKeyDictionary()
+        )
 
-    def limit_connection(self, server: viser.ViserServer, client_id: int) -> None:
-        """Lower the websocket's message-size limit for ``client_id`` to ``max_bytes``."""
-        connection = server._websock_server._live_connections.get(client_id)
-        protocol = getattr(connection, "protocol", None)
-        if protocol is not None and hasattr(protocol, "max_message_size"):
-            protocol.max_message_size = self.max_bytes
+    # -- at the door -----------------------------------------------------------------------------
+    def process_request(self, inner: Callable[..., Any] | None) -> Callable[..., Any]:
+        """Wrap viser's HTTP handler: origin and connection checks, and 404 for bad paths."""
+
+        def handle(connection: Any, request: Any) -> Any:
+            if request.headers.get("Upgrade", "").lower() == "websocket":
+                problem = self._door_problem(connection, request)
+                if problem is not None:
+                    self._note("connection refused", problem)
+                    with self._lock:
+                        self.refused_connections[problem.split(" (")[0]] += 1
+                    return Response(http.HTTPStatus.FORBIDDEN, "Forbidden", Headers(), b"")
+            if inner is None:
+                return None
+            try:
+                return inner(connection, request)
+            except OSError:  # e.g. a path too long to be a file name
+                return Response(http.HTTPStatus.NOT_FOUND, "NOT FOUND", Headers(), b"")
+
+        return handle
+
+    def _door_problem(self, connection: Any, request: Any) -> str | None:
+        if self.check_origin:
+            origin = request.headers.get("Origin")
+            host = request.headers.get("Host", "")
+            if origin is not None and urlsplit(origin).netloc.lower() != host.lower():
+                return "another site's page (origin check)"
+        server = self._server
+        live = dict(server._websock_server._live_connections) if server is not None else {}
+        if len(live) >= self.max_connections:
+            return f"too many connections ({len(live)})"
+        address = _remote_host(connection)
+        same = sum(1 for c in live.values() if _remote_host(c) == address)
+        if same >= self.max_connections_per_address:
+            return f"too many connections from one address ({same})"
+        return None
+
+    # -- per message -----------------------------------------------------------------------------
+    def admit(self) -> None:
+        """Count one message of the current connection; raise :class:`ConnectionFlood` to
+        close a connection far over its rate or with too many refused messages."""
+        task = asyncio.current_task()
+        if task is None:
+            return
+        now = time.monotonic()
+        bucket = self._buckets.get(task)
+        if bucket is None:
+            bucket = self._buckets[task] = [self.burst, now, 0.0]
+        bucket[0] = min(self.burst, bucket[0] + (now - bucket[1]) * self.rate_per_s)
+        bucket[1] = now
+        bucket[0] -= 1.0
+        if bucket[0] < -self.burst:  # twice the burst over the rate: not a page
+            self._closing(f"more than {self.rate_per_s:g} messages a second")
+
+    def _count_refusal(self) -> None:
+        task = asyncio.current_task()
+        bucket = self._buckets.get(task) if task is not None else None
+        if bucket is not None:
+            bucket[2] += 1
+            if bucket[2] > self.max_refused:
+                self._closing(f"more than {self.max_refused} refused messages")
+
+    def _closing(self, why: str) -> None:
+        with self._lock:
+            self.closed_connections += 1
+        self._note("connection closed", f"closed a connection that sent {why}")
+        raise ConnectionFlood(why)
 
     def screen(self, raw: bytes) -> str | None:
         """``None`` when ``raw`` may be decoded, else the reason it is refused."""
@@ -155,20 +263,33 @@ class Firewall:
             return f"message of {len(raw)} bytes (limit {self.max_bytes})"
         try:
             body = msgspec.msgpack.decode(raw)
-        except (msgspec.DecodeError, ValueError, TypeError):
+        except Exception:  # not msgpack, or nested too deep to decode
             return "not a viser message"
         if not isinstance(body, dict) or not isinstance(body.get("type"), str):
             return "not a viser message"
-        kind = body["type"][:60]
+        kind = body["type"]
         if kind in SHARE_TYPES and not self.allow_share:
             return f"{kind} (share links are off; start the server with --share to allow them)"
         if self.allowed is not None and kind not in self.allowed:
-            return f"{kind} is not accepted here"
+            known = kind in vm.Message._subclass_from_type_string()
+            return f"{kind if known else 'an unknown type'} is not accepted here"
         try:
             check_values(kind, body, max_position_m=self.max_position_m)
         except RefusedMessage as exc:
             return f"{kind}: {exc}"
+        except Exception:  # a structure too odd to inspect (e.g. nested too deep)
+            return f"{kind}: not inspectable"
         return None
+
+    def _note(self, key: str, text: str) -> None:
+        """Log ``text`` at most once per ``key`` every ``log_every_s`` seconds."""
+        now = time.monotonic()
+        with self._lock:
+            last = self._logged.get(key)
+            if last is not None and now - last < self.log_every_s:
+                return
+            self._logged[key] = now
+        LOGGER.warning("%s", text.encode("unicode_escape").decode("ascii")[:300])
 
     def refuse(self, reason: str) -> Dropped:
         key = reason.split(":")[0].split(" (")[0]
@@ -203,8 +324,10 @@ def _guarded_deserialize(cls: type[vm.Message], message: bytes) -> vm.Message:
     firewall = _FIREWALLS.get(id(loop))
     if firewall is None:
         return _ORIGINAL(cls, message)
+    firewall.admit()
     reason = firewall.screen(message)
     if reason is not None:
+        firewall._count_refusal()
         return firewall.refuse(reason)
     try:
         decoded = _ORIGINAL(cls, message)
@@ -223,7 +346,33 @@ def install(server: viser.ViserServer, firewall: Firewall) -> Firewall:
         if getattr(vm.Message.deserialize, "__func__", None) is not _guarded_deserialize:
             vm.Message.deserialize = classmethod(_guarded_deserialize)  # type: ignore[method-assign,assignment]
         _FIREWALLS[id(loop)] = firewall
+    firewall._server = server
     return firewall
+
+
+@contextlib.contextmanager
+def hardened_serve(firewall: Firewall) -> Iterator[None]:
+    """Build a ``ViserServer`` inside this block: its websocket server gets ``firewall``'s
+    size limit and door checks (viser starts serving before its constructor returns)."""
+    original = ws_server.serve
+
+    def serve(handler: Any, *args: Any, **kwargs: Any) -> Any:
+        kwargs["max_size"] = firewall.max_bytes
+        kwargs["process_request"] = firewall.process_request(kwargs.get("process_request"))
+        return original(handler, *args, **kwargs)
+
+    with _INSTALL_LOCK:
+        ws_server.serve = serve  # type: ignore[assignment,misc]
+    try:
+        yield
+    finally:
+        with _INSTALL_LOCK:
+            ws_server.serve = original  # type: ignore[misc]
+
+
+def _remote_host(connection: Any) -> str:
+    remote = getattr(connection, "remote_address", None)
+    return str(remote[0]) if isinstance(remote, tuple) and remote else "unknown"
 
 
 def uninstall(server: viser.ViserServer) -> None:

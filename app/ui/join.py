@@ -2,9 +2,11 @@
 
 A join code is ``CODE_LENGTH`` characters from an alphabet without look-alikes (no 0/O, 1/I/L,
 2/Z, 5/S, 8/B, 6/G): 23**6 = 1.5e8 codes, typed case-insensitively with any spaces or dashes.
-With at most ``per_client`` tries per connection and ``per_address`` tries per address in
-``window_s`` seconds, a guesser on the lab network needs about 1.5e8 / 20 per minute, over 10 years,
-of tries to expect one hit among a handful of open sessions.
+With at most ``per_client`` tries per connection, ``per_address`` per address and ``per_server``
+from everywhere together in ``window_s`` seconds, a guesser needs about 1.5e8 / 60 per minute
+(over four years, whatever number of machines it uses) to expect one hit among a handful of
+open sessions; while guessing saturates the server's budget, honest tabs wait a minute too,
+which the console shows.
 """
 
 from __future__ import annotations
@@ -36,10 +38,16 @@ class JoinThrottle:
     """Sliding-window limits on join attempts, per connection and per network address."""
 
     def __init__(
-        self, *, per_client: int = 5, per_address: int = 20, window_s: float = 60.0
+        self,
+        *,
+        per_client: int = 5,
+        per_address: int = 20,
+        per_server: int = 60,
+        window_s: float = 60.0,
     ) -> None:
         self.per_client = per_client
         self.per_address = per_address
+        self.per_server = per_server
         self.window_s = window_s
         self._tries: dict[tuple[str, object], deque[float]] = {}
         self._lock = threading.Lock()
@@ -47,7 +55,11 @@ class JoinThrottle:
     def allow(self, *, client: int, address: str) -> bool:
         """Count one attempt; False (and not counted) when either limit is reached."""
         now = time.monotonic()
-        keys = ((("client", client), self.per_client), (("address", address), self.per_address))
+        keys = (
+            (("client", client), self.per_client),
+            (("address", address), self.per_address),
+            (("server", None), self.per_server),
+        )
         with self._lock:
             windows = []
             for key, limit in keys:
@@ -61,6 +73,13 @@ class JoinThrottle:
                 window.append(now)
             self._prune(now)
         return True
+
+    def saturated(self) -> bool:
+        """True while the server-wide budget is spent (someone is guessing codes)."""
+        now = time.monotonic()
+        with self._lock:
+            window = self._tries.get(("server", None), deque())
+            return sum(1 for t in window if now - t <= self.window_s) >= self.per_server
 
     def forget_client(self, client: int) -> None:
         with self._lock:

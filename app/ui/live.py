@@ -47,12 +47,15 @@ frame sent are not re-sent: an arm holding still, which jitters by micrometres u
 controller, sends no scene updates (0.2 mm is a tenth of a pixel at the task view)."""
 
 OUTCOME_SENTENCES: dict[str, str] = {
-    "success": "You lifted the object.",
-    "wrong_object": "You lifted an object.",
-    "dropped": "The object slipped.",
+    "success": "You lifted the {target}.",
+    "wrong_object": "You lifted the other object, not the {target}.",
+    "dropped": "The object slipped out of the gripper.",
     "timeout": "Time is up.",
 }
-"""What the participant reads after a run (neutral: never a condition)."""
+"""What the participant reads after a run, ``{target}`` being the object asked for (the
+instructions name it already): how the run ended, never a condition."""
+ENDED_BY_EXPERIMENTER = "The experimenter ended this run."
+MISSED_GRASP = "Nothing to grasp there: bring the gripper around the object, then close it."
 
 WAIT_TEXT = "Please wait a moment: the experimenter will continue the session."
 
@@ -67,6 +70,8 @@ class LiveSession:
         self.title = title
         self.render_hz = render_hz
         self.page: ParticipantPage | None = None
+        self.ever_attached = False
+        """A tab has held this session (a kiosk then asks for the code after a drop)."""
         self.on_closed: Callable[[], None] | None = None
         self.opened_at = time.monotonic()
         self.log: deque[str] = deque(maxlen=20)
@@ -92,6 +97,7 @@ class LiveSession:
         self._input_paused = False
         self._render_lock = threading.Lock()
         self._unrecorded_fault: dict[str, Any] | None = None
+        self._missed_grasp = threading.Event()
         self._plot_lock = threading.Lock()
         self._plot: deque[tuple[float, float, float, np.ndarray]] = deque(maxlen=PLOT_WINDOW)
         self.goal_names: tuple[str, ...] = ()
@@ -150,6 +156,7 @@ class LiveSession:
         page.on_keys = self._on_keys
         with self._lock:
             self.page = page
+            self.ever_attached = True
             self._shown = None
         self._event(
             "participant_connected",
@@ -357,21 +364,27 @@ class LiveSession:
             return not run.over  # held until the experimenter resumes
         try:
             record = run.tick()
+            if record is not None:
+                self._after_tick(run, record)
         except Exception as exc:  # never let the loop die silently: pause and tell
             self._control_fault(run, exc)
-            return not run.over
-        if record is not None:
-            self._snap(run)
-            with self._plot_lock:
-                self._plot.append(
-                    (
-                        float(record.t),
-                        float(record.alpha),
-                        float(record.confidence),
-                        np.asarray(record.probabilities, float),
-                    )
-                )
         return not run.over
+
+    def _after_tick(self, run: Any, record: Any) -> None:
+        """What the page and console need of a tick: the snapshot, a missed-grasp notice, the
+        plots' data."""
+        if "grasp_missed" in record.events:
+            self._missed_grasp.set()  # the render loop tells the participant
+        self._snap(run)
+        with self._plot_lock:
+            self._plot.append(
+                (
+                    float(record.t),
+                    float(record.alpha),
+                    float(record.confidence),
+                    np.asarray(record.probabilities, float),
+                )
+            )
 
     def _show_trial_scene(self, page: ParticipantPage) -> None:
         """Scene, gizmo and keys on ``page`` for the current run (``self._lock`` held)."""
@@ -417,6 +430,10 @@ class LiveSession:
 
     def _render_step(self) -> None:
         view, snap, page, source = self._view, self._snapshot, self.page, self._input
+        if self._missed_grasp.is_set():
+            self._missed_grasp.clear()
+            if page is not None:
+                page.notify(MISSED_GRASP)
         if view is not None and snap is not None and snap[1] != self._rendered_seq:
             with self._render_lock:
                 if snap[0] is self._frame_key and view is self._view:
@@ -438,7 +455,10 @@ class LiveSession:
             page, run = self.page, self._run
             summary = getattr(run, "summary", None)
             if summary is not None:
-                self._outcome = OUTCOME_SENTENCES.get(summary.outcome, "The run has ended.")
+                sentence = OUTCOME_SENTENCES.get(summary.outcome, "The run has ended.")
+                self._outcome = sentence.format(target=getattr(run.trial.scene, "target", ""))
+            elif run is not None and not self.session.finished:
+                self._outcome = ENDED_BY_EXPERIMENTER  # redo or skip
             source, self._input = self._input, None  # no trial, no input: keys do nothing
         if source is not None:
             source.freeze()
@@ -508,7 +528,7 @@ class LiveSession:
                 on_button=self._continue_after_disconnect,
             )
         elif screen.paused:
-            page.show_message("Please wait", WAIT_TEXT, progress=progress)
+            page.show_message("Please wait", text or WAIT_TEXT, progress=progress)
         elif self._outcome is not None and screen.phase != "running":
             page.show_message(
                 "Run finished",
@@ -546,12 +566,15 @@ class LiveSession:
             page.show_message(
                 title,
                 text,
-                progress=progress,
+                progress=None,
                 button="Finish",
                 on_button=lambda: self._participant("finish", self.session.finish),
             )
         elif screen.phase == "done":
-            page.show_message(title or "Done", text or "Thank you. You may close this page now.")
+            page.show_message(
+                title or "Done",
+                (text + "\n\n" if text else "Thank you. ") + "You may close this page now.",
+            )
         else:  # waiting: the protocol's welcome, and that the experimenter starts the session
             page.show_message(
                 title,

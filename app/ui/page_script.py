@@ -11,7 +11,11 @@ steering key it can stop the event before the camera or anything else sees it:
   value of one hidden text element, ``"<seq> <keys>"`` (e.g. ``"12 ar"``), through the
   client's own message channel; losing focus (tab switch, window blur) sends "nothing held";
 * the page title becomes the study's; the settings, command and share buttons of the panel
-  are hidden; the orbit camera may not pan (right drag) and stays above the table plane.
+  are hidden; the orbit camera may not pan (right drag) and stays well above the table plane;
+  a clicked button loses focus, so Space or Enter cannot press it again by accident;
+* meshes are made non-metallic: the scene's glTF meshes carry glTF's default metalness of 1,
+  which only an environment map lights, and the page has none (it cost two thirds of a
+  software-WebGL frame), so their sides would render black.
 
 It relies on two things viser's client exposes for its own end-to-end tests,
 ``window.__viserMutable.sendMessage`` and ``.cameraControl``; ``tests/browser`` fails loudly if
@@ -73,7 +77,22 @@ _TEMPLATE = r"""
   };
   const isField = (t) => !!t && (t.tagName === "INPUT" || t.tagName === "TEXTAREA" ||
                                  t.tagName === "SELECT" || t.isContentEditable);
+  const matte = () => {
+    const m = window.__viserMutable;
+    if (!m || !m.scene) return;
+    let changed = false;
+    m.scene.traverse((o) => {
+      const mat = o.material;
+      if (mat && mat.isMeshStandardMaterial && mat.metalness > 0) {
+        mat.metalness = 0;
+        mat.needsUpdate = true;
+        changed = true;
+      }
+    });
+    if (changed && m.requestRender) m.requestRender();
+  };
   const tame = () => {
+    matte();
     const c = window.__viserMutable && window.__viserMutable.cameraControl;
     if (!c || c.__studyTamed) return;
     c.__studyTamed = true;
@@ -81,7 +100,7 @@ _TEMPLATE = r"""
     // blinding guard refuses that word anywhere on the participant wire
     c.mouseButtons[["ri", "ght"].join("")] = 0;
     c.touches.two = 0x2000;              // touch: two fingers dolly, no truck
-    c.maxPolarAngle = Math.PI * 0.47;    // above the table plane
+    c.maxPolarAngle = Math.PI * 0.42;    // at least 14 degrees above the table plane
   };
   if (!st.installed) {
     st.installed = true;
@@ -108,6 +127,10 @@ _TEMPLATE = r"""
       " button:has(svg.tabler-icon-share), button:has(svg.tabler-icon-list-search)," +
       " button:has(svg.tabler-icon-command) { display: none !important; }";
     document.head.appendChild(style);
+    window.addEventListener("click", (e) => {
+      const b = e.target && e.target.closest && e.target.closest("button");
+      if (b) setTimeout(() => b.blur(), 0);
+    }, true);
     setInterval(() => { tame(); if (document.title !== st.title) document.title = st.title; },
                 500);
   }

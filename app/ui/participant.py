@@ -18,6 +18,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import re
 import threading
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -36,10 +37,12 @@ LOGGER = logging.getLogger("app.ui.participant")
 KEY_HELP = (
     "Drag an arrow or a square of the handle at the gripper to move it, or hold the keys "
     "**W**/**S** (away / back), **A**/**D** (sideways), **R**/**F** (up / down). "
-    "Press **G** or the button below to close or open the gripper. Drag the background to "
+    "Press **G** or the button below to close the gripper around the object; the arm then "
+    "lifts it. Drag the background to "
     "look around, scroll to zoom; **V** brings back the starting view."
 )
 KEY_LETTERS = frozenset(STEERING_CODES.values()) | frozenset(ARROW_KEYCODES.values())
+_KEY_STATE = re.compile(r"([0-9]{1,12}) ([a-z]*)", re.ASCII)
 
 
 class InputRejected(ValueError):
@@ -96,10 +99,10 @@ def parse_key_state(value: object) -> tuple[int, frozenset[str]]:
     text = str(value)
     if len(text) > MAX_KEY_MESSAGE:
         raise InputRejected(f"key state of {len(text)} characters")
-    seq_text, _, letters = text.partition(" ")
-    if not seq_text.isdigit() or not set(letters) <= KEY_LETTERS:
+    match = _KEY_STATE.fullmatch(text)
+    if match is None or not set(match[2]) <= KEY_LETTERS:
         raise InputRejected("key state is not '<number> <keys>'")
-    return int(seq_text), frozenset(letters)
+    return int(match[1]), frozenset(match[2])
 
 
 class ParticipantPage:
@@ -190,6 +193,11 @@ class ParticipantPage:
                 auto_close_seconds=3.0,
                 color="orange",
             )
+
+    def notify(self, text: str) -> None:
+        """A short notice in the corner of the page (it closes by itself)."""
+        with contextlib.suppress(Exception):
+            self.client.add_notification(check_text(text), "", auto_close_seconds=3.0, color="blue")
 
     def _header(self, progress: str | None) -> None:
         self._md(f"### {self.title}" + (f"\n\n{progress}" if progress else ""))
@@ -325,7 +333,7 @@ class ParticipantPage:
             screen = self._new_screen("trial:" + heading)
             self._header(progress)
             self._md(f"**{heading}**\n\n{instruction}\n\n{KEY_HELP}")
-            b = self._button("Grasp / release (G)")
+            b = self._button("Close the gripper (G)")
             v = self._button("Back to the starting view (V)")
 
             @b.on_click

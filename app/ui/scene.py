@@ -155,7 +155,7 @@ class SceneView:
         # Image-based lighting costs about two thirds of a software-WebGL frame (measured: 8
         # -> 21 frames/s while the arm moves); plain lights light the scene well enough.
         target.scene.configure_environment_map(hdri=None)
-        target.scene.add_light_ambient("/lights/ambient", intensity=1.4)
+        target.scene.add_light_ambient("/lights/ambient", intensity=0.7)
         self._on_frame = on_frame
         self._flush = target.flush
         self._table_top = table_top

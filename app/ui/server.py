@@ -16,8 +16,10 @@ viser runs callbacks in a thread pool; every registry change happens under ``sel
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
+import time
 
 import viser
 
@@ -38,6 +40,8 @@ class ServerError(RuntimeError):
 
 
 JOIN_FAILED = "That code did not work. Please check it with the experimenter and type it again."
+REMEMBERED_CODE_KEY = "study-join-code"
+"""Where a tab keeps its join code (the browser's local storage), so a reload rejoins at once."""
 JOIN_THROTTLED = "Too many tries. Please wait a minute, then ask the experimenter for the code."
 
 
@@ -63,16 +67,17 @@ class StudyServer:
         self.render_hz = render_hz
         self.kiosk = kiosk
         self.throttle = throttle or JoinThrottle()
+        self._throttle_logged = 0.0
         self._lock = threading.RLock()
         self._sessions: dict[str, LiveSession] = {}
         self._pages: dict[int, ParticipantPage] = {}
         self._page_session: dict[int, str] = {}
 
-        self.participant = viser.ViserServer(host=host, port=port, verbose=verbose)
+        self.firewall = firewall.Firewall(allow_share=allow_share)
+        with firewall.hardened_serve(self.firewall):
+            self.participant = viser.ViserServer(host=host, port=port, verbose=verbose)
         self.guard = blinding.install(self.participant)
-        self.firewall = firewall.install(
-            self.participant, firewall.Firewall(allow_share=allow_share)
-        )
+        firewall.install(self.participant, self.firewall)
         self.participant.gui.configure_theme(
             show_share_button=False, show_logo=False, control_width="large"
         )
@@ -80,14 +85,16 @@ class StudyServer:
         self.participant.on_client_connect(self._participant_connected)
         self.participant.on_client_disconnect(self._participant_disconnected)
 
-        self.experimenter = viser.ViserServer(
-            host=experimenter_host, port=experimenter_port, verbose=verbose
+        # the console may use every message type; share links stay off unless asked for, and
+        # no page of another site open in the experimenter's browser may drive it (origin)
+        self.experimenter_firewall = firewall.Firewall(
+            allowed=None, allow_share=allow_share, max_bytes=8 * 2**20, rate_per_s=2000.0
         )
-        # the console may use every message type; only share links stay off unless asked for
-        self.experimenter_firewall = firewall.install(
-            self.experimenter,
-            firewall.Firewall(allowed=None, allow_share=allow_share, max_bytes=8 * 2**20),
-        )
+        with firewall.hardened_serve(self.experimenter_firewall):
+            self.experimenter = viser.ViserServer(
+                host=experimenter_host, port=experimenter_port, verbose=verbose
+            )
+        firewall.install(self.experimenter, self.experimenter_firewall)
         self.console = ExperimenterConsole(self.experimenter, self, refresh_hz=console_refresh_hz)
 
     # -- addresses ---------------------------------------------------------------------------
@@ -167,13 +174,36 @@ class StudyServer:
 
     # -- participant tabs ----------------------------------------------------------------------
     def _participant_connected(self, client: viser.ClientHandle) -> None:
-        self.firewall.limit_connection(self.participant, client.client_id)
         page = ParticipantPage(client, title=PAGE_TITLE)
         page.address = _address(self.participant, client.client_id)
         frame_task(client.camera, look_at=(0.45, 0.0, 0.15))
         with self._lock:
             self._pages[client.client_id] = page
         self._offer(page)
+        threading.Thread(target=self._rejoin, args=(page,), name="rejoin", daemon=True).start()
+
+    def _rejoin(self, page: ParticipantPage) -> None:
+        """A reloaded tab: its browser kept the code it joined with; try it like a typed one
+        (throttled, the same reply on failure, which then clears the kept code)."""
+        try:
+            kept = page.client.local_storage.get_item(REMEMBERED_CODE_KEY, timeout=5.0)
+        except Exception:  # no answer, blocked storage, a closed tab: the participant types it
+            return
+        if not kept:
+            return
+        code, deadline = normalize_code(kept), time.monotonic() + 2.0
+        while (
+            time.monotonic() < deadline
+        ):  # a reload: the old tab's goodbye may still be on its way
+            with self._lock:
+                live = self._sessions.get(code)
+            if live is None or live.page is None:
+                break
+            time.sleep(0.1)
+        with self._lock:
+            bound = page.client.client_id in self._page_session
+        if not bound:
+            self._join(page, code, remembered=True)
 
     def _participant_disconnected(self, client: viser.ClientHandle) -> None:
         with self._lock:
@@ -199,9 +229,11 @@ class StudyServer:
                 return
             open_ = self.open_sessions()
         if self.kiosk:
-            free = [s for s in open_ if s.page is None]
-            if len(open_) == 1 and free:
-                self._bind(page, free[0])
+            # only a session no tab has held yet: after a drop, only the tab that kept the
+            # code (or one that types it) gets the session back
+            fresh = [s for s in open_ if s.page is None and not s.ever_attached]
+            if len(open_) == 1 and fresh:
+                self._bind(page, fresh[0])
                 return
             if not open_:
                 if page.screen_name != "join" or page.asks_code:
@@ -210,14 +242,22 @@ class StudyServer:
         if page.screen_name != "join" or not page.asks_code:
             page.show_join(ask_code=True, on_code=lambda code, p=page: self._join(p, code))
 
-    def _join(self, page: ParticipantPage, typed: str) -> None:
+    def _join(self, page: ParticipantPage, typed: str, *, remembered: bool = False) -> None:
         """A typed code: bind on a match; the same reply for any failure (wrong, closed, in
-        use), and no check at all once this tab or its address tried too often."""
+        use), and no check at all once this tab or its address tried too often. A code the
+        browser ``remembered`` that no longer works is forgotten without a message."""
         address = getattr(page, "address", "unknown")
         if not self.throttle.allow(client=page.client.client_id, address=address):
-            LOGGER.warning(
-                "join attempts throttled for tab %s (%s)", page.client.client_id, address
-            )
+            now = time.monotonic()
+            if now - self._throttle_logged > 60.0:
+                self._throttle_logged = now
+                LOGGER.warning(
+                    "join attempts throttled (last from %s%s)",
+                    address,
+                    "; the server-wide budget is spent: someone may be guessing codes"
+                    if self.throttle.saturated()
+                    else "",
+                )
             page.show_join(
                 ask_code=True, on_code=lambda c, p=page: self._join(p, c), notice=JOIN_THROTTLED
             )
@@ -228,6 +268,10 @@ class StudyServer:
         if live is None or live.closed or not self._bind(page, live):
             if live is not None and not live.closed:
                 live.note_refused_join(page)
+            if remembered:
+                with contextlib.suppress(Exception):
+                    page.client.local_storage.remove_item(REMEMBERED_CODE_KEY)
+                return
             page.show_join(
                 ask_code=True, on_code=lambda c, p=page: self._join(p, c), notice=JOIN_FAILED
             )
@@ -241,6 +285,8 @@ class StudyServer:
                 return False
             self._page_session[page.client.client_id] = live.code
         live.attach(page)
+        with contextlib.suppress(Exception):  # the tab keeps its code for a reload
+            page.client.local_storage.set_item(REMEMBERED_CODE_KEY, live.code)
         return True
 
 

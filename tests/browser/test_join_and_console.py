@@ -2,8 +2,8 @@
 
 The experimenter enrols a participant in the console (the join code appears there) and starts
 the session with the console's Start; with two sessions open the participant's page asks for
-the code, binds to that session, and after a reload binds to it again once the code is
-re-entered.
+the code, binds to that session, and after a reload binds to it again with the code the
+tab kept (a fresh browser must type it).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from tests.browser.harness import RunningServer, start_server, wait_until
-from tests.browser.test_participant_flow import _connect, _shot, join, text_input
+from tests.browser.test_participant_flow import AGREE, _connect, _shot, join, text_input
 
 pytestmark = pytest.mark.browser
 
@@ -57,9 +57,9 @@ def test_console_enrols_and_participant_joins_by_code(
     join(page, code)
     assert srv.session(code).page is not None and srv.session(other).page is None
 
-    page.reload()
+    page.reload()  # the tab kept its code: straight back into the session
     page.get_by_text("Connected").first.wait_for()
-    join(page, code)
+    page.get_by_role("button", name=AGREE).wait_for()
     assert wait_until(lambda: srv.session(code).page is not None)
     kinds = [e.kind for e in study.store.events()]
     assert kinds.count("participant_connected") == 2

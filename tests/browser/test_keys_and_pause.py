@@ -90,7 +90,7 @@ def test_keys_steer_the_arm_never_the_camera_and_a_pause_freezes_them(
     _settle(page)
     _keys_leave_the_camera_alone(page, updates)  # ready
     page.get_by_role("button", name="Start").click()
-    page.get_by_text("Grasp / release").wait_for()
+    page.get_by_role("button", name="Close the gripper (G)").wait_for()
     assert wait_until(lambda: live._run is not None and live.scene_view is not None)
     run = live._run
     _settle(page)
@@ -137,7 +137,7 @@ def test_keys_steer_the_arm_never_the_camera_and_a_pause_freezes_them(
     page.keyboard.up("r")
     assert live.page._gizmo is not None and not live.page._gizmo.visible
     srv.act(code, "resume")
-    page.get_by_text("Grasp / release").wait_for()
+    page.get_by_role("button", name="Close the gripper (G)").wait_for()
     page.wait_for_timeout(1500)
     gripper = np.array(run.trial.sim.ee, float)
     after = np.array(run.trial.user_target, float)

@@ -180,7 +180,7 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     _shot(page, screenshots, "03-ready")
     _settle(page)  # the scene's first draw is slow in software WebGL
     page.get_by_role("button", name="Start").click()
-    page.get_by_text("Grasp / release").wait_for()
+    page.get_by_role("button", name="Close the gripper (G)").wait_for()
     live = srv.session(code)
     assert wait_until(lambda: live.scene_view is not None and live.scene_view.frames_sent >= 1)
     text_now()
@@ -198,7 +198,7 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     hold(page, "f", 0.6)
     print(f"key held until trial time {run.trial.t:.1f} s")
     assert wait_until(lambda: run.trial.user_target[2] < before - 0.03, timeout=5)
-    page.get_by_role("button", name="Grasp / release (G)").click()
+    page.get_by_role("button", name="Close the gripper (G)").click()
     trial_id = run.trial_id
     _shot(page, screenshots, "04-trial")
 
@@ -226,11 +226,11 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     page.get_by_role("button", name="Start").wait_for()
     assert text_now().count("Trial 2 of") == 1
     page.get_by_role("button", name="Start").click()
-    page.get_by_text("Grasp / release").wait_for()
+    page.get_by_role("button", name="Close the gripper (G)").wait_for()
     page.wait_for_timeout(1500)
     page.reload()
     page.get_by_text("Connected").first.wait_for(timeout=30_000)
-    join(page, code, then="Continue")
+    page.get_by_role("button", name="Continue").wait_for()  # the tab kept its code
     paused_at = time.monotonic()
     text_now()
     _shot(page, screenshots, "06-paused-after-reload")
@@ -263,7 +263,7 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
 
     # Console screenshot while the second run is live (plots of alpha, confidence, P(goal)).
     page.get_by_role("button", name="Start").click()
-    page.get_by_text("Grasp / release").wait_for()
+    page.get_by_role("button", name="Close the gripper (G)").wait_for()
     console = context.new_page()
     console.set_viewport_size({"width": 1100, "height": 1250})
     _connect(console, study.console_url)
