@@ -78,16 +78,22 @@ class Scene:
         return self.spec.object_names
 
 
-def grasp_rotation(obj: ObjectSpec) -> np.ndarray:
-    """TCP rotation for a top-down grasp: z down, x (approach) along world x, as at the start.
+def grasp_rotation(obj: ObjectSpec, *, start: np.ndarray | None = None) -> np.ndarray:
+    """TCP rotation for a top-down grasp: z down, x (approach) at bearing ``psi``.
 
-    The fingers close along world y, across the object when the hand comes outward from the
-    robot (the way a reach-limited user pushes toward a far object). A box is gripped across
-    the pair of faces nearest that direction: ``psi = yaw + k pi/2`` closest to 0.
+    With contacts the fingers must straddle the object as the hand comes in, so the hand faces
+    along the horizontal approach from ``start`` (the start TCP), ``theta = atan2(dy, dx)``:
+    the fingers close across it and a straight approach slides them around the object instead
+    of into it. A box is gripped across the pair of faces nearest that: ``psi = yaw + k pi/2``
+    closest to ``theta``. Without ``start`` the approach is along world x (``theta = 0``).
     """
-    psi = 0.0
+    theta = 0.0
+    if start is not None:
+        theta = math.atan2(obj.position[1] - start[1], obj.position[0] - start[0])
+    psi = theta
     if obj.shape == "box":
-        psi = obj.yaw - round(obj.yaw / (math.pi / 2)) * (math.pi / 2)
+        quarter = math.pi / 2
+        psi = obj.yaw + round((theta - obj.yaw) / quarter) * quarter
     return downward_rotation(psi)
 
 
@@ -116,7 +122,7 @@ def _build_scene(spec: SceneSpec, arm: Arm) -> Scene:
     start_ee = kin.fk(start_q)
     positions, rotations, configurations = [], [], []
     for obj in spec.objects:
-        pos, rot = grasp_position(obj), grasp_rotation(obj)
+        pos, rot = grasp_position(obj), grasp_rotation(obj, start=start_ee)
         result = kin.ik(pos, rotation=rot, q0=start_q, posture=start_q, tol=5e-4, rot_tol=5e-3)
         if not result.converged:
             raise UnreachableError(
