@@ -34,7 +34,11 @@ from app.robot.scene_spec import ObjectSpec, SceneSpec
 from app.teleop.reach import ReachRegion
 
 GRASP_DEPTH = 0.03  # m, TCP below the object's top when grasping
-OBJECT_FRICTION = (0.5, 0.005, 0.0001)  # objects on the table slide before they tip
+# Sliding, torsional and rolling friction of objects and table. Rolling: torque = mu_r N, a
+# rolling-resistance coefficient mu_r / r of about 0.03 for a 3-cm bottle (plastic on wood
+# with a rim or label: 0.01-0.05), so a knocked-over bottle rolls some decimetres and stops
+# instead of rolling off any table (condim 6 enables it).
+OBJECT_FRICTION = (0.5, 0.005, 0.001)
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,22 +82,16 @@ class Scene:
         return self.spec.object_names
 
 
-def grasp_rotation(obj: ObjectSpec, *, start: np.ndarray | None = None) -> np.ndarray:
-    """TCP rotation for a top-down grasp: z down, x (approach) at bearing ``psi``.
+def grasp_rotation(obj: ObjectSpec) -> np.ndarray:
+    """TCP rotation for a top-down grasp: z down, x (approach) along world x, as at the start.
 
-    With contacts the fingers must straddle the object as the hand comes in, so the hand faces
-    along the horizontal approach from ``start`` (the start TCP), ``theta = atan2(dy, dx)``:
-    the fingers close across it and a straight approach slides them around the object instead
-    of into it. A box is gripped across the pair of faces nearest that: ``psi = yaw + k pi/2``
-    closest to ``theta``. Without ``start`` the approach is along world x (``theta = 0``).
+    The fingers close along world y, across the object when the hand comes outward from the
+    robot (the way a reach-limited user pushes toward a far object). A box is gripped across
+    the pair of faces nearest that direction: ``psi = yaw + k pi/2`` closest to 0.
     """
-    theta = 0.0
-    if start is not None:
-        theta = math.atan2(obj.position[1] - start[1], obj.position[0] - start[0])
-    psi = theta
+    psi = 0.0
     if obj.shape == "box":
-        quarter = math.pi / 2
-        psi = obj.yaw + round((theta - obj.yaw) / quarter) * quarter
+        psi = obj.yaw - round(obj.yaw / (math.pi / 2)) * (math.pi / 2)
     return downward_rotation(psi)
 
 
@@ -122,7 +120,7 @@ def _build_scene(spec: SceneSpec, arm: Arm) -> Scene:
     start_ee = kin.fk(start_q)
     positions, rotations, configurations = [], [], []
     for obj in spec.objects:
-        pos, rot = grasp_position(obj), grasp_rotation(obj, start=start_ee)
+        pos, rot = grasp_position(obj), grasp_rotation(obj)
         result = kin.ik(pos, rotation=rot, q0=start_q, posture=start_q, tol=5e-4, rot_tol=5e-3)
         if not result.converged:
             raise UnreachableError(
@@ -206,7 +204,7 @@ def _compile(spec: SceneSpec, arm: Arm) -> mujoco.MjModel:
         geom.mass = obj.mass
         geom.rgba = list(obj.rgba)
         geom.friction = list(OBJECT_FRICTION)
-        geom.condim = 4
+        geom.condim = 6
         geom.contype, geom.conaffinity = OBJECT_CONTYPE, OBJECT_CONAFFINITY
     try:
         model = ms.compile()

@@ -8,6 +8,10 @@
   N s, ``J = sum over ticks of (sum of the pair's normal forces) * dt`` (forces sampled once per
   tick, after its last physics substep).
 
+A touch is over once the pair has been apart for ``GAP_S``: a finger dragged along a bottle
+makes and breaks contact every few milliseconds, and that is one touch, not twenty (the end is
+logged at the tick the gap is complete).
+
 A grasp is not a collision: while ``grasping`` (the gripper closing or lifting) the fingers'
 touches on the object between them are tracked but produce no events. ``count`` and
 ``impulse_ns`` total the logged touches of the trial (the dependent measure beside time);
@@ -20,17 +24,22 @@ from collections.abc import Iterable, Sequence
 
 from app.robot.simulation import ARM_PARTS
 
+GAP_S = 0.1
+"""Apart this long (s), a touch has ended; a shorter break continues it."""
+
 FINGERS = frozenset(k for k, name in enumerate(ARM_PARTS) if name.endswith("finger"))
 
 
 class ContactLog:
     """Touch onsets and ends of one trial, from per-tick contact points."""
 
-    def __init__(self, object_names: Sequence[str]) -> None:
+    def __init__(self, object_names: Sequence[str], *, gap_s: float = GAP_S) -> None:
         self.object_names = tuple(object_names)
+        self.gap_s = gap_s
         self.count = 0
         self.impulse_ns = 0.0
         self._touching: dict[tuple[int, int], float] = {}  # (part, object) -> impulse so far
+        self._apart: dict[tuple[int, int], float] = {}  # (part, object) -> seconds apart
         self._silent: set[tuple[int, int]] = set()  # grasp touches: tracked, never logged
 
     def update(
@@ -52,8 +61,11 @@ class ContactLog:
             force[key] = force.get(key, 0.0) + f
         events: list[str] = []
         for key in [k for k in self._touching if k not in force]:
-            events.extend(self._end(key))
+            self._apart[key] = self._apart.get(key, 0.0) + dt
+            if self._apart[key] >= self.gap_s - 1e-9:
+                events.extend(self._end(key))
         for key, f in force.items():
+            self._apart.pop(key, None)
             if key not in self._touching:
                 part, obj = key
                 if grasping and part in FINGERS and (held is None or held == obj):
@@ -74,6 +86,7 @@ class ContactLog:
 
     def _end(self, key: tuple[int, int]) -> list[str]:
         impulse = self._touching.pop(key)
+        self._apart.pop(key, None)
         if key in self._silent:
             self._silent.discard(key)
             return []
