@@ -134,3 +134,25 @@ def test_contacts_are_a_measure_per_trial_in_the_export() -> None:
     trials = _with_contacts(pd.DataFrame({"trial_id": [1, 2, 3]}), samples)
     assert list(trials["contacts"]) == [2, 0, 0]
     assert list(trials["contact_impulse_ns"]) == pytest.approx([0.3, 0.0, 0.0])
+
+
+def test_the_protocol_chooses_the_contact_mode(protocol_path) -> None:
+    from app.robot.errors import SceneError
+
+    base = {
+        "target": "box",
+        "start_q": list(_scene(protocol_path).start_q),
+        "reach": {"min": [0.2, -0.45, 0.02], "max": [0.75, 0.45, 0.6]},
+        "objects": [
+            {
+                "name": "box",
+                "shape": "box",
+                "size": [0.025, 0.025, 0.035],
+                "position": [0.6, 0.0, 0.035],
+            },
+        ],
+    }
+    assert SceneSpec.from_dict(base).contacts == "always"
+    assert SceneSpec.from_dict({**base, "contacts": "grasp"}).contacts == "grasp"
+    with pytest.raises(SceneError, match="scene.contacts: 'sometimes'; use 'always'"):
+        SceneSpec.from_dict({**base, "contacts": "sometimes"})
