@@ -15,7 +15,7 @@ from app.teleop.keyboard import KEY_SPEED_M_S, KEYMAP, TAP_S
 from app.trial import Trial
 from app.trial.cli import trial_config_from_protocol
 from study.simulated import load_population
-from study.simulated.interface import InterfaceUser, choose_handle
+from study.simulated.interface import InterfaceUser, choose_handle, view_direction
 from study.simulated.population import DEFAULT_POPULATION_PATH, Population
 
 
@@ -99,6 +99,11 @@ def test_the_handle_a_person_grabs() -> None:
     assert choose_handle(np.array([0.24, 0.02, -0.2]), **pick) == (0,)
     assert choose_handle(np.array([0.1, 0.2, -0.2]), **pick) == (0, 1)
     assert choose_handle(np.array([0.01, 0.005, -0.2]), **pick) == (2,)
+    # from the page's camera (behind the robot) x runs into the screen: drag the plane instead
+    view = view_direction(load_population().typical().interface)
+    assert abs(view[0]) > 0.7
+    assert choose_handle(np.array([0.24, 0.02, -0.2]), **pick, view=view) == (0, 1)
+    assert choose_handle(np.array([0.02, 0.24, -0.2]), **pick, view=view) == (1,)
 
 
 def test_the_population_sets_the_mix_of_interfaces() -> None:

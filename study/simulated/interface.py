@@ -8,7 +8,8 @@ browser drives (``set_target``, ``key_down``, ``key_up``, ``request_grasp``):
 
 - :class:`GizmoHand` grabs one handle at a time -- the table plane, or one axis -- as seen from
   the page's camera: the horizontal part of the error first (the plane when it is diagonal,
-  ``min(|ex|, |ey|) >= plane_share |e_xy|``, else the larger axis), then height. One drag moves
+  ``min(|ex|, |ey|) >= plane_share |e_xy|``, or when the larger axis points within 45 degrees
+  of the line of sight and looks foreshortened; else that axis), then height. One drag moves
   the handle by the error projected on the handle, ``d``, along a minimum-jerk path lasting
   ``T = a + b log2(1 + |d| / W)`` (mouse dragging, MacKenzie et al. 1991), with hand noise; the
   part of ``d`` along the viewing direction is misjudged by a factor ``1 + e``,
@@ -46,15 +47,27 @@ def view_direction(p: InterfaceParams) -> np.ndarray:
     return -np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
 
 
-def choose_handle(error: np.ndarray, *, plane_share: float, tolerance: float) -> tuple[int, ...]:
+FORESHORTENED_COS = math.cos(math.radians(45.0))
+"""An axis arrow within 45 degrees of the line of sight looks short and is hard to drag along:
+a person moves that way with the table-plane handle instead."""
+
+
+def choose_handle(
+    error: np.ndarray, *, plane_share: float, tolerance: float, view: np.ndarray | None = None
+) -> tuple[int, ...]:
     """The axes of the handle a person grabs for ``error`` (3,): over the table first (until
-    within twice ``tolerance``: lined up above the object), then height."""
+    within twice ``tolerance``: lined up above the object), then height. Over the table: the
+    plane when the error is diagonal, else the larger axis -- unless that axis points along
+    the viewing direction ``view`` (foreshortened on the screen), then the plane too."""
     ex, ey, ez = (abs(float(v)) for v in error)
     horizontal = math.hypot(ex, ey)
     if horizontal > 2.0 * tolerance or (horizontal > tolerance and horizontal >= ez):
+        axis = 0 if ex >= ey else 1
         if min(ex, ey) >= plane_share * horizontal:
             return (0, 1)
-        return (0,) if ex >= ey else (1,)
+        if view is not None and abs(float(view[axis])) > FORESHORTENED_COS:
+            return (0, 1)
+        return (axis,)
     if ez > tolerance:
         return (2,)
     return (0,) if ex >= ey else (1,)
@@ -106,7 +119,9 @@ class GizmoHand:
             )
 
     def _grab(self, t: float, handle_at: np.ndarray, error: np.ndarray) -> None:
-        axes = choose_handle(error, plane_share=self.p.plane_share, tolerance=self.p.tolerance_m)
+        axes = choose_handle(
+            error, plane_share=self.p.plane_share, tolerance=self.p.tolerance_m, view=self.view
+        )
         mask = np.zeros(3)
         mask[list(axes)] = 1.0
         move = error * mask
