@@ -17,8 +17,8 @@ browser drives (``set_target``, ``key_down``, ``key_up``, ``request_grasp``):
   and re-grabs after a lognormal pause (look, move the pointer back to a handle).
 - :class:`KeyHand` holds at most two axis keys (the horizontal ones first, then R/F), each while
   the error along its axis exceeds ``tolerance_m``; the handle moves at the page's key speed
-  (``KEY_SPEED_M_S``). The user sees the handle ``tau`` late and lets go early by
-  ``key_anticipation`` of that delay, so a key overshoots by about
+  (``app.teleop.keyboard.KEY_SPEED_M_S``). The user sees the handle ``tau`` late and lets go
+  early by ``key_anticipation`` of that delay, so a key overshoots by about
   ``speed tau (1 - anticipation)``; what is left is corrected with taps (``press``).
 """
 
@@ -28,7 +28,6 @@ import math
 
 import numpy as np
 
-from app.teleop.keyboard import KEY_SPEED_M_S
 from app.teleop.types import TeleopCommand, TrialObservation
 from app.ui.inputs import ParticipantInput
 from study.simulated.experience import RunExperience
@@ -101,6 +100,9 @@ class GizmoHand:
         intent: np.ndarray,
         inp: ParticipantInput,
     ) -> None:
+        """One tick: when let go and rested, grab a handle toward ``intent`` (unless within
+        ``tolerance`` of the shown ``handle_at``); while dragging, ``set_target`` the next point
+        of the drag, ``from + d s(phi) + noise``, ``phi = (t - t0) / T``."""
         if self.handle is None:
             if t < self._next_grab:
                 return
@@ -156,9 +158,11 @@ class KeyHand:
     def act(
         self, t: float, *, seen_handle: np.ndarray, intent: np.ndarray, inp: ParticipantInput
     ) -> None:
+        """One tick: let go of keys whose axis is within ``tolerance`` (or overshot), hold keys
+        for axes off by twice that (over the table first, at most two), else tap once per look."""
         # where the handle is now, as the user reckons it: seen tau ago, plus the held keys'
         # travel since, of which they anticipate a share
-        lead = KEY_SPEED_M_S * self.delay_s * self.p.key_anticipation
+        lead = inp.keyboard.speed * self.delay_s * self.p.key_anticipation
         now = seen_handle.copy()
         for axis, key in self.held.items():
             now[axis] += lead if key == AXIS_KEYS[axis][1] else -lead
@@ -212,6 +216,8 @@ class InterfaceUser:
         return "keyboard" if self.keyboard else "gizmo"
 
     def command(self, obs: TrialObservation) -> TeleopCommand:
+        """Perceive and decide (the goal-level user), act on the page's input, then return
+        what that input gives the trial this tick (``ParticipantInput.command``)."""
         self.user.command(obs)  # perceive, decide: the intent and the grasp wish
         dt = 1.0 / obs.rate_hz if self._t_prev is None else max(obs.t - self._t_prev, 1e-6)
         self._t_prev = obs.t
