@@ -154,5 +154,5 @@ def test_the_protocol_chooses_the_contact_mode(protocol_path) -> None:
     }
     assert SceneSpec.from_dict(base).contacts == "always"
     assert SceneSpec.from_dict({**base, "contacts": "grasp"}).contacts == "grasp"
-    with pytest.raises(SceneError, match="scene.contacts: 'sometimes'; use 'always'"):
+    with pytest.raises(SceneError, match=r"scene\.contacts: 'sometimes'; use 'always'"):
         SceneSpec.from_dict({**base, "contacts": "sometimes"})
