@@ -25,6 +25,8 @@ import numpy as np
 import pandas as pd
 
 from analysis import figures as figs
+from analysis.contact_summary import contact_section
+from analysis.decoy_share import decoy_section
 from analysis.errors import AnalysisError
 from analysis.load import StudyTables
 from analysis.prediction_eval import (
@@ -550,6 +552,8 @@ def write_report(
         res.notes.insert(0, "the protocol file's hash differs from the one recorded with the "
                             "data: pass the protocol the study ran with (--protocol)")
     sections = _sections(res, figures, tables.trials, choices)
+    extra = [s for s in (decoy_section(tables), contact_section(tables)) if s is not None]
+    sections[min(2, len(sections)) : min(2, len(sections))] = extra
     html_path, md_path, json_path = out / "report.html", out / "report.md", out / "results.json"
     html_path.write_text(render_html(sections, meta), encoding="utf-8")
     md_path.write_text(render_markdown(sections, meta), encoding="utf-8")

@@ -43,10 +43,16 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
                    "export; one whose process had died is reported interrupted)",
                    "completed | redone | skipped | interrupted | running"),
         "outcome": ("how the trial ended",
-                    "success | wrong_object | dropped | timeout | aborted | interrupted"),
+                    "success | wrong_object | dropped | pushed_off (an object was pushed off the"
+                    " table) | timeout | aborted | interrupted"),
         "success": ("the target was lifted", "true | false"),
         "duration_s": ("time to complete, seconds, pauses excluded", "s"),
         "ticks": ("control ticks run (rows in samples)", ""),
+        "contacts": ("dependent measure: touches of the arm (wrist, hand, fingers) on objects"
+                     " in the trial; the fingers closing on an object in a grasp do not count",
+                     "0.."),
+        "contact_impulse_ns": ("dependent measure: total normal impulse of those touches",
+                               "N s"),
         "started_at": ("start time, ISO 8601 UTC", ""),
         "goal_names": ("JSON list of the scene's goal names; prob_<k> follows this order", ""),
         "goal_positions": ("JSON list of [x, y, z] goal positions, metres, world frame", "m"),
@@ -75,7 +81,9 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
         "gripper": ("gripper opening", "m"),
         "events": ("JSON list of events at this tick (grasp_requested, grasped:<object>, "
                    "lifted:<object>, goal_moved:<object>@x,y,z when the robot re-aims at a moved "
-                   "object, outcome:<outcome> ...)", ""),
+                   "object, contact:<part>:<object> when an arm part starts touching an object, "
+                   "contact_end:<part>:<object>:<impulse N s> when it stops, "
+                   "pushed_off:<object>, outcome:<outcome> ...)", ""),
     },
     "ratings": {
         "participant": ("participant id", ""),

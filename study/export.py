@@ -45,7 +45,7 @@ DEFAULT_POINTS = 7
 TRIAL_COLUMNS = (
     "participant", "session_id", "phase", "schedule_row", "position", "task", "difficulty",
     "correctness", "mode", "run", "attempt", "status", "outcome", "success", "duration_s",
-    "ticks", "started_at", "goal_names", "goal_positions", "target", "training_time_s",
+    "ticks", "contacts", "contact_impulse_ns", "started_at", "goal_names", "goal_positions", "target", "training_time_s",
     "baseline_rating", "tasks_completed",
 )
 """Fixed leading columns of ``trials``; Likert and preference columns and ``trial_id`` follow."""
@@ -164,16 +164,18 @@ class _Exporter:
         return after_run, after_task, (DEFAULT_POINTS + 1) / 2, reference
 
     def tables(self) -> dict[str, pd.DataFrame]:
+        samples = self.samples()
         return {
-            "trials": self.trials(),
-            "samples": self.samples(),
+            "trials": self.trials(samples),
+            "samples": samples,
             "ratings": self.ratings(),
             "events": self.events(),
         }
 
     # -- trials ------------------------------------------------------------------------------
-    def trials(self) -> pd.DataFrame:
+    def trials(self, samples: pd.DataFrame | None = None) -> pd.DataFrame:
         t = self.raw_trials.copy()
+        t = _with_contacts(t, self.store.samples() if samples is None else samples)
         rows = self.participants.set_index("participant")["schedule_row"]
         t["schedule_row"] = t["participant"].map(rows)
         t["mode"] = t["mode"].where(t["phase"] != "training", TRAINING_MODE)
@@ -189,7 +191,7 @@ class _Exporter:
                 extra.append(f"{item}_{reference}")
         out = t[[*TRIAL_COLUMNS, *extra, "trial_id"]].reset_index(drop=True)
         return _typed(out, ints=("session_id", "schedule_row", "position", "attempt", "ticks",
-                                 "tasks_completed", "trial_id", *after_run, *after_task),
+                                 "contacts", "tasks_completed", "trial_id", *after_run, *after_task),
                       bools=("success",))
 
     def _covariates(self, t: pd.DataFrame) -> pd.DataFrame:
@@ -280,6 +282,21 @@ class _Exporter:
         e = self.store.frame("events").sort_values("event_id", kind="stable")
         return _typed(e[list(EVENT_COLUMNS)].reset_index(drop=True), ints=("session_id",),
                       bools=())
+
+
+def _with_contacts(trials: pd.DataFrame, samples: pd.DataFrame) -> pd.DataFrame:
+    """``contacts`` (touch onsets of the arm on objects) and ``contact_impulse_ns`` per trial,
+    totalled from the samples' events (``app.trial.contacts``)."""
+    from app.trial.contacts import contact_totals
+
+    touched = samples[samples["events"].astype(str).str.contains("contact", regex=False)]
+    lists: dict[Any, list[str]] = {}
+    for tid, events in zip(touched["trial_id"], touched["events"], strict=True):
+        lists.setdefault(tid, []).extend(json.loads(events) if isinstance(events, str) else events)
+    totals = {tid: contact_totals(e) for tid, e in lists.items()}
+    trials["contacts"] = trials["trial_id"].map(lambda k: totals.get(k, (0, 0.0))[0])
+    trials["contact_impulse_ns"] = trials["trial_id"].map(lambda k: totals.get(k, (0, 0.0))[1])
+    return trials
 
 
 def _goal_name(names: list[str], index: Any) -> Any:

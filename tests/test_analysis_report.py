@@ -196,14 +196,15 @@ MEMORY3 = ROOT / "protocols" / "memory3.toml"
 
 @pytest.fixture(scope="module")
 def memory3_report(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, dict, str]:
-    """Two simulated participants through protocols/memory3.toml, reported without --protocol."""
+    """Three simulated participants through protocols/memory3.toml, reported without --protocol
+    (with two, their two participant-level covariates are collinear unless one is constant)."""
     from analysis.load import load_tables
     from analysis.report import write_report
     from study.simulated.runner import simulate
 
     d = tmp_path_factory.mktemp("memory3")
     db = d / "m3.db"
-    simulate(protocol_path=MEMORY3, db=db, participants=2, seed=1, progress=False)
+    simulate(protocol_path=MEMORY3, db=db, participants=3, seed=1, progress=False)
     files = write_report(load_tables(db=db), d / "report")
     return db, d / "report", json.loads(files.results_json.read_text()), \
         files.markdown.read_text()
@@ -238,7 +239,7 @@ def test_memory3_report_shows_no_paper_values_for_its_three_level_design(memory3
 def test_memory3_report_wording(memory3_report) -> None:
     db, _, doc, md = memory3_report
     n = doc["fits"]["timing_ancova"]["n"]
-    assert n == 18 and f"this model treats the {n} times as independent" in md
+    assert n == 27 and f"this model treats the {n} times as independent" in md
     assert "(9 per participant)" in md and "9-9" not in md
     assert f"memory3 from {db} (stored protocol); content hash" in md
     # no --protocol given: the default file (dragan2013.toml) is not news

@@ -160,7 +160,7 @@ def test_trials_table_columns_and_covariates(store_path, protocol) -> None:
     expected = 2.0 if info["first_mode"] == "aggressive" else -2.0
     assert (tasks["preference_aggressive"] == expected).all()
     assert json.loads(tasks["goal_names"][0]) == list(protocol.goal_names(info["task"]))
-    assert tasks["target"][0] == "bottle"
+    assert tasks["target"][0] == protocol.scenes[protocol.tasks[0].scene].target
     p2 = trials[trials["participant"] == "P02"]
     assert list(p2["status"]) == ["interrupted"] and p2["training_time_s"].isna().all()
     assert list(p2["schedule_row"]) == [1]

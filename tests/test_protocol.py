@@ -104,7 +104,7 @@ def test_trial_descriptions_never_name_a_condition(paper) -> None:
         low = text.lower()
         assert not [w for w in BLINDED if w in low], (task, text)
         assert task not in text
-        assert "bottle" in text
+        assert "box" in text  # the target of every task (Fig. 6)
     # Nothing about the description distinguishes the four task types.
     assert len(set(descriptions.values())) == 1
     training = paper.describe_training()

@@ -21,7 +21,7 @@ def test_memory_condition_predicts_the_target_and_a_scripted_user_succeeds(mode:
     assert result.outcome == "success", result.outcome
     target = config.scene.object_names.index(config.scene.target)
     # Over the second half of the run the memory predictor names the user's goal, and by the
-    # grasp it is confident: more than twice the other two together (the can, 14 cm from the
+    # grasp it is confident: more than twice the other two together (the can, 19 cm from the
     # bottle, keeps some probability).
     late = result.records[len(result.records) // 2 :]
     assert all(r.predicted == target for r in late)

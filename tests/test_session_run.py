@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from app.cli import dispatch
+from app.trial import OUTCOMES
 from study.__main__ import COMMANDS
 from study.protocol import load_protocol
 from study.session import open_store
@@ -58,7 +59,7 @@ def test_whole_session_headless(
         assert store.integrity_check() == "ok"
         trials = store.trials()
         assert all(t.status == "completed" for t in trials)
-        assert all(t.outcome in ("success", "wrong_object", "dropped", "timeout") for t in trials)
+        assert all(t.outcome in OUTCOMES for t in trials)
         assert all(t.ticks == store.sample_count(t.trial_id) > 0 for t in trials)
         assert all(t.duration_s == pytest.approx(t.ticks / 100) for t in trials)
         assert trials[3].goal_names and len(trials[3].goal_positions[0]) == 3

@@ -76,7 +76,7 @@ def test_store_holds_a_completed_session(
         conditions = {(t.task, t.mode) for t in task_trials}
         assert len(conditions) == 8
         for t in trials:
-            assert t.outcome in ("success", "timeout", "dropped", "wrong_object")
+            assert t.outcome in ("success", "timeout", "dropped", "wrong_object", "pushed_off")
             assert store.sample_count(t.trial_id) == t.ticks > 0
             assert t.duration_s is not None and 0 < t.duration_s <= 20.0 + 1e-6
         # the simulated user picks the object up where the task is feasible
@@ -119,3 +119,20 @@ def test_bad_seed_or_first_is_refused_before_a_store_exists(
             **options,
         )
     assert not (tmp_path / "sim.db").exists()
+
+
+def test_the_report_shows_decoy_share_and_contacts(simulated: tuple[dict, Path]) -> None:
+    from analysis.contact_summary import contact_section, contact_summary
+    from analysis.decoy_share import decoy_section, decoy_shares
+    from analysis.load import load_tables
+
+    _, db = simulated
+    tables = load_tables(db=db)
+    shares = decoy_shares(tables.trials, tables.samples)
+    assert len(shares) == 4  # two Wrong tasks x two modes
+    decoy = decoy_section(tables)
+    assert decoy is not None
+    assert f"median {shares['decoy_share'].median():.2f} over 4 trials" in decoy.paragraphs[0]
+    summary = contact_summary(tables.trials)
+    assert summary["trials"].sum() == 8 and (summary["mean touches"] >= 0).all()
+    assert contact_section(tables) is not None

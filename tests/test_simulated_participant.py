@@ -8,6 +8,7 @@ import pytest
 
 from study.screen import Item, Progress, Screen
 from study.simulated import SimulatedUser, SimulationRunError, load_population
+from study.simulated.interface import InterfaceUser
 from study.simulated.participant import SimulatedParticipant
 from study.simulated.runner import participant_id, plan_jobs, session_seed
 from study.trial_run import TrialSummary
@@ -29,7 +30,7 @@ def screen(questionnaire: str, *items: str) -> Screen:
 
 def lived(person: SimulatedParticipant, *, duration: float, success: bool = True) -> None:
     user = person(config=None, seed=1)  # type: ignore[arg-type]
-    assert isinstance(user, SimulatedUser)
+    assert isinstance(user, InterfaceUser) and isinstance(user.user, SimulatedUser)
     summary = TrialSummary(1, "success" if success else "timeout", success, duration, 100)
     person.observe(summary, time_limit_s=120.0)
 

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from app.blending import parse_goal_moved
+from app.robot.scene import build_scene
 from app.teleop import GizmoInput, ScriptedInput, TeleopCommand, TrialObservation
 from app.trial import OUTCOMES, Trial, run_trial
 from app.trial.cli import IdleInput, trial_config_from_protocol
@@ -34,19 +35,20 @@ def test_easy_task_unassisted_succeeds_with_full_records(config) -> None:
     assert result.ticks == len(result.records)
     assert result.duration_s == pytest.approx(result.ticks / 100)
     last = result.records[-1]
-    assert "lifted:bottle" in last.events and "outcome:success" in last.events
+    assert f"lifted:{result.target}" in last.events and "outcome:success" in last.events
     for rec in result.records[::50]:
         assert rec.q.shape == rec.u.shape == rec.p.shape == rec.command.shape == (7,)
         assert rec.user_target.shape == rec.ee.shape == (3,)
         assert rec.probabilities.shape == (2,) and rec.probabilities.sum() == pytest.approx(1)
         assert rec.alpha == 0.0
         json.dumps(rec.as_dict())
-    assert any(e.startswith("grasped:bottle") for _, e in result.events)
+    assert any(e == f"grasped:{result.target}" for _, e in result.events)
 
 
 @pytest.mark.parametrize("task", ["hard-right", "hard-wrong"])
 def test_hard_task_needs_assistance(config, task: str) -> None:
-    grasp = np.array([0.68, 0.22, 0.13])  # the bottle's grasp point, beyond the reach
+    scene = build_scene(config(task, "none").scene)
+    grasp = scene.goals.positions[scene.target_index]  # beyond the reach
     for seed in (0, 1):
         # A user who pushes at the interface's limit and waits: the gripper never gets there.
         patient = ScriptedInput(seed=seed, grasp_when_stalled=False)
@@ -60,8 +62,15 @@ def test_hard_task_needs_assistance(config, task: str) -> None:
         assert not trying.success and trying.outcome in ("timeout", "dropped")
         for mode in ("timid", "aggressive"):
             helped = run_trial(config(task, mode, time_limit_s=30), ScriptedInput(seed=seed))
-            assert helped.outcome == "success", (task, mode, seed, helped.outcome)
             assert max(r.alpha for r in helped.records) > 0.3
+            if task == "hard-wrong" and mode == "aggressive":
+                # wrong and aggressive, the robot drives the gripper into the decoy first
+                decoy = next(n for n in helped.goal_names if n != helped.target)
+                assert any(
+                    e.startswith("contact:") and e.endswith(f":{decoy}") for _, e in helped.events
+                )
+                continue
+            assert helped.outcome == "success", (task, mode, seed, helped.outcome)
 
 
 def test_knocking_the_target_over_ends_the_trial(config) -> None:
@@ -76,16 +85,16 @@ def test_knocking_the_target_over_ends_the_trial(config) -> None:
     while not trial.done:
         trial.tick()
     assert trial.outcome == "dropped" and trial.t < 0.5
-    assert "knocked_over:bottle" in trial.records[-1].events
+    assert f"knocked_over:{trial.scene.target}" in trial.records[-1].events
 
 
-def test_unassisted_rim_grasp_in_the_hard_task_slips_gently(config) -> None:
-    # At the reach limit the fingers close on the bottle's near rim: it slips out when
-    # lifted, but the gripper closes gently enough not to fling the bottle away.
+def test_unassisted_gripper_in_the_hard_task_closes_short_of_the_target(config) -> None:
+    # At the reach limit the open fingers end short of the box (along the gripper's slot):
+    # whatever the user does there, nothing is grasped and the box is not knocked over.
     result = run_trial(config("hard-right", "none", time_limit_s=30), ScriptedInput(seed=0))
-    assert result.outcome == "dropped"
-    assert "dropped:bottle" in result.records[-1].events
-    assert not any(e.startswith("knocked_over") for _, e in result.events)
+    assert result.outcome == "timeout"
+    lost = ("grasped:", f"knocked_over:{result.target}")
+    assert not any(e.startswith(lost) for _, e in result.events)
 
 
 def test_observation_follows_objects_that_move(config) -> None:
@@ -94,17 +103,21 @@ def test_observation_follows_objects_that_move(config) -> None:
     start = trial.observation()
     bottle = start.target_index
     np.testing.assert_allclose(start.grasp_points, start.goal_positions)
-    np.testing.assert_allclose(start.object_positions[bottle], [0.55, 0.3, 0.08], atol=1e-6)
+    rest = np.array(trial.scene.spec.object(trial.scene.target).position)
+    np.testing.assert_allclose(start.object_positions[bottle], rest, atol=1e-6)
     rises = []
     while not trial.done:
         trial.tick()
         if trial.outcome is None:
             obs = trial.observation()
-            rises.append(obs.object_positions[bottle, 2] - 0.08)
-            lift = obs.grasp_points - obs.goal_positions
-            np.testing.assert_allclose(lift, obs.object_positions - start.object_positions)
+            rises.append(obs.object_positions[bottle, 2] - rest[2])
+            lift = obs.grasp_points[bottle] - obs.goal_positions[bottle]
+            moved = obs.object_positions[bottle] - start.object_positions[bottle]
+            np.testing.assert_allclose(lift, moved)
     assert trial.outcome == "success" and max(rises) > 0.03
-    np.testing.assert_allclose(trial.observation().goal_positions, start.goal_positions)
+    np.testing.assert_allclose(
+        trial.observation().goal_positions[bottle], start.goal_positions[bottle]
+    )
 
 
 def test_aggressive_gives_more_help_than_timid(config) -> None:
@@ -118,7 +131,8 @@ def test_aggressive_gives_more_help_than_timid(config) -> None:
 def test_grasping_the_other_object_is_an_outcome(config) -> None:
     result = run_trial(config("easy-right", "none", time_limit_s=30), ScriptedInput(goal=1))
     assert result.outcome == "wrong_object" and not result.success
-    assert "lifted:box" in result.records[-1].events
+    other = next(name for name in result.goal_names if name != result.target)
+    assert f"lifted:{other}" in result.records[-1].events
 
 
 def test_dropping_is_an_outcome(config) -> None:
@@ -128,7 +142,7 @@ def test_dropping_is_an_outcome(config) -> None:
         if any(e.startswith("grasped:") for e in rec.events):
             trial.sim.set_grip_contacts(False)  # the bottle slips through the fingers
     assert trial.outcome == "dropped"
-    assert "dropped:bottle" in trial.records[-1].events
+    assert f"dropped:{trial.scene.target}" in trial.records[-1].events
 
 
 def test_timeout_and_abort(config) -> None:

@@ -37,14 +37,18 @@ GRIPPER_KP = 400.0  # N / m on the finger opening: squeezes a 6 cm bottle with ~
 GRIPPER_KV = 10.0  # N s / m, about critical for the fingers (never saturates: smooth)
 GRIPPER_FORCE = 40.0  # N, per finger
 GRIPPER_MAX = 0.04  # m, finger travel
-# Collision bits. Table and floor (contype 1, conaffinity 1|2) stop everything; the arm (2)
-# never collides with itself or the objects; the fingers (2|4) touch an object only while the
-# object's conaffinity has bit 4, which a Simulation sets while the gripper closes and holds.
+# Collision bits (MuJoCo collides a pair when contype_a & conaffinity_b or the reverse is set).
+# Table and floor (contype 1, conaffinity 1|2) stop everything; the arm (2) never collides with
+# itself (conaffinity 0). Objects (contype 1, conaffinity 1 | OBJECT_ARM_BIT) stand on the table,
+# touch each other and are touched by the wrist, hand and fingers (``contacts = "always"``, the
+# default). With ``contacts = "grasp"`` (the earlier behaviour) an object drops the arm bit and
+# only the fingers (2|4) touch it while its conaffinity has bit 4, set while the gripper closes.
 ARM_CONTYPE, ARM_CONAFFINITY = 2, 0
 FINGER_CONTYPE = 2 | 4
 WORLD_CONTYPE, WORLD_CONAFFINITY = 1, 3
 LOW_LINKS = ("panda_link6", "panda_link7", "panda_hand", "panda_leftfinger", "panda_rightfinger")
 OBJECT_CONTYPE, OBJECT_CONAFFINITY, OBJECT_GRIP_BIT = 1, 1, 4
+OBJECT_ARM_BIT = 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,6 +96,9 @@ def _arm_spec(urdf: str, kin: Kinematics) -> mujoco.MjSpec:
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
     spec.option.impratio = 10.0
+    # Resting objects sleep (MuJoCo islands): an object no one touches costs no dynamics; a
+    # touch from the arm wakes it. Newton with few iterations converges for these small islands.
+    spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_SLEEP)
     spec.compiler.autolimits = True
     spec.compiler.discardvisual = False  # keep the upper links, which collide with nothing
     for body in spec.bodies:

@@ -88,6 +88,9 @@ class SceneSpec:
     objects: tuple[ObjectSpec, ...]
     table: TableSpec = field(default_factory=TableSpec)
     gripper_open: float = 0.04
+    contacts: str = "always"
+    """``always``: the arm touches objects at all times; ``grasp``: only the closing fingers do
+    (the arm passes through objects while reaching; the platform's earlier behaviour)."""
 
     @property
     def object_names(self) -> tuple[str, ...]:
@@ -110,7 +113,16 @@ class SceneSpec:
         """Validate one ``[scenes.NAME]`` table; ``where`` is its key path for error messages."""
         if not isinstance(d, Mapping):
             raise SceneError(f"{where}: expected a table, got {type(d).__name__}")
-        known = {"target", "start_q", "reach", "objects", "table", "gripper_open", "name"}
+        known = {
+            "target",
+            "start_q",
+            "reach",
+            "objects",
+            "table",
+            "gripper_open",
+            "name",
+            "contacts",
+        }
         unknown = sorted(set(d) - known)
         if unknown:
             raise SceneError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(known)}")
@@ -141,6 +153,12 @@ class SceneSpec:
         gripper_open = float(d.get("gripper_open", 0.04))
         if not 0.0 < gripper_open <= 0.04:
             raise SceneError(f"{where}.gripper_open: {gripper_open} outside (0, 0.04] m")
+        contacts = d.get("contacts", "always")
+        if contacts not in ("always", "grasp"):
+            raise SceneError(
+                f"{where}.contacts: {contacts!r}; use 'always' (the arm touches objects) or"
+                " 'grasp' (only the closing fingers do)"
+            )
         spec = cls(
             name=name,
             target=str(target),
@@ -150,6 +168,7 @@ class SceneSpec:
             objects=objects,
             table=table,
             gripper_open=gripper_open,
+            contacts=str(contacts),
         )
         spec._check_layout(where)
         return spec

@@ -4,10 +4,15 @@
 tick ``step(command, gripper_closed=..., substeps=n)`` sets the seven joint servos to the
 command (clipped to the joint limits; a non-finite command is refused) and moves the gripper
 servo's setpoint toward open or closed at ``GRIPPER_SPEED``, then advances ``n`` physics steps. Queries report what a trial needs to
-judge the outcome: the TCP position, which object both fingers hold, object heights and tilt.
-The arm passes through objects while reaching and the objects rest (no contacts to solve); they
-come alive when a grasp starts (``set_grip_contacts``), so assistance never knocks a bottle over
-on its way in and the reaching phase simulates fast.
+judge the outcome: the TCP position, which object both fingers hold, object heights and tilt,
+objects off the table, and the arm's contacts with objects (``arm_contacts``).
+
+Contacts (the scene's ``contacts``): ``"always"`` (the default) -- the wrist, hand and fingers
+touch every object at all times, so an arm driven the wrong way pushes or topples what is in
+its path; resting objects sleep (MuJoCo islands) until touched, which keeps the physics cheap.
+``"grasp"`` -- the earlier behaviour, kept for comparison: the arm passes through objects while
+reaching and they rest without contacts; they come alive when a grasp starts
+(``set_grip_contacts``).
 """
 
 from __future__ import annotations
@@ -19,12 +24,24 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from app.robot.arm import GRIPPER_MAX, OBJECT_CONAFFINITY, OBJECT_CONTYPE, OBJECT_GRIP_BIT
+from app.robot.arm import (
+    GRIPPER_MAX,
+    OBJECT_ARM_BIT,
+    OBJECT_CONAFFINITY,
+    OBJECT_CONTYPE,
+    OBJECT_GRIP_BIT,
+)
 from app.robot.errors import RobotError
 from app.robot.scene import Scene
 
 _BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
 GRIPPER_SPEED = 0.15  # m/s per finger, how fast the gripper's setpoint opens or closes
+OFF_TABLE_M = 0.02  # an object whose centre is this far below the table top has fallen off
+CONTACT_MODES = ("always", "grasp")
+ARM_PARTS = ("link6", "hand", "leftfinger", "rightfinger")
+"""The arm's parts that can touch anything (``arm_contacts`` reports their index). The compiled
+model fuses the hand into ``panda_link7`` (a fixed joint): that body is the "hand"."""
+_PART_BODIES = ("panda_link6", "panda_link7", "panda_leftfinger", "panda_rightfinger")
 
 
 class SimulationError(RobotError):
@@ -36,6 +53,9 @@ class Simulation:
 
     def __init__(self, scene: Scene, *, physics_dt: float = 0.002) -> None:
         self.scene = scene
+        self.contacts = scene.spec.contacts
+        if self.contacts not in CONTACT_MODES:  # pragma: no cover - SceneSpec checks it
+            raise SimulationError(f"contacts: one of {CONTACT_MODES}, got {self.contacts!r}")
         # The compiled model is shared by every trial of the scene: this trial changes its own
         # copy (timestep, finger-object contacts). Copying costs well under a millisecond.
         self.model = copy.copy(scene.model)
@@ -64,12 +84,25 @@ class Simulation:
         self._ctrl = d.ctrl
         self._tcp = d.site_xpos[scene.tcp_site_id]
         self._dt = physics_dt
+        # body id -> arm part index (-1: not an arm part), object index (-1: not an object)
+        nbody = self.model.nbody
+        self._part_of_body = np.full(nbody, -1, dtype=np.int64)
+        for k, name in enumerate(_PART_BODIES):
+            self._part_of_body[self.model.body(name).id] = k
+        self._object_of_body = np.full(nbody, -1, dtype=np.int64)
+        self._object_of_body[self._object_bodies] = np.arange(len(self._object_bodies))
+        self._part_of_geom = self._part_of_body[self._body_of_geom]
+        self._object_of_geom = self._object_of_body[self._body_of_geom]
+        self._off_z = scene.spec.table.top_z - OFF_TABLE_M
         self.reset()
 
     def reset(self) -> None:
         """Arm at the start configuration, gripper open, objects at rest."""
         mujoco.mj_resetData(self.model, self.data)
-        self.set_grip_contacts(False)
+        if self.contacts == "always":
+            self._set_live(np.ones(len(self._object_bodies), dtype=bool))
+        else:
+            self.set_grip_contacts(False)
         self.data.qpos[:7] = self.scene.start_q
         self.data.qpos[7:9] = self.scene.spec.gripper_open
         self.data.ctrl[:7] = self.scene.start_q
@@ -144,20 +177,25 @@ class Simulation:
         return bool(self.model.geom_contype[self._object_geoms].any())
 
     def set_grip_contacts(self, on: bool, *, only: Sequence[int] | None = None) -> None:
-        """Objects live (contacts, gravity) while grasping; at rest and untouchable while reaching.
+        """Objects live (contacts, gravity) or at rest (untouchable, gravity-compensated).
 
-        While the user reaches, the arm passes through the objects, so nothing can move them:
-        they rest where they stand with gravity compensated and no contacts to solve (the
-        physics step costs a third). Once the gripper closes they fall under gravity again,
-        stand on the table and the fingers take hold of whatever lies between them. ``only``
-        (object indices) wakes just those objects; ``on=False`` puts every object to rest.
+        With ``contacts = "grasp"`` a trial calls this: while the user reaches, the arm passes
+        through the objects, so nothing can move them; once the gripper closes they fall under
+        gravity again, stand on the table and the fingers take hold of whatever lies between
+        them. With ``"always"`` objects are live from ``reset`` on and a trial never calls it.
+        ``only`` (object indices) wakes just those objects; ``on=False`` rests every object.
         """
         n = len(self._object_bodies)
         live = np.zeros(n, dtype=bool)
         if on:
             live[list(range(n)) if only is None else list(only)] = True
+        self._set_live(live)
+
+    def _set_live(self, live: np.ndarray) -> None:
+        """Live objects collide and fall; the others rest, gravity-compensated and untouchable."""
+        arm_bit = OBJECT_ARM_BIT if self.contacts == "always" else 0
         contype = np.where(live, OBJECT_CONTYPE, 0)
-        affinity = np.where(live, OBJECT_CONAFFINITY | OBJECT_GRIP_BIT, 0)
+        affinity = np.where(live, OBJECT_CONAFFINITY | OBJECT_GRIP_BIT | arm_bit, 0)
         m = self.model
         m.geom_contype[self._object_geoms] = contype
         m.geom_conaffinity[self._object_geoms] = affinity
@@ -167,6 +205,32 @@ class Simulation:
         self._any_live = bool(live.any())
         for k in np.flatnonzero(~live):
             self.data.qvel[self._object_dofs[6 * k : 6 * k + 6]] = 0.0
+
+    def arm_contacts(self) -> list[tuple[int, int, float]]:
+        """The arm's touches now: ``(part, object, normal force N)`` per contact point, ``part``
+        indexing ``ARM_PARTS`` and ``object`` the scene's objects (after the last substep)."""
+        ncon = self.data.ncon
+        if ncon == 0:
+            return []
+        geoms = self.data.contact.geom[:ncon]
+        part = self._part_of_geom[geoms]
+        obj = self._object_of_geom[geoms]
+        # a pair is arm-object when one side is an arm part and the other an object
+        hit = ((part[:, 0] >= 0) & (obj[:, 1] >= 0)) | ((part[:, 1] >= 0) & (obj[:, 0] >= 0))
+        if not hit.any():
+            return []
+        out = []
+        adr = self.data.contact.efc_address
+        for i in np.flatnonzero(hit).tolist():
+            a = 0 if part[i, 0] >= 0 else 1
+            force = float(self.data.efc_force[adr[i]]) if adr[i] >= 0 else 0.0
+            out.append((int(part[i, a]), int(obj[i, 1 - a]), max(force, 0.0)))
+        return out
+
+    def objects_off_table(self) -> list[int]:
+        """Indices of the objects whose centre fell below the table top (pushed off)."""
+        z = self.data.xpos[self._object_bodies, 2]
+        return [int(k) for k in np.flatnonzero(z < self._off_z)]
 
     def objects_near(self, point: np.ndarray, radius: float) -> list[int]:
         """Indices of the objects whose centre lies within ``radius`` of ``point`` in the xy plane."""

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-OUTCOMES = ("success", "wrong_object", "dropped", "timeout", "aborted", "interrupted")
+OUTCOMES = ("success", "wrong_object", "dropped", "pushed_off", "timeout", "aborted", "interrupted")
 
 
 @dataclass(frozen=True, slots=True)

@@ -7,7 +7,9 @@ the arm to ``(1 - alpha) U + alpha P`` and advances the physics. A grasp request
 gripper in physics; holding an object, the arm lifts it by itself; the trial succeeds when the
 target is ``lift_height_m`` above its rest height. Outcomes: ``success``, ``wrong_object``,
 ``dropped`` (the held object fell, or the target was knocked over and can no longer be
-grasped), ``timeout``, ``aborted`` and ``interrupted`` -- logged, never raised.
+grasped), ``pushed_off`` (the arm pushed an object off the table), ``timeout``, ``aborted`` and
+``interrupted`` -- logged, never raised. The arm's touches on objects are logged as events at
+the tick they start and end (``app.trial.contacts``).
 
 Thread safety: ``tick``, ``pause``, ``resume``, ``abort`` and ``interrupt`` take one lock; the
 server runs ``tick`` paced in its own thread while UI callbacks feed the input source.
@@ -37,6 +39,7 @@ from app.robot.simulation import Simulation, SimulationError
 from app.teleop.ik_step import IKStep
 from app.teleop.types import InputSource, TeleopCommand, TrialObservation
 from app.trial.config import TrialConfig
+from app.trial.contacts import ContactLog
 from app.trial.records import TickRecord, TrialResult
 
 CLOSE_S = 0.4  # gripper closing time before judging the grasp
@@ -86,6 +89,7 @@ class Trial:
         self._held: int | None = None
         self._lost_t: float | None = None
         self._knocked: set[int] = set()
+        self.contacts = ContactLog(self.scene.object_names)
         n = len(self.scene.goals)
         self.user_target = self.scene.start_ee.copy()
         reach = self.scene.reach
@@ -265,6 +269,14 @@ class Trial:
             self._ee = self.sim.ee
             if self.sim.objects_live:
                 self._objects_moved()
+                events.extend(
+                    self.contacts.update(
+                        self.sim.arm_contacts(),
+                        dt=self._dt,
+                        grasping=self._phase in ("closing", "lifting"),
+                        held=self._held,
+                    )
+                )
             self._judge(events)
             if not self.done and self.t >= self.config.time_limit_s - 1e-9:
                 self._finish("timeout", events)
@@ -303,8 +315,9 @@ class Trial:
         if self._phase == "reach":
             if request:
                 self._enter("closing", events, "grasp_requested")
-                # wake what the fingers can reach; farther objects keep resting (cheaper)
-                self.sim.set_grip_contacts(True, only=self.sim.objects_near(self.sim.ee, WAKE_M))
+                if self.sim.contacts == "grasp":  # wake what the fingers can reach
+                    near = self.sim.objects_near(self.sim.ee, WAKE_M)
+                    self.sim.set_grip_contacts(True, only=near)
                 self._hold_q = q
                 return q, q, q
             u = self.ik(q, self.user_target)
@@ -315,8 +328,9 @@ class Trial:
             cmd = self.ik(q, self._lift_target, max_speed=LIFT_SPEED)
             return cmd, cmd, cmd
         if self._phase == "reopening" and t - self._phase_t >= REOPEN_S:
-            if self.sim.objects_at_rest():  # untouched: back to resting, contact-free objects
-                self.sim.set_grip_contacts(False)
+            if self.sim.objects_at_rest():  # untouched: "grasp" rests them again
+                if self.sim.contacts == "grasp":
+                    self.sim.set_grip_contacts(False)
             else:  # disturbed objects stay physical (they may be moving or tipped)
                 events.append("objects_disturbed")
             self._enter("reach", events)
@@ -362,6 +376,11 @@ class Trial:
                 events.append(f"lift_failed:{names[i]}")
                 self._finish("dropped", events)
         if check_tilts and not self.done:
+            off = self.sim.objects_off_table()
+            if off:  # an object on the floor ends the trial, whichever it was
+                events.extend(f"pushed_off:{names[i]}" for i in off)
+                self._finish("pushed_off", events)
+                return
             for i in np.flatnonzero(self.sim.object_tilts() > TILT_RAD):
                 if int(i) not in self._knocked:
                     self._knocked.add(int(i))
@@ -375,6 +394,7 @@ class Trial:
             events.append("timeout")
         self.outcome = outcome
         self._phase = "done"
+        events.extend(self.contacts.close())
         events.append(f"outcome:{outcome}")
 
     def _record(

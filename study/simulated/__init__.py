@@ -4,7 +4,10 @@ runner that drives them through the real session engine.
 - :func:`load_population` / :class:`Population`: parameter distributions (protocols/population.toml)
   and seeded per-participant draws (:class:`ParticipantParams`).
 - :class:`SimulatedUser`: an ``app.teleop.InputSource`` for one trial (goal-directed minimum-jerk
-  input, reaction delay, noise, steering against a wrong robot, relaxing when helped, grasping).
+  input, reaction delay, noise, steering against a wrong robot, relaxing when helped, grasping);
+  with ``goal_level`` it only says where the user wants the handle.
+- :class:`InterfaceUser`: the input a simulated participant gives through the page's gizmo
+  handles or held keys (``app.ui.inputs.ParticipantInput``), driven by a goal-level user.
 - :class:`QuestionnaireModel`: Likert ratings and preferences from a run's experience.
 - :class:`SimulatedParticipant`: one person across a session (input factory + answerer for
   ``study.headless.run_headless``).
@@ -19,6 +22,7 @@ from study.simulated.errors import (
     SimulationRunError,
 )
 from study.simulated.experience import ExperienceLog, RunExperience
+from study.simulated.interface import InterfaceUser
 from study.simulated.participant import SimulatedParticipant
 from study.simulated.population import (
     DEFAULT_POPULATION_PATH,
@@ -34,6 +38,7 @@ from study.simulated.user_model import SimulatedUser
 __all__ = [
     "DEFAULT_POPULATION_PATH",
     "ExperienceLog",
+    "InterfaceUser",
     "ObservationError",
     "ParticipantParams",
     "ParticipantResult",

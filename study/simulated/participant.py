@@ -1,8 +1,9 @@
 """``SimulatedParticipant``: one simulated person across a whole session.
 
 It plays both parts the headless session loop (``study.headless.run_headless``) asks of a
-participant: the input factory (a fresh :class:`~study.simulated.user_model.SimulatedUser`
-for every trial attempt, seeded by the participant and the attempt's seed) and the answerer
+participant: the input factory (a fresh :class:`~study.simulated.interface.InterfaceUser` --
+the page's gizmo or keys, as the population draws -- for every trial attempt, seeded by the
+participant and the attempt's seed) and the answerer
 (``observe`` each finished run, ``answer`` each questionnaire screen). It sees what a
 participant sees - the screen (which set of items is asked, their scales) and its own runs
 (duration, outcome, the motion it saw) - never the task, mode or correctness of a step.
@@ -21,9 +22,9 @@ import numpy as np
 
 from study.simulated.errors import SimulationRunError
 from study.simulated.experience import RunExperience
+from study.simulated.interface import InterfaceUser
 from study.simulated.population import ParticipantParams, participant_rng
 from study.simulated.questionnaire import QuestionnaireModel
-from study.simulated.user_model import SimulatedUser
 
 if TYPE_CHECKING:
     from app.trial import TrialConfig
@@ -42,15 +43,15 @@ class SimulatedParticipant:
         self.runs: list[RunExperience] = []
         self.training_runs: list[RunExperience] = []
         self._trained = False
-        self._user: SimulatedUser | None = None
+        self._user: InterfaceUser | None = None
 
     # ---- input factory ----------------------------------------------------------------------
-    def __call__(self, config: TrialConfig, seed: int) -> SimulatedUser:
+    def __call__(self, config: TrialConfig, seed: int) -> InterfaceUser:
         """A fresh user for one trial attempt (``config`` is not looked at: it carries the
         condition, which a participant does not know)."""
         del config
         rng = np.random.default_rng([self.params.seed, self.params.index, 2, int(seed)])
-        self._user = SimulatedUser(self.params, rng=rng)
+        self._user = InterfaceUser(self.params, rng=rng)
         return self._user
 
     # ---- answerer ---------------------------------------------------------------------------

@@ -1,7 +1,7 @@
 """A population of simulated participants: parameter distributions and per-participant draws.
 
-A population file (``protocols/population.toml``) has four tables, ``[motor]``, ``[reaction]``,
-``[grasp]`` and ``[questionnaire]``; each key is one parameter of :class:`ParticipantParams`
+A population file (``protocols/population.toml``) has five tables, ``[motor]``, ``[reaction]``,
+``[grasp]``, ``[questionnaire]`` and ``[interface]``; each key is one parameter of :class:`ParticipantParams`
 and holds a distribution (see :mod:`study.simulated.distributions`). Participant ``i`` of a run
 with seed ``s`` is drawn from ``Generator(PCG64(SeedSequence([s, i])))``: the same participant
 gets the same parameters whatever the number of participants or workers.
@@ -79,6 +79,24 @@ class GraspParams:
 
 
 @dataclass(frozen=True)
+class InterfaceParams:
+    """Which of the page's inputs the participant uses and how (:mod:`study.simulated.interface`)."""
+
+    keyboard: float  # 1: steers with the held keys, 0: drags the gizmo's handles
+    drag_a_s: float  # one drag of a handle lasts T = a + b log2(1 + D / W) (mouse dragging)
+    drag_b_s_per_bit: float
+    regrab_s: float  # median pause between letting go of a handle and grabbing the next one
+    regrab_sigma: float  # lognormal spread of those pauses
+    depth_error_sd: float  # the part of a drag along the viewing direction is off by this share
+    plane_share: float  # drag the table-plane handle when the smaller horizontal component
+    # of the error is at least this share of it; otherwise the single axis
+    tolerance_m: float  # handle errors below this are left alone
+    key_anticipation: float  # share of their delay a key user anticipates when letting go
+    view_azimuth_deg: float  # the page's camera: direction from the task to the camera
+    view_elevation_deg: float
+
+
+@dataclass(frozen=True)
 class QuestionnaireParams:
     """Answers (see :mod:`study.simulated.questionnaire`)."""
 
@@ -101,6 +119,7 @@ class ParticipantParams:
     reaction: ReactionParams
     grasp: GraspParams
     questionnaire: QuestionnaireParams
+    interface: InterfaceParams
 
 
 _SECTIONS: dict[str, type] = {
@@ -108,6 +127,7 @@ _SECTIONS: dict[str, type] = {
     "reaction": ReactionParams,
     "grasp": GraspParams,
     "questionnaire": QuestionnaireParams,
+    "interface": InterfaceParams,
 }
 
 

@@ -32,6 +32,11 @@ out, makes them open, pause and reach again with a fresh plan.
 
 The user knows which object to pick up (``obs.target_index``, as participants are told "the
 bottle") and sees the robot; they never read ``obs.alpha``, ``obs.predicted`` or conditions.
+
+``goal_level=True`` (users of the page's gizmo or keys, :mod:`study.simulated.interface`): the
+user has no free 3-D hand path; ``intent = clamp(a + c + push)`` is where they want the handle
+next, the interface moves it there, and the expected gripper ``m`` trails the handle as it
+really moved (``obs.user_target``), so only a robot that does not follow the handle is corrected.
 """
 
 from __future__ import annotations
@@ -59,8 +64,11 @@ class SimulatedUser:
     run for the questionnaire; ``phase``, ``reaction``, ``attempts`` are exposed for tests.
     """
 
-    def __init__(self, params: ParticipantParams, *, rng: np.random.Generator) -> None:
+    def __init__(
+        self, params: ParticipantParams, *, rng: np.random.Generator, goal_level: bool = False
+    ) -> None:
         self.params = params
+        self.goal_level = goal_level
         self.rng = rng
         self.reaction = Reaction(params.reaction)
         self.noise = HandNoise(sd=params.motor.noise_sd_m, tau=params.motor.noise_tau_s, rng=rng)
@@ -68,6 +76,7 @@ class SimulatedUser:
         self.phase = WAIT
         self.attempts = 0
         self.grasp_closed = False
+        self.seen_handle: np.ndarray | None = None  # the handle as seen tau ago
         self._view: DelayedView | None = None
         self._goal_point = np.zeros(3)
         self._t_prev: float | None = None
@@ -82,8 +91,8 @@ class SimulatedUser:
         self._follow = np.zeros(3)
         self._hand = np.zeros(3)
         self._early = False
-        self._best = math.inf
-        self._best_t = 0.0
+        self._best = self._best_across = math.inf
+        self._best_t = self._best_across_t = 0.0
 
     # ---- InputSource -----------------------------------------------------------------------
     def command(self, obs: TrialObservation) -> TeleopCommand:
@@ -101,6 +110,7 @@ class SimulatedUser:
             obs.t, np.array(obs.ee, dtype=float), obs.grasped, self._model, self._follow, own
         )
         seen = self._view.seen()
+        self.seen_handle = seen.own
         m = self.params.motor
         target_name = obs.goal_names[obs.target_index]
 
@@ -128,10 +138,14 @@ class SimulatedUser:
             )
             rho = self.reaction.relax
             wait = min(max(1.0 - (lag - m.feedback_deadzone_m) / m.wait_lag_m, 0.0), 1.0)
-            self._phi = min(1.0, self._phi + dt * (1.0 - rho) * wait / self._plan_t)
-            self._r = self._r0 + (self._aim - self._r0) * minimum_jerk(self._phi)
             blend = 1.0 - math.exp(-dt / m.follow_lag_s)
-            self._model = self._model + blend * (clamp_box(self._r, lo, hi) - self._model)
+            if self.goal_level:  # the interface moves the handle; the gripper should trail it
+                self._r = self._aim
+                self._model = self._model + blend * (own - self._model)
+            else:
+                self._phi = min(1.0, self._phi + dt * (1.0 - rho) * wait / self._plan_t)
+                self._r = self._r0 + (self._aim - self._r0) * minimum_jerk(self._phi)
+                self._model = self._model + blend * (clamp_box(self._r, lo, hi) - self._model)
             if err_size > m.feedback_deadzone_m:
                 k = min(
                     m.max_gain_per_s,
@@ -140,13 +154,21 @@ class SimulatedUser:
                 self._c = self._c + dt * k * (1.0 - m.feedback_deadzone_m / err_size) * err
             self._c = self._c * math.exp(-dt / m.correction_leak_s)
             hand = self._r + self._c + self.reaction.push_offset()
+            if self.goal_level and self.phase == REACH and not self._lined_up(obs.t, seen.ee):
+                hand[2] = max(hand[2], own[2])  # line up above the object before going down
             clamped = clamp_box(hand, lo, hi)
             self._c = self._c + (clamped - hand)  # anti-windup: the gizmo stops at the reach
             self._hand = clamped
-            self._follow = self._follow + blend * (clamped - self._follow)
+            shown = own if self.goal_level else clamped  # the input the robot was given
+            self._follow = self._follow + blend * (shown - self._follow)
         scale = 1.0 + self.params.reaction.careless_noise_gain * self.reaction.relax
         target = clamp_box(self._hand + self.noise.step(dt, scale=scale), lo, hi)
         return TeleopCommand(target=target, grasp=self.grasp_closed)
+
+    @property
+    def intent(self) -> np.ndarray:
+        """Where the user wants the handle now (clamped to the reach; no hand noise), (3,)."""
+        return self._hand.copy()
 
     def experience(self, *, duration_s: float | None = None, success: bool) -> RunExperience:
         """What this run was like for the participant (the questionnaire's input)."""
@@ -169,6 +191,8 @@ class SimulatedUser:
         dist = norm(to_aim)
         if dist < 1e-9:
             return err, norm(err), 0.0
+        if self.goal_level and dist <= norm(self._aim - expected):
+            return np.zeros(3), 0.0, 0.0  # nearer the aim than the handle put it: help
         d = to_aim / dist
         along = float(err @ d)
         lag = 0.0
@@ -200,6 +224,19 @@ class SimulatedUser:
         if coming:
             return 0.0  # on its way: slow, not overriding
         return gap
+
+    def _lined_up(self, t: float, ee: np.ndarray) -> bool:
+        """True once the seen gripper is within ``grasp_radius`` of the aim across the table
+        (the open fingers then clear the object on the way down), or has stopped getting
+        nearer across for ``stall_time`` (it will not line up better: go down anyway), or the
+        user is fighting the robot (then they steer, they do not wait)."""
+        g = self.params.grasp
+        across = math.hypot(self._aim[0] - ee[0], self._aim[1] - ee[1])
+        if across < self._best_across - 0.003:
+            self._best_across, self._best_across_t = across, t
+        if self.reaction.fight > 0.5:  # steering against the robot, not waiting for it
+            return True
+        return across < g.grasp_radius_m or t - self._best_across_t > g.stall_time_s
 
     def _goal(self, obs: TrialObservation) -> np.ndarray:
         positions = np.asarray(obs.grasp_points, dtype=float)
@@ -244,8 +281,8 @@ class SimulatedUser:
         if self.rng.random() < g.miss_p:  # misjudged depth: aims beside the object
             angle = self.rng.uniform(0.0, 2.0 * math.pi)
             offset[:2] = g.miss_offset_m * np.array([math.cos(angle), math.sin(angle)])
-        self._best = math.inf
-        self._best_t = t
+        self._best = self._best_across = math.inf
+        self._best_t = self._best_across_t = t
         self._new_plan(goal + offset)
 
     def _advance_phase(

@@ -1,0 +1,158 @@
+"""Contacts at all times: the arm moves what it runs into, touches are logged, a push off ends."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from app.robot.scene_spec import SceneSpec
+from app.teleop import TeleopCommand, TrialObservation
+from app.trial import OUTCOMES, Trial, run_trial
+from app.trial.cli import trial_config_from_protocol
+from app.trial.contacts import ContactLog
+
+
+class Sweep:
+    """Hold the start for a moment, then slide the target from ``a`` to ``b`` at ``speed`` m/s."""
+
+    def __init__(self, a: tuple[float, ...], b: tuple[float, ...], *, speed: float) -> None:
+        self.a, self.b, self.speed = np.array(a), np.array(b), speed
+
+    def command(self, obs: TrialObservation) -> TeleopCommand:
+        span = float(np.linalg.norm(self.b - self.a))
+        s = min(max(obs.t - 0.5, 0.0) * self.speed / span, 1.0)
+        return TeleopCommand(self.a + s * (self.b - self.a), False)
+
+
+def _scene(protocol_path, **changes) -> SceneSpec:
+    cfg = trial_config_from_protocol(protocol_path, "easy-right", "none")
+    return dataclasses.replace(cfg.scene, **changes)
+
+
+def _config(protocol_path, scene: SceneSpec, *, time_limit_s: float = 8.0):
+    cfg = trial_config_from_protocol(protocol_path, "easy-right", "none")
+    return dataclasses.replace(cfg, scene=scene, time_limit_s=time_limit_s)
+
+
+def _through_box(protocol_path, contacts: str):
+    scene = _scene(protocol_path, contacts=contacts)
+    box = np.array(scene.object("box").position)
+    # the gripper comes down beside the box and sweeps through it, away from the bottle
+    a, b = box + np.array([0.0, 0.15, 0.03]), box + np.array([0.0, -0.08, 0.03])
+    trial = Trial(_config(protocol_path, scene, time_limit_s=6.0), Sweep(a, b, speed=0.1))
+    start = trial.sim.object_positions()[scene.object_names.index("box")].copy()
+    result = trial.run()
+    moved = trial.sim.object_positions()[scene.object_names.index("box")] - start
+    return result, float(np.linalg.norm(moved[:2])), trial
+
+
+def test_the_gripper_no_longer_passes_through_an_object(protocol_path) -> None:
+    result, moved, trial = _through_box(protocol_path, "always")
+    events = [e for _, e in result.events]
+    assert moved > 0.03, "the box should be pushed aside"
+    touches = [e for e in events if e.startswith("contact:")]
+    assert touches and all(e.endswith(":box") for e in touches)
+    ends = [e for e in events if e.startswith("contact_end:")]
+    assert len(ends) == len(touches)  # every touch ends (at the latest with the trial)
+    impulse = sum(float(e.rsplit(":", 1)[1]) for e in ends)
+    assert impulse > 0.0 and trial.contacts.impulse_ns == pytest.approx(impulse, rel=1e-3)
+    assert trial.contacts.count == len(touches)
+
+
+def test_grasp_only_contacts_restore_the_earlier_behaviour(protocol_path) -> None:
+    result, moved, _ = _through_box(protocol_path, "grasp")
+    assert moved < 1e-3
+    assert not any(e.startswith("contact") for _, e in result.events)
+
+
+def test_an_object_pushed_off_the_table_ends_the_trial(protocol_path) -> None:
+    # a small table: the box stands 5 cm from its edge, the gripper sweeps it over the edge
+    scene = SceneSpec.from_dict(
+        {
+            "target": "bottle",
+            "start_q": list(_scene(protocol_path).start_q),
+            "reach": {"min": [0.2, -0.45, 0.02], "max": [0.75, 0.45, 0.6]},
+            "table": {"center": [0.5, 0.0], "half_size": [0.25, 0.2]},
+            "objects": [
+                {
+                    "name": "bottle",
+                    "shape": "cylinder",
+                    "size": [0.03, 0.08],
+                    "position": [0.55, -0.1, 0.08],
+                },
+                {
+                    "name": "box",
+                    "shape": "box",
+                    "size": [0.025, 0.025, 0.05],
+                    "position": [0.45, 0.12, 0.05],
+                },
+            ],
+        },
+        where="scenes.edge",
+    )
+    sweep = Sweep((0.45, 0.0, 0.06), (0.45, 0.42, 0.06), speed=0.25)
+    result = run_trial(_config(protocol_path, scene), sweep)
+    events = [e for _, e in result.events]
+    assert result.outcome == "pushed_off" and "pushed_off" in OUTCOMES
+    assert "pushed_off:box" in events
+    assert any(e.startswith("contact:") and e.endswith(":box") for e in events)
+
+
+def test_a_grasp_is_not_a_collision() -> None:
+    log = ContactLog(["bottle", "box"])
+    finger, hand = 2, 1
+    assert log.update([(finger, 0, 5.0)], dt=0.01, grasping=True, held=None) == []
+    assert log.update([(finger, 0, 5.0), (hand, 1, 2.0)], dt=0.01, grasping=True) == [
+        "contact:hand:box"
+    ]
+    assert log.update([], dt=0.05, grasping=False) == []  # a short break continues the touch
+    assert log.update([(hand, 1, 2.0)], dt=0.01, grasping=False) == []
+    assert log.update([], dt=0.1, grasping=False) == ["contact_end:hand:box:0.0400"]
+    assert log.count == 1 and log.impulse_ns == pytest.approx(0.04)
+
+
+def test_contacts_are_a_measure_per_trial_in_the_export() -> None:
+    import json
+
+    import pandas as pd
+
+    from study.export import _with_contacts
+
+    samples = pd.DataFrame(
+        {
+            "trial_id": [1, 1, 1, 2],
+            "events": [
+                json.dumps(["contact:hand:box"]),
+                json.dumps(["contact_end:hand:box:0.2500", "contact:leftfinger:bottle"]),
+                json.dumps(["contact_end:leftfinger:bottle:0.0500", "outcome:success"]),
+                json.dumps(["outcome:success"]),
+            ],
+        }
+    )
+    trials = _with_contacts(pd.DataFrame({"trial_id": [1, 2, 3]}), samples)
+    assert list(trials["contacts"]) == [2, 0, 0]
+    assert list(trials["contact_impulse_ns"]) == pytest.approx([0.3, 0.0, 0.0])
+
+
+def test_the_protocol_chooses_the_contact_mode(protocol_path) -> None:
+    from app.robot.errors import SceneError
+
+    base = {
+        "target": "box",
+        "start_q": list(_scene(protocol_path).start_q),
+        "reach": {"min": [0.2, -0.45, 0.02], "max": [0.75, 0.45, 0.6]},
+        "objects": [
+            {
+                "name": "box",
+                "shape": "box",
+                "size": [0.025, 0.025, 0.035],
+                "position": [0.6, 0.0, 0.035],
+            },
+        ],
+    }
+    assert SceneSpec.from_dict(base).contacts == "always"
+    assert SceneSpec.from_dict({**base, "contacts": "grasp"}).contacts == "grasp"
+    with pytest.raises(SceneError, match=r"scene\.contacts: 'sometimes'; use 'always'"):
+        SceneSpec.from_dict({**base, "contacts": "sometimes"})
