@@ -57,6 +57,34 @@ def effect_coding(values: pd.Series, levels: Sequence[str]) -> np.ndarray:
     return out
 
 
+def factor_blocks(
+    data: pd.DataFrame, factors: Sequence[str]
+) -> tuple[dict[str, tuple[str, ...]], dict[tuple[int, ...], np.ndarray]]:
+    """Each factor's levels (a categorical's order, else sorted) and the effect-coded columns
+    of every term of the full factorial model (main effects and all their interactions,
+    keyed by factor indices as in :func:`analysis.design.effect_terms`)."""
+    levels: dict[str, tuple[str, ...]] = {}
+    blocks: dict[tuple[int, ...], np.ndarray] = {}
+    for i, f in enumerate(factors):
+        s = data[f]
+        if isinstance(s.dtype, pd.CategoricalDtype):
+            present = set(s.astype(str))
+            lv = tuple(str(c) for c in s.cat.categories if str(c) in present)
+        else:
+            lv = tuple(sorted(set(s.astype(str))))
+        if len(lv) < 2:
+            raise DesignError(f"factor {f!r} has {len(lv)} level{'s' if len(lv) != 1 else ''}; "
+                              "a factor needs at least two levels - drop it from the model")
+        levels[f] = lv
+        blocks[(i,)] = effect_coding(s, lv)
+    for t in effect_terms(factors):
+        if len(t) > 1:
+            cols = [np.prod(combo, axis=0) for combo in
+                    itertools.product(*[list(blocks[(i,)].T) for i in t])]
+            blocks[t] = np.column_stack(cols)
+    return levels, blocks
+
+
 def _sse(x: np.ndarray, y: np.ndarray) -> float:
     beta, *_ = np.linalg.lstsq(x, y, rcond=None)
     r = y - x @ beta
@@ -98,20 +126,7 @@ def factorial_anova(
     d = data.loc[keep]
     y = y[keep]
     n = len(y)
-    levels: dict[str, tuple[str, ...]] = {}
-    blocks: dict[tuple[int, ...], np.ndarray] = {}
-    for i, f in enumerate(factors):
-        s = d[f]
-        if isinstance(s.dtype, pd.CategoricalDtype):
-            present = set(s.astype(str))
-            lv = tuple(str(c) for c in s.cat.categories if str(c) in present)
-        else:
-            lv = tuple(sorted(set(s.astype(str))))
-        if len(lv) < 2:
-            raise DesignError(f"factor {f!r} has {len(lv)} level{'s' if len(lv) != 1 else ''}; "
-                              "a factor needs at least two levels - drop it from the model")
-        levels[f] = lv
-        blocks[(i,)] = effect_coding(s, lv)
+    levels, blocks = factor_blocks(d, factors)
     observed = set(d[factors].astype(str).drop_duplicates().itertuples(index=False, name=None))
     empty = [c for c in itertools.product(*levels.values()) if c not in observed]
     if empty:
@@ -120,11 +135,6 @@ def factorial_anova(
         raise DesignError(f"{len(empty)} cell(s) of the factorial design have no data: {listed}. "
                           "Every combination of factor levels needs observations.")
     terms = effect_terms(factors)
-    for t in terms:
-        if len(t) > 1:
-            cols = [np.prod(combo, axis=0) for combo in
-                    itertools.product(*[list(blocks[(i,)].T) for i in t])]
-            blocks[t] = np.column_stack(cols)
     for c in covariates:
         v = cov_values[c][keep]
         if np.ptp(v) == 0:

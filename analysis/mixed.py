@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 from scipy import optimize, special
 
-from analysis.anova import effect_coding
+from analysis.anova import factor_blocks
 from analysis.design import effect_name, effect_terms, numeric_column, require_columns
 from analysis.errors import DesignError
 
@@ -167,30 +167,11 @@ def satterthwaite_df(
 def _design(
     data: pd.DataFrame, factors: Sequence[str], covariates: Sequence[str]
 ) -> tuple[np.ndarray, list[tuple[str, slice]], dict[str, tuple[str, ...]]]:
-    levels: dict[str, tuple[str, ...]] = {}
-    blocks: dict[tuple[int, ...], np.ndarray] = {}
-    for i, f in enumerate(factors):
-        s = data[f]
-        if isinstance(s.dtype, pd.CategoricalDtype):
-            present = set(s.astype(str))
-            lv = tuple(str(c) for c in s.cat.categories if str(c) in present)
-        else:
-            lv = tuple(sorted(set(s.astype(str))))
-        if len(lv) < 2:
-            raise DesignError(
-                f"factor {f!r} has {len(lv)} level(s); a factor needs at least "
-                "two levels - drop it from the model"
-            )
-        levels[f] = lv
-        blocks[(i,)] = effect_coding(s, lv)
+    levels, blocks = factor_blocks(data, factors)
     cols = [np.ones((len(data), 1))]
     spans: list[tuple[str, slice]] = []
     start = 1
     for t in effect_terms(factors):
-        if len(t) > 1:
-            blocks[t] = np.column_stack(
-                [np.prod(c, axis=0) for c in itertools.product(*[list(blocks[(i,)].T) for i in t])]
-            )
         cols.append(blocks[t])
         spans.append((effect_name(factors, t), slice(start, start + blocks[t].shape[1])))
         start += blocks[t].shape[1]
