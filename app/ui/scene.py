@@ -133,8 +133,8 @@ def frame_scene(camera: viser.CameraHandle, scene: Any) -> None:
 
 class SceneView:
     """One participant's view of one simulated scene (per-client nodes, neutral names), with
-    a depth cue under the gripper: a thin vertical line down to the table and a dark disc on
-    the table (two small nodes moved per frame; no shadows, which software WebGL cannot
+    a depth cue under the gripper: a thin vertical rod down to the table and a dark disc on
+    the table (two small meshes moved per frame; no shadows, which software WebGL cannot
     afford)."""
 
     def __init__(
@@ -162,13 +162,10 @@ class SceneView:
         self._drop = self._disc = None
         if table_top is not None:
             scene = target.scene
-            self._drop = scene.add_line_segments(
-                "/cue/line",
-                np.array([[[0.0, 0.0, 0.0], [0.0, 0.0, -1.0]]]),
-                (40, 40, 40),
-                thickness=2.0,
-                thickness_units="screen",
-                visible=False,
+            # a 1 m rod of 2 mm radius, stretched to the gripper's height each frame (a mesh:
+            # screen-space lines cost a sixth of a software-WebGL frame)
+            self._drop = scene.add_cylinder(
+                "/cue/line", radius=0.002, height=1.0, color=(40, 40, 40), visible=False
             )
             self._disc = scene.add_cylinder(
                 "/cue/disc", radius=0.018, height=0.002, color=(30, 30, 30), visible=False
@@ -190,7 +187,7 @@ class SceneView:
             top = float(self._table_top or 0.0)
             x, y, z = (float(v) for v in gripper)
             height = max(z - top, 1e-3)
-            self._drop.position = (x, y, z)
+            self._drop.position = (x, y, top + height / 2)
             self._drop.scale = (1.0, 1.0, height)
             self._disc.position = (x, y, top + 0.001)
             if not self._drop.visible:
