@@ -112,7 +112,7 @@ def test_keys_steer_the_arm_never_the_camera_and_a_pause_freezes_them(
     for key in ("q", "e", "ArrowUp", "ArrowLeft"):  # camera keys that steer nothing
         hold(page, key, 0.5)
     assert np.allclose(run.trial.user_target, target, atol=1e-6)
-    _shot(page, screenshots, "04-trial")
+    _shot(page, screenshots, "04c-trial-after-keys")
 
     # A mouse orbit moves the camera; V brings the task view back.
     task_view = _camera(page)
