@@ -38,6 +38,13 @@ def study(tmp_path: Path) -> Any:
         rs.stop()
 
 
+def _started(rs: RunningServer) -> tuple[Any, str, Any]:
+    """The server, the join code and the live session of participant P01, started."""
+    code = rs.server.enrol("P01")
+    rs.server.act(code, "start")
+    return rs.server, code, rs.server.session(code)
+
+
 def _kinds(rs: RunningServer) -> list[str]:
     return [e.kind for e in rs.store.events()]
 
@@ -82,10 +89,7 @@ def test_no_share_tunnel_from_either_port(study: RunningServer) -> None:
 
 
 def test_a_huge_message_costs_its_connection_not_the_control_loop(study: RunningServer) -> None:
-    srv = study.server
-    code = srv.enrol("P01")
-    srv.act(code, "start")
-    live = srv.session(code)
+    srv, code, live = _started(study)
 
     async def attack() -> None:
         async with RawClient(srv.participant_port) as c:
@@ -119,10 +123,7 @@ def test_a_huge_message_costs_its_connection_not_the_control_loop(study: Running
 def test_a_control_fault_pauses_the_trial_and_tells_the_experimenter(
     study: RunningServer,
 ) -> None:
-    srv = study.server
-    code = srv.enrol("P01")
-    srv.act(code, "start")
-    live = srv.session(code)
+    srv, code, live = _started(study)
 
     async def scenario() -> None:
         async with RawClient(srv.participant_port) as c:
@@ -224,10 +225,7 @@ def test_the_ready_screen_shows_the_next_trials_start_never_the_last_end(tmp_pat
     """After a run that moved the arm, every frame sent while the next run's ready screen
     shows is that run's start state (the render loop used to re-send the old end pose)."""
     rs = start_server(tmp_path, time_limit_s=4.0, training_runs=1)
-    srv = rs.server
-    code = srv.enrol("P01")
-    srv.act(code, "start")
-    live = srv.session(code)
+    srv, code, live = _started(rs)
     sent: list[tuple[str, np.ndarray]] = []
 
     async def scenario() -> None:
@@ -276,10 +274,7 @@ def test_the_ready_screen_shows_the_next_trials_start_never_the_last_end(tmp_pat
 
 
 def test_nan_and_huge_poses_never_reach_the_trial(study: RunningServer) -> None:
-    srv = study.server
-    code = srv.enrol("P01")
-    srv.act(code, "start")
-    live = srv.session(code)
+    srv, code, live = _started(study)
 
     async def scenario() -> None:
         async with RawClient(srv.participant_port) as c:
@@ -320,10 +315,7 @@ def test_a_full_disk_mid_trial_holds_the_trial_and_loses_no_sample(tmp_path: Pat
     stops), the page asks to wait, the console names the fault; once space is back the
     experimenter resumes and the completed trial has every tick's sample."""
     rs = start_server(tmp_path, time_limit_s=4.0, training_runs=1)
-    srv = rs.server
-    code = srv.enrol("P01")
-    srv.act(code, "start")
-    live = srv.session(code)
+    srv, code, live = _started(rs)
 
     async def scenario() -> None:
         async with RawClient(srv.participant_port) as c:
@@ -401,10 +393,7 @@ def test_the_door_refuses_other_sites_too_many_sockets_and_oversize_first_messag
 def test_a_message_flood_closes_its_connection_and_control_keeps_its_rate(
     study: RunningServer,
 ) -> None:
-    srv = study.server
-    code = srv.enrol("P01")
-    srv.act(code, "start")
-    live = srv.session(code)
+    srv, code, live = _started(study)
 
     async def flood() -> None:
         async with RawClient(srv.participant_port) as honest:

@@ -10,7 +10,14 @@ connects it to the browser and to time:
   the protocol's control rate in its own thread, and a second loop sends the scene to the
   tab at up to ``render_hz`` from snapshots of the simulation taken after each tick;
 * a lost tab pauses the running trial (a ``pause`` event, the paused time excluded from the
-  trial's time) and the participant resumes it from the next tab with "Continue".
+  trial's time) and the participant resumes it from the next tab with "Continue";
+* any pause (experimenter, lost tab, fault) freezes the participant's input and hides the
+  handle; on resume the target is the gripper and the handle is back on it;
+* an exception in a control tick (a full disk included) holds the trial, is recorded as a
+  ``control_fault`` event and shown to the experimenter, and the page asks to wait: the loop
+  never dies silently;
+* the scene is sent only when something moved, and only the current run's poses (never an
+  earlier run's on the next ready screen); each run ends with a neutral outcome sentence.
 """
 
 from __future__ import annotations
