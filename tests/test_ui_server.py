@@ -15,9 +15,10 @@ import pytest
 
 from app.ui.blinding import find_condition_words
 from app.ui.join import ALPHABET, CODE_LENGTH, JoinThrottle, new_join_code, normalize_code
+from app.ui.participant import DECLINE
 from tests.browser.harness import iter_strings, run_async, start_server, wait_until
 from tests.protocol_copies import PAPER_PROTOCOL
-from tests.test_ui_malformed import RawClient
+from tests.test_ui_malformed import AGREE, RawClient
 
 
 def _lan_ip() -> str | None:
@@ -168,3 +169,30 @@ def test_serve_refuses_a_port_in_use_instead_of_moving(tmp_path: Path) -> None:
     assert proc.returncode == 2
     assert f"port {port} (participant view) is in use" in proc.stderr and "--port" in proc.stderr
     assert not (tmp_path / "study.db").exists()
+
+
+def test_a_participant_can_decline_consent_after_one_more_question(tmp_path: Path) -> None:
+    rs = start_server(tmp_path)
+    srv = rs.server
+    try:
+        code = srv.enrol("P01")
+        srv.act(code, "start")
+
+        async def run() -> None:
+            async with RawClient(srv.participant_port) as c:
+                await c.join(code)
+                await c.click(DECLINE)
+                await c.click("Back to the consent text")  # changed their mind: nothing happened
+                await c.button(AGREE)
+                assert rs.store.session("P01").status == "running"
+                await asyncio.sleep(0.5)  # the fresh consent screen's buttons, not the old ones
+                await c.click(DECLINE)
+                await asyncio.sleep(0.5)
+                await c.click("Yes, end the session")
+                assert wait_until(lambda: rs.store.session("P01").status == "withdrawn", timeout=5)
+
+        run_async(run())
+        reasons = [str(e.detail) for e in rs.store.events() if e.kind == "withdraw"]
+        assert any("declined consent" in r for r in reasons)
+    finally:
+        rs.stop()

@@ -549,6 +549,10 @@ class LiveSession:
                 text,
                 on_agree=lambda: self._participant("agree", self.session.agree),
                 agree=self._agree_label(),
+                on_decline=lambda: self._participant(
+                    "decline",
+                    lambda: self.session.withdraw(reason="participant declined consent"),
+                ),
             )
         elif screen.phase == "ready":
             self._preview_scene(page)

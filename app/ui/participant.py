@@ -41,6 +41,7 @@ KEY_HELP = (
     "lifts it. Drag the background to "
     "look around, scroll to zoom; **V** brings back the starting view."
 )
+DECLINE = "I do not wish to take part"
 KEY_LETTERS = frozenset(STEERING_CODES.values()) | frozenset(ARROW_KEYCODES.values())
 _KEY_STATE = re.compile(r"([0-9]{1,12}) ([a-z]*)", re.ASCII)
 
@@ -211,21 +212,27 @@ class ParticipantPage:
         progress: str | None = None,
         button: str | None = None,
         on_button: Callable[[], None] | None = None,
+        choices: Sequence[tuple[str, Callable[[], None]]] = (),
     ) -> int:
-        """A heading, a paragraph, and optionally one button."""
+        """A heading, a paragraph, and optionally one button (or several ``choices``); the
+        first click on the screen disables them all, so a double click acts once."""
         with self._lock:
             screen = self._new_screen("message:" + heading)
             self._header(progress)
             self._md(f"**{heading}**\n\n{body}")
+            options = list(choices)
             if button is not None and on_button is not None:
-                b = self._button(button)
+                options.insert(0, (button, on_button))
+            buttons = [self._button(label) for label, _ in options]
+            for b, (_, action) in zip(buttons, options, strict=True):
 
-                @b.on_click
-                def _(_: object) -> None:
-                    if self._current(screen):
-                        b.disabled = True
-                        on_button()
+                def click(_: object, action: Callable[[], None] = action) -> None:
+                    if self._current(screen) and not any(x.disabled for x in buttons):
+                        for x in buttons:
+                            x.disabled = True
+                        action()
 
+                b.on_click(click)
             return screen
 
     def show_join(
@@ -260,9 +267,37 @@ class ParticipantPage:
             return screen
 
     def show_consent(
-        self, text: str, *, on_agree: Callable[[], None], agree: str = "I agree"
+        self,
+        text: str,
+        *,
+        on_agree: Callable[[], None],
+        agree: str = "I agree",
+        on_decline: Callable[[], None] | None = None,
     ) -> int:
-        return self.show_message("Consent", text, button=agree, on_button=on_agree)
+        """The consent text with its agree button and, with ``on_decline``, a way to say no
+        (asked once more before it ends the session)."""
+        if on_decline is None:
+            return self.show_message("Consent", text, button=agree, on_button=on_agree)
+
+        def confirm() -> None:
+            self.show_message(
+                "Not taking part",
+                "You can stop now: nothing has been recorded about you yet except this"
+                " decision. Do you want to end the session?",
+                choices=(
+                    ("Yes, end the session", on_decline),
+                    ("Back to the consent text", back),
+                ),
+            )
+
+        def back() -> None:
+            self.show_consent(text, on_agree=on_agree, agree=agree, on_decline=on_decline)
+
+        return self.show_message(
+            "Consent",
+            text,
+            choices=((agree, on_agree), (DECLINE, confirm)),
+        )
 
     def show_questions(
         self,
