@@ -126,7 +126,7 @@ def connect(*, scheduler: str | None, workers: int, stack: ExitStack) -> Client:
                 n_workers=workers,
                 threads_per_worker=1,
                 processes=True,
-                dashboard_address=None,
+                dashboard_address=":0",  # a free port: never collides with another run
                 silence_logs=logging.ERROR,
             )
         )
@@ -214,12 +214,15 @@ def run_on_dask(
     scheduler: str | None,
     trials_each: int,
     progress: bool,
+    client: Client | None = None,
 ) -> str | None:
     """Run ``jobs`` as Dask tasks and merge each participant into ``store`` in job order,
     appending to ``results``; returns the store fault that stopped the run, else ``None``.
 
     A participant the worker could not store (its own disk full) is a fault too: the run stops,
-    queued participants are cancelled, and ``--resume`` continues once the disk is fixed."""
+    queued participants are cancelled, and ``--resume`` continues once the disk is fixed.
+    ``client``: an already-connected client to use (a sweep shares one across its runs);
+    ``scheduler`` and ``workers`` are then ignored."""
     from distributed import as_completed
 
     from study.store import StoreWriteError
@@ -234,7 +237,8 @@ def run_on_dask(
     )
     order = {job.participant: k for k, job in enumerate(jobs)}
     with ExitStack() as stack:
-        client = connect(scheduler=scheduler, workers=workers, stack=stack)
+        if client is None:
+            client = connect(scheduler=scheduler, workers=workers, stack=stack)
         bars = _Bars(
             total=len(jobs), trials_each=trials_each, enabled=progress, run_token=inputs.run_token
         )

@@ -342,6 +342,7 @@ def simulate(
     resume: bool = False,
     engine: str = "local",
     scheduler: str | None = None,
+    client: Any = None,
 ) -> SimulationReport:
     """Simulate ``participants`` people through the protocol into the store at ``db``;
     ``resume`` continues a killed run with the same arguments (see module docstring).
@@ -350,6 +351,8 @@ def simulate(
     processes sharing the store; ``engine="dask"`` runs on the Dask scheduler at ``scheduler``
     or, without one, on a new ``LocalCluster`` of ``workers`` processes, with this process the
     store's only writer (``study.simulated.dask_engine``). Both write the same data.
+    ``client``: with ``engine="dask"``, a connected ``distributed.Client`` to run on instead of
+    connecting anew (a sweep runs many simulations on one cluster).
 
     A store that takes no more writes stops the run: the report's ``error`` says why, and the
     participants finished before it are in ``results``."""
@@ -362,7 +365,7 @@ def simulate(
         raise SimulationRunError(f"workers must be at least 1, got {workers}")
     if engine not in ENGINES:
         raise SimulationRunError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
-    if scheduler is not None and engine != "dask":
+    if (scheduler is not None or client is not None) and engine != "dask":
         raise SimulationRunError("--scheduler needs --engine dask (the local engine has none)")
     for name, value in (("seed", seed), ("first", first)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
@@ -398,6 +401,7 @@ def simulate(
                 scheduler=scheduler,
                 trials_each=per_person,
                 progress=progress,
+                client=client,
             )
         elif jobs:
             fault = _run_local(
