@@ -171,7 +171,15 @@ def figure(result: SweepResult, path: Path) -> None:
         ax.set_xlabel("help: area under alpha(c)")
         ax.set_ylabel("share of trials completed")
         ax.set_ylim(-0.05, 1.05)
-        ax.set_title(title + (" (label alpha_max)" if mode == TIMID else " (threshold/alpha_high)"))
+        ax.set_title(title, fontsize=10)
+        ax.text(
+            0.01,
+            0.01,
+            "labels: alpha_max" if mode == TIMID else "labels: threshold/alpha_high",
+            transform=ax.transAxes,
+            fontsize=7,
+            color="grey",
+        )
     fig.suptitle(
         f"Arbitration sweep, {result.participants} simulated participants per setting "
         "(green passes; circle today's, star chosen)",
