@@ -9,8 +9,8 @@ How: every participant is one task (:func:`simulate_remote`). The task receives 
 and population files' *text* (workers need not see the client's files), simulates the
 participant into a private scratch store on the worker, and returns a
 :class:`~study.simulated.bundle.ParticipantBundle`. The client is the study store's only writer:
-it merges bundles in participant order (a bundle that arrives early waits for those before it),
-one transaction each. Hence
+it merges bundles in participant order (a bundle finished early waits on its worker for those
+before it), one transaction each. Hence
 
 - the store holds exactly what a 1-worker local run with the same seed writes (each
   participant's seeds and design row are planned up front, ``runner.plan_run``);
@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from study.simulated.bundle import ParticipantBundle, merge_bundle, read_bundle_file
-from study.simulated.errors import SchedulerUnreachableError
+from study.simulated.errors import SchedulerUnreachableError, SimulationRunError
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -154,7 +154,8 @@ class _Bars:
         self._enabled = enabled
         self._trials_each = trials_each
         self._token = run_token
-        self._bars: dict[str, Any] = {}
+        self._bars: dict[str, tuple[Any, int]] = {}
+        """participant -> (their bar, its terminal line)"""
         self._free = list(range(MAX_PARTICIPANT_BARS, 0, -1))
         self.overall = tqdm(
             total=total,
@@ -171,32 +172,35 @@ class _Bars:
         if token != self._token or not self._enabled:
             return
         with self._lock:
-            bar = self._bars.get(participant)
-            if bar is None:
+            if participant not in self._bars:
                 if not self._free:
                     return
+                position = self._free.pop()
                 bar = self._tqdm(
                     total=self._trials_each,
                     unit="trial",
                     desc=f"  {participant}",
                     file=sys.stderr,
-                    position=self._free.pop(),
+                    position=position,
                     leave=False,
                 )
-                self._bars[participant] = bar
-            bar.update(max(0, trials - bar.n))  # a re-run starts its count again
+                self._bars[participant] = (bar, position)
+            bar, _ = self._bars[participant]
+            if trials < bar.n:  # re-run after its worker was lost: counts again from 0
+                bar.reset()
+            bar.update(trials - bar.n)
 
     def written(self, participant: str) -> None:
         with self._lock:
-            bar = self._bars.pop(participant, None)
-            if bar is not None:
-                self._free.append(bar.pos if bar.pos > 0 else -bar.pos)
-                bar.close()
+            entry = self._bars.pop(participant, None)
+            if entry is not None:
+                entry[0].close()
+                self._free.append(entry[1])
             self.overall.update(1)
 
     def close(self) -> None:
         with self._lock:
-            for bar in self._bars.values():
+            for bar, _ in self._bars.values():
                 bar.close()
             self._bars.clear()
             self.overall.close()
@@ -223,8 +227,6 @@ def run_on_dask(
     queued participants are cancelled, and ``--resume`` continues once the disk is fixed.
     ``client``: an already-connected client to use (a sweep shares one across its runs);
     ``scheduler`` and ``workers`` are then ignored."""
-    from distributed import as_completed
-
     from study.store import StoreWriteError
 
     inputs = RunInputs(
@@ -235,7 +237,6 @@ def run_on_dask(
         seed=seed,
         run_token=uuid.uuid4().hex,
     )
-    order = {job.participant: k for k, job in enumerate(jobs)}
     with ExitStack() as stack:
         if client is None:
             client = connect(scheduler=scheduler, workers=workers, stack=stack)
@@ -255,22 +256,27 @@ def run_on_dask(
             )
             for job in jobs
         ]
-        stack.callback(client.cancel, futures)
-        waiting: dict[int, ParticipantBundle] = {}
-        next_k = 0
-        for future in as_completed(futures):
+        outstanding = dict(enumerate(futures))
+        stack.callback(lambda: client.cancel(list(outstanding.values())))
+        # In job order: a bundle finished early waits on its worker (Dask spills it to disk if
+        # memory runs short) rather than in this process, and is released once merged.
+        for k, (job, future) in enumerate(zip(jobs, futures, strict=True)):
             try:
                 bundle: ParticipantBundle = future.result()
+            except StoreWriteError as exc:  # the worker's scratch disk
+                return str(exc)
+            except Exception as exc:
+                raise SimulationRunError(
+                    f"{job.participant} could not be simulated on the Dask cluster "
+                    f"({type(exc).__name__}: {exc}); check that every worker runs this platform "
+                    "(same version) with a writable temporary folder, then continue with --resume"
+                ) from exc
+            try:
+                merge_bundle(store, bundle)
             except StoreWriteError as exc:
                 return str(exc)
-            waiting[order[bundle.result.participant]] = bundle
-            while next_k in waiting:
-                ready = waiting.pop(next_k)
-                try:
-                    merge_bundle(store, ready)
-                except StoreWriteError as exc:
-                    return str(exc)
-                results.append(ready.result)
-                bars.written(ready.result.participant)
-                next_k += 1
+            del outstanding[k]
+            future.release()
+            results.append(bundle.result)
+            bars.written(job.participant)
     return None
