@@ -29,8 +29,14 @@ from distributed import Client, LocalCluster
 
 from app.cli import dispatch
 from study.__main__ import COMMANDS
+from study.protocol import load_protocol
+from study.session import open_store
 from study.simulated import simulate
-from study.store import Store
+from study.simulated.bundle import merge_bundle
+from study.simulated.dask_engine import RunInputs, simulate_remote
+from study.simulated.population import DEFAULT_POPULATION_PATH
+from study.simulated.runner import plan_jobs
+from study.store import Store, StoreError
 from tests.protocol_copies import short_protocol
 from tests.test_simulate_resume import content, progress
 
@@ -99,6 +105,38 @@ def test_dask_run_writes_what_one_local_process_writes(
         assert [s.participant for s in sorted(store.sessions(), key=lambda s: s.session_id)] == [
             f"sim{SEED}-{k:03d}" for k in range(1, PARTICIPANTS + 1)
         ]
+
+
+def test_a_bundle_is_merged_whole_and_only_once(protocol: Path, tmp_path: Path) -> None:
+    store = open_store(tmp_path / "sim.db", load_protocol(protocol))
+    try:
+        inputs = RunInputs(
+            protocol_name=protocol.name,
+            protocol_text=protocol.read_text(encoding="utf-8"),
+            population_name=DEFAULT_POPULATION_PATH.name,
+            population_text=DEFAULT_POPULATION_PATH.read_bytes(),
+            seed=SEED,
+            run_token="test",
+        )
+        # as workers run them, here in-process; the second merges after the first's rows
+        bundles = [simulate_remote(job, inputs) for job in plan_jobs(store, n=2, seed=SEED)]
+        for bundle in bundles:
+            merge_bundle(store, bundle)
+        before = same_data(tmp_path / "sim.db")
+        with pytest.raises(StoreError):
+            merge_bundle(store, bundles[1])
+        assert same_data(tmp_path / "sim.db") == before
+        second = bundles[1].result.participant
+        own = {t.trial_id for t in store.trials() if t.participant == second}
+        assert len(own) == bundles[1].result.trial_rows
+        named = {
+            e.detail["trial_id"]
+            for e in store.events()
+            if e.participant == second and isinstance(e.detail.get("trial_id"), int)
+        }
+        assert named and named <= own  # event details name the merged trials, renumbered
+    finally:
+        store.close()
 
 
 def test_a_worker_killed_mid_run_loses_nothing(

@@ -60,8 +60,9 @@ def read_bundle_file(path: str) -> bytes:
 def merge_bundle(store: Store, bundle: ParticipantBundle) -> None:
     """Write the bundle's participant into ``store`` in one transaction (all rows or none).
 
-    Raises ``DuplicateParticipantError``-like ``StoreError`` if the participant is already
-    there (the unique participant key), ``StoreWriteError`` on a full or read-only disk."""
+    Raises ``StoreError`` if the participant is already there (the participants table's key:
+    a bundle is never written twice) and ``StoreWriteError`` on a full or read-only disk; either
+    way nothing of the bundle is left in the store."""
     conn = store.conn
     # the store's connection takes URIs, where a bare ':memory:' would name a file
     conn.execute(f"ATTACH DATABASE 'file:{_SRC}?mode=memory' AS {_SRC}")
