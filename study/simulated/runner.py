@@ -466,14 +466,26 @@ def _run_local(
     from study.store import StoreWriteError
 
     fault: str | None = None
-    bar = tqdm(
-        total=len(jobs) * trials_each,
-        unit="trial",
+    # overall: participants done; below it the trials, of the participant running in this
+    # process, or of all of them with worker processes (their ticks arrive without a name)
+    people = tqdm(
+        total=len(jobs),
+        unit="participant",
         desc=desc,
         file=sys.stderr,
         disable=not progress,
+        position=0,
     )
-    with bar:
+    bar = tqdm(
+        total=(len(jobs) if workers > 1 else 1) * trials_each,
+        unit="trial",
+        desc="  trials",
+        file=sys.stderr,
+        disable=not progress,
+        position=1,
+        leave=False,
+    )
+    with people, bar:
         if workers > 1:
             return _run_pool(
                 jobs,
@@ -485,9 +497,12 @@ def _run_local(
                 seed=seed,
                 synchronous=synchronous,
                 bar=bar,
+                people=people,
             )
         try:
             for job in jobs:
+                bar.reset()
+                bar.set_description(f"  {job.participant}")
                 results.append(
                     run_participant(
                         job,
@@ -498,6 +513,7 @@ def _run_local(
                         on_trial=lambda: bar.update(1),
                     )
                 )
+                people.update(1)
         except StoreWriteError as exc:
             fault = str(exc)
     return fault
@@ -514,6 +530,7 @@ def _run_pool(
     seed: int,
     synchronous: str,
     bar: Any,
+    people: Any,
 ) -> str | None:
     """Run ``jobs`` in worker processes, appending to ``results``; returns the store fault that
     stopped the run (queued participants are then not started), else ``None``."""
@@ -537,6 +554,7 @@ def _run_pool(
                     continue
                 try:
                     results.append(future.result())
+                    people.update(1)
                 except StoreWriteError as exc:
                     fault = fault or str(exc)
                     for other in pending:
