@@ -6,8 +6,9 @@
 
 Every participant is drawn from the population file, enrolled, and driven through the real
 session engine and control loop (training, every task in both modes, questionnaires, debrief)
-as fast as the machine allows, writing the same store as a live study. A progress bar goes to
-stderr; the last line on stdout is one JSON object: participants, trials, ratings, wall_s
+as fast as the machine allows, writing the same store as a live study. Progress bars go to
+stderr (participants overall, trials of each participant running); the last line on stdout is
+one JSON object: participants, trials, ratings, wall_s
 (plus workers, db, seed, simulated_s, outcomes, errors; kept and redone after --resume; error
 when the store took no more writes). Exit code 2 on bad input, when a participant's session
 failed, or when the disk filled up or turned read-only: free space and re-run with --resume.
