@@ -1,4 +1,4 @@
-"""``python -m study COMMAND``: schedules, headless sessions, simulation and export."""
+"""``python -m study COMMAND``: schedules, headless sessions, simulation, sweeps and export."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ COMMANDS = {
     "schedule": ("study.cli.schedule", "Print the counterbalanced trial schedule."),
     "run": ("study.cli.run", "Run one whole session headless with a scripted participant."),
     "simulate": ("study.cli.simulate", "Run simulated participants through the whole study."),
+    "sweep": ("study.cli.sweep", "Calibrate the arbitration modes by the paper's criteria."),
     "export": ("study.cli.export", "Export a store to tidy CSV + Parquet files with a codebook."),
 }
 

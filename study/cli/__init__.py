@@ -4,5 +4,6 @@
     schedule   the counterbalanced trial schedule (study.schedule) as CSV or JSON
     run        one whole session headless with a scripted participant
     simulate   simulated participants through the whole study
+    sweep      the arbitration modes calibrated by the paper's criteria (study.sweep)
     export     tidy CSV + Parquet tables, codebook and metadata from a store (study.export)
 """

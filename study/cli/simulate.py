@@ -2,15 +2,22 @@
 
     python -m study simulate --protocol protocols/dragan2013.toml --participants 8 \\
         --db data/sim.db --seed 1 [--workers N] [--population protocols/population.toml] \\
-        [--resume]
+        [--resume] [--engine local|dask] [--scheduler tcp://HOST:PORT]
 
 Every participant is drawn from the population file, enrolled, and driven through the real
 session engine and control loop (training, every task in both modes, questionnaires, debrief)
-as fast as the machine allows, writing the same store as a live study. A progress bar goes to
-stderr; the last line on stdout is one JSON object: participants, trials, ratings, wall_s
+as fast as the machine allows, writing the same store as a live study. Progress bars go to
+stderr (participants overall, trials of each participant running); the last line on stdout is
+one JSON object: participants, trials, ratings, wall_s
 (plus workers, db, seed, simulated_s, outcomes, errors; kept and redone after --resume; error
 when the store took no more writes). Exit code 2 on bad input, when a participant's session
 failed, or when the disk filled up or turned read-only: free space and re-run with --resume.
+
+Engines: ``local`` runs in this process or ``--workers`` processes sharing the store; ``dask``
+runs each participant as a Dask task on a ``LocalCluster`` of ``--workers`` processes, or on the
+existing cluster at ``--scheduler``, and this process alone writes the store, participant by
+participant in order (``study.simulated.dask_engine``). Both give the same data for a seed. An
+unreachable scheduler is an error naming its address (exit code 2) within a few seconds.
 
 A killed run is continued by the same command with ``--resume``: completed participants are
 kept, an unfinished one is simulated again from its start, so the store ends up with the data an
@@ -36,15 +43,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--protocol", type=Path, default=DEFAULT_PROTOCOL, help="protocol TOML")
     parser.add_argument("--db", type=Path, required=True, help="study store (SQLite file)")
     parser.add_argument("--participants", type=positive_int, default=8, help="how many to simulate")
-    parser.add_argument("--seed", type=non_negative_int, default=0, help="population + session seed")
     parser.add_argument(
-        "--workers", type=positive_int, default=1, help="processes (each writes the same WAL store)"
+        "--seed", type=non_negative_int, default=0, help="population + session seed"
+    )
+    parser.add_argument(
+        "--workers",
+        type=positive_int,
+        default=1,
+        help="processes: local engine, each writes the same WAL store; dask engine without "
+        "--scheduler, the LocalCluster's workers",
+    )
+    parser.add_argument(
+        "--engine",
+        choices=["local", "dask"],
+        default="local",
+        help="local: this machine's processes; dask: a Dask cluster, this process the only writer",
+    )
+    parser.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="--engine dask: an existing scheduler (tcp://HOST:PORT); without it a LocalCluster",
     )
     parser.add_argument(
         "--population", type=Path, default=DEFAULT_POPULATION, help="population TOML"
     )
     parser.add_argument(
-        "--first", type=non_negative_int, default=0, help="first population index (to add to a store)"
+        "--first",
+        type=non_negative_int,
+        default=0,
+        help="first population index (to add to a store)",
     )
     parser.add_argument(
         "--synchronous",
@@ -80,6 +108,8 @@ def main(args: argparse.Namespace) -> int:
             synchronous=args.synchronous,
             progress=not args.no_progress,
             resume=args.resume,
+            engine=args.engine,
+            scheduler=args.scheduler,
         )
         result = report.as_dict()
         for error in report.errors:
@@ -92,7 +122,11 @@ def main(args: argparse.Namespace) -> int:
         result = {"participants": 0, "trials": 0, "ratings": 0, "wall_s": 0.0, "error": str(exc)}
         code = 2
     except KeyboardInterrupt:
-        print("interrupted: running trials are marked interrupted in the store", file=sys.stderr)
+        print(
+            "interrupted: completed participants are in the store (a running trial is marked "
+            "interrupted); continue with the same command and --resume",
+            file=sys.stderr,
+        )
         result = {"status": "interrupted"}
         code = 130
     print(json.dumps(result))

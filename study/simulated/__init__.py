@@ -12,12 +12,14 @@ runner that drives them through the real session engine.
 - :class:`SimulatedParticipant`: one person across a session (input factory + answerer for
   ``study.headless.run_headless``).
 - :func:`simulate`: enrol and run simulated participants through the real session engine into a
-  store (``python -m study simulate``), optionally in worker processes.
+  store (``python -m study simulate``), optionally in worker processes or on a Dask cluster
+  (``study.simulated.dask_engine``, one writer merging ``study.simulated.bundle`` bundles).
 """
 
 from study.simulated.errors import (
     ObservationError,
     PopulationError,
+    SchedulerUnreachableError,
     SimulationError,
     SimulationRunError,
 )
@@ -46,6 +48,7 @@ __all__ = [
     "PopulationError",
     "QuestionnaireModel",
     "RunExperience",
+    "SchedulerUnreachableError",
     "SimulatedParticipant",
     "SimulatedUser",
     "SimulationError",

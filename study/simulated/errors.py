@@ -20,3 +20,8 @@ class ObservationError(SimulationError, ValueError):
 
 class SimulationRunError(SimulationError, RuntimeError):
     """A simulated session could not be driven to its end through the session engine."""
+
+
+class SchedulerUnreachableError(SimulationError, ConnectionError):
+    """The Dask scheduler given with ``--scheduler`` did not answer; the message names the
+    address and what to check."""

@@ -51,6 +51,10 @@ if TYPE_CHECKING:
     from study.store import Store
 
 
+ENGINES = ("local", "dask")
+"""``local``: this process or spawned processes sharing the store; ``dask``: a Dask cluster
+returning participants to this process, the store's only writer."""
+
 SAMPLE_FLUSH_S = 0.25
 """Samples are committed in batches this often (wall time; the SampleWriter's maximum): a
 simulated trial runs many times faster than real time, so fewer, larger write transactions
@@ -336,22 +340,33 @@ def simulate(
     synchronous: str = "NORMAL",
     progress: bool = True,
     resume: bool = False,
+    engine: str = "local",
+    scheduler: str | None = None,
+    client: Any = None,
 ) -> SimulationReport:
     """Simulate ``participants`` people through the protocol into the store at ``db``;
     ``resume`` continues a killed run with the same arguments (see module docstring).
 
+    ``engine="local"`` runs in this process (``workers == 1``) or in ``workers`` spawned
+    processes sharing the store; ``engine="dask"`` runs on the Dask scheduler at ``scheduler``
+    or, without one, on a new ``LocalCluster`` of ``workers`` processes, with this process the
+    store's only writer (``study.simulated.dask_engine``). Both write the same data.
+    ``client``: with ``engine="dask"``, a connected ``distributed.Client`` to run on instead of
+    connecting anew (a sweep runs many simulations on one cluster).
+
     A store that takes no more writes stops the run: the report's ``error`` says why, and the
     participants finished before it are in ``results``."""
-    from tqdm import tqdm
-
     from study.protocol import load_protocol
     from study.session import open_store
-    from study.store import StoreWriteError
 
     if participants < 1:
         raise SimulationRunError(f"participants must be at least 1, got {participants}")
     if workers < 1:
         raise SimulationRunError(f"workers must be at least 1, got {workers}")
+    if engine not in ENGINES:
+        raise SimulationRunError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if (scheduler is not None or client is not None) and engine != "dask":
+        raise SimulationRunError("--scheduler needs --engine dask (the local engine has none)")
     for name, value in (("seed", seed), ("first", first)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
             raise SimulationRunError(f"{name} must be an integer >= 0, got {value!r}")
@@ -372,41 +387,38 @@ def simulate(
         results += [_result(job, store, sid, 0.0, None) for job, sid in plan.kept]
         jobs = plan.jobs
         per_person = protocol.training.runs + len(protocol.tasks) * len(protocol.modes)
-        bar = tqdm(
-            total=len(jobs) * per_person,
-            unit="trial",
-            desc=f"simulate {participants} participants",
-            file=sys.stderr,
-            disable=not progress,
-        )
-        with bar:
-            if workers == 1:
-                try:
-                    for job in jobs:
-                        results.append(
-                            run_participant(
-                                job,
-                                store=store,
-                                protocol=protocol,
-                                population_path=population_path,
-                                seed=seed,
-                                on_trial=lambda: bar.update(1),
-                            )
-                        )
-                except StoreWriteError as exc:
-                    fault = str(exc)
-            elif jobs:
-                fault = _run_pool(
-                    jobs,
-                    results,
-                    workers=workers,
-                    protocol_path=Path(protocol_path),
-                    db=Path(db),
-                    population_path=population_path,
-                    seed=seed,
-                    synchronous=synchronous,
-                    bar=bar,
-                )
+        if engine == "dask" and jobs:
+            from study.simulated.dask_engine import run_on_dask
+
+            fault = run_on_dask(
+                jobs,
+                results,
+                store=store,
+                protocol_path=Path(protocol_path),
+                population_path=population_path,
+                seed=seed,
+                workers=workers,
+                scheduler=scheduler,
+                trials_each=per_person,
+                progress=progress,
+                client=client,
+            )
+        elif jobs:
+            fault = _run_local(
+                jobs,
+                results,
+                store=store,
+                protocol=protocol,
+                workers=workers,
+                protocol_path=Path(protocol_path),
+                db=Path(db),
+                population_path=population_path,
+                seed=seed,
+                synchronous=synchronous,
+                progress=progress,
+                trials_each=per_person,
+                desc=f"simulate {participants} participants",
+            )
     finally:
         store.close()
     results.sort(key=lambda r: r.index)
@@ -431,6 +443,82 @@ def simulate(
     )
 
 
+def _run_local(
+    jobs: list[ParticipantJob],
+    results: list[ParticipantResult],
+    *,
+    store: Store,
+    protocol: Protocol,
+    workers: int,
+    protocol_path: Path,
+    db: Path,
+    population_path: Path,
+    seed: int,
+    synchronous: str,
+    progress: bool,
+    trials_each: int,
+    desc: str,
+) -> str | None:
+    """The local engine: ``jobs`` in this process, or in ``workers`` processes writing the same
+    store; returns the store fault that stopped the run, else ``None``."""
+    from tqdm import tqdm
+
+    from study.store import StoreWriteError
+
+    fault: str | None = None
+    # overall: participants done; below it the trials, of the participant running in this
+    # process, or of all of them with worker processes (their ticks arrive without a name)
+    people = tqdm(
+        total=len(jobs),
+        unit="participant",
+        desc=desc,
+        file=sys.stderr,
+        disable=not progress,
+        position=0,
+    )
+    bar = tqdm(
+        total=(len(jobs) if workers > 1 else 1) * trials_each,
+        unit="trial",
+        desc="  trials",
+        file=sys.stderr,
+        disable=not progress,
+        position=1,
+        leave=False,
+    )
+    with people, bar:
+        if workers > 1:
+            return _run_pool(
+                jobs,
+                results,
+                workers=workers,
+                protocol_path=protocol_path,
+                db=db,
+                population_path=population_path,
+                seed=seed,
+                synchronous=synchronous,
+                bar=bar,
+                people=people,
+            )
+        try:
+            for job in jobs:
+                bar.reset()
+                bar.set_description(f"  {job.participant}")
+                results.append(
+                    run_participant(
+                        job,
+                        store=store,
+                        protocol=protocol,
+                        population_path=population_path,
+                        seed=seed,
+                        on_trial=lambda: bar.update(1),
+                    )
+                )
+                people.update(1)
+        except StoreWriteError as exc:
+            fault = str(exc)
+    return fault
+
+
 def _run_pool(
     jobs: list[ParticipantJob],
     results: list[ParticipantResult],
@@ -442,6 +530,7 @@ def _run_pool(
     seed: int,
     synchronous: str,
     bar: Any,
+    people: Any,
 ) -> str | None:
     """Run ``jobs`` in worker processes, appending to ``results``; returns the store fault that
     stopped the run (queued participants are then not started), else ``None``."""
@@ -465,6 +554,7 @@ def _run_pool(
                     continue
                 try:
                     results.append(future.result())
+                    people.update(1)
                 except StoreWriteError as exc:
                     fault = fault or str(exc)
                     for other in pending:

@@ -1,0 +1,158 @@
+"""Run a sweep: every setting of the grid through simulated participants, each into its own
+store, then judge them by the paper's criteria (``study.sweep.criteria``).
+
+Every setting sees the same simulated people (same ``seed``: common random numbers), so
+differences between settings are the arbitration's, not the draw's. The protocol's current
+settings are always in the grid, so every sweep also says whether today's values meet the
+criteria (both run in one store, ``today.db``: they are the protocol as written). Stores live
+in ``out/stores/<setting>.db``: a sweep run again with the same arguments
+keeps the settings already done and continues an interrupted one (``simulate(resume=True)``).
+With ``engine="dask"`` all settings run on one cluster (one ``LocalCluster``, or the scheduler
+at ``scheduler``), connected once.
+"""
+
+from __future__ import annotations
+
+import sys
+from contextlib import ExitStack
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from study.simulated.population import DEFAULT_POPULATION_PATH
+from study.sweep.criteria import Criteria, Measure, choose, measure
+from study.sweep.errors import SweepError
+from study.sweep.grid import AGGRESSIVE, TIMID, Setting, current_settings, write_variant
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """Every setting's evidence, the paper's picks and today's values judged."""
+
+    measures: list[Measure]
+    criteria: Criteria
+    current: dict[str, Setting]
+    saturation: float
+    participants: int
+    seed: int
+    protocol: str
+    chosen: dict[str, Measure | None] = field(default_factory=dict)
+    errors: list[str] = field(default_factory=list)
+
+    def of(self, setting: Setting) -> Measure:
+        return next(m for m in self.measures if m.setting == setting)
+
+    def verdict(self) -> dict[str, Any]:
+        """Whether today's values pass, and whether they are the criterion's pick."""
+        out: dict[str, Any] = {}
+        for mode in (TIMID, AGGRESSIVE):
+            today = self.of(self.current[mode])
+            chosen = self.chosen.get(mode)
+            out[mode] = {
+                "setting": self.current[mode].label,
+                "passes": today.passes,
+                "rate": round(today.rate, 4),
+                "time_lost_s": today.row()["time_lost_s"],
+                "is_choice": chosen is not None and chosen.setting == today.setting,
+                "choice": None if chosen is None else chosen.setting.label,
+            }
+        return out
+
+
+def sweep(
+    *,
+    protocol_path: Path,
+    out: Path,
+    grid: list[Setting],
+    participants: int,
+    seed: int,
+    criteria: Criteria,
+    engine: str = "local",
+    workers: int = 1,
+    scheduler: str | None = None,
+    population_path: Path = DEFAULT_POPULATION_PATH,
+    progress: bool = True,
+) -> SweepResult:
+    """Simulate ``participants`` people under every setting of ``grid`` (plus the protocol's
+    own settings) and judge each by ``criteria``; writes variants and stores under ``out``."""
+    from tqdm import tqdm
+
+    from study.simulated import simulate
+    from study.store import Store
+
+    text = Path(protocol_path).read_text(encoding="utf-8")
+    current_timid, current_aggressive, saturation = current_settings(text)
+    settings = list(grid)
+    for setting in (current_timid, current_aggressive):
+        if setting not in settings:
+            settings.append(setting)
+    (out / "protocols").mkdir(parents=True, exist_ok=True)
+    (out / "stores").mkdir(parents=True, exist_ok=True)
+    errors: list[str] = []
+    with ExitStack() as stack:
+        client = None
+        if engine == "dask":
+            from study.simulated.dask_engine import connect
+
+            client = connect(scheduler=scheduler, workers=workers, stack=stack)
+        bar = stack.enter_context(
+            tqdm(
+                total=len(settings),
+                unit="setting",
+                desc="sweep",
+                file=sys.stderr,
+                disable=not progress,
+            )
+        )
+        current = {current_timid, current_aggressive}
+        for setting in settings:
+            db = _store(out, setting, current=current)
+            if setting in current and setting != current_timid:
+                bar.update(1)  # today's aggressive runs in the same store as today's timid
+                continue
+            variant = (
+                Path(protocol_path)
+                if setting in current
+                else write_variant(text, setting, saturation=saturation, folder=out / "protocols")
+            )
+            report = simulate(
+                protocol_path=variant,
+                db=db,
+                participants=participants,
+                seed=seed,
+                workers=workers,
+                population_path=population_path,
+                progress=progress,
+                resume=db.exists(),
+                engine=engine,
+                client=client,
+            )
+            if report.error is not None:
+                raise SweepError(
+                    f"{setting.label}: the store took no more writes ({report.error}); fix it "
+                    "and run the same sweep again to continue"
+                )
+            errors += [f"{setting.label}: {e}" for e in report.errors]
+            bar.update(1)
+    measures = []
+    for setting in settings:
+        db = _store(out, setting, current={current_timid, current_aggressive})
+        with Store.open_readonly(db) as store:
+            measures.append(measure(store, setting, saturation=saturation, criteria=criteria))
+    return SweepResult(
+        measures=measures,
+        criteria=criteria,
+        current={TIMID: current_timid, AGGRESSIVE: current_aggressive},
+        saturation=saturation,
+        participants=participants,
+        seed=seed,
+        protocol=str(protocol_path),
+        chosen={mode: choose(measures, mode) for mode in (TIMID, AGGRESSIVE)},
+        errors=errors,
+    )
+
+
+def _store(out: Path, setting: Setting, *, current: set[Setting]) -> Path:
+    """Where ``setting``'s participants are stored: today's two settings are one protocol, the
+    one as written, so they share ``today.db``."""
+    return out / "stores" / ("today.db" if setting in current else f"{setting.slug}.db")
