@@ -86,3 +86,10 @@ def test_the_viser_internals_the_firewall_relies_on_are_where_it_expects() -> No
         assert ws._background_event_loop is not None
     finally:
         server.stop()
+
+
+def test_the_console_may_send_long_text() -> None:
+    """An experimenter's reason can be long; only the participant port bounds strings."""
+    long_reason = _raw("GuiUpdateMessage", uuid="a", updates={"value": "r" * 500})
+    assert Firewall(allowed=None).screen(long_reason) is None
+    assert Firewall().screen(long_reason) is not None

@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
+import socket
 import time
 from pathlib import Path
 from typing import Any
@@ -465,3 +466,72 @@ def test_a_kiosk_does_not_hand_a_dropped_session_to_a_waiting_tab(tmp_path: Path
         run_async(tabs())
     finally:
         rs.stop()
+
+
+def test_tabs_that_leave_at_once_leave_nothing_behind_and_never_hold_a_session(
+    tmp_path: Path,
+) -> None:
+    """viser runs connect and disconnect callbacks in a pool, in no fixed order; a tab that
+    connects and drops at once must not stay registered (on a kiosk it would take the next
+    session for good)."""
+    rs = start_server(tmp_path, server_kw={"kiosk": True})
+    srv = rs.server
+    sub = [f"viser-v{viser.__version__}"]
+    camera = msgspec.msgpack.encode(
+        {
+            "type": "ViewerCameraMessage",
+            "wxyz": [1.0, 0.0, 0.0, 0.0],
+            "position": [-1.0, 0.0, 1.0],
+            "fov": 1.0,
+            "near": 0.01,
+            "far": 100.0,
+            "image_height": 600,
+            "image_width": 800,
+            "look_at": [0.45, 0.0, 0.15],
+            "up_direction": [0.0, 0.0, 1.0],
+        }
+    )
+
+    async def hit_and_run() -> None:
+        for _ in range(60):
+            ws = await websockets.connect(
+                f"ws://127.0.0.1:{srv.participant_port}", subprotocols=sub
+            )
+            await ws.send(camera)
+            ws.transport.abort()
+        await asyncio.sleep(1.5)
+
+    try:
+        run_async(hit_and_run())
+        assert wait_until(lambda: not srv.participant.get_clients(), timeout=10)
+        time.sleep(0.5)
+        assert set(srv._pages) <= set(srv.participant.get_clients())
+        code = srv.enrol("P01")
+        time.sleep(0.5)
+        assert srv.session(code).page is None  # no dead tab took the kiosk's session
+    finally:
+        rs.stop()
+
+
+def test_the_console_answers_only_to_this_machines_names(study: RunningServer) -> None:
+    """A page whose own name was made to point at 127.0.0.1 (DNS rebinding) sends a matching
+    Origin and Host; the console still refuses it."""
+    srv = study.server
+    port = srv.experimenter_port
+
+    async def rebound() -> None:
+        sock = socket.create_connection(("127.0.0.1", port))
+        with pytest.raises(websockets.InvalidStatus):
+            await websockets.connect(
+                f"ws://evil.example:{port}",
+                sock=sock,
+                origin=f"http://evil.example:{port}",
+                subprotocols=[f"viser-v{viser.__version__}"],
+            )
+        ok = await websockets.connect(
+            f"ws://localhost:{port}", subprotocols=[f"viser-v{viser.__version__}"]
+        )
+        await ok.close()
+
+    run_async(rebound())
+    assert srv.experimenter_firewall.refused_connections["a name other than this machine's"] == 1

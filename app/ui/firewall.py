@@ -67,6 +67,10 @@ join code it kept for a reload (the answer to the server's local-storage request
 
 SHARE_TYPES: frozenset[str] = frozenset({"ShareUrlRequest", "ShareUrlDisconnect"})
 
+LOOPBACK_NAMES = frozenset({"127.0.0.1", "localhost", "::1"})
+"""Host names a loopback-only server (the console) answers to: a page whose own name was made
+to point at 127.0.0.1 (DNS rebinding) passes the origin check, but not this one."""
+
 MAX_MESSAGE_BYTES = 16 * 1024
 """Largest message a participant's browser sends in normal use is well under 1 KiB."""
 
@@ -162,6 +166,7 @@ class Firewall:
         max_connections: int = 64,
         max_connections_per_address: int = 8,
         check_origin: bool = True,
+        loopback_only: bool = False,
     ) -> None:
         self.allowed = None if allowed is None else frozenset(allowed) - SHARE_TYPES
         if allow_share and self.allowed is not None:
@@ -177,6 +182,7 @@ class Firewall:
         self.max_connections = max_connections
         self.max_connections_per_address = max_connections_per_address
         self.check_origin = check_origin
+        self.loopback_only = loopback_only
         self.passed = 0
         self.dropped: Counter[str] = Counter()
         self.closed_connections = 0
@@ -211,9 +217,11 @@ class Firewall:
         return handle
 
     def _door_problem(self, connection: Any, request: Any) -> str | None:
+        host = request.headers.get("Host", "")
+        if self.loopback_only and urlsplit(f"//{host}").hostname not in LOOPBACK_NAMES:
+            return "a name other than this machine's (DNS rebinding)"
         if self.check_origin:
             origin = request.headers.get("Origin")
-            host = request.headers.get("Host", "")
             if origin is not None and urlsplit(origin).netloc.lower() != host.lower():
                 return "another site's page (origin check)"
         server = self._server
@@ -237,7 +245,9 @@ class Firewall:
         bucket = self._buckets.get(task)
         if bucket is None:
             bucket = self._buckets[task] = [self.burst, now, 0.0]
-        bucket[0] = min(self.burst, bucket[0] + (now - bucket[1]) * self.rate_per_s)
+        elapsed = now - bucket[1]
+        bucket[0] = min(self.burst, bucket[0] + elapsed * self.rate_per_s)
+        bucket[2] = max(0.0, bucket[2] - elapsed)  # refusals are forgiven at one a second
         bucket[1] = now
         bucket[0] -= 1.0
         if bucket[0] < -self.burst:  # twice the burst over the rate: not a page
@@ -273,6 +283,8 @@ class Firewall:
         if self.allowed is not None and kind not in self.allowed:
             known = kind in vm.Message._subclass_from_type_string()
             return f"{kind if known else 'an unknown type'} is not accepted here"
+        if self.allowed is None:
+            return None  # the console: every type, no value rules (reasons may be long)
         try:
             check_values(kind, body, max_position_m=self.max_position_m)
         except RefusedMessage as exc:

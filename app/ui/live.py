@@ -29,6 +29,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -105,6 +106,7 @@ class LiveSession:
         self._render_lock = threading.Lock()
         self._unrecorded_fault: dict[str, Any] | None = None
         self._missed_grasp = threading.Event()
+        self._writer_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix=f"events-{code}")
         self._plot_lock = threading.Lock()
         self._plot: deque[tuple[float, float, float, np.ndarray]] = deque(maxlen=PLOT_WINDOW)
         self.goal_names: tuple[str, ...] = ()
@@ -211,8 +213,8 @@ class LiveSession:
                 page.reject(f"{action}: {exc}")
             else:
                 self._event("input_rejected", {"problem": f"{action}: {exc}"[:200]})
-                self._shown = None
-                self._dirty.set()
+            self._shown = None  # redraw: the screen's buttons were disabled by the click
+            self._dirty.set()
 
     def _start_trial(self) -> None:
         def start() -> None:
@@ -236,8 +238,12 @@ class LiveSession:
         self._participant("resume", resume)
 
     def _refused(self, exc: Exception) -> None:
-        """An input that arrived while paused: logged (rate-limited by the session), not shown."""
-        self._event("input_rejected", {"problem": str(exc)[:200]})
+        """An input that arrived while paused: logged (rate-limited by the session), not shown.
+        Written from one worker thread: input callbacks run on viser's event loop, which a
+        store write must never hold up."""
+        problem = str(exc)[:200]
+        with contextlib.suppress(RuntimeError):  # closing: the worker is gone
+            self._writer_pool.submit(self._event, "input_rejected", {"problem": problem})
 
     def _grasp(self) -> None:
         source = self._input
@@ -257,9 +263,7 @@ class LiveSession:
         except InputFrozen as exc:
             self._refused(exc)
         except TeleopError as exc:
-            page = self.page
-            if page is not None:
-                page.reject(str(exc))
+            self._refused(exc)
 
     def _on_keys(self, down: frozenset[str], up: frozenset[str]) -> None:
         """Key-state changes from the page: steering keys to the input, G grasps, V re-frames."""
@@ -345,7 +349,7 @@ class LiveSession:
         self._control = PacedLoop(
             lambda: self._tick(run), rate_hz=run.config.rate_hz, name=f"control-{self.code}"
         ).start()
-        if self._render is None:
+        if self._render is None or not self._render.alive:
             self._render = PacedLoop(
                 self._render_step, rate_hz=self.render_hz, name=f"render-{self.code}"
             ).start()
@@ -418,6 +422,8 @@ class LiveSession:
         scene = build_scene(config.scene)
         sim = Simulation(scene, physics_dt=config.physics_dt)
         with self._lock, self._render_lock:
+            if self._run is not None and not self._run.over:
+                return  # Start was pressed meanwhile: the run's own frames show
             self._frame_key = ("preview", str(scene.name))  # the render loop keeps off it
             view = self._ensure_view(page, scene, sim.model)
             view.render(sim.data.xpos, sim.data.xmat, gripper=sim.ee)
@@ -460,6 +466,7 @@ class LiveSession:
                 self._control.stop()
             self._control = None
             page, run = self.page, self._run
+            self.fault = None  # the run it held is over (redo, skip, end)
             summary = getattr(run, "summary", None)
             if summary is not None:
                 sentence = OUTCOME_SENTENCES.get(summary.outcome, "The run has ended.")
@@ -498,7 +505,7 @@ class LiveSession:
             if self.on_closed is not None:
                 self.on_closed()
         if run is not None and not run.over:
-            if run.paused and not self._input_paused:
+            if (run.paused or self.fault is not None) and not self._input_paused:
                 self._pause_input()
             elif not run.paused and self._input_paused and self.fault is None:
                 self._resume_input()
@@ -516,8 +523,8 @@ class LiveSession:
         )
         if key == self._shown:
             return
-        self._shown = key
         self._show(page, screen)
+        self._shown = key  # only once shown: a screen that failed is tried again
 
     def _show(self, page: ParticipantPage, screen: Any) -> None:
         progress = screen.progress.text if screen.progress.of else None
@@ -728,6 +735,7 @@ class LiveSession:
         for loop in (self._control, self._render):
             if loop is not None:
                 loop.stop()
+        self._writer_pool.shutdown(wait=True, cancel_futures=True)
         with contextlib.suppress(Exception):
             self.session.close()
 

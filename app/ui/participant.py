@@ -151,7 +151,7 @@ class ParticipantPage:
         down, up = held - self._keys_held, self._keys_held - held
         self._keys_held = held
         if self.on_keys is not None and (down or up):
-            asyncio.get_running_loop().run_in_executor(None, self.on_keys, down, up)
+            self.on_keys(down, up)  # in arrival order: a key's up never overtakes its down
 
     # -- plumbing ----------------------------------------------------------------------------
     def _new_screen(self, name: str) -> int:
@@ -224,10 +224,11 @@ class ParticipantPage:
             if button is not None and on_button is not None:
                 options.insert(0, (button, on_button))
             buttons = [self._button(label) for label, _ in options]
+            claimed = threading.Lock()  # the first click on this screen wins, once
             for b, (_, action) in zip(buttons, options, strict=True):
 
                 def click(_: object, action: Callable[[], None] = action) -> None:
-                    if self._current(screen) and not any(x.disabled for x in buttons):
+                    if self._current(screen) and claimed.acquire(blocking=False):
                         for x in buttons:
                             x.disabled = True
                         action()

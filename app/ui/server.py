@@ -25,6 +25,7 @@ import viser
 
 from app.ui import blinding, firewall
 from app.ui.experimenter import ACTIONS, ExperimenterConsole, SessionDetail, SessionSummary
+from app.ui.firewall import LOOPBACK_NAMES
 from app.ui.join import JoinThrottle, new_join_code, normalize_code
 from app.ui.live import LiveSession, SessionFactory
 from app.ui.participant import ParticipantPage
@@ -41,6 +42,9 @@ class ServerError(RuntimeError):
 
 JOIN_FAILED = "That code did not work. Please check it with the experimenter and type it again."
 REMEMBERED_CODE_KEY = "study-join-code"
+REJOIN_WAIT_S = 45.0
+"""How long a tab with a kept code waits for the session's old tab to be let go (longer than
+the websocket's ping interval plus timeout, 20 + 20 s)."""
 """Where a tab keeps its join code (the browser's local storage), so a reload rejoins at once."""
 JOIN_THROTTLED = "Too many tries. Please wait a minute, then ask the experimenter for the code."
 
@@ -88,7 +92,11 @@ class StudyServer:
         # the console may use every message type; share links stay off unless asked for, and
         # no page of another site open in the experimenter's browser may drive it (origin)
         self.experimenter_firewall = firewall.Firewall(
-            allowed=None, allow_share=allow_share, max_bytes=8 * 2**20, rate_per_s=2000.0
+            allowed=None,
+            allow_share=allow_share,
+            max_bytes=8 * 2**20,
+            rate_per_s=2000.0,
+            loopback_only=experimenter_host in LOOPBACK_NAMES,
         )
         with firewall.hardened_serve(self.experimenter_firewall):
             self.experimenter = viser.ViserServer(
@@ -178,28 +186,33 @@ class StudyServer:
         page.address = _address(self.participant, client.client_id)
         frame_task(client.camera, look_at=(0.45, 0.0, 0.15))
         with self._lock:
+            # viser runs connect and disconnect callbacks in a pool, in no fixed order: a tab
+            # that left before we got here must not be registered (it would hold a session)
+            if client.client_id not in self.participant.get_clients():
+                return
             self._pages[client.client_id] = page
         self._offer(page)
         threading.Thread(target=self._rejoin, args=(page,), name="rejoin", daemon=True).start()
 
     def _rejoin(self, page: ParticipantPage) -> None:
-        """A reloaded tab: its browser kept the code it joined with; try it like a typed one
-        (throttled, the same reply on failure, which then clears the kept code)."""
+        """A reloaded (or reconnected) tab: its browser kept the code it joined with; try it
+        like a typed one (throttled, the same reply on failure, which then clears the kept
+        code). While the session's old tab is still held -- a dropped network connection is
+        only noticed after the websocket's ping timeout -- wait for it to let go."""
         try:
             kept = page.client.local_storage.get_item(REMEMBERED_CODE_KEY, timeout=5.0)
         except Exception:  # no answer, blocked storage, a closed tab: the participant types it
             return
         if not kept:
             return
-        code, deadline = normalize_code(kept), time.monotonic() + 2.0
-        while (
-            time.monotonic() < deadline
-        ):  # a reload: the old tab's goodbye may still be on its way
+        code, deadline = normalize_code(kept), time.monotonic() + REJOIN_WAIT_S
+        while time.monotonic() < deadline:
             with self._lock:
                 live = self._sessions.get(code)
-            if live is None or live.page is None:
+                gone = page.client.client_id not in self._pages
+            if gone or live is None or live.page is None:
                 break
-            time.sleep(0.1)
+            time.sleep(0.25)
         with self._lock:
             bound = page.client.client_id in self._page_session
         if not bound:
@@ -285,6 +298,13 @@ class StudyServer:
                 return False
             self._page_session[page.client.client_id] = live.code
         live.attach(page)
+        with self._lock:
+            gone = page.client.client_id not in self._pages
+        if gone:  # the tab left while it was being attached: let the session go again
+            with self._lock:
+                self._page_session.pop(page.client.client_id, None)
+            live.detach(page)
+            return True
         with contextlib.suppress(Exception):  # the tab keeps its code for a reload
             page.client.local_storage.set_item(REMEMBERED_CODE_KEY, live.code)
         return True
