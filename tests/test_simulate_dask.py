@@ -38,7 +38,7 @@ from study.simulated.population import DEFAULT_POPULATION_PATH
 from study.simulated.runner import plan_jobs
 from study.store import Store, StoreError
 from tests.protocol_copies import short_protocol
-from tests.test_simulate_resume import content, progress
+from tests.test_simulate_resume import content, progress, reference_run
 
 pytestmark = pytest.mark.slow
 
@@ -62,12 +62,8 @@ def protocol(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def reference(protocol: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    db = tmp_path_factory.mktemp("reference") / "sim.db"
-    report = simulate(
-        protocol_path=protocol, db=db, participants=PARTICIPANTS, seed=SEED, progress=False
-    )
-    assert report.errors == [] and report.error is None
-    return same_data(db)
+    folder = tmp_path_factory.mktemp("reference")
+    return same_data(reference_run(protocol, folder, participants=PARTICIPANTS, seed=SEED))
 
 
 @pytest.fixture(scope="module")

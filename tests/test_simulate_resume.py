@@ -42,14 +42,20 @@ def protocol(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return short_protocol(tmp_path_factory.mktemp("protocol"), training_runs=1)
 
 
-@pytest.fixture(scope="module")
-def reference(protocol: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    db = tmp_path_factory.mktemp("reference") / "sim.db"
+def reference_run(protocol: Path, folder: Path, *, participants: int, seed: int) -> Path:
+    """An uninterrupted simulation in ``folder``: the data every other run must reproduce."""
+    db = folder / "sim.db"
     report = simulate(
-        protocol_path=protocol, db=db, participants=PARTICIPANTS, seed=SEED, progress=False
+        protocol_path=protocol, db=db, participants=participants, seed=seed, progress=False
     )
     assert report.errors == [] and report.error is None
-    return content(db)
+    return db
+
+
+@pytest.fixture(scope="module")
+def reference(protocol: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    folder = tmp_path_factory.mktemp("reference")
+    return content(reference_run(protocol, folder, participants=PARTICIPANTS, seed=SEED))
 
 
 def content(db: Path) -> dict[str, Any]:
