@@ -73,14 +73,18 @@ def factor_blocks(
         else:
             lv = tuple(sorted(set(s.astype(str))))
         if len(lv) < 2:
-            raise DesignError(f"factor {f!r} has {len(lv)} level{'s' if len(lv) != 1 else ''}; "
-                              "a factor needs at least two levels - drop it from the model")
+            raise DesignError(
+                f"factor {f!r} has {len(lv)} level{'s' if len(lv) != 1 else ''}; "
+                "a factor needs at least two levels - drop it from the model"
+            )
         levels[f] = lv
         blocks[(i,)] = effect_coding(s, lv)
     for t in effect_terms(factors):
         if len(t) > 1:
-            cols = [np.prod(combo, axis=0) for combo in
-                    itertools.product(*[list(blocks[(i,)].T) for i in t])]
+            cols = [
+                np.prod(combo, axis=0)
+                for combo in itertools.product(*[list(blocks[(i,)].T) for i in t])
+            ]
             blocks[t] = np.column_stack(cols)
     return levels, blocks
 
@@ -108,8 +112,10 @@ def factorial_anova(
     names = [dv, *factors, *covariates]
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
-        raise DesignError(f"column(s) {', '.join(map(repr, dupes))} given in two roles; "
-                          "each role needs its own column")
+        raise DesignError(
+            f"column(s) {', '.join(map(repr, dupes))} given in two roles; "
+            "each role needs its own column"
+        )
     require_columns(data, names)
     y = numeric_column(data, dv).to_numpy()
     notes: list[str] = []
@@ -130,18 +136,22 @@ def factorial_anova(
     observed = set(d[factors].astype(str).drop_duplicates().itertuples(index=False, name=None))
     empty = [c for c in itertools.product(*levels.values()) if c not in observed]
     if empty:
-        listed = "; ".join(" & ".join(f"{f}={v}" for f, v in zip(factors, c, strict=True))
-                           for c in empty[:10])
-        raise DesignError(f"{len(empty)} cell(s) of the factorial design have no data: {listed}. "
-                          "Every combination of factor levels needs observations.")
+        listed = "; ".join(
+            " & ".join(f"{f}={v}" for f, v in zip(factors, c, strict=True)) for c in empty[:10]
+        )
+        raise DesignError(
+            f"{len(empty)} cell(s) of the factorial design have no data: {listed}. "
+            "Every combination of factor levels needs observations."
+        )
     terms = effect_terms(factors)
     for c in covariates:
         v = cov_values[c][keep]
         if np.ptp(v) == 0:
-            raise DesignError(f"covariate {c!r} is constant ({v[0]:g}); it cannot be estimated - "
-                              "drop it from the covariates")
-    cov_cols = {c: (cov_values[c][keep] - cov_values[c][keep].mean())[:, None]
-                for c in covariates}
+            raise DesignError(
+                f"covariate {c!r} is constant ({v[0]:g}); it cannot be estimated - "
+                "drop it from the covariates"
+            )
+    cov_cols = {c: (cov_values[c][keep] - cov_values[c][keep].mean())[:, None] for c in covariates}
     parts: list[tuple[str, tuple[int, ...] | None, np.ndarray]] = [
         (effect_name(factors, t), t, blocks[t]) for t in terms
     ] + [(c, None, cov_cols[c]) for c in covariates]
@@ -149,8 +159,10 @@ def factorial_anova(
     p_cols = x_full.shape[1]
     df_resid = n - p_cols
     if df_resid <= 0:
-        raise DesignError(f"{n} observations cannot fit {p_cols} parameters (cells + covariates); "
-                          "collect more data or use fewer covariates")
+        raise DesignError(
+            f"{n} observations cannot fit {p_cols} parameters (cells + covariates); "
+            "collect more data or use fewer covariates"
+        )
     rank = np.linalg.matrix_rank(x_full)
     if rank < p_cols:
         culprits = []
@@ -158,10 +170,15 @@ def factorial_anova(
             others = np.column_stack([np.ones(n)] + [p[2] for p in parts if p[0] != c])
             if np.linalg.matrix_rank(others) == rank:
                 culprits.append(c)
-        what = (f"covariate(s) {', '.join(map(repr, culprits))} are" if culprits
-                else "the design columns are")
-        raise DesignError(f"{what} linearly dependent on the factors or other covariates "
-                          "(e.g. constant within every cell); drop them from the covariates")
+        what = (
+            f"covariate(s) {', '.join(map(repr, culprits))} are"
+            if culprits
+            else "the design columns are"
+        )
+        raise DesignError(
+            f"{what} linearly dependent on the factors or other covariates "
+            "(e.g. constant within every cell); drop them from the covariates"
+        )
     sse = _sse(x_full, y)
     sst = float(((y - y.mean()) ** 2).sum())
     mse = sse / df_resid
@@ -177,16 +194,29 @@ def factorial_anova(
         ss = max(ss, 0.0)
         df1 = block.shape[1]
         f = (ss / df1) / mse if mse > 0 else np.inf
-        rows.append({
-            "effect": name, "df1": float(df1), "df2": float(df_resid), "F": float(f),
-            "p": float(special.fdtrc(df1, df_resid, f)), "np2": ss / (ss + sse) if ss + sse > 0
-            else np.nan, "SS": ss,
-        })
+        rows.append(
+            {
+                "effect": name,
+                "df1": float(df1),
+                "df2": float(df_resid),
+                "F": float(f),
+                "p": float(special.fdtrc(df1, df_resid, f)),
+                "np2": ss / (ss + sse) if ss + sse > 0 else np.nan,
+                "SS": ss,
+            }
+        )
     r2 = 1.0 - sse / sst if sst > 0 else np.nan
     r2_adj = 1.0 - (1.0 - r2) * (n - 1) / df_resid
     return FactorialAnovaResult(
-        table=pd.DataFrame(rows, columns=COLUMNS), r2=float(r2), r2_adj=float(r2_adj),
-        df_resid=df_resid, sse=sse, n=n, ss_type=ss_type, levels=levels, notes=tuple(notes),
+        table=pd.DataFrame(rows, columns=COLUMNS),
+        r2=float(r2),
+        r2_adj=float(r2_adj),
+        df_resid=df_resid,
+        sse=sse,
+        n=n,
+        ss_type=ss_type,
+        levels=levels,
+        notes=tuple(notes),
     )
 
 
@@ -211,10 +241,11 @@ def covariate_anova(
     roles = [dv, subject, *within, *covariates]
     dupes = sorted({n for n in roles if roles.count(n) > 1})
     if dupes:
-        raise DesignError(f"column(s) {', '.join(map(repr, dupes))} given in two roles (dependent "
-                          "variable, subject, factor, covariate); each role needs its own column")
-    cells = cell_means(data, dv=dv, subject=subject, within=within,
-                       drop_incomplete=drop_incomplete)
+        raise DesignError(
+            f"column(s) {', '.join(map(repr, dupes))} given in two roles (dependent "
+            "variable, subject, factor, covariate); each role needs its own column"
+        )
+    cells = cell_means(data, dv=dv, subject=subject, within=within, drop_incomplete=drop_incomplete)
     require_columns(data, list(covariates))
     d = pd.DataFrame({subject: data[subject].astype(str)})
     for f in within:

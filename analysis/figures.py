@@ -28,8 +28,12 @@ from matplotlib.figure import Figure
 from analysis.prediction_eval import Replay, first_lasting_correct
 
 TASK_ORDER = ["easy-right", "easy-wrong", "hard-right", "hard-wrong"]
-TASK_LABELS = {"easy-right": "Easy&Right", "easy-wrong": "Easy&Wrong",
-               "hard-right": "Hard&Right", "hard-wrong": "Hard&Wrong"}
+TASK_LABELS = {
+    "easy-right": "Easy&Right",
+    "easy-wrong": "Easy&Wrong",
+    "hard-right": "Hard&Right",
+    "hard-wrong": "Hard&Wrong",
+}
 MODE_COLORS = {"timid": "#4c72b0", "aggressive": "#dd8452"}
 RIGHT, WRONG = "#2ca02c", "#d62728"
 
@@ -77,33 +81,58 @@ def arbitration_figure(arbitrations: Mapping[str, Mapping[str, Any]]) -> Figure:
         arb = arbitration_from_config(dict(table), where=f"modes.{name}.arbitration")
         alpha = np.array([arb(float(x)) for x in c])
         ax.plot(c, alpha, lw=2, label=name, color=MODE_COLORS.get(name))
-    ax.set(xlabel="confidence c", ylabel="arbitration α", xlim=(0, 1), ylim=(-0.02, 1.02),
-           title="Arbitration by mode (Fig. 7)")
+    ax.set(
+        xlabel="confidence c",
+        ylabel="arbitration α",
+        xlim=(0, 1),
+        ylim=(-0.02, 1.02),
+        title="Arbitration by mode (Fig. 7)",
+    )
     ax.legend(frameon=False)
     ax.grid(alpha=0.3)
     return fig
 
 
-def _bars(ax: Any, table: pd.DataFrame, value: str, err: str, groups: list[str],
-          series: list[str], series_col: str, group_col: str,
-          colors: Mapping[str, str] | None = None) -> None:
+def _bars(
+    ax: Any,
+    table: pd.DataFrame,
+    value: str,
+    err: str,
+    groups: list[str],
+    series: list[str],
+    series_col: str,
+    group_col: str,
+    colors: Mapping[str, str] | None = None,
+) -> None:
     width = 0.8 / max(1, len(series))
     x = np.arange(len(groups))
     for i, s in enumerate(series):
         sub = table[table[series_col] == s].set_index(group_col).reindex(groups)
-        ax.bar(x + (i - (len(series) - 1) / 2) * width, sub[value], width, yerr=sub[err],
-               capsize=3, label=s, color=(colors or {}).get(s))
+        ax.bar(
+            x + (i - (len(series) - 1) / 2) * width,
+            sub[value],
+            width,
+            yerr=sub[err],
+            capsize=3,
+            label=s,
+            color=(colors or {}).get(s),
+        )
     ax.set_xticks(x, [TASK_LABELS.get(g, g) for g in groups])
 
 
-def timing_preference_figure(summary: pd.DataFrame, preferences: pd.DataFrame | None,
-                             *, modes: Sequence[str] = ("timid", "aggressive")) -> Figure:
+def timing_preference_figure(
+    summary: pd.DataFrame,
+    preferences: pd.DataFrame | None,
+    *,
+    modes: Sequence[str] = ("timid", "aggressive"),
+) -> Figure:
     """Fig. 8: (a) mean time per task and mode +- SE; (b) preference for aggressive +- SE
     (left out when there are no preferences)."""
     fig = _new(9.0 if preferences is not None else 5.5, 3.4)
     axes = fig.subplots(1, 2 if preferences is not None else 1, squeeze=False)[0]
-    tasks = [t for t in TASK_ORDER if t in set(summary["task"])] or \
-        list(dict.fromkeys(summary["task"]))
+    tasks = [t for t in TASK_ORDER if t in set(summary["task"])] or list(
+        dict.fromkeys(summary["task"])
+    )
     present = [m for m in modes if m in set(summary["mode"])]
     _bars(axes[0], summary, "mean", "se", tasks, present, "mode", "task", MODE_COLORS)
     axes[0].set(ylabel="time to complete (s)", title="(a) Time per task and mode")
@@ -115,19 +144,29 @@ def timing_preference_figure(summary: pd.DataFrame, preferences: pd.DataFrame | 
         g = preferences.groupby("task")["preference_aggressive"]
         pref = pd.DataFrame({"mean": g.mean(), "se": g.std() / np.sqrt(g.count())})
         pref = pref.reindex(tasks)
-        ax2.bar(np.arange(len(tasks)), pref["mean"], 0.6, yerr=pref["se"], capsize=3,
-                color="#8172b2")
+        ax2.bar(
+            np.arange(len(tasks)), pref["mean"], 0.6, yerr=pref["se"], capsize=3, color="#8172b2"
+        )
         ax2.axhline(0, color="k", lw=0.8)
         ax2.set_xticks(np.arange(len(tasks)), [TASK_LABELS.get(t, t) for t in tasks])
-        ax2.set(ylim=(-3.2, 3.2), ylabel="← timid   preference   aggressive →",
-                title="(b) Preference per task")
+        ax2.set(
+            ylim=(-3.2, 3.2),
+            ylabel="← timid   preference   aggressive →",
+            title="(b) Preference per task",
+        )
     return fig
 
 
-def prediction_figure(evals: pd.DataFrame, example: Mapping[str, Replay],
-                      goals: np.ndarray, goal_names: list[str], target: int,
-                      title: str = "", *,
-                      modes: Sequence[str] = ("timid", "aggressive")) -> Figure:
+def prediction_figure(
+    evals: pd.DataFrame,
+    example: Mapping[str, Replay],
+    goals: np.ndarray,
+    goal_names: list[str],
+    target: int,
+    title: str = "",
+    *,
+    modes: Sequence[str] = ("timid", "aggressive"),
+) -> Figure:
     """Fig. 9: (a) success rate by mode and predictor +- SE; (b, c) one trajectory (top view)
     coloured by correctness of each predictor, an arrow at the first lasting correct point."""
     fig = _new(11.0, 3.6)
@@ -140,8 +179,14 @@ def prediction_figure(evals: pd.DataFrame, example: Mapping[str, Replay],
     x = np.arange(len(modes))
     for i, p in enumerate(preds):
         sub = summ[summ.predictor == p].set_index("mode").reindex(modes)
-        axes[0].bar(x + (i - (len(preds) - 1) / 2) * width, sub["mean"], width, yerr=sub["se"],
-                    capsize=3, label=p)
+        axes[0].bar(
+            x + (i - (len(preds) - 1) / 2) * width,
+            sub["mean"],
+            width,
+            yerr=sub["se"],
+            capsize=3,
+            label=p,
+        )
     axes[0].set_xticks(x, modes)
     axes[0].set(ylim=(0, 1.2), ylabel="success rate", title="(a) Prediction success")
     axes[0].legend(frameon=False, loc="upper left", ncols=2)
@@ -151,27 +196,45 @@ def prediction_figure(evals: pd.DataFrame, example: Mapping[str, Replay],
         ax.plot(pts[:, 0], pts[:, 1], color="0.8", lw=0.8, zorder=1)
         step = max(1, len(pts) // 150)
         idx = np.arange(0, len(pts), step)
-        ax.scatter(pts[idx, 0], pts[idx, 1], s=9, zorder=2,
-                   c=np.where(rep.correct[idx], RIGHT, WRONG))
+        ax.scatter(
+            pts[idx, 0], pts[idx, 1], s=9, zorder=2, c=np.where(rep.correct[idx], RIGHT, WRONG)
+        )
         for k, (gx, gy) in enumerate(goals[:, :2]):
-            ax.scatter([gx], [gy], marker="*" if k == target else "s", s=120,
-                       color="k" if k == target else "0.5", zorder=3)
+            ax.scatter(
+                [gx],
+                [gy],
+                marker="*" if k == target else "s",
+                s=120,
+                color="k" if k == target else "0.5",
+                zorder=3,
+            )
             ax.annotate(goal_names[k], (gx, gy), textcoords="offset points", xytext=(5, 5))
         first = first_lasting_correct(rep.correct)
         if first is not None:
             fx, fy = pts[first, :2]
-            ax.annotate("", xy=(fx, fy), xytext=(fx - 0.06, fy + 0.06),
-                        arrowprops={"arrowstyle": "->", "lw": 1.5})
+            ax.annotate(
+                "",
+                xy=(fx, fy),
+                xytext=(fx - 0.06, fy + 0.06),
+                arrowprops={"arrowstyle": "->", "lw": 1.5},
+            )
         share = float(rep.correct.mean())
-        ax.set(xlabel="x (m)", ylabel="y (m)", aspect="equal",
-               title=f"({letter}) {name}: correct {share:.0%} of the time")
+        ax.set(
+            xlabel="x (m)",
+            ylabel="y (m)",
+            aspect="equal",
+            title=f"({letter}) {name}: correct {share:.0%} of the time",
+        )
     if title:
         fig.suptitle(title, fontsize=9)
     return fig
 
 
-FORM_STYLES = {"as in the paper": ("--", "paper's form"), "reviewer": ("-", "reviewer's form"),
-               "both (participant-level already)": (":", "both forms")}
+FORM_STYLES = {
+    "as in the paper": ("--", "paper's form"),
+    "reviewer": ("-", "reviewer's form"),
+    "both (participant-level already)": (":", "both forms"),
+}
 
 
 def power_figure(table: pd.DataFrame, *, target: float = 0.8) -> Figure:
@@ -186,12 +249,18 @@ def power_figure(table: pd.DataFrame, *, target: float = 0.8) -> Figure:
         for i, name in enumerate(names):
             for form, g in sub[sub["test"] == name].groupby("form", sort=False):
                 g = g.sort_values("n")
-                ax.errorbar(g["n"], g["power"], yerr=[g["power"] - g["ci_low"],
-                                                      g["ci_high"] - g["power"]],
-                            color=colours[i % 10],
-                            linestyle=FORM_STYLES.get(str(form), ("-", ""))[0],
-                            marker="o", markersize=3, capsize=2, linewidth=1.2,
-                            label=f"{name} ({FORM_STYLES.get(str(form), ('', form))[1]})")
+                ax.errorbar(
+                    g["n"],
+                    g["power"],
+                    yerr=[g["power"] - g["ci_low"], g["ci_high"] - g["power"]],
+                    color=colours[i % 10],
+                    linestyle=FORM_STYLES.get(str(form), ("-", ""))[0],
+                    marker="o",
+                    markersize=3,
+                    capsize=2,
+                    linewidth=1.2,
+                    label=f"{name} ({FORM_STYLES.get(str(form), ('', form))[1]})",
+                )
         ax.axhline(target, color="0.5", linewidth=0.8, linestyle=":")
         ax.set_ylim(-0.02, 1.02)
         ax.set_xticks(sorted(sub["n"].unique()))

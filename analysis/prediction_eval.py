@@ -56,8 +56,9 @@ class PredictorChoice:
 
     def describe(self) -> str:
         cfg = {**DEFAULTS.get(str(self.config.get("kind")), {}), **self.config}
-        params = ", ".join(f"{k} {_fmt_param(v)}" for k, v in cfg.items()
-                           if k not in ("kind", "space"))
+        params = ", ".join(
+            f"{k} {_fmt_param(v)}" for k, v in cfg.items() if k not in ("kind", "space")
+        )
         return f"{self.name}: {params or 'no parameters'} ({self.source})"
 
 
@@ -89,10 +90,12 @@ def protocol_predictors(
             source = f"the protocol's [prediction.{key}]"
         elif same:
             cfg = dict(default)
-            source = ("the paper's default; the protocol's "
-                      + ", ".join(f"[prediction.{k}]" for k, _ in same)
-                      + " predicts in configuration space, which a replay of the logged "
-                        "workspace targets cannot reproduce")
+            source = (
+                "the paper's default; the protocol's "
+                + ", ".join(f"[prediction.{k}]" for k, _ in same)
+                + " predicts in configuration space, which a replay of the logged "
+                "workspace targets cannot reproduce"
+            )
         else:
             cfg = dict(default)
             source = f"the paper's default; the protocol has no prediction table of kind {kind!r}"
@@ -102,19 +105,30 @@ def protocol_predictors(
 
 
 TARGET_COLUMNS = ("target_x", "target_y", "target_z")
-EVAL_COLUMNS = ["trial_id", "participant", "task", "difficulty", "correctness", "mode",
-                "predictor", "n_ticks", "success_rate", "time_to_correct_s",
-                "fraction_to_correct", "duration_s"]
+EVAL_COLUMNS = [
+    "trial_id",
+    "participant",
+    "task",
+    "difficulty",
+    "correctness",
+    "mode",
+    "predictor",
+    "n_ticks",
+    "success_rate",
+    "time_to_correct_s",
+    "fraction_to_correct",
+    "duration_s",
+]
 
 
 @dataclass(frozen=True)
 class Replay:
     """Per-tick replay of one trajectory through one predictor."""
 
-    t: np.ndarray              # (T,) seconds from the first tick
-    points: np.ndarray         # (T, d) the inputs replayed
+    t: np.ndarray  # (T,) seconds from the first tick
+    points: np.ndarray  # (T, d) the inputs replayed
     probabilities: np.ndarray  # (T, n_goals)
-    predicted: np.ndarray      # (T,) goal index
+    predicted: np.ndarray  # (T,) goal index
     correct: np.ndarray | None  # (T,) predicted == target, when the target is known
 
 
@@ -128,9 +142,15 @@ def make_predictor(config: Mapping[str, Any], points: np.ndarray) -> Any:
         raise DataError(f"cannot build the predictor: {e}") from e
 
 
-def replay(points: np.ndarray, trajectory: np.ndarray, predictor: Any, *,
-           t: np.ndarray | None = None, target: int | None = None,
-           moves: GoalMoves | None = None) -> Replay:
+def replay(
+    points: np.ndarray,
+    trajectory: np.ndarray,
+    predictor: Any,
+    *,
+    t: np.ndarray | None = None,
+    target: int | None = None,
+    moves: GoalMoves | None = None,
+) -> Replay:
     """Feed ``trajectory`` (T, d) to ``predictor`` over goals ``points`` (n, d), tick by tick;
     ``moves`` (logged goal moves) are applied before the prediction of their row."""
     from app.blending import BlendingError
@@ -139,13 +159,17 @@ def replay(points: np.ndarray, trajectory: np.ndarray, predictor: Any, *,
     if traj.ndim != 2 or traj.shape[0] == 0:
         raise DataError(f"a trajectory must be a non-empty (T, d) array, got shape {traj.shape}")
     if traj.shape[1] != points.shape[1]:
-        raise DataError(f"trajectory points have {traj.shape[1]} coordinates but the goals "
-                        f"have {points.shape[1]}; give both in the same space")
+        raise DataError(
+            f"trajectory points have {traj.shape[1]} coordinates but the goals "
+            f"have {points.shape[1]}; give both in the same space"
+        )
     bad = ~np.isfinite(traj).all(axis=1)
     if bad.any():
-        raise DataError(f"the trajectory has {int(bad.sum())} row(s) with missing or infinite "
-                        f"coordinates (first at row {int(np.flatnonzero(bad)[0])}); "
-                        "remove or fill them")
+        raise DataError(
+            f"the trajectory has {int(bad.sum())} row(s) with missing or infinite "
+            f"coordinates (first at row {int(np.flatnonzero(bad)[0])}); "
+            "remove or fill them"
+        )
     n_ticks, n_goals = traj.shape[0], points.shape[0]
     probs = np.empty((n_ticks, n_goals))
     pred = np.empty(n_ticks, dtype=int)
@@ -182,12 +206,16 @@ def trial_goals(row: Mapping[str, Any]) -> tuple[list[str], np.ndarray, int]:
     names, positions, target = row.get("goal_names"), row.get("goal_positions"), row.get("target")
     tid = row.get("trial_id")
     if not isinstance(names, list) or not isinstance(positions, list) or len(names) < 1:
-        raise SchemaError(f"trial {tid}: goal_names/goal_positions must be JSON lists, got "
-                          f"{names!r} / {positions!r}")
+        raise SchemaError(
+            f"trial {tid}: goal_names/goal_positions must be JSON lists, got "
+            f"{names!r} / {positions!r}"
+        )
     pts = np.asarray(positions, dtype=float)
     if pts.shape != (len(names), 3):
-        raise SchemaError(f"trial {tid}: goal_positions must be {len(names)} [x, y, z] "
-                          f"triples, got shape {pts.shape}")
+        raise SchemaError(
+            f"trial {tid}: goal_positions must be {len(names)} [x, y, z] "
+            f"triples, got shape {pts.shape}"
+        )
     if target not in names:
         raise SchemaError(f"trial {tid}: target {target!r} is not among the goals {names}")
     return list(names), pts, names.index(target)
@@ -216,8 +244,11 @@ def trial_trajectories(samples: pd.DataFrame) -> dict[Any, Trajectory]:
     starts, ends = np.r_[0, cuts], np.r_[cuts, len(ids)]
     out: dict[Any, Trajectory] = {}
     for a, b in zip(starts, ends, strict=True):
-        rows = [] if events is None else [(int(i - a), events[i])
-                                          for i in np.flatnonzero(moving[a:b]) + a]
+        rows = (
+            []
+            if events is None
+            else [(int(i - a), events[i]) for i in np.flatnonzero(moving[a:b]) + a]
+        )
         out[ids[a]] = (t[a:b], xyz[a:b], rows)
     return out
 
@@ -230,14 +261,19 @@ def goal_moves(rows: list[tuple[int, Any]], names: Sequence[str], tid: Any) -> G
         return None
     try:
         return GoalMoves.from_events(
-            [(row, list(ev) if isinstance(ev, np.ndarray) else ev) for row, ev in rows], names)
+            [(row, list(ev) if isinstance(ev, np.ndarray) else ev) for row, ev in rows], names
+        )
     except (BlendingError, ValueError) as e:
         raise SchemaError(f"trial {tid}: a goal_moved event cannot be read: {e}") from e
 
 
 def score_trajectory(
-    points: np.ndarray, t: np.ndarray, xyz: np.ndarray, target: int,
-    predictors: Mapping[str, Mapping[str, Any]], moves: GoalMoves | None = None,
+    points: np.ndarray,
+    t: np.ndarray,
+    xyz: np.ndarray,
+    target: int,
+    predictors: Mapping[str, Mapping[str, Any]],
+    moves: GoalMoves | None = None,
 ) -> list[dict[str, Any]]:
     """Success rate and time to the first lasting correct prediction, per predictor."""
     out = []
@@ -246,12 +282,15 @@ def score_trajectory(
         assert rep.correct is not None
         first = first_lasting_correct(rep.correct)
         span = rep.t[-1] if rep.t[-1] > 0 else np.nan
-        out.append({
-            "predictor": name, "n_ticks": len(t),
-            "success_rate": float(rep.correct.mean()),
-            "time_to_correct_s": float(rep.t[first]) if first is not None else np.nan,
-            "fraction_to_correct": float(rep.t[first] / span) if first is not None else np.nan,
-        })
+        out.append(
+            {
+                "predictor": name,
+                "n_ticks": len(t),
+                "success_rate": float(rep.correct.mean()),
+                "time_to_correct_s": float(rep.t[first]) if first is not None else np.nan,
+                "fraction_to_correct": float(rep.t[first] / span) if first is not None else np.nan,
+            }
+        )
     return out
 
 
@@ -273,8 +312,9 @@ def evaluate_predictions(
     when there are more than 50,000 ticks and the caller runs no other threads); the results
     do not depend on it.
     """
-    require_columns(cells, ["trial_id", "goal_names", "goal_positions", "target"],
-                    what="the trials table")
+    require_columns(
+        cells, ["trial_id", "goal_names", "goal_positions", "target"], what="the trials table"
+    )
     trajs = trial_trajectories(samples)
     jobs, meta, missing = [], [], []
     for _, row in cells.iterrows():
@@ -285,9 +325,17 @@ def evaluate_predictions(
         names, pts, target = trial_goals(row)
         t, xyz, moved = trajs[tid]
         jobs.append((pts, t, xyz, target, dict(predictors), goal_moves(moved, names, tid)))
-        meta.append({"trial_id": tid, "participant": row["participant"], "task": row["task"],
-                     "difficulty": row["difficulty"], "correctness": row["correctness"],
-                     "mode": row["mode"], "duration_s": row.get("duration_s", np.nan)})
+        meta.append(
+            {
+                "trial_id": tid,
+                "participant": row["participant"],
+                "task": row["task"],
+                "difficulty": row["difficulty"],
+                "correctness": row["correctness"],
+                "mode": row["mode"],
+                "duration_s": row.get("duration_s", np.nan),
+            }
+        )
     if workers is None:  # forking a threaded process (e.g. a server) is unsafe: stay serial
         ticks = sum(len(j[1]) for j in jobs)
         big = ticks > 50_000 and threading.active_count() == 1
@@ -301,29 +349,38 @@ def evaluate_predictions(
     rows = [{**m, **r} for m, rs in zip(meta, scored, strict=True) for r in rs]
     notes = []
     if missing:
-        notes.append(f"{len(missing)} task trial(s) have no samples and were not replayed "
-                     f"(trial_id {', '.join(missing[:10])}{' ...' if len(missing) > 10 else ''})")
+        notes.append(
+            f"{len(missing)} task trial(s) have no samples and were not replayed "
+            f"(trial_id {', '.join(missing[:10])}{' ...' if len(missing) > 10 else ''})"
+        )
     return pd.DataFrame(rows, columns=EVAL_COLUMNS), tuple(notes)
 
 
-def prediction_anova(evals: pd.DataFrame, *, dv: str = "success_rate",
-                     levels: Mapping[str, Sequence[str]] | None = None) -> FactorialAnovaResult:
+def prediction_anova(
+    evals: pd.DataFrame,
+    *,
+    dv: str = "success_rate",
+    levels: Mapping[str, Sequence[str]] | None = None,
+) -> FactorialAnovaResult:
     """Factorial ANOVA of ``dv`` on predictor x difficulty x correctness x mode (type III);
     design factors with a single level in the data are left out of the model."""
     from analysis.anova import factorial_anova
     from analysis.timing import design_levels
 
     data = evals.copy()
-    orders = {"predictor": tuple(dict.fromkeys(evals["predictor"])),
-              **design_levels(evals, levels)}
+    orders = {"predictor": tuple(dict.fromkeys(evals["predictor"])), **design_levels(evals, levels)}
     factors = [f for f, lv in orders.items() if len(lv) >= 2]
     for f in factors:
         data[f] = pd.Categorical(data[f].astype(str), categories=list(orders[f]))
     return factorial_anova(data, dv=dv, factors=factors)
 
 
-def prediction_rm_anova(evals: pd.DataFrame, *, dv: str = "success_rate",
-                        levels: Mapping[str, Sequence[str]] | None = None) -> RMAnovaResult:
+def prediction_rm_anova(
+    evals: pd.DataFrame,
+    *,
+    dv: str = "success_rate",
+    levels: Mapping[str, Sequence[str]] | None = None,
+) -> RMAnovaResult:
     """Repeated-measures ANOVA of ``dv`` over participant x condition x predictor: each
     participant's mean per predictor and condition (repeated trials averaged), so a trajectory's
     two replays and a participant's trials are not counted as independent observations;
@@ -332,8 +389,7 @@ def prediction_rm_anova(evals: pd.DataFrame, *, dv: str = "success_rate",
     from analysis.timing import design_levels
 
     data = evals.copy()
-    orders = {"predictor": tuple(dict.fromkeys(evals["predictor"])),
-              **design_levels(evals, levels)}
+    orders = {"predictor": tuple(dict.fromkeys(evals["predictor"])), **design_levels(evals, levels)}
     factors = [f for f, lv in orders.items() if len(lv) >= 2]
     for f in factors:
         data[f] = pd.Categorical(data[f].astype(str), categories=list(orders[f]))

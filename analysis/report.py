@@ -75,28 +75,51 @@ def software_info() -> dict[str, str]:
     except metadata.PackageNotFoundError:
         version = "unknown"
     try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
-                                capture_output=True, text=True, timeout=5).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--", "analysis"], cwd=ROOT,
-                               capture_output=True, text=True, timeout=5).stdout.strip()
+        commit = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=5,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--", "analysis"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=5,
+        ).stdout.strip()
         commit = (commit + ("+local changes" if dirty else "")) or "unknown"
     except (OSError, subprocess.SubprocessError):
         commit = "unknown"
-    return {"package": "shared-control-platform", "version": version, "commit": commit,
-            "python": platform.python_version(), "numpy": np.__version__,
-            "pandas": pd.__version__, "scipy": scipy.__version__,
-            "statsmodels": statsmodels.__version__, "matplotlib": matplotlib.__version__}
+    return {
+        "package": "shared-control-platform",
+        "version": version,
+        "commit": commit,
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "pandas": pd.__version__,
+        "scipy": scipy.__version__,
+        "statsmodels": statsmodels.__version__,
+        "matplotlib": matplotlib.__version__,
+    }
 
 
-def _anova_table(table: pd.DataFrame, analysis: str, stats: pd.DataFrame,
-                 with_paper: bool = True) -> pd.DataFrame:
+def _anova_table(
+    table: pd.DataFrame, analysis: str, stats: pd.DataFrame, with_paper: bool = True
+) -> pd.DataFrame:
     """An ANOVA table; with the paper's F and p beside ours when ``with_paper``."""
     pub = stats[stats.analysis == analysis].set_index("effect")
     rows = []
     for r in table.itertuples():
         paper = pub.loc[r.effect] if r.effect in pub.index else None
-        row = {"effect": r.effect, "df": f"{fmt(r.df1, 0)}, {fmt(r.df2, 0)}", "F": fmt(r.F),
-               "p": fmt_p(r.p), "partial η²": fmt(r.np2, 3)}
+        row = {
+            "effect": r.effect,
+            "df": f"{fmt(r.df1, 0)}, {fmt(r.df2, 0)}",
+            "F": fmt(r.F),
+            "p": fmt_p(r.p),
+            "partial η²": fmt(r.np2, 3),
+        }
         if with_paper:
             row["paper F"] = fmt(paper["paper_value"]) if paper is not None else ""
             row["paper p"] = fmt(paper["paper_p"]) if paper is not None else ""
@@ -129,14 +152,20 @@ def _rm_table(table: pd.DataFrame, analysis: str, stats: pd.DataFrame) -> pd.Dat
     """F-test rows with partial eta squared [95% CI]; for an RM ANOVA with an effect of more
     than 1 df also GG/HF epsilon and p and Mauchly's test."""
     st = stats[stats.analysis == analysis].set_index("effect")
-    out = pd.DataFrame({
-        "effect": table["effect"],
-        "df": [f"{fmt(a, 0)}, {fmt(b, 0)}" for a, b in zip(table["df1"], table["df2"],
-                                                           strict=True)],
-        "F": table["F"].map(fmt), "p": table["p"].map(fmt_p),
-        "partial η² [95% CI]": [_with_ci(r.np2, st.loc[r.effect, "ci_low"],
-                                         st.loc[r.effect, "ci_high"], 3)
-                                for r in table.itertuples()]})
+    out = pd.DataFrame(
+        {
+            "effect": table["effect"],
+            "df": [
+                f"{fmt(a, 0)}, {fmt(b, 0)}" for a, b in zip(table["df1"], table["df2"], strict=True)
+            ],
+            "F": table["F"].map(fmt),
+            "p": table["p"].map(fmt_p),
+            "partial η² [95% CI]": [
+                _with_ci(r.np2, st.loc[r.effect, "ci_low"], st.loc[r.effect, "ci_high"], 3)
+                for r in table.itertuples()
+            ],
+        }
+    )
     if "eps_gg" in table.columns and (table["df1"] > 1).any():
         multi = table["df1"] > 1
         out["ε GG"] = np.where(multi, table["eps_gg"].map(lambda v: fmt(v, 3)), "")
@@ -152,23 +181,39 @@ def _form_pairs_section(res: StudyResults) -> Section | None:
     pairs = form_pairs(res.statistics)
     if pairs.empty:
         return None
-    stat = {"timing_ancova": "F", "timing_posthoc": "t", "preference": "r",
-            "prediction_anova": "F"}
-    family = {"timing_ancova": "timing model", "timing_posthoc": "post-hoc (Bonferroni p)",
-              "preference": "preference correlation", "prediction_anova": "prediction model"}
-    frame = pd.DataFrame({
-        "analysis": pairs["analysis"].map(family), "effect": pairs["effect"],
-        "as in the paper": [_stat_text(stat[r.analysis], r.paper_df1, r.paper_df2,
-                                       r.paper_statistic, r.paper_p)
-                            for r in pairs.itertuples()],
-        "reviewer's form": [_stat_text(stat[r.analysis], r.reviewer_df1, r.reviewer_df2,
-                                       r.reviewer_statistic, r.reviewer_p)
-                            for r in pairs.itertuples()],
-        "paper's p smaller": pairs["paper_form_smaller_p"].map(
-            lambda v: "yes" if v is True else ("" if v is None else "no"))})
+    stat = {"timing_ancova": "F", "timing_posthoc": "t", "preference": "r", "prediction_anova": "F"}
+    family = {
+        "timing_ancova": "timing model",
+        "timing_posthoc": "post-hoc (Bonferroni p)",
+        "preference": "preference correlation",
+        "prediction_anova": "prediction model",
+    }
+    frame = pd.DataFrame(
+        {
+            "analysis": pairs["analysis"].map(family),
+            "effect": pairs["effect"],
+            "as in the paper": [
+                _stat_text(stat[r.analysis], r.paper_df1, r.paper_df2, r.paper_statistic, r.paper_p)
+                for r in pairs.itertuples()
+            ],
+            "reviewer's form": [
+                _stat_text(
+                    stat[r.analysis],
+                    r.reviewer_df1,
+                    r.reviewer_df2,
+                    r.reviewer_statistic,
+                    r.reviewer_p,
+                )
+                for r in pairs.itertuples()
+            ],
+            "paper's p smaller": pairs["paper_form_smaller_p"].map(
+                lambda v: "yes" if v is True else ("" if v is None else "no")
+            ),
+        }
+    )
     sec = Section("The paper's tests beside the reviewer's forms")
     sec.paragraphs.append(
-        "Each of the paper's tests (kept below, labelled \"as in the paper\") treats repeated "
+        'Each of the paper\'s tests (kept below, labelled "as in the paper") treats repeated '
         "measurements of one participant as independent somewhere. Beside each is the analysis a "
         "reviewer would ask for: the timing model as a linear mixed model with a random intercept "
         "per participant (type III Wald F, Satterthwaite df); the post-hoc tests on one mean per "
@@ -176,9 +221,15 @@ def _form_pairs_section(res: StudyResults) -> Section | None:
         "Marusich 2017); the prediction model as a repeated-measures ANOVA over participant x "
         "condition x predictor. Where the paper's form gives the smaller p, counting "
         "repeated measurements as independent worked in its favour. The planned t(7) comparisons are already on one difference per "
-        "participant and have no second form.")
-    sec.tables.append(Table("Paper's form and reviewer's form, side by side", frame,
-                            "Post-hoc p are Bonferroni-adjusted within their family."))
+        "participant and have no second form."
+    )
+    sec.tables.append(
+        Table(
+            "Paper's form and reviewer's form, side by side",
+            frame,
+            "Post-hoc p are Bonferroni-adjusted within their family.",
+        )
+    )
     return sec
 
 
@@ -192,23 +243,26 @@ def _design_text(levels: Mapping[str, tuple[str, ...]]) -> str:
     return "; ".join(f"{f}: {', '.join(v)}" for f, v in levels.items())
 
 
-PAPER_DESIGN = ("the paper's 2 x 2 x 2 (" + _design_text({f: LEVELS[f] for f in FACTORS})
-                + ")")
+PAPER_DESIGN = "the paper's 2 x 2 x 2 (" + _design_text({f: LEVELS[f] for f in FACTORS}) + ")"
 
 
 def _no_paper_values(res: StudyResults, what: str = "design") -> str:
     if what == "predictors":
-        return ("The predictors replayed differ from the paper's (amnesic, and memory-based "
-                "with the squared-velocity cost of eq. 9), so the paper's values are not shown.")
+        return (
+            "The predictors replayed differ from the paper's (amnesic, and memory-based "
+            "with the squared-velocity cost of eq. 9), so the paper's values are not shown."
+        )
     levels = res.timing.levels if res.timing is not None else None
     ours = f" ({_design_text(levels)})" if levels else ""
-    return (f"This design{ours} differs from {PAPER_DESIGN}, so the paper's values are not "
-            "shown.")
+    return f"This design{ours} differs from {PAPER_DESIGN}, so the paper's values are not shown."
 
 
-def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
-              trials: pd.DataFrame | None = None,
-              choices: Sequence[PredictorChoice] = ()) -> list[Section]:
+def _sections(
+    res: StudyResults,
+    figures: Mapping[str, figs.SavedFigure],
+    trials: pd.DataFrame | None = None,
+    choices: Sequence[PredictorChoice] = (),
+) -> list[Section]:
     s = res.statistics
     out: list[Section] = []
     cells = res.cells
@@ -219,17 +273,24 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
         data.paragraphs.append(
             f"{n_part} participant(s), {len(cells)} completed task trials "
             f"({_per_participant(cells)}). Mean time per task "
-            f"{cells['duration_s'].mean():.1f} s{paper}.")
+            f"{cells['duration_s'].mean():.1f} s{paper}."
+        )
     if trials is not None and not trials.empty:
         cols = [c for c in ("phase", "status", "outcome") if c in trials.columns]
         counts = trials.groupby(cols, dropna=False).size().reset_index(name="trials")
         data.tables.append(Table("Trial attempts by phase, status and outcome", counts))
     out.append(data)
     if "fig7" in figures:
-        out.append(Section("Arbitration (Fig. 7)", paragraphs=[
-            "α as a function of the confidence c for each mode, from the protocol's "
-            "[modes.*].arbitration tables through app.blending.arbitration_from_config."],
-            figures=[figures["fig7"]]))
+        out.append(
+            Section(
+                "Arbitration (Fig. 7)",
+                paragraphs=[
+                    "α as a function of the confidence c for each mode, from the protocol's "
+                    "[modes.*].arbitration tables through app.blending.arbitration_from_config."
+                ],
+                figures=[figures["fig7"]],
+            )
+        )
     pairs = _form_pairs_section(res)
     if pairs is not None:
         out.append(pairs)
@@ -237,8 +298,9 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
         t = res.timing
         with_paper = res.paper_comparable["timing"]
         sec = Section("Timing (section 5.1)")
-        paper_fit = (" (the paper reports R² = 0.66 for N = 64, residual df = 53)"
-                     if with_paper else "")
+        paper_fit = (
+            " (the paper reports R² = 0.66 for N = 64, residual df = 53)" if with_paper else ""
+        )
         sec.paragraphs.append(
             f"Factorial ANOVA with covariates: duration ~ {' × '.join(t.factors)}, "
             f"sum-to-zero contrasts, type {t.ancova.ss_type} sums of squares, covariates "
@@ -247,86 +309,153 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
             "Type III tests each effect at the unweighted cell means adjusted for all other "
             "terms and the covariates (SPSS GLM's default, the form the paper reports). Like "
             f"the paper's, this model treats the {t.ancova.n} times as independent given the "
-            "covariates; the repeated-measures ANOVA below models the participant instead.")
+            "covariates; the repeated-measures ANOVA below models the participant instead."
+        )
         if not with_paper:
             sec.paragraphs.append(_no_paper_values(res))
-        sec.tables.append(Table("Factorial ANOVA with covariates (as in the paper)",
-                                _anova_table(t.ancova.table, "timing_ancova", s, with_paper),
-                                _assumes("timing_ancova")))
+        sec.tables.append(
+            Table(
+                "Factorial ANOVA with covariates (as in the paper)",
+                _anova_table(t.ancova.table, "timing_ancova", s, with_paper),
+                _assumes("timing_ancova"),
+            )
+        )
         if t.mixed is not None:
             m = t.mixed
-            sec.tables.append(Table(
-                "Linear mixed model with a random intercept per participant (reviewer's form)",
-                _rm_table(m.table, "timing_mixed", s).assign(
-                    df=[f"{_df(a)}, {_df(b)}" for a, b in zip(m.table["df1"], m.table["df2"],
-                                                              strict=True)]),
-                f"Same fixed effects and covariates; REML (statsmodels MixedLM): participant "
-                f"variance {fmt(m.var_subject, 3)}, residual variance {fmt(m.var_resid, 3)} "
-                f"(ICC {fmt(m.icc, 2)}); type III Wald F on {m.df_method} df; partial η² from "
-                f"F and df. {_assumes('timing_mixed')}"))
+            sec.tables.append(
+                Table(
+                    "Linear mixed model with a random intercept per participant (reviewer's form)",
+                    _rm_table(m.table, "timing_mixed", s).assign(
+                        df=[
+                            f"{_df(a)}, {_df(b)}"
+                            for a, b in zip(m.table["df1"], m.table["df2"], strict=True)
+                        ]
+                    ),
+                    f"Same fixed effects and covariates; REML (statsmodels MixedLM): participant "
+                    f"variance {fmt(m.var_subject, 3)}, residual variance {fmt(m.var_resid, 3)} "
+                    f"(ICC {fmt(m.icc, 2)}); type III Wald F on {m.df_method} df; partial η² from "
+                    f"F and df. {_assumes('timing_mixed')}",
+                )
+            )
             est = m.estimates
-            sec.tables.append(Table("Mixed-model estimates (Satterthwaite t, 95% CI)",
-                                    pd.DataFrame({
-                                        "term": est["term"], "contrast": est["contrast"],
-                                        "estimate": est["estimate"].map(lambda v: fmt(v, 3)),
-                                        "SE": est["se"].map(lambda v: fmt(v, 3)),
-                                        "t": [f"t({_df(d)}) = {fmt(v)}" for d, v in
-                                              zip(est["df"], est["t"], strict=True)],
-                                        "p": est["p"].map(fmt_p),
-                                        "95% CI": [f"[{fmt(a, 3)}, {fmt(b, 3)}]" for a, b in
-                                                   zip(est["ci_low"], est["ci_high"],
-                                                       strict=True)]}),
-                                    "Factor contrasts are differences of unweighted marginal "
-                                    "means (seconds); covariates are slopes per unit."))
+            sec.tables.append(
+                Table(
+                    "Mixed-model estimates (Satterthwaite t, 95% CI)",
+                    pd.DataFrame(
+                        {
+                            "term": est["term"],
+                            "contrast": est["contrast"],
+                            "estimate": est["estimate"].map(lambda v: fmt(v, 3)),
+                            "SE": est["se"].map(lambda v: fmt(v, 3)),
+                            "t": [
+                                f"t({_df(d)}) = {fmt(v)}"
+                                for d, v in zip(est["df"], est["t"], strict=True)
+                            ],
+                            "p": est["p"].map(fmt_p),
+                            "95% CI": [
+                                f"[{fmt(a, 3)}, {fmt(b, 3)}]"
+                                for a, b in zip(est["ci_low"], est["ci_high"], strict=True)
+                            ],
+                        }
+                    ),
+                    "Factor contrasts are differences of unweighted marginal "
+                    "means (seconds); covariates are slopes per unit.",
+                )
+            )
         me = s[s.analysis == "timing_effects"]
-        effects = pd.DataFrame({
-            "factor": me["effect"],
-            "contrast": me["test"].str.replace("mean difference ", "").str.replace(" (s)", ""),
-            "ours": me["statistic"].map(fmt)})
+        effects = pd.DataFrame(
+            {
+                "factor": me["effect"],
+                "contrast": me["test"].str.replace("mean difference ", "").str.replace(" (s)", ""),
+                "ours": me["statistic"].map(fmt),
+            }
+        )
         if with_paper:
             effects["paper"] = me["paper_value"].map(fmt)
         sec.tables.append(Table("Main effects as mean differences (s)", effects))
-        sec.tables.append(Table(f"Repeated-measures ANOVA ({t.rm.n_subjects} participants)",
-                                _rm_table(t.rm.table, "timing_rm", s),
-                                "Subjects as error strata: each effect's error df is its df "
-                                "times (n - 1); the paper reports only the covariate model "
-                                f"above. {_assumes('timing_rm')}"))
+        sec.tables.append(
+            Table(
+                f"Repeated-measures ANOVA ({t.rm.n_subjects} participants)",
+                _rm_table(t.rm.table, "timing_rm", s),
+                "Subjects as error strata: each effect's error df is its df "
+                "times (n - 1); the paper reports only the covariate model "
+                f"above. {_assumes('timing_rm')}",
+            )
+        )
         c = t.comparisons
         if len(c):
-            comp = s[s.analysis.isin(["timing_posthoc", "timing_planned", "timing_pairwise",
-                                      "timing_posthoc_subject"])]
+            comp = s[
+                s.analysis.isin(
+                    [
+                        "timing_posthoc",
+                        "timing_planned",
+                        "timing_pairwise",
+                        "timing_posthoc_subject",
+                    ]
+                )
+            ]
             comp = comp.reset_index(drop=True)
-            paired = pd.DataFrame({
-                "family": c["family"], "comparison": c["comparison"],
-                "t": [f"t({fmt(d, 0)}) = {fmt(v)}" for d, v in
-                      zip(c["df"], c["t"], strict=True)],
-                "p": c["p"].map(fmt_p),
-                "p (Bonferroni)": c["p_bonf"].map(fmt_p),
-                "mean diff (s)": c["mean_diff"].map(fmt),
-                "95% CI (unadjusted)": [f"[{fmt(a)}, {fmt(b)}]" for a, b in
-                                        zip(c["ci_low"], c["ci_high"], strict=True)],
-                "Bonferroni CI": [f"[{fmt(a)}, {fmt(b)}]" for a, b in
-                                  zip(c["ci_low_bonf"], c["ci_high_bonf"], strict=True)],
-                "d_z": c["d_z"].map(fmt),
-                "form": c["analysis"].map({"timing_posthoc": "as in the paper",
-                                           "timing_planned": "as in the paper",
-                                           "timing_posthoc_subject": "reviewer",
-                                           "timing_pairwise": "reviewer"})})
+            paired = pd.DataFrame(
+                {
+                    "family": c["family"],
+                    "comparison": c["comparison"],
+                    "t": [
+                        f"t({fmt(d, 0)}) = {fmt(v)}" for d, v in zip(c["df"], c["t"], strict=True)
+                    ],
+                    "p": c["p"].map(fmt_p),
+                    "p (Bonferroni)": c["p_bonf"].map(fmt_p),
+                    "mean diff (s)": c["mean_diff"].map(fmt),
+                    "95% CI (unadjusted)": [
+                        f"[{fmt(a)}, {fmt(b)}]"
+                        for a, b in zip(c["ci_low"], c["ci_high"], strict=True)
+                    ],
+                    "Bonferroni CI": [
+                        f"[{fmt(a)}, {fmt(b)}]"
+                        for a, b in zip(c["ci_low_bonf"], c["ci_high_bonf"], strict=True)
+                    ],
+                    "d_z": c["d_z"].map(fmt),
+                    "form": c["analysis"].map(
+                        {
+                            "timing_posthoc": "as in the paper",
+                            "timing_planned": "as in the paper",
+                            "timing_posthoc_subject": "reviewer",
+                            "timing_pairwise": "reviewer",
+                        }
+                    ),
+                }
+            )
             if with_paper:
                 paired["paper |t|"] = comp["paper_value"].map(fmt)
-            sec.tables.append(Table("Paired comparisons (Bonferroni within each family)", paired,
-                                    "Differences are first minus second"
-                                    + ("; the paper reports |t|" if with_paper else "")
-                                    + ". The Bonferroni CI uses t at 1 - .025/m, matching "
-                                    "p (Bonferroni); the 95% CI is unadjusted. Assumes - "
-                                    + "; ".join(f"{fam}: {ASSUMES[a]}" for fam, a in
-                                                dict(zip(c["family"], c["analysis"],
-                                                         strict=True)).items())
-                                    + "."))
+            sec.tables.append(
+                Table(
+                    "Paired comparisons (Bonferroni within each family)",
+                    paired,
+                    "Differences are first minus second"
+                    + ("; the paper reports |t|" if with_paper else "")
+                    + ". The Bonferroni CI uses t at 1 - .025/m, matching "
+                    "p (Bonferroni); the 95% CI is unadjusted. Assumes - "
+                    + "; ".join(
+                        f"{fam}: {ASSUMES[a]}"
+                        for fam, a in dict(zip(c["family"], c["analysis"], strict=True)).items()
+                    )
+                    + ".",
+                )
+            )
         summ = t.summary.copy()
-        sec.tables.append(Table("Time per task and mode (s)", pd.DataFrame({
-            "task": summ["task"], "mode": summ["mode"], "mean": summ["mean"].map(fmt),
-            "SE": summ["se"].map(fmt), "n": summ["n"]})))
+        sec.tables.append(
+            Table(
+                "Time per task and mode (s)",
+                pd.DataFrame(
+                    {
+                        "task": summ["task"],
+                        "mode": summ["mode"],
+                        "mean": summ["mean"].map(fmt),
+                        "SE": summ["se"].map(fmt),
+                        "n": summ["n"],
+                    }
+                ),
+            )
+        )
         sec.figures += [f for k, f in figures.items() if k == "fig8"]
         out.append(sec)
     if res.correlations is not None:
@@ -335,31 +464,51 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
         sec.paragraphs.append(
             "Preference for the aggressive run (-3..+3) per participant and task against the "
             "time advantage of aggressive (timid minus aggressive duration), and each rating's "
-            "aggressive-minus-timid difference against the preference.")
-        corr = pd.DataFrame({
-            "measure": c["measure"], "versus": c["versus"],
-            "r": [f"r({fmt(d, 0)}) = {fmt(r)}" for d, r in zip(c["df"], c["r"], strict=True)],
-            "p": c["p"].map(fmt_p),
-            "95% CI": [f"[{fmt(a)}, {fmt(b)}]" for a, b in zip(c["ci_low"], c["ci_high"],
-                                                              strict=True)]})
+            "aggressive-minus-timid difference against the preference."
+        )
+        corr = pd.DataFrame(
+            {
+                "measure": c["measure"],
+                "versus": c["versus"],
+                "r": [f"r({fmt(d, 0)}) = {fmt(r)}" for d, r in zip(c["df"], c["r"], strict=True)],
+                "p": c["p"].map(fmt_p),
+                "95% CI": [
+                    f"[{fmt(a)}, {fmt(b)}]" for a, b in zip(c["ci_low"], c["ci_high"], strict=True)
+                ],
+            }
+        )
         if res.paper_comparable["preference"]:
             corr["paper r"] = s[s.analysis == "preference"]["paper_value"].map(fmt).to_numpy()
         else:
             sec.paragraphs.append(_no_paper_values(res))
-        sec.tables.append(Table("Pearson correlations (as in the paper)", corr,
-                                _assumes("preference")))
+        sec.tables.append(
+            Table("Pearson correlations (as in the paper)", corr, _assumes("preference"))
+        )
         rc = res.rm_correlations
         if rc is not None:
-            sec.tables.append(Table(
-                "Repeated-measures correlations (reviewer's form)", pd.DataFrame({
-                    "measure": rc["measure"], "versus": rc["versus"],
-                    "r_rm": [f"r({fmt(d, 0)}) = {fmt(r)}"
-                             for d, r in zip(rc["df"], rc["r"], strict=True)],
-                    "p": rc["p"].map(fmt_p),
-                    "95% CI": [f"[{fmt(a)}, {fmt(b)}]"
-                               for a, b in zip(rc["ci_low"], rc["ci_high"], strict=True)],
-                    "pairs": rc["n"], "participants": rc["n_subjects"]}),
-                _assumes("preference_rmcorr")))
+            sec.tables.append(
+                Table(
+                    "Repeated-measures correlations (reviewer's form)",
+                    pd.DataFrame(
+                        {
+                            "measure": rc["measure"],
+                            "versus": rc["versus"],
+                            "r_rm": [
+                                f"r({fmt(d, 0)}) = {fmt(r)}"
+                                for d, r in zip(rc["df"], rc["r"], strict=True)
+                            ],
+                            "p": rc["p"].map(fmt_p),
+                            "95% CI": [
+                                f"[{fmt(a)}, {fmt(b)}]"
+                                for a, b in zip(rc["ci_low"], rc["ci_high"], strict=True)
+                            ],
+                            "pairs": rc["n"],
+                            "participants": rc["n_subjects"],
+                        }
+                    ),
+                    _assumes("preference_rmcorr"),
+                )
+            )
         out.append(sec)
     if res.prediction_summary is not None:
         sec = Section("Prediction (section 5.2)")
@@ -369,47 +518,71 @@ def _sections(res: StudyResults, figures: Mapping[str, figs.SavedFigure],
             "Every logged user-target trajectory replayed through app.blending's predictors "
             f"({', '.join(res.prediction_summary['predictor'].unique())}); success rate = share "
             "of ticks predicting the target; time to the first lasting correct prediction from "
-            "the trial's start.")
+            "the trial's start."
+        )
         if choices:
-            sec.paragraphs.append("Predictor parameters: "
-                                  + "; ".join(c.describe() for c in choices) + ".")
+            sec.paragraphs.append(
+                "Predictor parameters: " + "; ".join(c.describe() for c in choices) + "."
+            )
         if p is not None:
-            paper_fit = (" (the paper reports R² = 0.9 for N = 128, residual df = 112)"
-                         if with_paper else "")
+            paper_fit = (
+                " (the paper reports R² = 0.9 for N = 128, residual df = 112)" if with_paper else ""
+            )
             sec.paragraphs.append(
                 f"Factorial ANOVA (type {p.ss_type} SS): N = {p.n}, residual df = "
-                f"{p.df_resid}, R² = {p.r2:.2f}{paper_fit}.")
+                f"{p.df_resid}, R² = {p.r2:.2f}{paper_fit}."
+            )
         if not with_paper:
-            sec.paragraphs.append(_no_paper_values(
-                res, "design" if not res.paper_design else "predictors"))
+            sec.paragraphs.append(
+                _no_paper_values(res, "design" if not res.paper_design else "predictors")
+            )
         ps = res.prediction_summary
-        sec.tables.append(Table("Success rate and time to a lasting correct prediction",
-                                pd.DataFrame({
-                                    "predictor": ps["predictor"], "mode": ps["mode"],
-                                    "success rate": ps["success_rate"].map(lambda v: fmt(v, 3)),
-                                    "SE": ps["success_se"].map(lambda v: fmt(v, 3)),
-                                    "time to lasting correct (s)":
-                                        ps["time_to_correct_s"].map(fmt),
-                                    "never lastingly correct": ps["never_lasting"],
-                                    "trials": ps["n"]})))
+        sec.tables.append(
+            Table(
+                "Success rate and time to a lasting correct prediction",
+                pd.DataFrame(
+                    {
+                        "predictor": ps["predictor"],
+                        "mode": ps["mode"],
+                        "success rate": ps["success_rate"].map(lambda v: fmt(v, 3)),
+                        "SE": ps["success_se"].map(lambda v: fmt(v, 3)),
+                        "time to lasting correct (s)": ps["time_to_correct_s"].map(fmt),
+                        "never lastingly correct": ps["never_lasting"],
+                        "trials": ps["n"],
+                    }
+                ),
+            )
+        )
         if p is not None:
-            sec.tables.append(Table("Factorial ANOVA on the success rate (as in the paper)",
-                                    _anova_table(p.table, "prediction_anova", s, with_paper),
-                                    _assumes("prediction_anova")))
+            sec.tables.append(
+                Table(
+                    "Factorial ANOVA on the success rate (as in the paper)",
+                    _anova_table(p.table, "prediction_anova", s, with_paper),
+                    _assumes("prediction_anova"),
+                )
+            )
         if res.prediction_rm is not None:
-            sec.tables.append(Table(
-                f"Repeated-measures ANOVA on the success rate, participant x condition x "
-                f"predictor ({res.prediction_rm.n_subjects} participants; reviewer's form)",
-                _rm_table(res.prediction_rm.table, "prediction_rm", s),
-                _assumes("prediction_rm")))
+            sec.tables.append(
+                Table(
+                    f"Repeated-measures ANOVA on the success rate, participant x condition x "
+                    f"predictor ({res.prediction_rm.n_subjects} participants; reviewer's form)",
+                    _rm_table(res.prediction_rm.table, "prediction_rm", s),
+                    _assumes("prediction_rm"),
+                )
+            )
         sec.figures += [f for k, f in figures.items() if k == "fig9"]
         out.append(sec)
     if res.timing is not None:
-        wide = res.timing.cells.pivot_table(index="participant", columns=["task", "mode"],
-                                            values="duration_s", observed=True)
+        wide = res.timing.cells.pivot_table(
+            index="participant", columns=["task", "mode"], values="duration_s", observed=True
+        )
         wide.columns = [f"{t} {m}" for t, m in wide.columns]
-        out.append(Section("Appendix: time per participant and cell (s)", tables=[Table(
-            "Analysed durations", wide.map(fmt).reset_index())]))
+        out.append(
+            Section(
+                "Appendix: time per participant and cell (s)",
+                tables=[Table("Analysed durations", wide.map(fmt).reset_index())],
+            )
+        )
     if res.notes:
         out.append(Section("Notes on the data", paragraphs=list(res.notes)))
     return out
@@ -425,31 +598,47 @@ def _example_trial(res: StudyResults) -> Any:
     return res.cells[res.cells["trial_id"] == tid].iloc[0]
 
 
-def _figures(res: StudyResults, tables: StudyTables, proto: ProtocolInfo | None,
-             out: Path, predictors: Mapping[str, Mapping[str, Any]]) -> dict[str, figs.SavedFigure]:
+def _figures(
+    res: StudyResults,
+    tables: StudyTables,
+    proto: ProtocolInfo | None,
+    out: Path,
+    predictors: Mapping[str, Mapping[str, Any]],
+) -> dict[str, figs.SavedFigure]:
     made: dict[str, figs.SavedFigure] = {}
     if proto is not None and proto.arbitrations:
-        made["fig7"] = figs.save(figs.arbitration_figure(proto.arbitrations), out,
-                                 "fig7_arbitration", "Fig. 7: arbitration α(c) of each mode")
+        made["fig7"] = figs.save(
+            figs.arbitration_figure(proto.arbitrations),
+            out,
+            "fig7_arbitration",
+            "Fig. 7: arbitration α(c) of each mode",
+        )
     modes = res.timing.levels["mode"] if res.timing is not None else ("timid", "aggressive")
     if res.timing is not None:
         made["fig8"] = figs.save(
-            figs.timing_preference_figure(res.timing.summary, res.preferences, modes=modes), out,
-            "fig8_time_preference", "Fig. 8: time and preference per task (mean ± SE)")
+            figs.timing_preference_figure(res.timing.summary, res.preferences, modes=modes),
+            out,
+            "fig8_time_preference",
+            "Fig. 8: time and preference per task (mean ± SE)",
+        )
     row = _example_trial(res)
     if row is not None and res.evals is not None:
         names, pts, target = trial_goals(row)
         tid = row["trial_id"]
         t, xyz, moved = trial_trajectories(tables.samples[tables.samples["trial_id"] == tid])[tid]
         moves = goal_moves(moved, names, tid)
-        reps = {name: replay(pts, xyz, make_predictor(cfg, pts), t=t, target=target, moves=moves)
-                for name, cfg in list(predictors.items())[:2]}
-        title = (f"trial {row['trial_id']} ({row['participant']}, {row['task']}, "
-                 f"{row['mode']})")
+        reps = {
+            name: replay(pts, xyz, make_predictor(cfg, pts), t=t, target=target, moves=moves)
+            for name, cfg in list(predictors.items())[:2]
+        }
+        title = f"trial {row['trial_id']} ({row['participant']}, {row['task']}, {row['mode']})"
         made["fig9"] = figs.save(
-            figs.prediction_figure(res.evals, reps, pts, names, target, title, modes=modes), out,
-            "fig9_prediction", "Fig. 9: prediction success (mean ± SE) and one trajectory "
-            "(green = correct, red = wrong; arrow = first lasting correct point)")
+            figs.prediction_figure(res.evals, reps, pts, names, target, title, modes=modes),
+            out,
+            "fig9_prediction",
+            "Fig. 9: prediction success (mean ± SE) and one trajectory "
+            "(green = correct, red = wrong; arrow = first lasting correct point)",
+        )
     return made
 
 
@@ -472,25 +661,44 @@ def results_document(res: StudyResults, meta: Mapping[str, Any]) -> dict[str, An
     fits: dict[str, Any] = {}
     if res.timing is not None:
         a = res.timing.ancova
-        fits["timing_ancova"] = {"r2": a.r2, "r2_adj": a.r2_adj, "n": a.n,
-                                 "df_resid": a.df_resid, "ss_type": a.ss_type,
-                                 "covariates": list(res.timing.covariates)}
+        fits["timing_ancova"] = {
+            "r2": a.r2,
+            "r2_adj": a.r2_adj,
+            "n": a.n,
+            "df_resid": a.df_resid,
+            "ss_type": a.ss_type,
+            "covariates": list(res.timing.covariates),
+        }
         fits["timing_rm"] = {"n_subjects": res.timing.rm.n_subjects}
         if res.timing.mixed is not None:
             m = res.timing.mixed
             fits["timing_mixed"] = {
-                "n": m.n, "n_subjects": m.n_subjects, "var_subject": m.var_subject,
-                "var_resid": m.var_resid, "icc": m.icc, "df_method": m.df_method,
-                "estimates": m.estimates.to_dict(orient="records")}
+                "n": m.n,
+                "n_subjects": m.n_subjects,
+                "var_subject": m.var_subject,
+                "var_resid": m.var_resid,
+                "icc": m.icc,
+                "df_method": m.df_method,
+                "estimates": m.estimates.to_dict(orient="records"),
+            }
     if res.prediction is not None:
         p = res.prediction
-        fits["prediction_anova"] = {"r2": p.r2, "r2_adj": p.r2_adj, "n": p.n,
-                                    "df_resid": p.df_resid, "ss_type": p.ss_type}
+        fits["prediction_anova"] = {
+            "r2": p.r2,
+            "r2_adj": p.r2_adj,
+            "n": p.n,
+            "df_resid": p.df_resid,
+            "ss_type": p.ss_type,
+        }
     if res.prediction_rm is not None:
         fits["prediction_rm"] = {"n_subjects": res.prediction_rm.n_subjects}
-    doc = {**meta, "fits": fits, "statistics": res.statistics.to_dict(orient="records"),
-           "paper_vs_reviewer": form_pairs(res.statistics).to_dict(orient="records"),
-           "notes": list(res.notes)}
+    doc = {
+        **meta,
+        "fits": fits,
+        "statistics": res.statistics.to_dict(orient="records"),
+        "paper_vs_reviewer": form_pairs(res.statistics).to_dict(orient="records"),
+        "notes": list(res.notes),
+    }
     if res.prediction_summary is not None:
         doc["prediction_summary"] = res.prediction_summary.to_dict(orient="records")
     if res.timing is not None:
@@ -521,44 +729,63 @@ def write_report(
     proto: ProtocolInfo | None = None
     proto_notes: list[str] = []
     try:
-        proto = load_protocol_info(protocol_path or DEFAULT_PROTOCOL, stored=tables.source,
-                                   explicit=protocol_path is not None)
+        proto = load_protocol_info(
+            protocol_path or DEFAULT_PROTOCOL,
+            stored=tables.source,
+            explicit=protocol_path is not None,
+        )
         proto_notes += list(proto.notes)
     except AnalysisError as e:
         proto_notes.append(f"protocol not read (no Fig. 7, no hash): {e}")
     if predictors is not None:
-        choices = [PredictorChoice(n, dict(c), "given by the caller")
-                   for n, c in predictors.items()]
+        choices = [
+            PredictorChoice(n, dict(c), "given by the caller") for n, c in predictors.items()
+        ]
     else:
-        predictors, choices = protocol_predictors(proto.prediction if proto else None,
-                                                  PREDICTORS)
-    res = analyse(tables, predictors=predictors, successful_only=successful_only,
-                  levels=proto.factors if proto is not None else None)
+        predictors, choices = protocol_predictors(proto.prediction if proto else None, PREDICTORS)
+    res = analyse(
+        tables,
+        predictors=predictors,
+        successful_only=successful_only,
+        levels=proto.factors if proto is not None else None,
+    )
     res.notes = proto_notes + res.notes
     figures = _figures(res, tables, proto, out / "figures", predictors)
     meta = {
-        "title": TITLE, "source": tables.source,
+        "title": TITLE,
+        "source": tables.source,
         "generated_at": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         "software": software_info(),
-        "protocol": {"path": proto.path if proto else None,
-                     "id": proto.study_id if proto else None,
-                     "content_hash": proto.content_hash if proto else None,
-                     "store_hash": tables.protocol_hash},
+        "protocol": {
+            "path": proto.path if proto else None,
+            "id": proto.study_id if proto else None,
+            "content_hash": proto.content_hash if proto else None,
+            "store_hash": tables.protocol_hash,
+        },
         "participants": int(res.cells["participant"].nunique()) if not res.cells.empty else 0,
         "predictors": {c.name: {"config": c.config, "source": c.source} for c in choices},
     }
-    if (tables.protocol_hash and proto and proto.content_hash
-            and tables.protocol_hash != proto.content_hash):
-        res.notes.insert(0, "the protocol file's hash differs from the one recorded with the "
-                            "data: pass the protocol the study ran with (--protocol)")
+    if (
+        tables.protocol_hash
+        and proto
+        and proto.content_hash
+        and tables.protocol_hash != proto.content_hash
+    ):
+        res.notes.insert(
+            0,
+            "the protocol file's hash differs from the one recorded with the "
+            "data: pass the protocol the study ran with (--protocol)",
+        )
     sections = _sections(res, figures, tables.trials, choices)
     extra = [s for s in (decoy_section(tables), contact_section(tables)) if s is not None]
     sections[min(2, len(sections)) : min(2, len(sections))] = extra
     html_path, md_path, json_path = out / "report.html", out / "report.md", out / "results.json"
     html_path.write_text(render_html(sections, meta), encoding="utf-8")
     md_path.write_text(render_markdown(sections, meta), encoding="utf-8")
-    json_path.write_text(json.dumps(results_document(res, meta), indent=1, allow_nan=False),
-                         encoding="utf-8")
+    json_path.write_text(
+        json.dumps(results_document(res, meta), indent=1, allow_nan=False), encoding="utf-8"
+    )
     paths = tuple(p for f in figures.values() for p in (f.png, f.svg))
-    return ReportFiles(html=html_path, markdown=md_path, results_json=json_path, figures=paths,
-                       results=res)
+    return ReportFiles(
+        html=html_path, markdown=md_path, results_json=json_path, figures=paths, results=res
+    )

@@ -25,8 +25,24 @@ from scipy import special
 
 from analysis.design import CellData, cell_means, effect_name, effect_terms
 
-COLUMNS = ["effect", "df1", "df2", "F", "p", "np2", "SS", "SS_error", "eps_gg", "p_gg", "eps_hf",
-           "p_hf", "mauchly_W", "mauchly_chi2", "mauchly_df", "mauchly_p"]
+COLUMNS = [
+    "effect",
+    "df1",
+    "df2",
+    "F",
+    "p",
+    "np2",
+    "SS",
+    "SS_error",
+    "eps_gg",
+    "p_gg",
+    "eps_hf",
+    "p_hf",
+    "mauchly_W",
+    "mauchly_chi2",
+    "mauchly_df",
+    "mauchly_p",
+]
 
 
 @dataclass(frozen=True)
@@ -63,22 +79,37 @@ def sphericity(z_resid: np.ndarray) -> dict[str, float]:
     n, k = z_resid.shape
     nan = float("nan")
     if k == 1:
-        return {"eps_gg": 1.0, "eps_hf": 1.0, "mauchly_W": nan, "mauchly_chi2": nan,
-                "mauchly_df": nan, "mauchly_p": nan}
+        return {
+            "eps_gg": 1.0,
+            "eps_hf": 1.0,
+            "mauchly_W": nan,
+            "mauchly_chi2": nan,
+            "mauchly_df": nan,
+            "mauchly_p": nan,
+        }
     s = z_resid.T @ z_resid / (n - 1)
     tr, tr2 = float(np.trace(s)), float(np.trace(s @ s))
     eps = min(1.0, max(tr * tr / (k * tr2), 1.0 / k)) if tr2 > 0 else 1.0
     hf_den = k * (n - 1 - k * eps)
     eps_hf = min(1.0, (n * k * eps - 2) / hf_den) if hf_den > 0 else 1.0
     eps_hf = max(eps_hf, eps)
-    out = {"eps_gg": eps, "eps_hf": eps_hf, "mauchly_W": nan, "mauchly_chi2": nan,
-           "mauchly_df": float(k * (k + 1) // 2 - 1), "mauchly_p": nan}
+    out = {
+        "eps_gg": eps,
+        "eps_hf": eps_hf,
+        "mauchly_W": nan,
+        "mauchly_chi2": nan,
+        "mauchly_df": float(k * (k + 1) // 2 - 1),
+        "mauchly_p": nan,
+    }
     if n > k and tr > 0:  # W needs a non-singular S (more subjects than contrasts)
         sign, logdet = np.linalg.slogdet(s)
         log_w = logdet - k * np.log(tr / k) if sign > 0 else -np.inf
         chi2 = -(n - 1 - (2 * k * k + k + 2) / (6 * k)) * log_w
-        out.update(mauchly_W=float(np.exp(log_w)), mauchly_chi2=float(chi2),
-                   mauchly_p=float(special.chdtrc(out["mauchly_df"], chi2)))
+        out.update(
+            mauchly_W=float(np.exp(log_w)),
+            mauchly_chi2=float(chi2),
+            mauchly_p=float(special.chdtrc(out["mauchly_df"], chi2)),
+        )
     return out
 
 
@@ -104,16 +135,26 @@ def rm_anova_cells(cells: CellData) -> pd.DataFrame:
             return float(special.fdtrc(df1 * eps, df2 * eps, f)) if np.isfinite(f) else 0.0
 
         total = ss + ss_err
-        rows.append({
-            "effect": effect_name(cells.factors, term),
-            "df1": float(df1), "df2": float(df2), "F": float(f), "p": p,
-            "np2": ss / total if total > 0 else np.nan,
-            "SS": ss, "SS_error": ss_err, "eps_gg": sph["eps_gg"],
-            "p_gg": corrected(sph["eps_gg"]), "eps_hf": sph["eps_hf"],
-            "p_hf": corrected(sph["eps_hf"]), "mauchly_W": sph["mauchly_W"],
-            "mauchly_chi2": sph["mauchly_chi2"], "mauchly_df": sph["mauchly_df"],
-            "mauchly_p": sph["mauchly_p"],
-        })
+        rows.append(
+            {
+                "effect": effect_name(cells.factors, term),
+                "df1": float(df1),
+                "df2": float(df2),
+                "F": float(f),
+                "p": p,
+                "np2": ss / total if total > 0 else np.nan,
+                "SS": ss,
+                "SS_error": ss_err,
+                "eps_gg": sph["eps_gg"],
+                "p_gg": corrected(sph["eps_gg"]),
+                "eps_hf": sph["eps_hf"],
+                "p_hf": corrected(sph["eps_hf"]),
+                "mauchly_W": sph["mauchly_W"],
+                "mauchly_chi2": sph["mauchly_chi2"],
+                "mauchly_df": sph["mauchly_df"],
+                "mauchly_p": sph["mauchly_p"],
+            }
+        )
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
@@ -131,8 +172,7 @@ def rm_anova(
     (or are dropped with ``drop_incomplete=True``). With ``n`` subjects a one-df effect is
     tested on ``F(1, n - 1)``.
     """
-    cells = cell_means(data, dv=dv, subject=subject, within=within,
-                       drop_incomplete=drop_incomplete)
+    cells = cell_means(data, dv=dv, subject=subject, within=within, drop_incomplete=drop_incomplete)
     return RMAnovaResult(
         table=rm_anova_cells(cells),
         n_subjects=len(cells.subjects),

@@ -35,8 +35,13 @@ sys.path.insert(0, str(ROOT))
 
 
 def _summary(times: list[float]) -> dict[str, float]:
-    return {"median_s": statistics.median(times), "p99_s": float(np.percentile(times, 99)),
-            "min_s": min(times), "max_s": max(times), "n": len(times)}
+    return {
+        "median_s": statistics.median(times),
+        "p99_s": float(np.percentile(times, 99)),
+        "min_s": min(times),
+        "max_s": max(times),
+        "n": len(times),
+    }
 
 
 CPU: list[float] = []  # CPU seconds (user + sys) of each command run, load-independent
@@ -63,8 +68,9 @@ def anova_csv(path: Path, n: int = 1000, seed: int = 0) -> None:
         for dif, cor, mode in cells:
             y = 20 + base + 10 * (dif == "hard") + 15 * (cor == "wrong") * (mode == "aggressive")
             rows.append((f"S{s:04d}", dif, cor, mode, y + rng.normal(0, 6), rng.normal(40, 8)))
-    pd.DataFrame(rows, columns=["subject", "difficulty", "correctness", "mode", "time_s",
-                                "skill"]).to_csv(path, index=False)
+    pd.DataFrame(
+        rows, columns=["subject", "difficulty", "correctness", "mode", "time_s", "skill"]
+    ).to_csv(path, index=False)
 
 
 def main() -> int:
@@ -93,10 +99,16 @@ def main() -> int:
             source, label = ["--export-dir", str(exp)], "synthetic, 8 participants, 100 Hz"
             results["samples"] = len(tables["samples"])
         CPU.clear()
-        report = [_run([py, "-m", "analysis", "report", *source, "--out", str(tmpd / "rep")])
-                  for _ in range(args.repeats)]
-        results["report_command"] = {**_summary(report), "target_s": 15.0, "data": label,
-                                     "cpu_s_median": statistics.median(CPU)}
+        report = [
+            _run([py, "-m", "analysis", "report", *source, "--out", str(tmpd / "rep")])
+            for _ in range(args.repeats)
+        ]
+        results["report_command"] = {
+            **_summary(report),
+            "target_s": 15.0,
+            "data": label,
+            "cpu_s_median": statistics.median(CPU),
+        }
 
         from analysis.load import load_tables
         from analysis.report import write_report
@@ -104,8 +116,9 @@ def main() -> int:
         parts = {"load": [], "write_report": []}
         for _ in range(args.repeats):
             t0 = time.perf_counter()
-            st = load_tables(db=args.db, export_dir=args.export_dir or (None if args.db
-                                                                         else source[1]))
+            st = load_tables(
+                db=args.db, export_dir=args.export_dir or (None if args.db else source[1])
+            )
             t1 = time.perf_counter()
             write_report(st, tmpd / "rep2")
             t2 = time.perf_counter()
@@ -115,27 +128,56 @@ def main() -> int:
 
         csv = tmpd / "anova.csv"
         anova_csv(csv)
-        base = [py, "-m", "analysis", "anova", "--csv", str(csv), "--dv", "time_s", "--subject",
-                "subject", "--within", "difficulty", "correctness", "mode"]
+        base = [
+            py,
+            "-m",
+            "analysis",
+            "anova",
+            "--csv",
+            str(csv),
+            "--dv",
+            "time_s",
+            "--subject",
+            "subject",
+            "--within",
+            "difficulty",
+            "correctness",
+            "mode",
+        ]
         CPU.clear()
         rm = [_run(base) for _ in range(max(5, args.repeats))]
         rm_cpu = statistics.median(CPU)
         CPU.clear()
         cov = [_run([*base, "--covariates", "skill"]) for _ in range(max(5, args.repeats))]
-        results["anova_command_rm_1000x8"] = {**_summary(rm), "target_s": 5.0,
-                                              "cpu_s_median": rm_cpu}
-        results["anova_command_covariates_1000x8"] = {**_summary(cov), "target_s": 5.0,
-                                                      "cpu_s_median": statistics.median(CPU)}
+        results["anova_command_rm_1000x8"] = {
+            **_summary(rm),
+            "target_s": 5.0,
+            "cpu_s_median": rm_cpu,
+        }
+        results["anova_command_covariates_1000x8"] = {
+            **_summary(cov),
+            "target_s": 5.0,
+            "cpu_s_median": statistics.median(CPU),
+        }
         CPU.clear()
-        mixed = [_run([*base, "--covariates", "skill", "--mixed"])
-                 for _ in range(max(3, args.repeats))]
-        results["anova_command_mixed_1000x8"] = {**_summary(mixed),
-                                                 "cpu_s_median": statistics.median(CPU)}
+        mixed = [
+            _run([*base, "--covariates", "skill", "--mixed"]) for _ in range(max(3, args.repeats))
+        ]
+        results["anova_command_mixed_1000x8"] = {
+            **_summary(mixed),
+            "cpu_s_median": statistics.median(CPU),
+        }
         CPU.clear()
-        power = [_run([py, "-m", "analysis", "power", *source, "--out", str(tmpd / "power")])
-                 for _ in range(args.repeats)]
-        results["power_command_default"] = {**_summary(power), "target_s": 60.0, "data": label,
-                                            "cpu_s_median": statistics.median(CPU)}
+        power = [
+            _run([py, "-m", "analysis", "power", *source, "--out", str(tmpd / "power")])
+            for _ in range(args.repeats)
+        ]
+        results["power_command_default"] = {
+            **_summary(power),
+            "target_s": 60.0,
+            "data": label,
+            "cpu_s_median": statistics.median(CPU),
+        }
 
         from analysis.rm_anova import rm_anova
 
@@ -143,8 +185,9 @@ def main() -> int:
         inproc = []
         for _ in range(20):
             t0 = time.perf_counter()
-            rm_anova(data, dv="time_s", subject="subject",
-                     within=["difficulty", "correctness", "mode"])
+            rm_anova(
+                data, dv="time_s", subject="subject", within=["difficulty", "correctness", "mode"]
+            )
             inproc.append(time.perf_counter() - t0)
         results["rm_anova_in_process_1000x8"] = _summary(inproc)
 
@@ -152,15 +195,19 @@ def main() -> int:
     for key, val in results.items():
         if isinstance(val, dict) and "median_s" in val:
             cpu = val.get("cpu_s_median")
-            print(f"{key:40s} {val['median_s']:9.3f} {val['p99_s']:8.3f} "
-                  f"{'' if cpu is None else f'{cpu:.3f}':>7s} {val.get('target_s', ''):>7}")
+            print(
+                f"{key:40s} {val['median_s']:9.3f} {val['p99_s']:8.3f} "
+                f"{'' if cpu is None else f'{cpu:.3f}':>7s} {val.get('target_s', ''):>7}"
+            )
         elif isinstance(val, dict):
             for sub, v in val.items():
                 print(f"{key + '.' + sub:40s} {v['median_s']:9.3f} {v['p99_s']:8.3f}")
     results["load_average_1_5_15"] = list(os.getloadavg())
     results["cpus"] = os.cpu_count()
-    print(f"load average {results['load_average_1_5_15']} on {os.cpu_count()} CPUs "
-          "(other processes slow every figure down)")
+    print(
+        f"load average {results['load_average_1_5_15']} on {os.cpu_count()} CPUs "
+        "(other processes slow every figure down)"
+    )
     print(json.dumps({"benchmark": "analysis", **results}))
     return 0
 

@@ -21,9 +21,12 @@ if TYPE_CHECKING:
 
 CODEBOOK_COLUMNS = ("table", "column", "dtype", "description", "values")
 
-_JOINT = {"q": "robot configuration Q", "u": "user's next configuration U",
-          "p": "robot's predicted next configuration P",
-          "cmd": "blended command (1 - alpha) U + alpha P"}
+_JOINT = {
+    "q": "robot configuration Q",
+    "u": "user's next configuration U",
+    "p": "robot's predicted next configuration P",
+    "cmd": "blended command (1 - alpha) U + alpha P",
+}
 
 FIXED: dict[str, dict[str, tuple[str, str]]] = {
     "trials": {
@@ -31,36 +34,47 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
         "session_id": ("the participant's session in the store", ""),
         "phase": ("training (unassisted practice) or task", "training | task"),
         "schedule_row": ("design row of the counterbalanced schedule (study.schedule)", ">= 0"),
-        "position": ("1-based position among the participant's task trials (empty for training)",
-                     "1..tasks x modes"),
+        "position": (
+            "1-based position among the participant's task trials (empty for training)",
+            "1..tasks x modes",
+        ),
         "task": ("task type (condition id; empty for training)", ""),
         "difficulty": ("manipulated factor: difficulty of the task", ""),
         "correctness": ("manipulated factor: prediction correctness", ""),
         "mode": ("manipulated factor: arbitration mode; none for unassisted training", ""),
         "run": ("which run of the task this is", "first | second | ..."),
         "attempt": ("attempt number of this trial step (a redo starts attempt 2)", "1.."),
-        "status": ("what became of the attempt (running: its process was still running it at "
-                   "export; one whose process had died is reported interrupted)",
-                   "completed | redone | skipped | interrupted | running"),
-        "outcome": ("how the trial ended",
-                    "success | wrong_object | dropped | pushed_off (an object was pushed off the"
-                    " table) | timeout | aborted | interrupted"),
+        "status": (
+            "what became of the attempt (running: its process was still running it at "
+            "export; one whose process had died is reported interrupted)",
+            "completed | redone | skipped | interrupted | running",
+        ),
+        "outcome": (
+            "how the trial ended",
+            "success | wrong_object | dropped | pushed_off (an object was pushed off the"
+            " table) | timeout | aborted | interrupted",
+        ),
         "success": ("the target was lifted", "true | false"),
         "duration_s": ("time to complete, seconds, pauses excluded", "s"),
         "ticks": ("control ticks run (rows in samples)", ""),
-        "contacts": ("dependent measure: touches of the arm (wrist, hand, fingers) on objects"
-                     " in the trial; the fingers closing on an object in a grasp do not count",
-                     "0.."),
-        "contact_impulse_ns": ("dependent measure: total normal impulse of those touches",
-                               "N s"),
+        "contacts": (
+            "dependent measure: touches of the arm (wrist, hand, fingers) on objects"
+            " in the trial; the fingers closing on an object in a grasp do not count",
+            "0..",
+        ),
+        "contact_impulse_ns": ("dependent measure: total normal impulse of those touches", "N s"),
         "started_at": ("start time, ISO 8601 UTC", ""),
         "goal_names": ("JSON list of the scene's goal names; prob_<k> follows this order", ""),
         "goal_positions": ("JSON list of [x, y, z] goal positions, metres, world frame", "m"),
         "target": ("the goal the participant was asked to pick up", ""),
-        "training_time_s": ("covariate initial skill: mean duration_s of the participant's"
-                            " completed training runs", "s"),
-        "baseline_rating": ("covariate rating without assistance: mean of the participant's"
-                            " after-training ratings", "1..points"),
+        "training_time_s": (
+            "covariate initial skill: mean duration_s of the participant's completed training runs",
+            "s",
+        ),
+        "baseline_rating": (
+            "covariate rating without assistance: mean of the participant's after-training ratings",
+            "1..points",
+        ),
         "tasks_completed": ("covariate learning: task trials completed before this one", "0.."),
         "trial_id": ("trial attempt id (joins samples and ratings)", ""),
     },
@@ -79,11 +93,14 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
         "ee_y": ("end-effector position, y", "m"),
         "ee_z": ("end-effector position, z", "m"),
         "gripper": ("gripper opening", "m"),
-        "events": ("JSON list of events at this tick (grasp_requested, grasped:<object>, "
-                   "lifted:<object>, goal_moved:<object>@x,y,z when the robot re-aims at a moved "
-                   "object, contact:<part>:<object> when an arm part starts touching an object, "
-                   "contact_end:<part>:<object>:<impulse N s> when it stops, "
-                   "pushed_off:<object>, outcome:<outcome> ...)", ""),
+        "events": (
+            "JSON list of events at this tick (grasp_requested, grasped:<object>, "
+            "lifted:<object>, goal_moved:<object>@x,y,z when the robot re-aims at a moved "
+            "object, contact:<part>:<object> when an arm part starts touching an object, "
+            "contact_end:<part>:<object>:<impulse N s> when it stops, "
+            "pushed_off:<object>, outcome:<outcome> ...)",
+            "",
+        ),
     },
     "ratings": {
         "participant": ("participant id", ""),
@@ -122,8 +139,11 @@ def _describe(
         return f"{_JOINT[m.group(1)]}, joint {m.group(2)}", "rad"
     m = re.fullmatch(r"prob_(\d+)", column)
     if table == "samples" and m:
-        return (f"P(goal {m.group(1)} | trajectory so far): the robot's probability of the"
-                f" goal at index {m.group(1)} of the trial's goal_names", "0..1")
+        return (
+            f"P(goal {m.group(1)} | trajectory so far): the robot's probability of the"
+            f" goal at index {m.group(1)} of the trial's goal_names",
+            "0..1",
+        )
     if table == "trials":
         return _likert(column, protocol, columns)
     raise CodebookError(f"no codebook entry for column {column!r} of table {table!r}")
@@ -133,16 +153,25 @@ def _likert(column: str, protocol: Protocol | None, columns: list[str]) -> tuple
     """Per-run Likert items, the task preference and its re-centred ``<item>_<mode>`` form."""
     q = protocol.questionnaire if protocol is not None else None
     for base in columns:
-        if base != column and column.startswith(base + "_") and base not in FIXED["trials"] \
-                and (q is None or base in q.items):
-            mode = column[len(base) + 1:]
+        if (
+            base != column
+            and column.startswith(base + "_")
+            and base not in FIXED["trials"]
+            and (q is None or base in q.items)
+        ):
+            mode = column[len(base) + 1 :]
             half = ((q.items[base].scale.points if q else 7) - 1) / 2
-            return (f"{base} re-centred on mode {mode}: positive = preferred the {mode} run,"
-                    " negative = preferred the other run, 0 = no preference",
-                    f"{-half:g}..{half:+g}")
+            return (
+                f"{base} re-centred on mode {mode}: positive = preferred the {mode} run,"
+                " negative = preferred the other run, 0 = no preference",
+                f"{-half:g}..{half:+g}",
+            )
     if q is None:
-        return (f"Likert answer to item {column!r}: a rating of this run, or the task's"
-                " preference between its two runs (then on both runs)", "1..7")
+        return (
+            f"Likert answer to item {column!r}: a rating of this run, or the task's"
+            " preference between its two runs (then on both runs)",
+            "1..7",
+        )
     if column not in q.items:
         raise CodebookError(f"no codebook entry for column {column!r} of table 'trials'")
     item = q.items[column]
@@ -171,12 +200,20 @@ def write_codebook(book: pd.DataFrame, out: str | os.PathLike[str]) -> list[Path
     out_dir.mkdir(parents=True, exist_ok=True)
     csv_path = out_dir / "codebook.csv"
     book.to_csv(csv_path, index=False)
-    lines = ["# Codebook", "",
-             "Tidy long-format tables exported by `python -m study export`; one row per trial"
-             " attempt (trials), control tick (samples), answer (ratings) or event (events).", ""]
+    lines = [
+        "# Codebook",
+        "",
+        "Tidy long-format tables exported by `python -m study export`; one row per trial"
+        " attempt (trials), control tick (samples), answer (ratings) or event (events).",
+        "",
+    ]
     for table, group in book.groupby("table", sort=False):
-        lines += [f"## {table}", "", "| column | type | description | values |",
-                  "|---|---|---|---|"]
+        lines += [
+            f"## {table}",
+            "",
+            "| column | type | description | values |",
+            "|---|---|---|---|",
+        ]
         for r in group.itertuples(index=False):
             cells = [f"`{r.column}`", r.dtype, r.description, r.values]
             lines.append("| " + " | ".join(str(c).replace("|", "\\|") for c in cells) + " |")

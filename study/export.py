@@ -43,24 +43,65 @@ TABLE_NAMES = ("trials", "samples", "ratings", "events")
 DEFAULT_POINTS = 7
 
 TRIAL_COLUMNS = (
-    "participant", "session_id", "phase", "schedule_row", "position", "task", "difficulty",
-    "correctness", "mode", "run", "attempt", "status", "outcome", "success", "duration_s",
-    "ticks", "contacts", "contact_impulse_ns", "started_at", "goal_names", "goal_positions", "target", "training_time_s",
-    "baseline_rating", "tasks_completed",
+    "participant",
+    "session_id",
+    "phase",
+    "schedule_row",
+    "position",
+    "task",
+    "difficulty",
+    "correctness",
+    "mode",
+    "run",
+    "attempt",
+    "status",
+    "outcome",
+    "success",
+    "duration_s",
+    "ticks",
+    "contacts",
+    "contact_impulse_ns",
+    "started_at",
+    "goal_names",
+    "goal_positions",
+    "target",
+    "training_time_s",
+    "baseline_rating",
+    "tasks_completed",
 )
 """Fixed leading columns of ``trials``; Likert and preference columns and ``trial_id`` follow."""
 
 VECTORS = ("q", "u", "p", "cmd")
 SAMPLE_HEAD = (
-    "trial_id", "participant", "tick", "t",
+    "trial_id",
+    "participant",
+    "tick",
+    "t",
     *(f"{v}{i}" for v in VECTORS for i in range(1, DOF + 1)),
-    "alpha", "confidence", "predicted",
+    "alpha",
+    "confidence",
+    "predicted",
 )
 SAMPLE_TAIL = (
-    "target_x", "target_y", "target_z", "ee_x", "ee_y", "ee_z", "gripper", "events",
+    "target_x",
+    "target_y",
+    "target_z",
+    "ee_x",
+    "ee_y",
+    "ee_z",
+    "gripper",
+    "events",
 )
 RATING_COLUMNS = (
-    "participant", "session_id", "phase", "task", "mode", "run", "item", "value", "answered_at",
+    "participant",
+    "session_id",
+    "phase",
+    "task",
+    "mode",
+    "run",
+    "item",
+    "value",
+    "answered_at",
     "trial_id",
 )
 EVENT_COLUMNS = ("participant", "session_id", "at", "kind", "detail")
@@ -108,8 +149,10 @@ def resolve_protocol(
 def find_protocol(store: Store, *, search: Sequence[Path] | None = None) -> Protocol | None:
     """The protocol file that wrote ``store`` (same study id and content hash), if one is found
     as ``<dir>/<study id>.toml`` in ``search`` (default: ./protocols and the repository's)."""
-    dirs = search if search is not None else (
-        Path("protocols"), Path(__file__).resolve().parents[1] / "protocols"
+    dirs = (
+        search
+        if search is not None
+        else (Path("protocols"), Path(__file__).resolve().parents[1] / "protocols")
     )
     for d in dirs:
         path = d / f"{store.meta.protocol_id}.toml"
@@ -190,9 +233,22 @@ class _Exporter:
             if reference is not None:
                 extra.append(f"{item}_{reference}")
         out = t[[*TRIAL_COLUMNS, *extra, "trial_id"]].reset_index(drop=True)
-        return _typed(out, ints=("session_id", "schedule_row", "position", "attempt", "ticks",
-                                 "contacts", "tasks_completed", "trial_id", *after_run, *after_task),
-                      bools=("success",))
+        return _typed(
+            out,
+            ints=(
+                "session_id",
+                "schedule_row",
+                "position",
+                "attempt",
+                "ticks",
+                "contacts",
+                "tasks_completed",
+                "trial_id",
+                *after_run,
+                *after_task,
+            ),
+            bools=("success",),
+        )
 
     def _covariates(self, t: pd.DataFrame) -> pd.DataFrame:
         training = t[(t["phase"] == "training") & (t["status"] == "completed")]
@@ -219,8 +275,10 @@ class _Exporter:
                 rated = t["trial_id"] == row.trial_id
             else:
                 rated = (
-                    (t["participant"] == row.participant) & (t["task"] == row.task)
-                    & (t["mode"] == row.mode) & (t["run"] == row.run)
+                    (t["participant"] == row.participant)
+                    & (t["task"] == row.task)
+                    & (t["mode"] == row.mode)
+                    & (t["run"] == row.run)
                     & (t["status"] == "completed")
                 )
             t.loc[rated, row.item] = row.value
@@ -232,16 +290,21 @@ class _Exporter:
         """The after-task answer on every run of its task, raw and re-centred on ``reference``
         (``value - mid`` if the reference mode was the second run, ``mid - value`` if first)."""
         a = self.assignments
-        run_of = {(p, k, m): run for p, k, m, run in
-                  a[["participant", "task", "mode", "run"]].itertuples(index=False)}
+        run_of = {
+            (p, k, m): run
+            for p, k, m, run in a[["participant", "task", "mode", "run"]].itertuples(index=False)
+        }
         for item in items:
             t[item] = pd.Series(pd.NA, index=t.index, dtype="object")
             if reference is not None:
                 t[f"{item}_{reference}"] = np.nan
         r = self.raw_ratings
         for row in r[(r["phase"] == "task") & r["item"].isin(items)].itertuples(index=False):
-            runs = (t["participant"] == row.participant) & (t["task"] == row.task) \
+            runs = (
+                (t["participant"] == row.participant)
+                & (t["task"] == row.task)
                 & (t["phase"] == "task")
+            )
             t.loc[runs, row.item] = row.value
             if reference is None:
                 continue
@@ -280,8 +343,7 @@ class _Exporter:
 
     def events(self) -> pd.DataFrame:
         e = self.store.frame("events").sort_values("event_id", kind="stable")
-        return _typed(e[list(EVENT_COLUMNS)].reset_index(drop=True), ints=("session_id",),
-                      bools=())
+        return _typed(e[list(EVENT_COLUMNS)].reset_index(drop=True), ints=("session_id",), bools=())
 
 
 def _with_contacts(trials: pd.DataFrame, samples: pd.DataFrame) -> pd.DataFrame:
@@ -308,9 +370,7 @@ def _goal_name(names: list[str], index: Any) -> Any:
     return names[k]
 
 
-def _typed(
-    df: pd.DataFrame, *, ints: tuple[str, ...], bools: tuple[str, ...]
-) -> pd.DataFrame:
+def _typed(df: pd.DataFrame, *, ints: tuple[str, ...], bools: tuple[str, ...]) -> pd.DataFrame:
     """Nullable integer / boolean columns, text columns as pandas strings."""
     df = df.copy()
     for c in df.columns:

@@ -32,8 +32,13 @@ def export_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _report(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "analysis", "report", *args], cwd=ROOT,
-                          capture_output=True, text=True, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "analysis", "report", *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
 
 
 def test_report_writes_html_markdown_json_and_figures(export_dir: Path, tmp_path: Path) -> None:
@@ -53,8 +58,9 @@ def test_report_writes_html_markdown_json_and_figures(export_dir: Path, tmp_path
 
     doc = json.loads((out / "results.json").read_text())
     stats = pd.DataFrame(doc["statistics"])
-    assert {"analysis", "effect", "test", "df1", "df2", "statistic", "p",
-            "effect_size"} <= set(stats.columns)
+    assert {"analysis", "effect", "test", "df1", "df2", "statistic", "p", "effect_size"} <= set(
+        stats.columns
+    )
 
     def row(analysis: str, effect: str) -> pd.Series:
         return stats[(stats.analysis == analysis) & (stats.effect == effect)].iloc[0]
@@ -62,8 +68,12 @@ def test_report_writes_html_markdown_json_and_figures(export_dir: Path, tmp_path
     assert row("timing_ancova", "difficulty")["df2"] == 53
     assert row("timing_ancova", "difficulty")["paper_value"] == 18.45
     assert row("timing_rm", "correctness:mode")["df2"] == 7
-    assert row("timing_posthoc", "aggressive&wrong - timid&wrong (aggressive vs timid when "
-               "wrong)")["df1"] == 15
+    assert (
+        row("timing_posthoc", "aggressive&wrong - timid&wrong (aggressive vs timid when wrong)")[
+            "df1"
+        ]
+        == 15
+    )
     assert row("timing_planned", "Easy&Wrong: aggressive - timid")["df1"] == 7
     assert row("preference", "time_advantage_aggressive")["df1"] == 30
     assert row("prediction_anova", "predictor")["df2"] == 112
@@ -77,8 +87,7 @@ def test_report_writes_html_markdown_json_and_figures(export_dir: Path, tmp_path
     assert doc["software"]["version"] and doc["participants"] == 8
 
 
-def test_report_on_incomplete_data_notes_what_was_dropped(export_dir: Path,
-                                                          tmp_path: Path) -> None:
+def test_report_on_incomplete_data_notes_what_was_dropped(export_dir: Path, tmp_path: Path) -> None:
     src = tmp_path / "export"
     src.mkdir()
     trials = pd.read_csv(export_dir / "trials.csv")
@@ -100,7 +109,8 @@ def test_report_bad_sources_exit_2_with_a_message(tmp_path: Path, export_dir: Pa
     broken = tmp_path / "broken"
     broken.mkdir()
     pd.read_csv(export_dir / "trials.csv").drop(columns="duration_s").to_csv(
-        broken / "trials.csv", index=False)
+        broken / "trials.csv", index=False
+    )
     bad = _report("--export-dir", str(broken), "--out", str(tmp_path / "o"))
     assert bad.returncode == 2 and "'duration_s'" in bad.stderr and "Traceback" not in bad.stderr
 
@@ -108,16 +118,36 @@ def test_report_bad_sources_exit_2_with_a_message(tmp_path: Path, export_dir: Pa
 def test_rendering_escapes_text_and_formats_p_values() -> None:
     from analysis.render import Section, Table, fmt_p, render_html, render_markdown
 
-    meta = {"source": "x", "generated_at": "now", "protocol": {"id": "p"},
-            "software": {k: "1" for k in ("package", "version", "commit", "python", "numpy",
-                                          "pandas", "scipy", "statsmodels", "matplotlib")}}
-    sec = Section("S", paragraphs=["a < b"], tables=[Table("T", pd.DataFrame(
-        {"participant": ["<script>alert(1)</script>"], "v": ["x|y"]}))])
+    meta = {
+        "source": "x",
+        "generated_at": "now",
+        "protocol": {"id": "p"},
+        "software": {
+            k: "1"
+            for k in (
+                "package",
+                "version",
+                "commit",
+                "python",
+                "numpy",
+                "pandas",
+                "scipy",
+                "statsmodels",
+                "matplotlib",
+            )
+        },
+    }
+    sec = Section(
+        "S",
+        paragraphs=["a < b"],
+        tables=[
+            Table("T", pd.DataFrame({"participant": ["<script>alert(1)</script>"], "v": ["x|y"]}))
+        ],
+    )
     page = render_html([sec], meta)
     assert "<script>" not in page and "&lt;script&gt;" in page
     assert "x\\|y" in render_markdown([sec], meta)
-    assert [fmt_p(p) for p in (0.0004, 0.0021, 0.11, 1.0)] == ["< .001", ".002", ".110",
-                                                               "1.000"]
+    assert [fmt_p(p) for p in (0.0004, 0.0021, 0.11, 1.0)] == ["< .001", ".002", ".110", "1.000"]
 
 
 def test_fig7_curves_follow_the_arbitration_tables() -> None:
@@ -125,17 +155,21 @@ def test_fig7_curves_follow_the_arbitration_tables() -> None:
 
     from analysis.figures import arbitration_figure
 
-    tables = {"timid": {"kind": "timid", "alpha_max": 0.4, "saturation": 0.6},
-              "aggressive": {"kind": "aggressive", "threshold": 0.3, "alpha_high": 0.8}}
+    tables = {
+        "timid": {"kind": "timid", "alpha_max": 0.4, "saturation": 0.6},
+        "aggressive": {"kind": "aggressive", "threshold": 0.3, "alpha_high": 0.8},
+    }
     lines = {ln.get_label(): ln for ln in arbitration_figure(tables).axes[0].lines}
     c = lines["timid"].get_xdata()
-    np.testing.assert_allclose(lines["timid"].get_ydata(), 0.4 * np.minimum(1.0, c / 0.6),
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        lines["timid"].get_ydata(), 0.4 * np.minimum(1.0, c / 0.6), atol=1e-12
+    )
     np.testing.assert_allclose(lines["aggressive"].get_ydata(), np.where(c >= 0.3, 0.8, 0.0))
 
 
-def test_protocol_fallback_without_study_package(protocol_path: Path,
-                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+def test_protocol_fallback_without_study_package(
+    protocol_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     import hashlib
 
     monkeypatch.setitem(sys.modules, "study.protocol", None)  # import now fails
@@ -170,12 +204,18 @@ def test_other_designs_three_modes_and_a_single_difficulty(tmp_path: Path) -> No
     timid = trials[trials["mode"] == "timid"]
     offset = int(trials["trial_id"].max())
     rng = np.random.default_rng(0)
-    linear = timid.assign(mode="linear", trial_id=timid["trial_id"] + offset,
-                          duration_s=timid["duration_s"] + rng.normal(3, 2, len(timid)))
+    linear = timid.assign(
+        mode="linear",
+        trial_id=timid["trial_id"] + offset,
+        duration_s=timid["duration_s"] + rng.normal(3, 2, len(timid)),
+    )
     linear_samples = samples[samples.trial_id.isin(timid["trial_id"])].assign(
-        trial_id=lambda d: d["trial_id"] + offset)
-    tables = from_frames(pd.concat([trials, linear], ignore_index=True),
-                         pd.concat([samples, linear_samples], ignore_index=True))
+        trial_id=lambda d: d["trial_id"] + offset
+    )
+    tables = from_frames(
+        pd.concat([trials, linear], ignore_index=True),
+        pd.concat([samples, linear_samples], ignore_index=True),
+    )
     files = write_report(tables, tmp_path)
     res = files.results
     assert res.timing is not None and res.timing.factors == ("correctness", "mode")
@@ -206,18 +246,22 @@ def memory3_report(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path
     db = d / "m3.db"
     simulate(protocol_path=MEMORY3, db=db, participants=3, seed=1, progress=False)
     files = write_report(load_tables(db=db), d / "report")
-    return db, d / "report", json.loads(files.results_json.read_text()), \
-        files.markdown.read_text()
+    return db, d / "report", json.loads(files.results_json.read_text()), files.markdown.read_text()
 
 
 def test_memory3_report_replays_the_protocols_own_predictors(memory3_report) -> None:
     _, _, doc, md = memory3_report
-    assert doc["predictors"]["memory"]["config"] == {"kind": "memory", "cost": "length",
-                                                     "rationality": 30.0}
+    assert doc["predictors"]["memory"]["config"] == {
+        "kind": "memory",
+        "cost": "length",
+        "rationality": 30.0,
+    }
     assert doc["predictors"]["amnesic"]["config"] == {"kind": "amnesic", "temperature": 0.05}
-    assert ("Predictor parameters: amnesic: temperature 0.05 (the protocol's "
-            "[prediction.amnesic]); memory: cost length, rationality 30 (the protocol's "
-            "[prediction.memory])") in md
+    assert (
+        "Predictor parameters: amnesic: temperature 0.05 (the protocol's "
+        "[prediction.amnesic]); memory: cost length, rationality 30 (the protocol's "
+        "[prediction.memory])"
+    ) in md
     rate = pd.DataFrame(doc["prediction_summary"]).groupby("predictor")["success_rate"].mean()
     # with eq. 9's squared velocity (the paper's default) it was right a few % of the time
     assert rate["memory"] > 0.6
@@ -231,9 +275,14 @@ def test_memory3_report_shows_no_paper_values_for_its_three_level_design(memory3
     assert stats["paper_value"].isna().all()
     assert "paper F" not in md and "paper |t|" not in md and "about 28 s" not in md
     assert "R² = 0.66" not in md and "R² = 0.9 " not in md
-    assert md.count("differs from the paper's 2 x 2 x 2 (difficulty: easy, hard; correctness: "
-                    "right, wrong; mode: timid, aggressive), so the paper's values are not "
-                    "shown") == 2  # timing and prediction
+    assert (
+        md.count(
+            "differs from the paper's 2 x 2 x 2 (difficulty: easy, hard; correctness: "
+            "right, wrong; mode: timid, aggressive), so the paper's values are not "
+            "shown"
+        )
+        == 2
+    )  # timing and prediction
 
 
 def test_memory3_report_wording(memory3_report) -> None:
@@ -265,21 +314,29 @@ def test_other_predictors_than_the_papers_get_no_paper_values(tmp_path: Path) ->
     from analysis.report import write_report
 
     t = synthetic_tables(8, seed=5, rate_hz=5.0)
-    files = write_report(from_frames(t["trials"], t["samples"]), tmp_path, predictors={
-        "amnesic": {"kind": "amnesic", "temperature": 0.05},
-        "memory": {"kind": "memory", "cost": "length", "rationality": 30.0}})
+    files = write_report(
+        from_frames(t["trials"], t["samples"]),
+        tmp_path,
+        predictors={
+            "amnesic": {"kind": "amnesic", "temperature": 0.05},
+            "memory": {"kind": "memory", "cost": "length", "rationality": 30.0},
+        },
+    )
     stats = files.results.statistics
     pred = stats[stats.analysis == "prediction_anova"]
     assert pred["paper_value"].isna().all()
-    assert stats[(stats.analysis == "timing_ancova")
-                 & (stats.effect == "mode")]["paper_value"].iloc[0] == 13.2
+    assert (
+        stats[(stats.analysis == "timing_ancova") & (stats.effect == "mode")]["paper_value"].iloc[0]
+        == 13.2
+    )
     md = files.markdown.read_text()
     assert "The predictors replayed differ from the paper's" in md
     assert "memory: cost length, rationality 30 (given by the caller)" in md
 
 
-def test_a_differing_protocol_file_is_named_only_when_the_user_gave_it(memory3_report,
-                                                                      protocol_path: Path) -> None:
+def test_a_differing_protocol_file_is_named_only_when_the_user_gave_it(
+    memory3_report, protocol_path: Path
+) -> None:
     db = memory3_report[0]
     assert load_protocol_info(protocol_path, stored=db, explicit=False).notes == ()
     given = load_protocol_info(protocol_path, stored=db)

@@ -19,17 +19,53 @@ from analysis.synthetic import synthetic_tables
 from analysis.timing import timing_analysis
 
 CONTRACT_TRIAL_COLUMNS = [
-    "participant", "session_id", "phase", "schedule_row", "position", "task", "difficulty",
-    "correctness", "mode", "attempt", "status", "outcome", "success", "duration_s",
-    "started_at", "goal_names", "goal_positions", "target", "training_time_s",
-    "baseline_rating", "tasks_completed", "helpful", "matched", "teammate", "preference",
-    "preference_aggressive", "trial_id",
+    "participant",
+    "session_id",
+    "phase",
+    "schedule_row",
+    "position",
+    "task",
+    "difficulty",
+    "correctness",
+    "mode",
+    "attempt",
+    "status",
+    "outcome",
+    "success",
+    "duration_s",
+    "started_at",
+    "goal_names",
+    "goal_positions",
+    "target",
+    "training_time_s",
+    "baseline_rating",
+    "tasks_completed",
+    "helpful",
+    "matched",
+    "teammate",
+    "preference",
+    "preference_aggressive",
+    "trial_id",
 ]
 CONTRACT_SAMPLE_COLUMNS = [
-    "trial_id", "participant", "tick", "t", *[f"{p}{i}" for p in ("q", "u", "p", "cmd")
-                                              for i in range(1, 8)],
-    "alpha", "confidence", "predicted", "prob_0", "prob_1", "target_x", "target_y", "target_z",
-    "ee_x", "ee_y", "ee_z", "gripper", "events",
+    "trial_id",
+    "participant",
+    "tick",
+    "t",
+    *[f"{p}{i}" for p in ("q", "u", "p", "cmd") for i in range(1, 8)],
+    "alpha",
+    "confidence",
+    "predicted",
+    "prob_0",
+    "prob_1",
+    "target_x",
+    "target_y",
+    "target_z",
+    "ee_x",
+    "ee_y",
+    "ee_z",
+    "gripper",
+    "events",
 ]
 
 
@@ -42,8 +78,17 @@ def study() -> dict[str, pd.DataFrame]:
 def test_fixture_follows_the_contract_schema(study: dict[str, pd.DataFrame]) -> None:
     assert set(CONTRACT_TRIAL_COLUMNS) <= set(study["trials"].columns)
     assert set(CONTRACT_SAMPLE_COLUMNS) <= set(study["samples"].columns)
-    assert {"participant", "session_id", "phase", "task", "mode", "run", "item", "value",
-            "answered_at"} <= set(study["ratings"].columns)
+    assert {
+        "participant",
+        "session_id",
+        "phase",
+        "task",
+        "mode",
+        "run",
+        "item",
+        "value",
+        "answered_at",
+    } <= set(study["ratings"].columns)
 
 
 def test_paired_t_matches_scipy_and_hand_values() -> None:
@@ -62,11 +107,13 @@ def test_paired_t_matches_scipy_and_hand_values() -> None:
 def test_bonferroni_multiplies_within_family_and_caps_at_one() -> None:
     rng = np.random.default_rng(0)
     x = rng.normal(size=10)
-    out = paired_comparisons([
-        Comparison("f1", "big", x + 1.0 + rng.normal(0, 0.3, 10), x),
-        Comparison("f1", "none", x + rng.normal(0, 1, 10), x),
-        Comparison("f2", "alone", x + rng.normal(0, 1, 10), x),
-    ]).set_index("comparison")
+    out = paired_comparisons(
+        [
+            Comparison("f1", "big", x + 1.0 + rng.normal(0, 0.3, 10), x),
+            Comparison("f1", "none", x + rng.normal(0, 1, 10), x),
+            Comparison("f2", "alone", x + rng.normal(0, 1, 10), x),
+        ]
+    ).set_index("comparison")
     assert list(out["m"]) == [2, 2, 1]
     assert out.loc["big", "p_bonf"] == pytest.approx(2 * out.loc["big", "p"])
     assert out.loc["alone", "p_bonf"] == pytest.approx(out.loc["alone", "p"])
@@ -99,8 +146,9 @@ def test_timing_analysis_has_the_papers_degrees_of_freedom(study: dict[str, pd.D
     # The simulated study slows aggressive-and-wrong down: every comparison against it is > 0.
     assert (comp[comp.family.str.startswith("post-hoc")]["t"] > 0).all()
     hr = comp.loc["Hard&Right: aggressive - timid"]
-    w = cells[cells.task == "hard-right"].pivot_table(index="participant", columns="mode",
-                                                      values="duration_s")
+    w = cells[cells.task == "hard-right"].pivot_table(
+        index="participant", columns="mode", values="duration_s"
+    )
     assert hr["mean_diff"] == pytest.approx((w["aggressive"] - w["timid"]).mean())
     eff = t.main_effects.set_index("factor")
     hard = cells[cells.difficulty == "hard"]["duration_s"].mean()
@@ -110,8 +158,9 @@ def test_timing_analysis_has_the_papers_degrees_of_freedom(study: dict[str, pd.D
 
 def test_timing_drops_incomplete_participants_with_a_note(study: dict[str, pd.DataFrame]) -> None:
     trials = study["trials"].copy()
-    gone = (trials.participant == "P03") & (trials.task == "easy-wrong") & \
-        (trials["mode"] == "timid")
+    gone = (
+        (trials.participant == "P03") & (trials.task == "easy-wrong") & (trials["mode"] == "timid")
+    )
     trials.loc[gone, "status"] = "interrupted"
     cells, notes = task_cells(from_frames(trials).trials)
     assert any("interrupted" in n for n in notes)
@@ -134,10 +183,15 @@ def test_preference_correlations_are_r30(study: dict[str, pd.DataFrame]) -> None
     table, frame = preference_correlations(cells)
     assert len(frame) == 32 and set(table["df"]) == {30}
     first = table.iloc[0]
-    assert first["r"] == pytest.approx(stats.pearsonr(frame["preference_aggressive"],
-                                                      frame["time_advantage_aggressive"])[0])
-    assert set(table["measure"]) == {"preference_aggressive", "helpful_diff", "matched_diff",
-                                     "teammate_diff"}
+    assert first["r"] == pytest.approx(
+        stats.pearsonr(frame["preference_aggressive"], frame["time_advantage_aggressive"])[0]
+    )
+    assert set(table["measure"]) == {
+        "preference_aggressive",
+        "helpful_diff",
+        "matched_diff",
+        "teammate_diff",
+    }
     with pytest.raises(SchemaError, match="preference_aggressive"):
         preference_correlations(cells.drop(columns="preference_aggressive"))
 
@@ -168,15 +222,20 @@ def test_missing_trial_columns_are_named(study: dict[str, pd.DataFrame]) -> None
     with pytest.raises(SchemaError, match="'duration_s'"):
         from_frames(study["trials"].drop(columns="duration_s"))
     with pytest.raises(DesignError):
-        timing_analysis(task_cells(from_frames(study["trials"][
-            study["trials"].participant == "P01"]).trials)[0])
+        timing_analysis(
+            task_cells(from_frames(study["trials"][study["trials"].participant == "P01"]).trials)[0]
+        )
 
 
 def test_unsuccessful_trials_are_kept_with_a_note_or_left_out(
-        study: dict[str, pd.DataFrame]) -> None:
+    study: dict[str, pd.DataFrame],
+) -> None:
     trials = study["trials"].copy()
-    bad = (trials.participant == "P02") & (trials.task == "hard-wrong") & \
-        (trials["mode"] == "aggressive")
+    bad = (
+        (trials.participant == "P02")
+        & (trials.task == "hard-wrong")
+        & (trials["mode"] == "aggressive")
+    )
     trials.loc[bad, ["success", "outcome"]] = [False, "timeout"]
     kept, notes = task_cells(from_frames(trials).trials)
     assert len(kept) == 64 and any("1 timeout" in n and "as is" in n for n in notes)

@@ -29,8 +29,14 @@ def protocol():
 def sample_row(trial_id: int, tick: int, predicted: int, probs: list[float]) -> list:
     values = {c: 0.0 for c in SAMPLE_COLUMNS}
     values.update(
-        trial_id=trial_id, tick=tick, t=tick / 100, alpha=0.25, confidence=0.5,
-        predicted=predicted, probabilities=json.dumps(probs), target_x=0.4 + tick / 1000,
+        trial_id=trial_id,
+        tick=tick,
+        t=tick / 100,
+        alpha=0.25,
+        confidence=0.5,
+        predicted=predicted,
+        probabilities=json.dumps(probs),
+        target_x=0.4 + tick / 1000,
         events=json.dumps(["grasp"] if tick == 2 else []),
     )
     values["q3"] = 0.1 * tick
@@ -40,14 +46,20 @@ def sample_row(trial_id: int, tick: int, predicted: int, probs: list[float]) -> 
 def build_store(path: Path, protocol) -> dict:
     """P01: training, one task done twice (a redo first), ratings, preference; P02 withdrew."""
     design = Design.from_protocol(protocol)
-    store = Store.open(path, protocol_id=protocol.id, protocol_hash=protocol.content_hash,
-                       protocol_version=protocol.study.version)
+    store = Store.open(
+        path,
+        protocol_id=protocol.id,
+        protocol_hash=protocol.content_hash,
+        protocol_version=protocol.study.version,
+    )
     ids: dict = {}
     with store:
         with store.transaction() as tx:
             trials = design.row_trials(0, participant="P01")
             sid = tx.enrol(
-                "P01", schedule_row=0, seed=1,
+                "P01",
+                schedule_row=0,
+                seed=1,
                 assignments=[(t.position, t.task, run_label(t.run), t.mode) for t in trials],
             )
             tx.event(sid, "P01", "consent", {"agreed": True})
@@ -56,21 +68,46 @@ def build_store(path: Path, protocol) -> dict:
         for duration in (30.0, 40.0, 50.0):
             with store.transaction() as tx:
                 tid = tx.insert_trial(
-                    session_id=sid, participant="P01", step=step, trial_number=step,
-                    phase="training", position=None, task=None, difficulty=None,
-                    correctness=None, mode="none", run=None, attempt=1, seed=step,
+                    session_id=sid,
+                    participant="P01",
+                    step=step,
+                    trial_number=step,
+                    phase="training",
+                    position=None,
+                    task=None,
+                    difficulty=None,
+                    correctness=None,
+                    mode="none",
+                    run=None,
+                    attempt=1,
+                    seed=step,
                     goal_names=list(training_scene.object_names),
                     goal_positions=[list(o.position) for o in training_scene.objects],
                     target=training_scene.target,
                 )
-                tx.end_trial(tid, status="completed", outcome="success", success=True,
-                             duration_s=duration, ticks=0)
+                tx.end_trial(
+                    tid,
+                    status="completed",
+                    outcome="success",
+                    success=True,
+                    duration_s=duration,
+                    ticks=0,
+                )
             step += 1
         with store.transaction() as tx:
             for item, value in (("helpful", 2), ("matched", 3), ("teammate", 4)):
-                tx.add_rating(session_id=sid, participant="P01", step=step, phase="training",
-                              task=None, mode="none", run=None, trial_id=None, item=item,
-                              value=value)
+                tx.add_rating(
+                    session_id=sid,
+                    participant="P01",
+                    step=step,
+                    phase="training",
+                    task=None,
+                    mode="none",
+                    run=None,
+                    trial_id=None,
+                    item=item,
+                    value=value,
+                )
         step += 1
         task = trials[0].task
         scene = protocol.scene_for(task)
@@ -80,45 +117,95 @@ def build_store(path: Path, protocol) -> dict:
             for attempt, status in enumerate(attempts, start=1):
                 with store.transaction() as tx:
                     tid = tx.insert_trial(
-                        session_id=sid, participant="P01", step=step, trial_number=step,
-                        phase="task", position=t.position, task=task,
-                        difficulty=spec.difficulty, correctness=spec.correctness, mode=t.mode,
-                        run=run_label(t.run), attempt=attempt, seed=7,
+                        session_id=sid,
+                        participant="P01",
+                        step=step,
+                        trial_number=step,
+                        phase="task",
+                        position=t.position,
+                        task=task,
+                        difficulty=spec.difficulty,
+                        correctness=spec.correctness,
+                        mode=t.mode,
+                        run=run_label(t.run),
+                        attempt=attempt,
+                        seed=7,
                         goal_names=list(scene.object_names),
                         goal_positions=[list(o.position) for o in scene.objects],
                         target=scene.target,
                     )
-                    tx.end_trial(tid, status=status, outcome="success" if status == "completed"
-                                 else "aborted", success=status == "completed",
-                                 duration_s=20.0 + 5 * t.run, ticks=3)
+                    tx.end_trial(
+                        tid,
+                        status=status,
+                        outcome="success" if status == "completed" else "aborted",
+                        success=status == "completed",
+                        duration_s=20.0 + 5 * t.run,
+                        ticks=3,
+                    )
                 store.insert_samples([sample_row(tid, k, k % 2, [0.7, 0.3]) for k in range(3)])
             run_ids.append(tid)
             with store.transaction() as tx:
                 for item, value in (("helpful", 5 + t.run), ("matched", 4), ("teammate", 3)):
-                    tx.add_rating(session_id=sid, participant="P01", step=step + 1, phase="task",
-                                  task=task, mode=t.mode, run=run_label(t.run), trial_id=tid,
-                                  item=item, value=value)
+                    tx.add_rating(
+                        session_id=sid,
+                        participant="P01",
+                        step=step + 1,
+                        phase="task",
+                        task=task,
+                        mode=t.mode,
+                        run=run_label(t.run),
+                        trial_id=tid,
+                        item=item,
+                        value=value,
+                    )
             step += 2
         with store.transaction() as tx:
-            tx.add_rating(session_id=sid, participant="P01", step=step, phase="task", task=task,
-                          mode=None, run=None, trial_id=None, item="preference", value=2)
+            tx.add_rating(
+                session_id=sid,
+                participant="P01",
+                step=step,
+                phase="task",
+                task=task,
+                mode=None,
+                run=None,
+                trial_id=None,
+                item="preference",
+                value=2,
+            )
         with store.transaction() as tx:
-            sid2 = tx.enrol("P02", schedule_row=1, seed=2, assignments=[
-                (t.position, t.task, run_label(t.run), t.mode)
-                for t in design.row_trials(1, participant="P02")
-            ])
+            sid2 = tx.enrol(
+                "P02",
+                schedule_row=1,
+                seed=2,
+                assignments=[
+                    (t.position, t.task, run_label(t.run), t.mode)
+                    for t in design.row_trials(1, participant="P02")
+                ],
+            )
             tid = tx.insert_trial(
-                session_id=sid2, participant="P02", step=1, trial_number=1, phase="training",
-                position=None, task=None, difficulty=None, correctness=None, mode="none",
-                run=None, attempt=1, seed=3, goal_names=list(training_scene.object_names),
+                session_id=sid2,
+                participant="P02",
+                step=1,
+                trial_number=1,
+                phase="training",
+                position=None,
+                task=None,
+                difficulty=None,
+                correctness=None,
+                mode="none",
+                run=None,
+                attempt=1,
+                seed=3,
+                goal_names=list(training_scene.object_names),
                 goal_positions=[list(o.position) for o in training_scene.objects],
                 target=training_scene.target,
             )
             tx.set_trial_status(tid, "interrupted", note="withdrew")
             tx.update_session(sid2, status="withdrawn")
             tx.event(sid2, "P02", "withdraw", {"reason": "felt unwell"})
-        ids.update(task=task, first_mode=trials[0].mode, second_mode=trials[1].mode,
-                   run_ids=run_ids)
+        ids.update(
+            task=task, first_mode=trials[0].mode, second_mode=trials[1].mode, run_ids=run_ids
+        )
     return ids
 
 
@@ -134,11 +221,35 @@ def test_trials_table_columns_and_covariates(store_path, protocol) -> None:
     tables = tidy_tables(path)
     assert set(tables) == {"trials", "samples", "ratings", "events"}
     trials = tables["trials"]
-    contract = ["participant", "session_id", "phase", "schedule_row", "position", "task",
-                "difficulty", "correctness", "mode", "attempt", "status", "outcome", "success",
-                "duration_s", "started_at", "goal_names", "goal_positions", "target",
-                "training_time_s", "baseline_rating", "tasks_completed", "helpful", "matched",
-                "teammate", "preference", "preference_aggressive", "trial_id"]
+    contract = [
+        "participant",
+        "session_id",
+        "phase",
+        "schedule_row",
+        "position",
+        "task",
+        "difficulty",
+        "correctness",
+        "mode",
+        "attempt",
+        "status",
+        "outcome",
+        "success",
+        "duration_s",
+        "started_at",
+        "goal_names",
+        "goal_positions",
+        "target",
+        "training_time_s",
+        "baseline_rating",
+        "tasks_completed",
+        "helpful",
+        "matched",
+        "teammate",
+        "preference",
+        "preference_aggressive",
+        "trial_id",
+    ]
     assert [c for c in trials.columns if c in contract] == contract
     p1 = trials[trials["participant"] == "P01"]
     assert len(p1) == 3 + 3  # three training runs, one redone and two completed task runs
@@ -185,8 +296,17 @@ def test_ratings_and_events_tables(store_path) -> None:
     path, _ = store_path
     tables = tidy_tables(path)
     ratings = tables["ratings"]
-    assert list(ratings.columns[:9]) == ["participant", "session_id", "phase", "task", "mode",
-                                         "run", "item", "value", "answered_at"]
+    assert list(ratings.columns[:9]) == [
+        "participant",
+        "session_id",
+        "phase",
+        "task",
+        "mode",
+        "run",
+        "item",
+        "value",
+        "answered_at",
+    ]
     assert len(ratings) == 3 + 6 + 1
     pref = ratings[ratings["item"] == "preference"]
     assert pref["run"].isna().all() and pref["mode"].isna().all()
@@ -194,7 +314,8 @@ def test_ratings_and_events_tables(store_path) -> None:
     assert list(events.columns) == ["participant", "session_id", "at", "kind", "detail"]
     assert "withdraw" in set(events["kind"])
     assert json.loads(events[events["kind"] == "withdraw"]["detail"].iloc[0]) == {
-        "reason": "felt unwell"}
+        "reason": "felt unwell"
+    }
 
 
 def test_export_without_the_protocol_infers_the_same_tables(store_path) -> None:
@@ -237,7 +358,10 @@ def test_export_cli_writes_csv_parquet_and_codebook(store_path, tmp_path) -> Non
     out = tmp_path / "export"
     proc = subprocess.run(
         [sys.executable, "-m", "study", "export", "--db", str(path), "--out", str(out)],
-        cwd=ROOT, capture_output=True, text=True, timeout=120,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout.strip().splitlines()[-1])
@@ -259,9 +383,20 @@ def test_export_cli_writes_csv_parquet_and_codebook(store_path, tmp_path) -> Non
 
 def test_export_cli_reports_a_missing_store(tmp_path) -> None:
     proc = subprocess.run(
-        [sys.executable, "-m", "study", "export", "--db", str(tmp_path / "none.sqlite"),
-         "--out", str(tmp_path / "out")],
-        cwd=ROOT, capture_output=True, text=True, timeout=120,
+        [
+            sys.executable,
+            "-m",
+            "study",
+            "export",
+            "--db",
+            str(tmp_path / "none.sqlite"),
+            "--out",
+            str(tmp_path / "out"),
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert proc.returncode == 2 and "no store at" in proc.stderr
     assert not (tmp_path / "out").exists()

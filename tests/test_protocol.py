@@ -145,7 +145,9 @@ def test_answers_are_checked_against_the_scale(paper) -> None:
     with pytest.raises(AnswerError, match="no questionnaire item 'fun'"):
         q.check_answer("fun", 4)
     assert q.check_answers("after_run", {"helpful": 5, "matched": 4, "teammate": 6}) == {
-        "helpful": 5, "matched": 4, "teammate": 6,
+        "helpful": 5,
+        "matched": 4,
+        "teammate": 6,
     }
     with pytest.raises(AnswerError, match="missing \\['teammate'\\]"):
         q.check_answers("after_run", {"helpful": 5, "matched": 4})

@@ -112,7 +112,9 @@ def test_bad_inputs_name_the_problem(
 
 
 def test_unexpected_failure_keeps_data_and_says_resume(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
     short_protocol: Path,
 ) -> None:
     import study.headless as headless

@@ -29,20 +29,45 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--csv", required=True, help="long-format CSV, one row per observation")
     parser.add_argument("--dv", required=True, help="numeric dependent variable column")
     parser.add_argument("--subject", required=True, help="subject (participant) id column")
-    parser.add_argument("--within", required=True, nargs="+", metavar="COL",
-                        help="within-subject factor columns (any number of levels)")
-    parser.add_argument("--covariates", nargs="+", default=[], metavar="COL",
-                        help="numeric covariates: switches to the factorial ANOVA with covariates")
-    parser.add_argument("--model", choices=["auto", "rm", "factorial"], default="auto",
-                        help="rm = repeated measures, factorial = OLS with covariates "
-                             "(auto: factorial when covariates are given)")
-    parser.add_argument("--ss-type", type=int, choices=[2, 3], default=3,
-                        help="sums of squares of the factorial model (default 3)")
-    parser.add_argument("--mixed", action="store_true",
-                        help="linear mixed model with a random intercept per subject instead "
-                             "(covariates allowed, Satterthwaite df; uses every row)")
-    parser.add_argument("--drop-incomplete", action="store_true",
-                        help="drop subjects lacking cells instead of stopping")
+    parser.add_argument(
+        "--within",
+        required=True,
+        nargs="+",
+        metavar="COL",
+        help="within-subject factor columns (any number of levels)",
+    )
+    parser.add_argument(
+        "--covariates",
+        nargs="+",
+        default=[],
+        metavar="COL",
+        help="numeric covariates: switches to the factorial ANOVA with covariates",
+    )
+    parser.add_argument(
+        "--model",
+        choices=["auto", "rm", "factorial"],
+        default="auto",
+        help="rm = repeated measures, factorial = OLS with covariates "
+        "(auto: factorial when covariates are given)",
+    )
+    parser.add_argument(
+        "--ss-type",
+        type=int,
+        choices=[2, 3],
+        default=3,
+        help="sums of squares of the factorial model (default 3)",
+    )
+    parser.add_argument(
+        "--mixed",
+        action="store_true",
+        help="linear mixed model with a random intercept per subject instead "
+        "(covariates allowed, Satterthwaite df; uses every row)",
+    )
+    parser.add_argument(
+        "--drop-incomplete",
+        action="store_true",
+        help="drop subjects lacking cells instead of stopping",
+    )
     parser.add_argument("--format", choices=["csv", "json"], default="csv")
 
 
@@ -52,8 +77,10 @@ def read_csv(path: str) -> pd.DataFrame:
     except FileNotFoundError:
         raise
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
-        raise SourceError(f"{path} is not a readable CSV file ({e}); pass a comma-separated "
-                          "file with a header row") from e
+        raise SourceError(
+            f"{path} is not a readable CSV file ({e}); pass a comma-separated "
+            "file with a header row"
+        ) from e
 
 
 @friendly
@@ -62,32 +89,52 @@ def main(args: argparse.Namespace) -> int:
     if args.mixed:
         if args.model != "auto":
             return fail("--mixed is its own model; leave out --model")
-        mres = mixed_anova(data, dv=args.dv, subject=args.subject, factors=args.within,
-                           covariates=args.covariates)
+        mres = mixed_anova(
+            data, dv=args.dv, subject=args.subject, factors=args.within, covariates=args.covariates
+        )
         table = mres.table
-        notes = (*mres.notes, f"linear mixed model, random intercept per subject (REML), "
-                 f"{mres.n} rows from {mres.n_subjects} subjects; subject variance "
-                 f"{mres.var_subject:.4g}, residual variance {mres.var_resid:.4g}; type III "
-                 f"Wald F on {mres.df_method} df")
+        notes = (
+            *mres.notes,
+            f"linear mixed model, random intercept per subject (REML), "
+            f"{mres.n} rows from {mres.n_subjects} subjects; subject variance "
+            f"{mres.var_subject:.4g}, residual variance {mres.var_resid:.4g}; type III "
+            f"Wald F on {mres.df_method} df",
+        )
         return _write(table, notes, args.format)
     model = args.model
     if model == "auto":
         model = "factorial" if args.covariates else "rm"
     if model == "rm" and args.covariates:
-        return fail("--covariates need --model factorial (or auto); the repeated-measures model "
-                    "has no covariates")
+        return fail(
+            "--covariates need --model factorial (or auto); the repeated-measures model "
+            "has no covariates"
+        )
     if model == "rm":
-        res = rm_anova(data, dv=args.dv, subject=args.subject, within=args.within,
-                       drop_incomplete=args.drop_incomplete)
+        res = rm_anova(
+            data,
+            dv=args.dv,
+            subject=args.subject,
+            within=args.within,
+            drop_incomplete=args.drop_incomplete,
+        )
         table, notes = res.table.drop(columns=["SS", "SS_error"]), res.notes
         notes = (*notes, f"repeated-measures ANOVA, {res.n_subjects} subjects")
     else:
-        fres = covariate_anova(data, dv=args.dv, subject=args.subject, within=args.within,
-                               covariates=args.covariates, drop_incomplete=args.drop_incomplete,
-                               ss_type=args.ss_type)
+        fres = covariate_anova(
+            data,
+            dv=args.dv,
+            subject=args.subject,
+            within=args.within,
+            covariates=args.covariates,
+            drop_incomplete=args.drop_incomplete,
+            ss_type=args.ss_type,
+        )
         table = fres.table.drop(columns=["SS"])
-        notes = (*fres.notes, f"factorial OLS ANOVA with covariates, type {fres.ss_type} SS, "
-                 f"N = {fres.n}, R^2 = {fres.r2:.3f}")
+        notes = (
+            *fres.notes,
+            f"factorial OLS ANOVA with covariates, type {fres.ss_type} SS, "
+            f"N = {fres.n}, R^2 = {fres.r2:.3f}",
+        )
     return _write(table, notes, args.format)
 
 

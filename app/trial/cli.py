@@ -45,7 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--speed", type=positive_float, default=0.15, help="scripted user speed, m/s"
     )
-    parser.add_argument("--noise", type=non_negative_float, default=0.002, help="scripted user noise, m")
+    parser.add_argument(
+        "--noise", type=non_negative_float, default=0.002, help="scripted user noise, m"
+    )
     parser.add_argument("--time-limit", type=positive_float, default=None, help="override, s")
     parser.add_argument("--save", type=Path, default=None, help="write the records (.npz)")
 

@@ -40,8 +40,21 @@ Python's TOML parser recurses once per level, so a few thousand ``[`` would end 
 ``RecursionError`` (or worse, in code that walks the parsed value); the text is scanned first."""
 _NAME = re.compile(r"^[a-z][a-z0-9_-]{0,31}$")
 _TOP_LEVEL = (
-    "schema", "study", "control", "factors", "tasks", "prediction", "confidence", "policy",
-    "modes", "training", "scenes", "consent", "debrief", "instructions", "questionnaire",
+    "schema",
+    "study",
+    "control",
+    "factors",
+    "tasks",
+    "prediction",
+    "confidence",
+    "policy",
+    "modes",
+    "training",
+    "scenes",
+    "consent",
+    "debrief",
+    "instructions",
+    "questionnaire",
 )
 
 
@@ -132,8 +145,9 @@ def _check_nesting(text: str, path: str | Path) -> None:
 
 def content_hash(raw: Mapping[str, Any]) -> str:
     """sha256 of the canonical JSON form of a parsed protocol (sorted keys, no whitespace)."""
-    canonical = json.dumps(raw, sort_keys=True, separators=(",", ":"), ensure_ascii=False,
-                           default=str)
+    canonical = json.dumps(
+        raw, sort_keys=True, separators=(",", ":"), ensure_ascii=False, default=str
+    )
     return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
 
 
@@ -228,19 +242,22 @@ class _Loader:
             version=t.string("version"),
             description=t.string("description", "", nonempty=False),
             participants=t.integer("participants", None, minimum=1, maximum=100_000)
-            if "participants" in t else None,
+            if "participants" in t
+            else None,
         )
         return info
 
-    def _check_sample_size(self, study: StudyInfo, tasks: tuple[Task, ...],
-                           modes: tuple[Mode, ...]) -> None:
+    def _check_sample_size(
+        self, study: StudyInfo, tasks: tuple[Task, ...], modes: tuple[Mode, ...]
+    ) -> None:
         from study.schedule import Design
 
         cycle = Design(tasks=tuple(t.name for t in tasks), modes=tuple(m.name for m in modes))
         n = study.participants
         if n is not None and n % cycle.cycle:
             raise self.error(
-                ProtocolValueError, "study.participants",
+                ProtocolValueError,
+                "study.participants",
                 f"{n} participants do not fill whole balanced cycles of {cycle.cycle} (task"
                 f" orders x mode orders); use a multiple of {cycle.cycle}",
             )
@@ -274,7 +291,8 @@ class _Loader:
         for i, level in enumerate(levels):
             if not _NAME.match(level):
                 raise self.error(
-                    ProtocolValueError, join_key(t.where(key), i),
+                    ProtocolValueError,
+                    join_key(t.where(key), i),
                     f"{level!r} must be lower-case letters, digits, '_' or '-'",
                 )
         return levels
@@ -301,7 +319,8 @@ class _Loader:
         name = t.string(key)
         if name not in scenes:
             raise self.error(
-                UndefinedReferenceError, t.where(key),
+                UndefinedReferenceError,
+                t.where(key),
                 f"scene {name!r} is not defined; defined scenes: {', '.join(scenes)}",
             )
         return name
@@ -310,14 +329,19 @@ class _Loader:
         value = t.string(key)
         if value not in levels:
             raise self.error(
-                UndefinedReferenceError, t.where(key),
+                UndefinedReferenceError,
+                t.where(key),
                 f"{value!r} is not a level of factors.{key} ({', '.join(levels)})",
             )
         return value
 
     def _tasks(
-        self, t: Table, difficulty: tuple[str, ...], correctness: tuple[str, ...],
-        scenes: Mapping[str, Any], control: Control,
+        self,
+        t: Table,
+        difficulty: tuple[str, ...],
+        correctness: tuple[str, ...],
+        scenes: Mapping[str, Any],
+        control: Control,
     ) -> tuple[Task, ...]:
         tasks: list[Task] = []
         cells: dict[tuple[str, str], str] = {}
@@ -338,7 +362,8 @@ class _Loader:
             cell = (task.difficulty, task.correctness)
             if cell in cells:
                 raise t.value_error(
-                    name, f"same difficulty and correctness as task {cells[cell]!r}; each"
+                    name,
+                    f"same difficulty and correctness as task {cells[cell]!r}; each"
                     " combination is one task",
                 )
             cells[cell] = name
@@ -347,7 +372,8 @@ class _Loader:
             for c in correctness:
                 if (d, c) not in cells:
                     raise self.error(
-                        UndefinedReferenceError, t.where(),
+                        UndefinedReferenceError,
+                        t.where(),
                         f"no task has difficulty = {d!r} and correctness = {c!r}; the design"
                         " crosses every difficulty with every correctness level",
                     )
@@ -358,7 +384,8 @@ class _Loader:
         for level in correctness:
             if level not in t:
                 raise self.error(
-                    UndefinedReferenceError, t.where(level),
+                    UndefinedReferenceError,
+                    t.where(level),
                     f"missing: correctness level {level!r} needs a [prediction.{level}] table"
                     + _misspelt(t, level, correctness),
                 )
@@ -371,7 +398,8 @@ class _Loader:
         for level in levels:
             if level not in t:
                 raise self.error(
-                    UndefinedReferenceError, t.where(level),
+                    UndefinedReferenceError,
+                    t.where(level),
                     f"missing: mode {level!r} (factors.mode) needs a [modes.{level}] table"
                     + _misspelt(t, level, levels),
                 )
@@ -385,7 +413,8 @@ class _Loader:
             modes.append(
                 Mode(
                     name=level,
-                    arbitration=None if arbitration["kind"] == "none"
+                    arbitration=None
+                    if arbitration["kind"] == "none"
                     else MappingProxyType(arbitration),
                     confidence=None if confidence is None else MappingProxyType(confidence),
                 )
@@ -394,9 +423,15 @@ class _Loader:
         return tuple(modes)
 
     def _build_checks(
-        self, tasks: tuple[Task, ...], scenes: Mapping[str, Any], prediction: Mapping[str, Any],
-        confidence: Mapping[str, Any], policy: Mapping[str, Any], modes: tuple[Mode, ...],
-        training: Training, control: Control,
+        self,
+        tasks: tuple[Task, ...],
+        scenes: Mapping[str, Any],
+        prediction: Mapping[str, Any],
+        confidence: Mapping[str, Any],
+        policy: Mapping[str, Any],
+        modes: tuple[Mode, ...],
+        training: Training,
+        control: Control,
     ) -> None:
         """Build every blending table once with app.blending, in the scenes it will run in."""
         file = str(self.path)
@@ -405,7 +440,11 @@ class _Loader:
         for where, cfg, scene_name in runs:
             scene = scenes[scene_name]
             build_check(
-                "prediction", cfg, where=where, file=file, goals=len(scene.objects),
+                "prediction",
+                cfg,
+                where=where,
+                file=file,
+                goals=len(scene.objects),
                 target=scene.target_index,
             )
         build_check("confidence", confidence, where="confidence", file=file)
@@ -423,7 +462,8 @@ class _Loader:
     def _training(self, t: Table, scenes: Mapping[str, Any], control: Control) -> Training:
         t.only("runs", "scene", "time_limit_s", "prediction")
         prediction = (
-            component(t.table("prediction"), "prediction") if "prediction" in t
+            component(t.table("prediction"), "prediction")
+            if "prediction" in t
             else {"kind": "oracle"}
         )
         training = Training(
