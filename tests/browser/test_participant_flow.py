@@ -218,6 +218,7 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     events = [e for evs in samples.events for e in json.loads(evs)]
     assert "grasp_requested" in events
     _answer_all(page, 3, 5)
+    assert wait_until(lambda: len(study.store.ratings()) == 3)  # Continue's write lands
     ratings = study.store.ratings()
     assert sorted(r.item for r in ratings) == ["helpful", "matched", "teammate"]
     assert {r.value for r in ratings} == {5} and {r.phase for r in ratings} == {"training"}
@@ -285,6 +286,7 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     assert "first run" in body and "second run" in body
     _shot(page, screenshots, "08-preference")
     _answer_all(page, 1, 2)
+    assert wait_until(lambda: any(r.item == "preference" for r in study.store.ratings()))
     prefs = [r for r in study.store.ratings() if r.item == "preference"]
     assert [p.value for p in prefs] == [2]
 
