@@ -5,7 +5,9 @@ Subpackages:
     app.robot     the arm (MuJoCo physics + pinocchio kinematics) and its scenes
     app.teleop    input devices -> the user's next configuration U, interface reach
     app.trial     one trial: input -> blending -> robot, headless or paced
-    app.ui        viser views: participant and experimenter
+
+``app`` imports nothing from ``study`` or ``analysis``: the study server, protocols and the
+store live in ``study``.
 """
 
 __version__ = "0.1.0"

@@ -1,16 +1,28 @@
-"""``python -m app COMMAND``: run the study server, a headless trial, or render a trial video."""
+"""``python -m app``: no commands any more; they moved to ``python -m study``.
+
+``app`` is the simulated arm with blending and never reads a protocol or a store, so the study
+server (``serve``), one headless trial (``trial``) and trial videos (``render``) now live with
+the study: ``python -m study serve|trial|render`` take the same options as before.
+"""
 
 from __future__ import annotations
 
 import sys
 
-from app.cli import dispatch
+MOVED = {"serve": "serve", "trial": "trial", "render": "render"}
 
-COMMANDS = {
-    "serve": ("app.ui.serve", "Start the study server (participant + experimenter views)."),
-    "trial": ("app.trial.cli", "Run one headless trial and print its outcome as JSON."),
-    "render": ("app.trial.render_cli", "Render a trial to MP4 (live or replayed from the store)."),
-}
+
+def main(argv: list[str]) -> int:
+    command = next((a for a in argv if not a.startswith("-")), None)
+    rest = " ".join(argv[1:]) if command else ""
+    target = MOVED.get(command or "", "COMMAND")
+    print(
+        f"error: `python -m app {command or ''}` moved: run `python -m study {target}"
+        f"{' ' + rest if rest else ''}` (see `python -m study --help`)",
+        file=sys.stderr,
+    )
+    return 2
+
 
 if __name__ == "__main__":
-    sys.exit(dispatch("python -m app", __doc__ or "", COMMANDS, None))
+    sys.exit(main(sys.argv[1:]))

@@ -1,4 +1,4 @@
-"""Subcommand dispatch shared by ``python -m app``, ``python -m study`` and ``python -m analysis``.
+"""Subcommand dispatch shared by ``python -m study`` and ``python -m analysis``.
 
 Each subcommand lives in its own module exposing ``add_arguments(parser)`` and
 ``main(args) -> int``; modules are imported only when their command runs, so ``--help`` stays

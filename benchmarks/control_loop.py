@@ -35,7 +35,7 @@ sys.path.insert(0, str(ROOT))
 from app.robot.scene import build_scene  # noqa: E402
 from app.teleop import ScriptedInput  # noqa: E402
 from app.trial import Trial, run_trial  # noqa: E402
-from app.trial.cli import trial_config_from_protocol  # noqa: E402
+from study.protocol import trial_config_from_protocol  # noqa: E402
 
 PROTOCOL = ROOT / "protocols" / "dragan2013.toml"
 TASKS = ("easy-right", "easy-wrong", "hard-right", "hard-wrong")

@@ -1,4 +1,5 @@
-"""``python -m study COMMAND``: schedules, headless sessions, simulation, sweeps and export."""
+"""``python -m study COMMAND``: the study server, trials and videos, schedules, headless sessions,
+simulation, sweeps and export."""
 
 from __future__ import annotations
 
@@ -7,6 +8,9 @@ import sys
 from app.cli import dispatch
 
 COMMANDS = {
+    "serve": ("study.cli.serve", "Start the study server (participant + experimenter views)."),
+    "trial": ("study.cli.trial", "Run one headless trial and print its outcome as JSON."),
+    "render": ("study.cli.render", "Render a trial to MP4 (live or replayed from the store)."),
     "schedule": ("study.cli.schedule", "Print the counterbalanced trial schedule."),
     "run": ("study.cli.run", "Run one whole session headless with a scripted participant."),
     "simulate": ("study.cli.simulate", "Run simulated participants through the whole study."),

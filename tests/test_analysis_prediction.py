@@ -146,7 +146,7 @@ def test_replay_moves_goals_where_the_robot_moved_them(protocol_path: Path) -> N
 
     from app.teleop import GizmoInput
     from app.trial import Trial
-    from app.trial.cli import trial_config_from_protocol
+    from study.protocol import trial_config_from_protocol
 
     cfg = trial_config_from_protocol(protocol_path, "easy-wrong", "timid")
     gizmo = GizmoInput()

@@ -15,16 +15,16 @@ from pathlib import Path
 import pytest
 
 from app.cli import non_negative_float, port, rate_hz
-from app.ui import serve
+from study.cli import serve
 from study.protocol import ProtocolSyntaxError, load_protocol, parse_protocol
 from study.protocol.loader import MAX_NESTING, nesting_depth
 
 ROOT = Path(__file__).resolve().parents[1]
-APP = (sys.executable, "-m", "app")
+STUDY = (sys.executable, "-m", "study")
 
 
 def serve_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m app serve")
+    parser = argparse.ArgumentParser(prog="python -m study serve")
     serve.add_arguments(parser)
     return parser
 
@@ -66,7 +66,7 @@ def test_serve_accepts_the_edges() -> None:
 def test_serve_refuses_one_port_for_both_views(tmp_path: Path) -> None:
     """Checked before anything is opened: no store file appears."""
     proc = subprocess.run(
-        [*APP, "serve", "--port", "8123", "--experimenter-port", "8123", "--db", str(tmp_path)],
+        [*STUDY, "serve", "--port", "8123", "--experimenter-port", "8123", "--db", str(tmp_path)],
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -81,7 +81,7 @@ def test_serve_refuses_one_port_for_both_views(tmp_path: Path) -> None:
 def test_serve_port_error_end_to_end() -> None:
     """The real command line: one line of usage error, no traceback."""
     proc = subprocess.run(
-        [*APP, "serve", "--port", "99999"],
+        [*STUDY, "serve", "--port", "99999"],
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -108,7 +108,7 @@ def test_argument_types() -> None:
 
 
 def test_trial_noise_must_be_finite_and_non_negative(capsys: pytest.CaptureFixture[str]) -> None:
-    from app.trial import cli as trial_cli
+    from study.cli import trial as trial_cli
 
     parser = argparse.ArgumentParser()
     trial_cli.add_arguments(parser)
@@ -148,3 +148,17 @@ def test_nesting_at_the_limit_reaches_the_validator() -> None:
         parse_protocol("x = " + "[" * MAX_NESTING + "]" * MAX_NESTING)
     with pytest.raises(ProtocolSyntaxError, match="nested more than"):
         parse_protocol("x = " + "[" * (MAX_NESTING + 1) + "]" * (MAX_NESTING + 1))
+
+
+def test_the_old_app_commands_say_where_they_moved() -> None:
+    """``python -m app serve ...`` (the README's command before the re-layout) names its new
+    home with the same options instead of failing with argparse's usage text."""
+    done = subprocess.run(
+        [sys.executable, "-m", "app", "serve", "--db", "data/x.db"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=60,
+    )
+    assert done.returncode == 2
+    assert "run `python -m study serve --db data/x.db`" in done.stderr

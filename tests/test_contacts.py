@@ -10,8 +10,8 @@ import pytest
 from app.robot.scene_spec import SceneSpec
 from app.teleop import TeleopCommand, TrialObservation
 from app.trial import OUTCOMES, Trial, run_trial
-from app.trial.cli import trial_config_from_protocol
 from app.trial.contacts import ContactLog
+from study.protocol import trial_config_from_protocol
 
 
 class Sweep:

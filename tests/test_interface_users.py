@@ -13,7 +13,7 @@ import pytest
 from analysis.decoy_share import decoy_shares
 from app.teleop.keyboard import KEY_SPEED_M_S, KEYMAP, TAP_S
 from app.trial import Trial
-from app.trial.cli import trial_config_from_protocol
+from study.protocol import trial_config_from_protocol
 from study.simulated import load_population
 from study.simulated.interface import InterfaceUser, choose_handle, view_direction
 from study.simulated.population import DEFAULT_POPULATION_PATH, Population

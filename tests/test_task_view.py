@@ -33,8 +33,8 @@ from app.robot.task_view import (
     view_at,
     visible_fractions,
 )
-from app.ui.scene import task_center
 from study.protocol.loader import load_protocol
+from study.server.scene import task_center
 
 ROOT = Path(__file__).resolve().parents[1]
 HEIGHT = 360
@@ -57,7 +57,7 @@ def _scene(protocol: str, name: str) -> Scene:
 
 
 def _todays_view(scene: Scene) -> TaskView:
-    """``app.ui.live`` today: ``frame_task`` defaults around ``task_center``, viser's fov."""
+    """``study.server.live`` today: ``frame_task`` defaults around ``task_center``, viser's fov."""
     centre, distance = task_center(
         np.vstack([scene.start_ee, np.asarray(scene.goals.positions, float)])
     )

@@ -14,10 +14,10 @@ import pytest
 
 from app.blending import parse_goal_moved
 from app.robot.scene import build_scene
-from app.teleop import GizmoInput, ScriptedInput, TeleopCommand, TrialObservation
+from app.teleop import GizmoInput, IdleInput, ScriptedInput, TeleopCommand, TrialObservation
 from app.trial import OUTCOMES, Trial, run_trial
-from app.trial.cli import IdleInput, trial_config_from_protocol
 from app.trial.records import load_records, save_records
+from study.protocol import trial_config_from_protocol
 
 
 @pytest.fixture(scope="module")
@@ -235,7 +235,7 @@ def test_records_round_trip(config, tmp_path) -> None:
 def test_cli_prints_one_json_line(repo_root) -> None:
     def cli(*args: str) -> subprocess.CompletedProcess[str]:
         return subprocess.run(
-            [sys.executable, "-m", "app", "trial", *args],
+            [sys.executable, "-m", "study", "trial", *args],
             cwd=repo_root,
             capture_output=True,
             text=True,

@@ -7,8 +7,8 @@ import asyncio
 import viser
 import websockets
 
-from app.ui import blinding
-from app.ui.blinding import BlindingGuard, BlindingViolation, check_text, find_condition_words
+from study.server import blinding
+from study.server.blinding import BlindingGuard, BlindingViolation, check_text, find_condition_words
 from tests.browser.harness import decode_frame, iter_strings, run_async
 
 

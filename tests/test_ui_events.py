@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from app.ui.live import LiveSession
 from study.protocol import Protocol, load_protocol
+from study.server.live import LiveSession
 from study.session import Session, open_store
 from study.store import Store
 

@@ -8,7 +8,7 @@ import msgspec
 import viser
 from viser.infra import _infra
 
-from app.ui.firewall import MAX_MESSAGE_BYTES, Firewall
+from study.server.firewall import MAX_MESSAGE_BYTES, Firewall
 
 
 def _raw(kind: str, **fields: object) -> bytes:

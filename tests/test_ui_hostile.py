@@ -23,8 +23,8 @@ import pytest
 import viser
 import websockets
 
-from app.ui.join import ALPHABET, CODE_LENGTH
-from app.ui.server import JOIN_FAILED, JOIN_THROTTLED
+from study.server.join import ALPHABET, CODE_LENGTH
+from study.server.server import JOIN_FAILED, JOIN_THROTTLED
 from tests import disk_full
 from tests.browser.harness import RunningServer, run_async, start_server, wait_until
 from tests.test_ui_malformed import AGREE, RawClient

@@ -7,8 +7,8 @@ import pytest
 
 from app.teleop import ReachRegion, TrialObservation
 from app.teleop.errors import InvalidTargetError
-from app.ui.inputs import InputFrozen, ParticipantInput
-from app.ui.participant import (
+from study.server.inputs import InputFrozen, ParticipantInput
+from study.server.participant import (
     InputRejected,
     LikertItem,
     parse_answer,

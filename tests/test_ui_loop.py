@@ -6,7 +6,7 @@ import time
 
 import pytest
 
-from app.ui.loop import LoopError, PacedLoop
+from study.server.loop import LoopError, PacedLoop
 
 
 def wait_until_stopped(loop: PacedLoop, timeout_s: float = 5.0) -> None:

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from app.ui.blinding import find_condition_words
-from app.ui.join import ALPHABET, CODE_LENGTH, JoinThrottle, new_join_code, normalize_code
-from app.ui.participant import DECLINE
+from study.server.blinding import find_condition_words
+from study.server.join import ALPHABET, CODE_LENGTH, JoinThrottle, new_join_code, normalize_code
+from study.server.participant import DECLINE
 from tests.browser.harness import iter_strings, run_async, start_server, wait_until
 from tests.protocol_copies import PAPER_PROTOCOL
 from tests.test_ui_malformed import AGREE, RawClient
@@ -124,7 +124,7 @@ def test_serve_command_prints_both_urls_and_stops_cleanly(tmp_path: Path) -> Non
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
     proc = subprocess.Popen(
         [
-            sys.executable, "-m", "app", "serve",
+            sys.executable, "-m", "study", "serve",
             "--protocol", str(PAPER_PROTOCOL),
             "--db", str(tmp_path / "study.db"),
             "--port", "0", "--experimenter-port", "0",
@@ -159,7 +159,7 @@ def test_serve_refuses_a_port_in_use_instead_of_moving(tmp_path: Path) -> None:
         port = busy.getsockname()[1]
         proc = subprocess.run(
             [
-                sys.executable, "-m", "app", "serve",
+                sys.executable, "-m", "study", "serve",
                 "--protocol", str(PAPER_PROTOCOL),
                 "--db", str(tmp_path / "study.db"),
                 "--port", str(port), "--experimenter-port", "0",

@@ -14,9 +14,9 @@ import pytest
 from app.robot.scene import build_scene
 from app.teleop import ScriptedInput
 from app.trial import run_trial
-from app.trial.cli import trial_config_from_protocol
 from app.trial.records import save_records
 from app.trial.video import render_live, replay
+from study.protocol import trial_config_from_protocol
 
 
 def frame_count(path) -> int:
@@ -73,7 +73,7 @@ def test_render_cli_replays_saved_records(config, repo_root, tmp_path) -> None:
     records = save_records(result, tmp_path / "run.npz")
     out = tmp_path / "cli.mp4"
     proc = subprocess.run(
-        [sys.executable, "-m", "app", "render", "--task", "easy-right", "--replay", str(records),
+        [sys.executable, "-m", "study", "render", "--task", "easy-right", "--replay", str(records),
          "--out", str(out), "--fps", "5", "--width", "96", "--height", "72"],
         cwd=repo_root, capture_output=True, text=True, timeout=120,
     )  # fmt: skip
@@ -82,7 +82,7 @@ def test_render_cli_replays_saved_records(config, repo_root, tmp_path) -> None:
     assert summary["frames"] == frame_count(out) > 0
     for bad in (["--fps", "0"], ["--width", "-5"], ["--trial-id", "x"]):
         proc = subprocess.run(
-            [sys.executable, "-m", "app", "render", *bad, "--out", str(tmp_path / "bad.mp4")],
+            [sys.executable, "-m", "study", "render", *bad, "--out", str(tmp_path / "bad.mp4")],
             cwd=repo_root, capture_output=True, text=True, timeout=120,
         )  # fmt: skip
         assert proc.returncode == 2 and bad[0] in proc.stderr and "Traceback" not in proc.stderr
@@ -124,7 +124,7 @@ def test_render_cli_replays_a_trial_from_a_study_store(repo_root, tmp_path) -> N
     trial = next(t for t in store.trials() if t.phase == "task" and t.success)
     out = tmp_path / "store.mp4"
     proc = subprocess.run(
-        [sys.executable, "-m", "app", "render", "--store", str(db), "--trial-id",
+        [sys.executable, "-m", "study", "render", "--store", str(db), "--trial-id",
          str(trial.trial_id), "--out", str(out), "--fps", "5", "--width", "96", "--height", "72"],
         cwd=repo_root, capture_output=True, text=True, timeout=120,
     )  # fmt: skip

@@ -2,7 +2,7 @@
 
 ``ReachRegion`` clamps targets to what the interface can point at; ``IKStep`` turns a target
 into the next configuration ``U`` with a velocity limit; input sources (``GizmoInput``,
-``KeyboardInput``, ``ScriptedInput``) implement ``InputSource.command(obs) -> TeleopCommand``.
+``KeyboardInput``, ``ScriptedInput``, ``IdleInput``) implement ``InputSource.command(obs) -> TeleopCommand``.
 """
 
 from app.teleop.errors import InvalidTargetError, TeleopError
@@ -10,7 +10,7 @@ from app.teleop.gizmo import GizmoInput
 from app.teleop.ik_step import IKStep
 from app.teleop.keyboard import GRASP_KEYS, KEYMAP, KeyboardInput
 from app.teleop.reach import ReachRegion
-from app.teleop.scripted import ScriptedInput
+from app.teleop.scripted import IdleInput, ScriptedInput
 from app.teleop.types import InputSource, TeleopCommand, TrialObservation
 
 __all__ = [
@@ -18,6 +18,7 @@ __all__ = [
     "KEYMAP",
     "GizmoInput",
     "IKStep",
+    "IdleInput",
     "InputSource",
     "InvalidTargetError",
     "KeyboardInput",

@@ -115,3 +115,10 @@ class ScriptedInput:
             return t - ref[0] >= self.stall_s
         self._stall_ref = (t, ee)
         return False
+
+
+class IdleInput:
+    """A user who never moves: the target stays where the gripper started."""
+
+    def command(self, obs: TrialObservation) -> TeleopCommand:
+        return TeleopCommand(obs.user_target, False)

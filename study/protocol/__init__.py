@@ -21,7 +21,12 @@ from study.protocol.errors import (
     UndefinedReferenceError,
     UnknownKeyError,
 )
-from study.protocol.loader import content_hash, load_protocol, parse_protocol
+from study.protocol.loader import (
+    content_hash,
+    load_protocol,
+    parse_protocol,
+    trial_config_from_protocol,
+)
 from study.protocol.model import Control, Mode, StudyInfo, Task, Texts, Training
 from study.protocol.protocol import TRAINING_MODE, Protocol
 from study.protocol.questionnaire import PHASES, LikertItem, Questionnaire, Scale
@@ -56,4 +61,5 @@ __all__ = [
     "load_protocol",
     "parse_protocol",
     "protocol_from_store",
+    "trial_config_from_protocol",
 ]

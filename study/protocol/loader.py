@@ -20,6 +20,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from app.trial.config import TrialConfig
 from study.protocol.components import build_check, component
 from study.protocol.errors import (
     ProtocolError,
@@ -483,3 +484,11 @@ def _misspelt(t: Table, level: str, levels: tuple[str, ...]) -> str:
     spare = [str(k) for k in t.data if k not in levels]
     close = difflib.get_close_matches(level, spare, n=1, cutoff=0.6)
     return f"; is [{t.key}.{close[0]}] a misspelling of it?" if close else ""
+
+
+def trial_config_from_protocol(
+    path: str | Path, task: str, mode: str, *, time_limit_s: float | None = None
+) -> TrialConfig:
+    """The configuration of ``task`` in ``mode`` of the protocol at ``path``
+    (:meth:`Protocol.config_for`: ``mode="none"`` unassisted, ``task="training"``)."""
+    return load_protocol(path).config_for(task, mode, time_limit_s=time_limit_s)

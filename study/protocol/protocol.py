@@ -8,6 +8,7 @@ comes from :meth:`Protocol.describe_trial`, :meth:`Protocol.describe_training` a
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -154,6 +155,23 @@ class Protocol:
             mode=m.name,
             extra=self._extra(difficulty=t.difficulty, correctness=t.correctness, phase="task"),
         )
+
+    def config_for(
+        self, task: str, mode: str, *, time_limit_s: float | None = None
+    ) -> TrialConfig:
+        """Like :meth:`trial_config`, plus ``mode="none"`` (unassisted, alpha = 0),
+        ``task="training"`` (the training run) and an optional time-limit override."""
+        if task == "training":
+            config = self.training_config()
+        elif mode == "none":
+            config = dataclasses.replace(
+                self.trial_config(task, self.mode_names[0]), arbitration=None, mode="none"
+            )
+        else:
+            config = self.trial_config(task, mode)
+        if time_limit_s is not None:
+            config = dataclasses.replace(config, time_limit_s=time_limit_s)
+        return config
 
     def training_config(self) -> TrialConfig:
         """The unassisted training run (arbitration ``None``, mode ``"none"``)."""

@@ -3,7 +3,7 @@
 :class:`InterfaceUser` is the ``InputSource`` of one simulated trial. Each tick its
 :class:`~study.simulated.user_model.SimulatedUser` (``goal_level``) says where the participant
 wants the handle (``intent``) and whether they want the gripper closed; a hand turns that into
-what a person does on the page, through the same :class:`app.ui.inputs.ParticipantInput` the
+what a person does on the page, through the same :class:`study.server.inputs.ParticipantInput` the
 browser drives (``set_target``, ``key_down``, ``key_up``, ``request_grasp``):
 
 - :class:`GizmoHand` grabs one handle at a time -- the table plane, or one axis -- as seen from
@@ -29,7 +29,7 @@ import math
 import numpy as np
 
 from app.teleop.types import TeleopCommand, TrialObservation
-from app.ui.inputs import ParticipantInput
+from study.server.inputs import ParticipantInput
 from study.simulated.experience import RunExperience
 from study.simulated.movement import HandNoise, fitts_time, minimum_jerk
 from study.simulated.population import InterfaceParams, ParticipantParams
@@ -40,7 +40,7 @@ AXIS_KEYS = (("s", "w"), ("d", "a"), ("f", "r"))
 
 
 def view_direction(p: InterfaceParams) -> np.ndarray:
-    """Unit vector from the page's camera toward the task (``app.ui.scene.frame_task`` puts
+    """Unit vector from the page's camera toward the task (``study.server.scene.frame_task`` puts
     the camera at ``look_at + r (cos el cos az, cos el sin az, sin el)``)."""
     az, el = math.radians(p.view_azimuth_deg), math.radians(p.view_elevation_deg)
     return -np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])

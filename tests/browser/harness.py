@@ -192,9 +192,9 @@ def start_server(
     to the ``StudyServer``, e.g. ``kiosk=True``)."""
     from pathlib import Path
 
-    from app.ui.live import session_factory
-    from app.ui.server import StudyServer
     from study.protocol import load_protocol
+    from study.server.live import session_factory
+    from study.server.server import StudyServer
     from study.session import open_store
 
     protocol = load_protocol(short_protocol(directory, **protocol_kw))

@@ -22,7 +22,7 @@ import pytest
 from PIL import Image
 from playwright.sync_api import expect
 
-from app.ui.blinding import CONDITION_WORDS
+from study.server.blinding import CONDITION_WORDS
 from tests.browser.harness import (
     FrameLog,
     RunningServer,

@@ -1,4 +1,4 @@
-"""``python -m app serve``: start the study server (participant view on the LAN, experimenter
+"""``python -m study serve``: start the study server (participant view on the LAN, experimenter
 view on 127.0.0.1) and print both URLs. Stop with Ctrl-C; running trials are then marked
 interrupted and every session can be continued by enrolling the same participant ID again."""
 
@@ -65,9 +65,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from app.ui.live import session_factory
-    from app.ui.server import StudyServer
     from study.protocol import load_protocol
+    from study.server.live import session_factory
+    from study.server.server import StudyServer
     from study.session import open_store
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")

@@ -50,7 +50,7 @@ from viser import _messages as vm
 from websockets.datastructures import Headers
 from websockets.http11 import Response
 
-LOGGER = logging.getLogger("app.ui.firewall")
+LOGGER = logging.getLogger("study.server.firewall")
 
 PARTICIPANT_TYPES: frozenset[str] = frozenset(
     {

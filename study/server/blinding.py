@@ -32,7 +32,7 @@ import viser
 from viser.infra._async_message_buffer import AsyncMessageBuffer
 from viser.infra._messages import Message as _WireMessage
 
-LOGGER = logging.getLogger("app.ui.blinding")
+LOGGER = logging.getLogger("study.server.blinding")
 
 CONDITION_WORDS: tuple[str, ...] = ("timid", "aggressive", "right", "wrong", "easy", "hard")
 """Words that name a study condition (factor levels and modes); never sent to a participant."""

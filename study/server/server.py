@@ -1,7 +1,7 @@
 """The study server: two viser servers in one process and the registry of live sessions.
 
 * Participant view: a ``ViserServer`` on the LAN (``0.0.0.0``), guarded outbound by the
-  blinding guard and inbound by a :class:`~app.ui.firewall.Firewall` (an allow-list of message
+  blinding guard and inbound by a :class:`~study.server.firewall.Firewall` (an allow-list of message
   types, bounded values and sizes, no share links). A tab that connects types the join code
   the experimenter's console shows (guesses are throttled per tab and per address, and every
   failed code gets the same reply); only on a kiosk (``kiosk=True``, one machine, one
@@ -23,15 +23,15 @@ import time
 
 import viser
 
-from app.ui import blinding, firewall
-from app.ui.experimenter import ACTIONS, ExperimenterConsole, SessionDetail, SessionSummary
-from app.ui.firewall import LOOPBACK_NAMES
-from app.ui.join import JoinThrottle, new_join_code, normalize_code
-from app.ui.live import LiveSession, SessionFactory
-from app.ui.participant import ParticipantPage
-from app.ui.scene import frame_task
+from study.server import blinding, firewall
+from study.server.experimenter import ACTIONS, ExperimenterConsole, SessionDetail, SessionSummary
+from study.server.firewall import LOOPBACK_NAMES
+from study.server.join import JoinThrottle, new_join_code, normalize_code
+from study.server.live import LiveSession, SessionFactory
+from study.server.participant import ParticipantPage
+from study.server.scene import frame_task
 
-LOGGER = logging.getLogger("app.ui.server")
+LOGGER = logging.getLogger("study.server.server")
 
 PAGE_TITLE = "Robot arm study"
 

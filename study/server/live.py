@@ -6,7 +6,7 @@ connects it to the browser and to time:
 * it renders the session's blind ``Screen`` on the bound participant tab whenever the session
   changes (a listener wakes a page thread), and turns clicks into session calls (agree, start
   trial, answers, finish); bad input is rejected with a message, never raised into viser;
-* while a trial runs, a :class:`~app.ui.loop.PacedLoop` ticks the session's ``TrialRun`` at
+* while a trial runs, a :class:`~study.server.loop.PacedLoop` ticks the session's ``TrialRun`` at
   the protocol's control rate in its own thread, and a second loop sends the scene to the
   tab at up to ``render_hz`` from snapshots of the simulation taken after each tick;
 * a lost tab pauses the running trial (a ``pause`` event, the paused time excluded from the
@@ -36,13 +36,13 @@ import numpy as np
 
 from app.teleop.errors import TeleopError
 from app.teleop.keyboard import KEYMAP
-from app.ui.experimenter import SessionDetail, SessionSummary
-from app.ui.inputs import InputFrozen, ParticipantInput
-from app.ui.loop import PacedLoop
-from app.ui.participant import LikertItem, ParticipantPage
-from app.ui.scene import SceneView, frame_scene
+from study.server.experimenter import SessionDetail, SessionSummary
+from study.server.inputs import InputFrozen, ParticipantInput
+from study.server.loop import PacedLoop
+from study.server.participant import LikertItem, ParticipantPage
+from study.server.scene import SceneView, frame_scene
 
-LOGGER = logging.getLogger("app.ui.live")
+LOGGER = logging.getLogger("study.server.live")
 
 PLOT_WINDOW = 1500
 """Ticks kept for the console's live plots (15 s at 100 Hz)."""

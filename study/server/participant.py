@@ -2,13 +2,13 @@
 
 The page only shows and asks; it decides nothing. The server's session controller calls
 ``show_*`` to change the screen and receives answers through the callbacks it passes. Every
-string shown goes through :func:`app.ui.blinding.check_text` first (a condition word raises),
+string shown goes through :func:`study.server.blinding.check_text` first (a condition word raises),
 and the blinding guard checks every message again on the wire. Callbacks of a screen that is
 no longer shown are ignored, so a late click can never answer the next screen.
 
 Keyboard (second input): while W/S, A/D or R/F is held the target moves away/back, sideways or
 up/down; G grasps, V brings back the task view. The keys travel through the page script
-(:mod:`app.ui.page_script`), which keeps them from viser's camera, as the value of one hidden
+(:mod:`study.server.page_script`), which keeps them from viser's camera, as the value of one hidden
 text element: ``"<seq> <held keys>"``; :meth:`ParticipantPage._on_key_state` turns each new
 value into key-down and key-up calls.
 """
@@ -28,11 +28,11 @@ import numpy as np
 import viser
 from viser import _messages as viser_messages
 
-from app.ui.blinding import check_text
-from app.ui.firewall import MAX_POSITION_M
-from app.ui.page_script import ARROW_KEYCODES, MAX_KEY_MESSAGE, STEERING_CODES, page_script
+from study.server.blinding import check_text
+from study.server.firewall import MAX_POSITION_M
+from study.server.page_script import ARROW_KEYCODES, MAX_KEY_MESSAGE, STEERING_CODES, page_script
 
-LOGGER = logging.getLogger("app.ui.participant")
+LOGGER = logging.getLogger("study.server.participant")
 
 KEY_HELP = (
     "Drag an arrow or a square of the handle at the gripper to move it, or hold the keys "

@@ -6,7 +6,7 @@ id (``/n7/n12``) before viser sees it: no model name, hence no condition word, i
 
 Poses come from the control thread as snapshots ``(xpos (nbody,3), xmat (nbody,9))``;
 :meth:`SceneView.render` sends one frame (about 0.6 ms) and is called at up to 60 Hz by a
-:class:`app.ui.loop.PacedLoop`, independent of the control rate.
+:class:`study.server.loop.PacedLoop`, independent of the control rate.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from mjviser import ViserMujocoScene
 
 from app.robot.task_view import TaskViewError, task_view
 
-LOGGER = logging.getLogger("app.ui.scene")
+LOGGER = logging.getLogger("study.server.scene")
 
 ORBIT_MIN_M = 0.25
 ORBIT_MAX_M = 2.5

@@ -1,6 +1,6 @@
-"""``python -m app trial``: run one headless trial and print its outcome; last line is JSON.
+"""``python -m study trial``: run one headless trial and print its outcome; last line is JSON.
 
-Example: ``python -m app trial --task hard-right --mode aggressive --input scripted --seed 1``.
+Example: ``python -m study trial --task hard-right --mode aggressive --input scripted --seed 1``.
 ``--mode none`` runs the task unassisted (alpha = 0); ``--task training`` runs the training
 scene. The configuration comes from the protocol (``--protocol``, default
 ``protocols/dragan2013.toml``) through ``study.protocol.load_protocol``.
@@ -9,28 +9,19 @@ scene. The configuration comes from the protocol (``--protocol``, default
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import sys
 import time
 from pathlib import Path
-from typing import Any
 
 from app.cli import non_negative_float, non_negative_int, positive_float
-from app.teleop import InputSource, ScriptedInput, TeleopCommand, TrialObservation
-from app.trial.config import TrialConfig
+from app.teleop import IdleInput, InputSource, ScriptedInput
 from app.trial.records import save_records
 from app.trial.trial import run_trial
+from study.protocol import trial_config_from_protocol
 
 DEFAULT_PROTOCOL = Path(__file__).resolve().parents[2] / "protocols" / "dragan2013.toml"
 INPUTS = ("scripted", "idle")
-
-
-class IdleInput:
-    """A user who never moves: the target stays where the gripper started."""
-
-    def command(self, obs: TrialObservation) -> TeleopCommand:
-        return TeleopCommand(obs.user_target, False)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -50,33 +41,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--time-limit", type=positive_float, default=None, help="override, s")
     parser.add_argument("--save", type=Path, default=None, help="write the records (.npz)")
-
-
-def trial_config_from_protocol(
-    protocol_path: Path, task: str, mode: str, *, time_limit_s: float | None = None
-) -> TrialConfig:
-    """The protocol's configuration of ``task`` in ``mode`` (``none``: unassisted)."""
-    from study.protocol import load_protocol
-
-    return config_for(load_protocol(protocol_path), task, mode, time_limit_s=time_limit_s)
-
-
-def config_for(
-    protocol: Any, task: str, mode: str, *, time_limit_s: float | None = None
-) -> TrialConfig:
-    """``protocol.trial_config(task, mode)``; ``mode="none"`` unassisted, ``task="training"``."""
-    if task == "training":
-        config = protocol.training_config()
-    elif mode == "none":
-        first = protocol.mode_names[0]
-        config = dataclasses.replace(
-            protocol.trial_config(task, first), arbitration=None, mode="none"
-        )
-    else:
-        config = protocol.trial_config(task, mode)
-    if time_limit_s is not None:
-        config = dataclasses.replace(config, time_limit_s=time_limit_s)
-    return config
 
 
 def make_input(name: str, *, seed: int, speed: float, noise: float) -> InputSource:

@@ -18,7 +18,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-LOGGER = logging.getLogger("app.ui.loop")
+LOGGER = logging.getLogger("study.server.loop")
 
 
 class LoopError(RuntimeError):

@@ -1,9 +1,9 @@
-"""``python -m app render``: film a trial to MP4, live or replayed from saved records.
+"""``python -m study render``: film a trial to MP4, live or replayed from saved records.
 
-Live: ``python -m app render --task hard-right --mode aggressive --seed 1`` (writes
+Live: ``python -m study render --task hard-right --mode aggressive --seed 1`` (writes
 ``data/videos/trial.mp4`` unless ``--out`` says otherwise).
-Replay: ``python -m app trial ... --save run.npz`` then
-``python -m app render --replay run.npz --task hard-right`` (the task names the scene), or from
+Replay: ``python -m study trial ... --save run.npz`` then
+``python -m study render --replay run.npz --task hard-right`` (the task names the scene), or from
 a study store: ``--store data/study.db --trial-id 12`` (the scene comes from the protocol the
 store keeps, or ``--protocol`` for older stores).
 
@@ -23,13 +23,12 @@ from typing import Any
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from app.cli import non_negative_int, positive_float, positive_int
-from app.trial.cli import (
-    DEFAULT_PROTOCOL,
-    INPUTS,
-    config_for,
-    make_input,
-    trial_config_from_protocol,
-)
+from app.robot.scene import build_scene
+from app.trial.records import load_records, records_from_samples
+from app.trial.video import render_live, replay
+from study.cli.trial import DEFAULT_PROTOCOL, INPUTS, make_input
+from study.protocol import protocol_from_store, trial_config_from_protocol
+from study.store import Store
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -59,27 +58,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _stored_config(store: Any, task: str, fallback: Path) -> Any:
     """The scene the trial ran in: from the protocol the store keeps, else ``fallback``."""
     try:
-        from study.protocol.stored import protocol_from_store
-
         protocol = protocol_from_store(store)
-    except (ImportError, ValueError):  # an older store without the protocol's text
+    except ValueError:  # an older store without the protocol's text
         return trial_config_from_protocol(fallback, task, "none")
-    return config_for(protocol, task, "none")
+    return protocol.config_for(task, "none")
 
 
 def main(args: argparse.Namespace) -> int:
-    from app.robot.scene import build_scene
-    from app.trial.records import load_records, records_from_samples
-    from app.trial.video import render_live, replay
-
     try:
         config = trial_config_from_protocol(
             args.protocol, args.task, args.mode, time_limit_s=args.time_limit
         )
         size = {"fps": args.fps, "width": args.width, "height": args.height}
         if args.store is not None:
-            from study.store import Store
-
             if args.trial_id is None:
                 raise ValueError("--store needs --trial-id")
             store = Store.open_readonly(args.store)

@@ -3,7 +3,7 @@
 It shows everything the participant must not see: the schedule with conditions, the live
 condition, elapsed time, and live plots of alpha, confidence and goal probabilities. The
 console reads the server through :class:`Console` (a small protocol implemented by
-``app.ui.server.StudyServer``) and refreshes itself from a paced thread at ``refresh_hz``.
+``study.server.server.StudyServer``) and refreshes itself from a paced thread at ``refresh_hz``.
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ import numpy as np
 import viser
 import viser.uplot as uplot
 
-from app.ui.loop import PacedLoop
+from study.server.loop import PacedLoop
 
-LOGGER = logging.getLogger("app.ui.experimenter")
+LOGGER = logging.getLogger("study.server.experimenter")
 
 ACTIONS: tuple[str, ...] = ("start", "pause", "resume", "redo", "skip", "withdraw", "end")
 """Experimenter actions on the selected session, in button order."""
