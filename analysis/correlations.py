@@ -27,8 +27,15 @@ def pearson(x: Sequence[float], y: Sequence[float]) -> dict[str, float]:
     if n < 3:
         raise DesignError(f"a correlation needs at least 3 complete pairs, got {n}")
     if np.ptp(x_) == 0 or np.ptp(y_) == 0:
-        return {"n": n, "df": float(n - 2), "r": np.nan, "t": np.nan, "p": np.nan,
-                "ci_low": np.nan, "ci_high": np.nan}
+        return {
+            "n": n,
+            "df": float(n - 2),
+            "r": np.nan,
+            "t": np.nan,
+            "p": np.nan,
+            "ci_low": np.nan,
+            "ci_high": np.nan,
+        }
     r = float(np.corrcoef(x_, y_)[0, 1])
     r = max(-1.0, min(1.0, r))
     df = n - 2
@@ -47,16 +54,23 @@ def preference_frame(cells: pd.DataFrame) -> pd.DataFrame:
     timing advantage of aggressive ``duration(timid) - duration(aggressive)`` in seconds, and
     each rating item's difference ``aggressive - timid``."""
     if "preference_aggressive" not in cells.columns:
-        raise SchemaError("the trials table has no 'preference_aggressive' column; the "
-                          "preference analysis needs it (-3..+3, positive = aggressive preferred)")
+        raise SchemaError(
+            "the trials table has no 'preference_aggressive' column; the "
+            "preference analysis needs it (-3..+3, positive = aggressive preferred)"
+        )
     keys = ["participant", "task", "difficulty", "correctness"]
     wide = cells.pivot_table(index=keys, columns="mode", values="duration_s", aggfunc="mean")
     if set(wide.columns) != {"timid", "aggressive"}:
-        raise DesignError("the preference analysis compares a timid and an aggressive run per "
-                          f"task; modes present: {sorted(map(str, wide.columns))}")
-    out = pd.DataFrame({
-        "duration_timid": wide["timid"], "duration_aggressive": wide["aggressive"],
-    })
+        raise DesignError(
+            "the preference analysis compares a timid and an aggressive run per "
+            f"task; modes present: {sorted(map(str, wide.columns))}"
+        )
+    out = pd.DataFrame(
+        {
+            "duration_timid": wide["timid"],
+            "duration_aggressive": wide["aggressive"],
+        }
+    )
     out["time_advantage_aggressive"] = out["duration_timid"] - out["duration_aggressive"]
     out["preference_aggressive"] = cells.groupby(keys)["preference_aggressive"].mean()
     for item in RATING_ITEMS:
@@ -73,12 +87,23 @@ def preference_correlations(cells: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataF
     Returns the table of correlations and the per participant-task frame they come from.
     """
     frame = preference_frame(cells)
-    rows = [{"measure": "preference_aggressive", "versus": "time_advantage_aggressive",
-             "test": "Pearson r",
-             **pearson(frame["preference_aggressive"], frame["time_advantage_aggressive"])}]
+    rows = [
+        {
+            "measure": "preference_aggressive",
+            "versus": "time_advantage_aggressive",
+            "test": "Pearson r",
+            **pearson(frame["preference_aggressive"], frame["time_advantage_aggressive"]),
+        }
+    ]
     for item in RATING_ITEMS:
         col = f"{item}_diff"
         if col in frame.columns:
-            rows.append({"measure": col, "versus": "preference_aggressive", "test": "Pearson r",
-                         **pearson(frame[col], frame["preference_aggressive"])})
+            rows.append(
+                {
+                    "measure": col,
+                    "versus": "preference_aggressive",
+                    "test": "Pearson r",
+                    **pearson(frame[col], frame["preference_aggressive"]),
+                }
+            )
     return pd.DataFrame(rows, columns=COLUMNS), frame

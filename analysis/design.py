@@ -158,13 +158,18 @@ def cell_means(
     counts = agg["count"].fillna(0).to_numpy().reshape(len(subjects_all), n_cells).astype(int)
     lacking = np.isnan(means)
     if lacking.any():
-        cells = [" & ".join(f"{f}={v}" for f, v in zip(within, c, strict=True))
-                 for c in itertools.product(*levels)]
-        missing = {subjects_all[i]: [cells[j] for j in np.flatnonzero(lacking[i])]
-                   for i in np.flatnonzero(lacking.any(axis=1))}
+        cells = [
+            " & ".join(f"{f}={v}" for f, v in zip(within, c, strict=True))
+            for c in itertools.product(*levels)
+        ]
+        missing = {
+            subjects_all[i]: [cells[j] for j in np.flatnonzero(lacking[i])]
+            for i in np.flatnonzero(lacking.any(axis=1))
+        }
         if not drop_incomplete:
-            listed = "; ".join(f"{s} lacks {', '.join(c)}" for s, c in
-                               list(missing.items())[:MAX_LISTED])
+            listed = "; ".join(
+                f"{s} lacks {', '.join(c)}" for s, c in list(missing.items())[:MAX_LISTED]
+            )
             more = f" (and {len(missing) - MAX_LISTED} more)" if len(missing) > MAX_LISTED else ""
             raise DesignError(
                 f"the design is incomplete: {len(missing)} of {len(subjects_all)} subject(s) lack "

@@ -21,7 +21,14 @@ from analysis.errors import SchemaError, SourceError
 
 TABLES = ("trials", "samples", "ratings", "events")
 TRIAL_COLUMNS = (
-    "participant", "phase", "task", "difficulty", "correctness", "mode", "status", "duration_s",
+    "participant",
+    "phase",
+    "task",
+    "difficulty",
+    "correctness",
+    "mode",
+    "status",
+    "duration_s",
 )
 COVARIATES = ("training_time_s", "baseline_rating", "tasks_completed")
 RATING_ITEMS = ("helpful", "matched", "teammate")
@@ -46,8 +53,10 @@ def _json_list(value: Any) -> Any:
         try:
             return json.loads(value)
         except json.JSONDecodeError as e:
-            raise SchemaError(f"cannot parse JSON list {value[:60]!r}: {e}; the goal_names and "
-                              "goal_positions columns must hold JSON lists") from e
+            raise SchemaError(
+                f"cannot parse JSON list {value[:60]!r}: {e}; the goal_names and "
+                "goal_positions columns must hold JSON lists"
+            ) from e
     if isinstance(value, np.ndarray):
         return [_json_list(v) for v in value.tolist()] if value.dtype == object else value.tolist()
     if isinstance(value, list | tuple):
@@ -74,8 +83,15 @@ def normalise_trials(trials: pd.DataFrame) -> pd.DataFrame:
             t[c] = t[c].map(_json_list)
     if "success" in t.columns:
         t["success"] = _as_bool(t["success"])
-    for c in ("duration_s", *COVARIATES, *RATING_ITEMS, "preference", "preference_aggressive",
-              "position", "attempt"):
+    for c in (
+        "duration_s",
+        *COVARIATES,
+        *RATING_ITEMS,
+        "preference",
+        "preference_aggressive",
+        "position",
+        "attempt",
+    ):
         if c in t.columns:
             t[c] = pd.to_numeric(t[c], errors="coerce")
     return t
@@ -117,9 +133,11 @@ def from_store(path: str | Path) -> StudyTables:
     try:
         from study.export import tidy_tables
     except ImportError as e:
-        raise SourceError(f"cannot read {p}: study.export.tidy_tables is not available ({e}); "
-                          "export the store with `python -m study export` and pass "
-                          "--export-dir instead") from e
+        raise SourceError(
+            f"cannot read {p}: study.export.tidy_tables is not available ({e}); "
+            "export the store with `python -m study export` and pass "
+            "--export-dir instead"
+        ) from e
     try:
         tables = tidy_tables(p)
     except Exception as e:  # the store's own typed errors say what is wrong
@@ -128,8 +146,12 @@ def from_store(path: str | Path) -> StudyTables:
     if missing:
         raise SourceError(f"tidy_tables({p}) returned no {missing} table")
     return from_frames(
-        tables["trials"], tables.get("samples"), tables.get("ratings"), tables.get("events"),
-        source=str(p), protocol_hash=_store_protocol_hash(p),
+        tables["trials"],
+        tables.get("samples"),
+        tables.get("ratings"),
+        tables.get("events"),
+        source=str(p),
+        protocol_hash=_store_protocol_hash(p),
     )
 
 
@@ -155,11 +177,15 @@ def _export_metadata(directory: Path) -> dict[str, Any]:
     try:
         meta = json.loads(f.read_text(encoding="utf-8"))
     except (OSError, ValueError) as e:
-        raise SourceError(f"cannot read {f}: {e}; export the store again (`python -m study "
-                          "export`) or remove the file") from e
+        raise SourceError(
+            f"cannot read {f}: {e}; export the store again (`python -m study "
+            "export`) or remove the file"
+        ) from e
     if not isinstance(meta, dict):
-        raise SourceError(f"{f} is not an export's metadata (not a JSON object); export the "
-                          "store again (`python -m study export`) or remove the file")
+        raise SourceError(
+            f"{f} is not an export's metadata (not a JSON object); export the "
+            "store again (`python -m study export`) or remove the file"
+        )
     return meta
 
 
@@ -169,8 +195,10 @@ def _export_formats(directory: Path, meta: dict[str, Any]) -> tuple[str, ...]:
     if listed is None:
         return tuple(FORMATS)
     if not isinstance(listed, list) or not listed or any(f not in FORMATS for f in listed):
-        raise SourceError(f"{directory / 'metadata.json'} lists table formats {listed!r}; "
-                          f"expected a list of {', '.join(FORMATS)}; export the store again")
+        raise SourceError(
+            f"{directory / 'metadata.json'} lists table formats {listed!r}; "
+            f"expected a list of {', '.join(FORMATS)}; export the store again"
+        )
     return tuple(f for f in FORMATS if f in listed)
 
 
@@ -187,24 +215,31 @@ def _read_table(
     return None
 
 
-def _check_rows(directory: Path, name: str, found: tuple[pd.DataFrame, Path] | None,
-                meta: dict[str, Any]) -> None:
+def _check_rows(
+    directory: Path, name: str, found: tuple[pd.DataFrame, Path] | None, meta: dict[str, Any]
+) -> None:
     """The table has as many rows as ``metadata.json`` says the export wrote."""
     rows = meta.get("rows")
     expected = rows.get(name) if isinstance(rows, dict) else None
     if not isinstance(expected, int) or isinstance(expected, bool):
         return
-    again = ("; the folder mixes files of different exports or a file was changed - export "
-             "the store again (`python -m study export`) into this folder or a new one")
+    again = (
+        "; the folder mixes files of different exports or a file was changed - export "
+        "the store again (`python -m study export`) into this folder or a new one"
+    )
     if found is None:
         if expected:
-            raise SourceError(f"{directory} has no {name} table, but its metadata.json says "
-                              f"the export wrote {expected} rows{again}")
+            raise SourceError(
+                f"{directory} has no {name} table, but its metadata.json says "
+                f"the export wrote {expected} rows{again}"
+            )
         return
     df, f = found
     if len(df) != expected:
-        raise SourceError(f"{f} has {len(df)} rows, but {directory / 'metadata.json'} says the "
-                          f"export wrote {expected}{again}")
+        raise SourceError(
+            f"{f} has {len(df)} rows, but {directory / 'metadata.json'} says the "
+            f"export wrote {expected}{again}"
+        )
 
 
 def from_export(directory: str | Path) -> StudyTables:
@@ -215,21 +250,23 @@ def from_export(directory: str | Path) -> StudyTables:
     e.g. when the folder holds files of an earlier export)."""
     d = Path(directory)
     if not d.is_dir():
-        raise SourceError(f"{d} is not a directory; pass the folder `python -m study export` "
-                          "wrote")
+        raise SourceError(f"{d} is not a directory; pass the folder `python -m study export` wrote")
     meta = _export_metadata(d)
     formats = _export_formats(d, meta)
     found = {name: _read_table(d, name, formats) for name in TABLES}
     if found["trials"] is None:
         wanted = " or ".join(f"trials.{f}" for f in formats)
-        raise SourceError(f"{d} holds no {wanted}; pass the folder `python -m study export` "
-                          "wrote")
+        raise SourceError(f"{d} holds no {wanted}; pass the folder `python -m study export` wrote")
     for name in TABLES:
         _check_rows(d, name, found[name], meta)
     tables = {name: (v[0] if v is not None else None) for name, v in found.items()}
     return from_frames(
-        tables["trials"], tables["samples"], tables["ratings"], tables["events"],
-        source=str(d), protocol_hash=_export_protocol_hash(d),
+        tables["trials"],
+        tables["samples"],
+        tables["ratings"],
+        tables["events"],
+        source=str(d),
+        protocol_hash=_export_protocol_hash(d),
     )
 
 
@@ -249,17 +286,20 @@ def _export_protocol_hash(directory: Path) -> str | None:
     return None
 
 
-def load_tables(*, db: str | Path | None = None,
-                export_dir: str | Path | None = None) -> StudyTables:
+def load_tables(
+    *, db: str | Path | None = None, export_dir: str | Path | None = None
+) -> StudyTables:
     """Tidy tables from exactly one of a store (``db``) or an export directory."""
     if (db is None) == (export_dir is None):
-        raise SourceError("give exactly one source: a study store (--db) or an export "
-                          "directory (--export-dir)")
+        raise SourceError(
+            "give exactly one source: a study store (--db) or an export directory (--export-dir)"
+        )
     return from_store(db) if db is not None else from_export(export_dir)  # type: ignore[arg-type]
 
 
-def task_cells(trials: pd.DataFrame, *,
-               successful_only: bool = False) -> tuple[pd.DataFrame, tuple[str, ...]]:
+def task_cells(
+    trials: pd.DataFrame, *, successful_only: bool = False
+) -> tuple[pd.DataFrame, tuple[str, ...]]:
     """One row per participant, task and mode: the completed task trial of each cell.
 
     Training runs, redone, skipped and interrupted attempts are left out. Completed trials
@@ -281,19 +321,26 @@ def task_cells(trials: pd.DataFrame, *,
         what = ", ".join(f"{v} {k}" for k, v in outcomes.items())
         if successful_only:
             done = done[done["success"].astype(bool)]
-            notes.append(f"{len(failed)} completed task trial(s) ended without success "
-                         f"({what}) and were left out (successful trials only)")
+            notes.append(
+                f"{len(failed)} completed task trial(s) ended without success "
+                f"({what}) and were left out (successful trials only)"
+            )
         else:
-            notes.append(f"{len(failed)} completed task trial(s) ended without success "
-                         f"({what}); their duration (until the trial ended, e.g. the time "
-                         "limit) is analysed as is (--successful-only leaves them out)")
+            notes.append(
+                f"{len(failed)} completed task trial(s) ended without success "
+                f"({what}); their duration (until the trial ended, e.g. the time "
+                "limit) is analysed as is (--successful-only leaves them out)"
+            )
     keys = ["participant", "task", "difficulty", "correctness", "mode"]
     dup = done.duplicated(keys, keep=False)
     if dup.any():
-        notes.append(f"{int(dup.sum())} completed trials share a participant/task/mode cell; "
-                     "their values were averaged")
-        numeric = [c for c in done.columns if c not in keys
-                   and pd.api.types.is_numeric_dtype(done[c])]
+        notes.append(
+            f"{int(dup.sum())} completed trials share a participant/task/mode cell; "
+            "their values were averaged"
+        )
+        numeric = [
+            c for c in done.columns if c not in keys and pd.api.types.is_numeric_dtype(done[c])
+        ]
         first = done.groupby(keys, as_index=False, sort=False).first()
         means = done.groupby(keys, as_index=False, sort=False)[numeric].mean()
         done = first.drop(columns=numeric).merge(means, on=keys)

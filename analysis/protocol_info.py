@@ -49,7 +49,9 @@ def _prediction_tables(prediction: Mapping[str, Any] | None) -> dict[str, dict[s
 
 
 def load_protocol_info(
-    path: str | Path = DEFAULT_PROTOCOL, *, stored: str | Path | None = None,
+    path: str | Path = DEFAULT_PROTOCOL,
+    *,
+    stored: str | Path | None = None,
     explicit: bool = True,
 ) -> ProtocolInfo:
     """Mode arbitration tables, id and content hash of the protocol the data were collected with:
@@ -106,15 +108,20 @@ def _ignored_file_note(info: ProtocolInfo, path: str | Path | None) -> tuple[str
         other = None
     if other == info.content_hash:
         return ()
-    return (f"read the protocol stored with the data ({info.content_hash}); the protocol file "
-            f"{path} differs ({other or 'unreadable'}) and was not used",)
+    return (
+        f"read the protocol stored with the data ({info.content_hash}); the protocol file "
+        f"{path} differs ({other or 'unreadable'}) and was not used",
+    )
 
 
 def _info(proto: Any, *, path: str) -> ProtocolInfo:
     return ProtocolInfo(
-        path=path, study_id=proto.id, content_hash=proto.content_hash,
-        arbitrations={m.name: dict(m.arbitration) for m in proto.modes
-                      if m.arbitration is not None},
+        path=path,
+        study_id=proto.id,
+        content_hash=proto.content_hash,
+        arbitrations={
+            m.name: dict(m.arbitration) for m in proto.modes if m.arbitration is not None
+        },
         amnesic_temperature=_temperature(proto.prediction),
         factors={k: tuple(map(str, v)) for k, v in dict(proto.factors).items()},
         prediction=_prediction_tables(proto.prediction),
@@ -143,14 +150,21 @@ def _file_info(path: str | Path) -> ProtocolInfo:
         raise SourceError(f"{p} is not valid TOML: {e}") from e
     modes = doc.get("modes", {})
     return ProtocolInfo(
-        path=str(p), study_id=doc.get("study", {}).get("id"),
+        path=str(p),
+        study_id=doc.get("study", {}).get("id"),
         content_hash=hashlib.sha256(raw).hexdigest(),
-        arbitrations={k: v["arbitration"] for k, v in modes.items()
-                      if isinstance(v, dict) and isinstance(v.get("arbitration"), dict)},
+        arbitrations={
+            k: v["arbitration"]
+            for k, v in modes.items()
+            if isinstance(v, dict) and isinstance(v.get("arbitration"), dict)
+        },
         amnesic_temperature=_temperature(doc.get("prediction")),
         prediction=_prediction_tables(doc.get("prediction")),
-        factors={k: tuple(map(str, v)) for k, v in doc.get("factors", {}).items()
-                 if isinstance(v, list)},
-        notes=("study.protocol is unavailable: the protocol was read as plain TOML and its hash "
-               "is the sha256 of the file's bytes",),
+        factors={
+            k: tuple(map(str, v)) for k, v in doc.get("factors", {}).items() if isinstance(v, list)
+        },
+        notes=(
+            "study.protocol is unavailable: the protocol was read as plain TOML and its hash "
+            "is the sha256 of the file's bytes",
+        ),
     )

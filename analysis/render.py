@@ -70,20 +70,31 @@ def md_table(df: pd.DataFrame) -> str:
 
 def html_table(df: pd.DataFrame) -> str:
     head = "".join(f"<th>{html.escape(str(c))}</th>" for c in df.columns)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in row) + "</tr>"
-                   for row in df.itertuples(index=False))
+    body = "".join(
+        "<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in row) + "</tr>"
+        for row in df.itertuples(index=False)
+    )
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
 def _header(meta: Mapping[str, Any]) -> list[tuple[str, str]]:
     sw, pr = meta["software"], meta["protocol"]
-    items = [("Data", meta["source"]), ("Generated", meta["generated_at"]),
-             ("Software", f"{sw['package']} {sw['version']} (commit {sw['commit']}); Python "
-                          f"{sw['python']}, numpy {sw['numpy']}, pandas {sw['pandas']}, scipy "
-                          f"{sw['scipy']}, statsmodels {sw['statsmodels']}, matplotlib "
-                          f"{sw['matplotlib']}"),
-             ("Protocol", f"{pr.get('id') or '?'} from {pr.get('path') or 'no protocol file'}; "
-                          f"content hash {pr.get('content_hash') or 'unknown'}")]
+    items = [
+        ("Data", meta["source"]),
+        ("Generated", meta["generated_at"]),
+        (
+            "Software",
+            f"{sw['package']} {sw['version']} (commit {sw['commit']}); Python "
+            f"{sw['python']}, numpy {sw['numpy']}, pandas {sw['pandas']}, scipy "
+            f"{sw['scipy']}, statsmodels {sw['statsmodels']}, matplotlib "
+            f"{sw['matplotlib']}",
+        ),
+        (
+            "Protocol",
+            f"{pr.get('id') or '?'} from {pr.get('path') or 'no protocol file'}; "
+            f"content hash {pr.get('content_hash') or 'unknown'}",
+        ),
+    ]
     if pr.get("store_hash"):
         match = "matches" if pr.get("store_hash") == pr.get("content_hash") else "DIFFERS"
         items.append(("Protocol hash recorded with the data", f"{pr['store_hash']} ({match})"))
@@ -110,17 +121,24 @@ def render_markdown(sections: list[Section], meta: Mapping[str, Any]) -> str:
             if t.note:
                 lines += [f"_{t.note}_", ""]
         for f in sec.figures:
-            lines += [f"![{f.title}](figures/{f.png.name})", "", f"_{f.title}_ "
-                      f"([SVG](figures/{f.svg.name}))", ""]
+            lines += [
+                f"![{f.title}](figures/{f.png.name})",
+                "",
+                f"_{f.title}_ ([SVG](figures/{f.svg.name}))",
+                "",
+            ]
     return "\n".join(lines)
 
 
 def render_html(sections: list[Section], meta: Mapping[str, Any]) -> str:
     e = html.escape
-    parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>{e(TITLE)}"
-             f"</title><style>{CSS}</style></head><body><h1>{e(TITLE)}</h1>",
-             "<table class='meta'>" + "".join(f"<tr><td>{e(k)}</td><td>{e(v)}</td></tr>"
-                                               for k, v in _header(meta)) + "</table>"]
+    parts = [
+        f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>{e(TITLE)}"
+        f"</title><style>{CSS}</style></head><body><h1>{e(TITLE)}</h1>",
+        "<table class='meta'>"
+        + "".join(f"<tr><td>{e(k)}</td><td>{e(v)}</td></tr>" for k, v in _header(meta))
+        + "</table>",
+    ]
     for sec in sections:
         parts.append(f"<h2>{e(sec.title)}</h2>")
         parts += [f"<p>{e(p)}</p>" for p in sec.paragraphs]
@@ -129,9 +147,6 @@ def render_html(sections: list[Section], meta: Mapping[str, Any]) -> str:
             if t.note:
                 parts.append(f"<p><em>{e(t.note)}</em></p>")
         for f in sec.figures:
-            parts.append(f"<figure>{f.inline_svg()}<figcaption>{e(f.title)}</figcaption>"
-                         "</figure>")
+            parts.append(f"<figure>{f.inline_svg()}<figcaption>{e(f.title)}</figcaption></figure>")
     parts.append("</body></html>")
     return "\n".join(parts)
-
-

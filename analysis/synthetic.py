@@ -30,13 +30,23 @@ GOALS = {  # difficulty -> goal names and positions (target last is the farther 
 TARGET = "bottle"
 
 
-def _duration(rng: np.random.Generator, skill: float, dif: str, cor: str, mode: str,
-              practice: int, person: float) -> float:
+def _duration(
+    rng: np.random.Generator,
+    skill: float,
+    dif: str,
+    cor: str,
+    mode: str,
+    practice: int,
+    person: float,
+) -> float:
     t = 14.0 + 0.3 * (skill - 40.0) + person - 0.6 * practice
     t += 9.0 if dif == "hard" else 0.0
     if mode == "aggressive":
-        t += (26.0 + (8.0 if dif == "hard" else 0.0)) if cor == "wrong" else \
-            (-10.0 if dif == "hard" else -2.0)
+        t += (
+            (26.0 + (8.0 if dif == "hard" else 0.0))
+            if cor == "wrong"
+            else (-10.0 if dif == "hard" else -2.0)
+        )
     elif cor == "wrong":
         t += 5.0
     return float(max(6.0, t + rng.normal(0.0, 7.0)))
@@ -57,7 +67,10 @@ def _trajectory(rng: np.random.Generator, goals: np.ndarray, n: int, noise: floa
 
 
 def synthetic_tables(
-    n_participants: int = 8, *, seed: int = 0, rate_hz: float = 100.0,
+    n_participants: int = 8,
+    *,
+    seed: int = 0,
+    rate_hz: float = 100.0,
     with_samples: bool = True,
 ) -> dict[str, pd.DataFrame]:
     """Tables ``trials``, ``samples``, ``ratings``, ``events`` of a simulated study."""
@@ -75,15 +88,29 @@ def synthetic_tables(
         training = [max(10.0, skill + rng.normal(0, 4)) for _ in range(3)]
         for k, d in enumerate(training):
             trial_id += 1
-            trials.append({
-                "participant": pid, "session_id": session, "phase": "training",
-                "schedule_row": row, "position": np.nan, "task": "training",
-                "difficulty": "", "correctness": "", "mode": "none", "attempt": 1,
-                "status": "completed", "outcome": "success", "success": True, "duration_s": d,
-                "started_at": f"2026-11-22T10:{k:02d}:00Z", "goal_names": json.dumps(["mug"]),
-                "goal_positions": json.dumps([[0.5, -0.25, 0.05]]), "target": "mug",
-                "trial_id": trial_id,
-            })
+            trials.append(
+                {
+                    "participant": pid,
+                    "session_id": session,
+                    "phase": "training",
+                    "schedule_row": row,
+                    "position": np.nan,
+                    "task": "training",
+                    "difficulty": "",
+                    "correctness": "",
+                    "mode": "none",
+                    "attempt": 1,
+                    "status": "completed",
+                    "outcome": "success",
+                    "success": True,
+                    "duration_s": d,
+                    "started_at": f"2026-11-22T10:{k:02d}:00Z",
+                    "goal_names": json.dumps(["mug"]),
+                    "goal_positions": json.dumps([[0.5, -0.25, 0.05]]),
+                    "target": "mug",
+                    "trial_id": trial_id,
+                }
+            )
         order = [task_names[i] for i in WILLIAMS_4[row]]
         first_mode = "timid" if p % 2 == 0 else "aggressive"
         position = 0
@@ -101,19 +128,34 @@ def synthetic_tables(
                 durations[mode] = dur
                 ids[mode] = trial_id
                 names, pos = GOALS[dif]
-                trials.append({
-                    "participant": pid, "session_id": session, "phase": "task",
-                    "schedule_row": row, "position": position, "task": task, "difficulty": dif,
-                    "correctness": cor, "mode": mode, "attempt": 1, "status": "completed",
-                    "outcome": "success", "success": True, "duration_s": dur,
-                    "started_at": f"2026-11-22T11:{position:02d}:00Z",
-                    "goal_names": json.dumps(list(names)),
-                    "goal_positions": json.dumps([list(x) for x in pos]), "target": TARGET,
-                    "trial_id": trial_id, "run": "first" if run == 0 else "second",
-                })
+                trials.append(
+                    {
+                        "participant": pid,
+                        "session_id": session,
+                        "phase": "task",
+                        "schedule_row": row,
+                        "position": position,
+                        "task": task,
+                        "difficulty": dif,
+                        "correctness": cor,
+                        "mode": mode,
+                        "attempt": 1,
+                        "status": "completed",
+                        "outcome": "success",
+                        "success": True,
+                        "duration_s": dur,
+                        "started_at": f"2026-11-22T11:{position:02d}:00Z",
+                        "goal_names": json.dumps(list(names)),
+                        "goal_positions": json.dumps([list(x) for x in pos]),
+                        "target": TARGET,
+                        "trial_id": trial_id,
+                        "run": "first" if run == 0 else "second",
+                    }
+                )
                 if with_samples:
-                    samples.append(_samples(rng, trial_id, pid, np.array(pos), names, dur,
-                                            rate_hz, mode))
+                    samples.append(
+                        _samples(rng, trial_id, pid, np.array(pos), names, dur, rate_hz, mode)
+                    )
             gap = durations["timid"] - durations["aggressive"]
             pref = int(np.clip(np.round(gap / 6.0 + rng.normal(0, 0.7)), -3, 3))
             second = modes[1]
@@ -125,29 +167,66 @@ def synthetic_tables(
                 for item, scale in (("helpful", 7.0), ("matched", 8.0), ("teammate", 7.5)):
                     v = 4 + (mean_t - rec["duration_s"]) / scale + rng.normal(0, 0.6)
                     rec[item] = int(np.clip(np.round(v), 1, 7))
-                    ratings.append({"participant": pid, "session_id": session,
-                                    "phase": "task", "task": task, "mode": rec["mode"],
-                                    "run": rec["run"], "item": item, "value": rec[item],
-                                    "answered_at": rec["started_at"]})
-            ratings.append({"participant": pid, "session_id": session, "phase": "task",
-                            "task": task, "mode": None, "run": None, "item": "preference",
-                            "value": raw, "answered_at": trials[-1]["started_at"]})
+                    ratings.append(
+                        {
+                            "participant": pid,
+                            "session_id": session,
+                            "phase": "task",
+                            "task": task,
+                            "mode": rec["mode"],
+                            "run": rec["run"],
+                            "item": item,
+                            "value": rec[item],
+                            "answered_at": rec["started_at"],
+                        }
+                    )
+            ratings.append(
+                {
+                    "participant": pid,
+                    "session_id": session,
+                    "phase": "task",
+                    "task": task,
+                    "mode": None,
+                    "run": None,
+                    "item": "preference",
+                    "value": raw,
+                    "answered_at": trials[-1]["started_at"],
+                }
+            )
         for rec in trials:
             if rec["participant"] == pid:
                 rec["training_time_s"] = float(np.mean(training))
                 rec["baseline_rating"] = baseline
-                rec["tasks_completed"] = (int(rec["position"]) - 1
-                                          if rec["phase"] == "task" else 0)
-        events.append({"participant": pid, "session_id": session, "at": "2026-11-22T10:00:00Z",
-                       "kind": "consent", "detail": json.dumps({"accepted": True})})
+                rec["tasks_completed"] = int(rec["position"]) - 1 if rec["phase"] == "task" else 0
+        events.append(
+            {
+                "participant": pid,
+                "session_id": session,
+                "at": "2026-11-22T10:00:00Z",
+                "kind": "consent",
+                "detail": json.dumps({"accepted": True}),
+            }
+        )
     trials_df = pd.DataFrame(trials).drop(columns=["run"])
     samples_df = pd.concat(samples, ignore_index=True) if samples else pd.DataFrame()
-    return {"trials": trials_df, "samples": samples_df, "ratings": pd.DataFrame(ratings),
-            "events": pd.DataFrame(events)}
+    return {
+        "trials": trials_df,
+        "samples": samples_df,
+        "ratings": pd.DataFrame(ratings),
+        "events": pd.DataFrame(events),
+    }
 
 
-def _samples(rng: np.random.Generator, trial_id: int, pid: str, goals: np.ndarray,
-             names: tuple[str, ...], duration: float, rate_hz: float, mode: str) -> pd.DataFrame:
+def _samples(
+    rng: np.random.Generator,
+    trial_id: int,
+    pid: str,
+    goals: np.ndarray,
+    names: tuple[str, ...],
+    duration: float,
+    rate_hz: float,
+    mode: str,
+) -> pd.DataFrame:
     n = max(2, int(duration * rate_hz))
     xyz = _trajectory(rng, goals, n, 0.03 if mode == "aggressive" else 0.015)
     dist = np.linalg.norm(xyz[:, None, :] - goals[None], axis=2)
@@ -156,10 +235,16 @@ def _samples(rng: np.random.Generator, trial_id: int, pid: str, goals: np.ndarra
     prob /= prob.sum(axis=1, keepdims=True)
     pred = prob.argmax(axis=1)
     conf = np.clip(1 - dist[np.arange(n), pred] / 0.4, 0, 1)
-    alpha = (np.where(conf > 0.4, 0.9, 0.0) if mode == "aggressive"
-             else np.minimum(conf / 0.7, 1.0) * 0.5)
+    alpha = (
+        np.where(conf > 0.4, 0.9, 0.0)
+        if mode == "aggressive"
+        else np.minimum(conf / 0.7, 1.0) * 0.5
+    )
     cols: dict[str, object] = {
-        "trial_id": trial_id, "participant": pid, "tick": np.arange(n), "t": np.arange(n) / rate_hz,
+        "trial_id": trial_id,
+        "participant": pid,
+        "tick": np.arange(n),
+        "t": np.arange(n) / rate_hz,
     }
     for prefix in ("q", "u", "p", "cmd"):
         for j in range(1, 8):

@@ -67,8 +67,9 @@ def run_steps(b: PolicyBlender, q: np.ndarray, u: np.ndarray) -> None:
         b.step(q[k], u[k])
 
 
-def bench(n_goals: int, *, samples: int, window: int, long_steps: int,
-          seed: int) -> dict[str, np.ndarray]:
+def bench(
+    n_goals: int, *, samples: int, window: int, long_steps: int, seed: int
+) -> dict[str, np.ndarray]:
     """Two blenders on the same goals, timed in alternation so both see the same machine load:
     ``short`` is reset every ``window`` ticks and timed at steps 10 .. 10 + window; ``long``
     was driven ``long_steps`` ticks first and is timed at steps long_steps .. + samples."""
@@ -119,13 +120,14 @@ def main(argv: list[str] | None = None) -> int:
     ratios = []
     print(f"{'goals':>6} {'step':>7} {'median us':>10} {'p99 us':>10} {'n':>6}")
     for n_goals in (2, 10, 100):
-        times = bench(n_goals, samples=samples, window=50, long_steps=long_steps,
-                      seed=args.seed)
+        times = bench(n_goals, samples=samples, window=50, long_steps=long_steps, seed=args.seed)
         med = {}
         for step, t in times.items():
             med[step] = float(np.median(t))
-            print(f"{n_goals:>6} {step:>7} {med[step]:>10.1f} "
-                  f"{float(np.percentile(t, 99)):>10.1f} {len(t):>6}")
+            print(
+                f"{n_goals:>6} {step:>7} {med[step]:>10.1f} "
+                f"{float(np.percentile(t, 99)):>10.1f} {len(t):>6}"
+            )
         short = times["10"]
         result[str(n_goals)] = {
             "median": round(float(np.median(short)), 2),

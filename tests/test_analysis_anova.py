@@ -32,8 +32,12 @@ def _design(n: int, levels: dict[str, list[str]], seed: int = 0) -> pd.DataFrame
         base = rng.normal(0, 2)
         for combo in itertools.product(*levels.values()):
             cell = dict(zip(levels, combo, strict=True))
-            effect = sum(0.7 * i * (j + 1) for j, v in enumerate(combo)
-                         for i, lv in enumerate(levels[list(levels)[j]]) if v == lv)
+            effect = sum(
+                0.7 * i * (j + 1)
+                for j, v in enumerate(combo)
+                for i, lv in enumerate(levels[list(levels)[j]])
+                if v == lv
+            )
             rows.append({"sub": f"p{s}", **cell, "y": base + effect + rng.normal()})
     return pd.DataFrame(rows)
 
@@ -52,8 +56,9 @@ def test_one_way_matches_textbook_sums_of_squares() -> None:
     num = k**2 * (np.diag(s).mean() - s.mean()) ** 2
     den = (k - 1) * ((s**2).sum() - 2 * k * (s.mean(axis=1) ** 2).sum() + k**2 * s.mean() ** 2)
     eps_ref = num / den
-    long = pd.DataFrame([{"sub": f"s{i}", "cond": f"c{j}", "y": y[i, j]}
-                         for i in range(n) for j in range(k)])
+    long = pd.DataFrame(
+        [{"sub": f"s{i}", "cond": f"c{j}", "y": y[i, j]} for i in range(n) for j in range(k)]
+    )
     row = rm_anova(long, dv="y", subject="sub", within=["cond"]).table.iloc[0]
     assert (row.df1, row.df2) == (2, 8)
     # By hand: totals 15, 22, 40 (N = 15, sum y^2 = 487): SS_A = 461.8 - 395.267 = 66.533,
@@ -78,8 +83,16 @@ def test_two_way_matches_hand_written_partition() -> None:
     ss_ab = n * ((mab - ma[:, None] - mb[None, :] + g) ** 2).sum()
     ss_as = b * ((mas - ms[:, None] - ma[None, :] + g) ** 2).sum()
     ss_bs = a * ((mbs - ms[:, None] - mb[None, :] + g) ** 2).sum()
-    resid = (cube - mab[None] - mas[:, :, None] - mbs[:, None, :] + ma[None, :, None]
-             + mb[None, None, :] + ms[:, None, None] - g)
+    resid = (
+        cube
+        - mab[None]
+        - mas[:, :, None]
+        - mbs[:, None, :]
+        + ma[None, :, None]
+        + mb[None, None, :]
+        + ms[:, None, None]
+        - g
+    )
     ss_abs = (resid**2).sum()
     ref = {
         "A": (ss_a / 2) / (ss_as / 10),
@@ -114,19 +127,22 @@ def test_published_r_ezanova_values_on_statsmodels_reference_data() -> None:
     # are R's ez::ezANOVA output for it (as printed in statsmodels' test_anova_rm.py).
     import statsmodels
 
-    path = Path(statsmodels.__file__).parent / "stats" / "tests" / "results" / \
-        "anova-rm-test-data.csv"
+    path = (
+        Path(statsmodels.__file__).parent / "stats" / "tests" / "results" / "anova-rm-test-data.csv"
+    )
     data = pd.read_csv(path)
     ours = rm_anova(data, dv="DV", subject="id", within=["A", "B", "D"]).table
     ez = [  # df1, df2, F, p  for A, B, D, A:B, A:D, B:D, A:B:D
-        (1, 7, 8.7650709, 0.021087505), (2, 14, 8.4985785, 0.003833921),
-        (1, 7, 20.5076546, 0.002704428), (2, 14, 0.8457797, 0.450021759),
-        (1, 7, 21.7593382, 0.002301792), (2, 14, 6.2416695, 0.011536846),
+        (1, 7, 8.7650709, 0.021087505),
+        (2, 14, 8.4985785, 0.003833921),
+        (1, 7, 20.5076546, 0.002704428),
+        (2, 14, 0.8457797, 0.450021759),
+        (1, 7, 21.7593382, 0.002301792),
+        (2, 14, 6.2416695, 0.011536846),
         (2, 14, 5.4253359, 0.018010647),
     ]
     assert list(ours["effect"]) == ["A", "B", "D", "A:B", "A:D", "B:D", "A:B:D"]
-    np.testing.assert_allclose(ours[["df1", "df2", "F", "p"]].to_numpy(), np.array(ez),
-                               rtol=1e-6)
+    np.testing.assert_allclose(ours[["df1", "df2", "F", "p"]].to_numpy(), np.array(ez), rtol=1e-6)
     one = rm_anova(data.iloc[:16], dv="DV", subject="id", within=["B"]).table.iloc[0]
     assert (one["df1"], one["df2"]) == (1, 7)
     assert float(one["F"]) == pytest.approx(22.4, rel=1e-6)
@@ -139,13 +155,29 @@ def _paper_shaped(seed: int = 1) -> pd.DataFrame:
     for s in range(8):
         skill, base_rating = rng.normal(40, 8), rng.integers(2, 7)
         order = rng.permutation(8)
-        for i, (dif, cor, mode) in enumerate(itertools.product(
-                ["easy", "hard"], ["right", "wrong"], ["timid", "aggressive"])):
-            t = (15 + 0.2 * skill + 20 * (dif == "hard") + 30 * (cor == "wrong") * (mode == "aggressive")
-                 - 8 * (cor == "right") * (mode == "aggressive") + rng.normal(0, 6))
-            rows.append({"participant": f"P{s}", "difficulty": dif, "correctness": cor,
-                         "mode": mode, "duration_s": t, "training_time_s": skill,
-                         "baseline_rating": float(base_rating), "tasks_completed": int(order[i])})
+        for i, (dif, cor, mode) in enumerate(
+            itertools.product(["easy", "hard"], ["right", "wrong"], ["timid", "aggressive"])
+        ):
+            t = (
+                15
+                + 0.2 * skill
+                + 20 * (dif == "hard")
+                + 30 * (cor == "wrong") * (mode == "aggressive")
+                - 8 * (cor == "right") * (mode == "aggressive")
+                + rng.normal(0, 6)
+            )
+            rows.append(
+                {
+                    "participant": f"P{s}",
+                    "difficulty": dif,
+                    "correctness": cor,
+                    "mode": mode,
+                    "duration_s": t,
+                    "training_time_s": skill,
+                    "baseline_rating": float(base_rating),
+                    "tasks_completed": int(order[i]),
+                }
+            )
     return pd.DataFrame(rows)
 
 
@@ -153,17 +185,24 @@ def _paper_shaped(seed: int = 1) -> pd.DataFrame:
 def test_factorial_with_covariates_matches_statsmodels_ols(ss_type: int) -> None:
     d = _paper_shaped()
     cov = ["training_time_s", "baseline_rating", "tasks_completed"]
-    res = factorial_anova(d, dv="duration_s", factors=["difficulty", "correctness", "mode"],
-                          covariates=cov, ss_type=ss_type)
+    res = factorial_anova(
+        d,
+        dv="duration_s",
+        factors=["difficulty", "correctness", "mode"],
+        covariates=cov,
+        ss_type=ss_type,
+    )
     assert res.df_resid == 53  # 64 - 8 cells - 3 covariates, the paper's F(1, 53)
-    model = smf.ols("duration_s ~ C(difficulty, Sum) * C(correctness, Sum) * C(mode, Sum) + "
-                    "training_time_s + baseline_rating + tasks_completed", data=d).fit()
+    model = smf.ols(
+        "duration_s ~ C(difficulty, Sum) * C(correctness, Sum) * C(mode, Sum) + "
+        "training_time_s + baseline_rating + tasks_completed",
+        data=d,
+    ).fit()
     ref = anova_lm(model, typ=ss_type)
     assert res.r2 == pytest.approx(model.rsquared, rel=1e-10)
     table = res.table.set_index("effect")
     for name, row in ref.drop(index=["Residual", "Intercept"], errors="ignore").iterrows():
-        effect = ":".join(p.split("(")[1].split(",")[0] if "(" in p else p
-                          for p in name.split(":"))
+        effect = ":".join(p.split("(")[1].split(",")[0] if "(" in p else p for p in name.split(":"))
         assert table.loc[effect, "F"] == pytest.approx(row["F"], rel=1e-8)
         assert table.loc[effect, "df2"] == 53
 
@@ -175,9 +214,14 @@ def test_unbalanced_three_level_factorial_matches_statsmodels(ss_type: int) -> N
     for a, b in itertools.product(["a1", "a2", "a3"], ["b1", "b2"]):
         for _ in range(int(rng.integers(3, 9))):  # unequal cell sizes
             x = rng.normal()
-            rows.append({"A": a, "B": b, "x": x,
-                         "y": (a == "a2") * 1.5 + (b == "b2") * (a == "a3") + 0.5 * x
-                         + rng.normal()})
+            rows.append(
+                {
+                    "A": a,
+                    "B": b,
+                    "x": x,
+                    "y": (a == "a2") * 1.5 + (b == "b2") * (a == "a3") + 0.5 * x + rng.normal(),
+                }
+            )
     d = pd.DataFrame(rows)
     res = factorial_anova(d, dv="y", factors=["A", "B"], covariates=["x"], ss_type=ss_type)
     ref = anova_lm(smf.ols("y ~ C(A, Sum) * C(B, Sum) + x", data=d).fit(), typ=ss_type)
@@ -192,26 +236,42 @@ def test_unbalanced_three_level_factorial_matches_statsmodels(ss_type: int) -> N
 def test_covariate_anova_aggregates_repeats_and_keeps_df() -> None:
     d = _paper_shaped()
     doubled = pd.concat([d, d.assign(duration_s=d.duration_s + 2.0)], ignore_index=True)
-    res = covariate_anova(doubled, dv="duration_s", subject="participant",
-                          within=["difficulty", "correctness", "mode"],
-                          covariates=["training_time_s", "baseline_rating", "tasks_completed"])
+    res = covariate_anova(
+        doubled,
+        dv="duration_s",
+        subject="participant",
+        within=["difficulty", "correctness", "mode"],
+        covariates=["training_time_s", "baseline_rating", "tasks_completed"],
+    )
     assert res.df_resid == 53
     assert any("averaged" in n for n in res.notes)
 
 
 def test_missing_cells_name_participants_and_cells() -> None:
     d = _paper_shaped()
-    d = d.drop(index=d.index[(d.participant == "P3") & (d["mode"] == "timid")
-                             & (d.correctness == "wrong") & (d.difficulty == "hard")])
+    d = d.drop(
+        index=d.index[
+            (d.participant == "P3")
+            & (d["mode"] == "timid")
+            & (d.correctness == "wrong")
+            & (d.difficulty == "hard")
+        ]
+    )
     with pytest.raises(DesignError) as err:
-        rm_anova(d, dv="duration_s", subject="participant",
-                 within=["difficulty", "correctness", "mode"])
+        rm_anova(
+            d, dv="duration_s", subject="participant", within=["difficulty", "correctness", "mode"]
+        )
     msg = str(err.value)
     assert "P3 lacks difficulty=hard & correctness=wrong & mode=timid" in msg
     assert "drop" in msg
     assert err.value.missing == {"P3": ["difficulty=hard & correctness=wrong & mode=timid"]}
-    res = rm_anova(d, dv="duration_s", subject="participant",
-                   within=["difficulty", "correctness", "mode"], drop_incomplete=True)
+    res = rm_anova(
+        d,
+        dv="duration_s",
+        subject="participant",
+        within=["difficulty", "correctness", "mode"],
+        drop_incomplete=True,
+    )
     assert res.n_subjects == 7 and set(res.table.df2) == {6}
 
 
@@ -222,30 +282,36 @@ def test_bad_input_messages() -> None:
     with pytest.raises(SchemaError, match="no column"):
         rm_anova(d, dv="time", subject="participant", within=["difficulty"])
     with pytest.raises(DesignError, match="at least two levels"):
-        rm_anova(d[d["mode"] == "timid"], dv="duration_s", subject="participant",
-                 within=["mode"])
+        rm_anova(d[d["mode"] == "timid"], dv="duration_s", subject="participant", within=["mode"])
     with pytest.raises(DesignError, match="constant"):
         factorial_anova(d.assign(k=1.0), dv="duration_s", factors=["mode"], covariates=["k"])
 
 
 @settings(max_examples=40, deadline=None)
-@given(n=st.integers(min_value=3, max_value=12), seed=st.integers(0, 10_000),
-       shift=st.floats(-50, 50))
+@given(
+    n=st.integers(min_value=3, max_value=12), seed=st.integers(0, 10_000), shift=st.floats(-50, 50)
+)
 def test_two_level_effect_is_the_squared_paired_t(n: int, seed: int, shift: float) -> None:
     # For one two-level within factor, F(1, n-1) equals the paired t statistic squared, and a
     # per-subject constant (a subject effect) changes nothing.
     rng = np.random.default_rng(seed)
     a, b = rng.normal(size=n), rng.normal(size=n) + 0.3
     subj = rng.normal(0, 5, size=n)
-    long = pd.DataFrame({"s": np.tile(np.arange(n), 2), "f": ["a"] * n + ["b"] * n,
-                         "y": np.r_[a + subj, b + subj] + shift})
+    long = pd.DataFrame(
+        {
+            "s": np.tile(np.arange(n), 2),
+            "f": ["a"] * n + ["b"] * n,
+            "y": np.r_[a + subj, b + subj] + shift,
+        }
+    )
     row = rm_anova(long, dv="y", subject="s", within=["f"]).table.iloc[0]
     ref = stats.ttest_rel(a, b)
     assert float(row["F"]) == pytest.approx(ref.statistic**2, rel=1e-9)
     assert float(row["p"]) == pytest.approx(ref.pvalue, rel=1e-7)
     shuffled = long.sample(frac=1.0, random_state=seed)
-    assert float(rm_anova(shuffled, dv="y", subject="s", within=["f"]).table.iloc[0]["F"]) == \
-        pytest.approx(float(row["F"]))
+    assert float(
+        rm_anova(shuffled, dv="y", subject="s", within=["f"]).table.iloc[0]["F"]
+    ) == pytest.approx(float(row["F"]))
 
 
 def test_between_subject_factor_is_named() -> None:
@@ -256,8 +322,13 @@ def test_between_subject_factor_is_named() -> None:
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "analysis", "anova", *args], cwd=ROOT,
-                          capture_output=True, text=True, timeout=60)
+    return subprocess.run(
+        [sys.executable, "-m", "analysis", "anova", *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
 
 
 def test_cli_prints_effect_rows_and_reports_problems(tmp_path: Path) -> None:
@@ -265,26 +336,63 @@ def test_cli_prints_effect_rows_and_reports_problems(tmp_path: Path) -> None:
     d = pd.concat([d, d.iloc[:3]], ignore_index=True)  # repeated rows -> averaged, with a note
     path = tmp_path / "long.csv"
     d.to_csv(path, index=False)
-    ok = _cli("--csv", str(path), "--dv", "duration_s", "--subject", "participant",
-              "--within", "difficulty", "correctness", "C")
+    ok = _cli(
+        "--csv",
+        str(path),
+        "--dv",
+        "duration_s",
+        "--subject",
+        "participant",
+        "--within",
+        "difficulty",
+        "correctness",
+        "C",
+    )
     assert ok.returncode == 0, ok.stderr
     out = pd.read_csv(__import__("io").StringIO(ok.stdout))
     assert list(out.columns[:6]) == ["effect", "df1", "df2", "F", "p", "np2"]
     assert len(out) == 7 and set(out.df2) == {7}
     assert "averaged" in ok.stderr
-    js = _cli("--csv", str(path), "--dv", "duration_s", "--subject", "participant",
-              "--within", "difficulty", "correctness", "C", "--covariates", "training_time_s",
-              "baseline_rating", "tasks_completed", "--format", "json")
+    js = _cli(
+        "--csv",
+        str(path),
+        "--dv",
+        "duration_s",
+        "--subject",
+        "participant",
+        "--within",
+        "difficulty",
+        "correctness",
+        "C",
+        "--covariates",
+        "training_time_s",
+        "baseline_rating",
+        "tasks_completed",
+        "--format",
+        "json",
+    )
     rows = json.loads(js.stdout)
     assert {r["df2"] for r in rows} == {53.0} and rows[0]["effect"] == "difficulty"
-    bad = _cli("--csv", str(path), "--dv", "C", "--subject", "participant", "--within",
-               "difficulty")
+    bad = _cli(
+        "--csv", str(path), "--dv", "C", "--subject", "participant", "--within", "difficulty"
+    )
     assert bad.returncode == 2 and "must be numeric" in bad.stderr
     assert "Traceback" not in bad.stderr
     d.iloc[4:].to_csv(path, index=False)  # P0 now lacks cells
-    miss = _cli("--csv", str(path), "--dv", "duration_s", "--subject", "participant",
-                "--within", "difficulty", "correctness", "C")
+    miss = _cli(
+        "--csv",
+        str(path),
+        "--dv",
+        "duration_s",
+        "--subject",
+        "participant",
+        "--within",
+        "difficulty",
+        "correctness",
+        "C",
+    )
     assert miss.returncode == 2 and "P0 lacks" in miss.stderr and "Traceback" not in miss.stderr
-    gone = _cli("--csv", str(tmp_path / "absent.csv"), "--dv", "y", "--subject", "s",
-                "--within", "a")
+    gone = _cli(
+        "--csv", str(tmp_path / "absent.csv"), "--dv", "y", "--subject", "s", "--within", "a"
+    )
     assert gone.returncode == 2 and "not found" in gone.stderr

@@ -87,39 +87,57 @@ def test_evaluation_and_four_factor_anova(tmp_path: Path) -> None:
 
 
 def _predict(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "analysis", "predict", *args], cwd=ROOT,
-                          capture_output=True, text=True, timeout=60)
+    return subprocess.run(
+        [sys.executable, "-m", "analysis", "predict", *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
 
 
 def test_predict_command(tmp_path: Path) -> None:
     goals = tmp_path / "goals.csv"
-    pd.DataFrame({"goal": ["box", "bottle"], "x": GOALS[:, 0], "y": GOALS[:, 1],
-                  "z": GOALS[:, 2]}).to_csv(goals, index=False)
+    pd.DataFrame(
+        {"goal": ["box", "bottle"], "x": GOALS[:, 0], "y": GOALS[:, 1], "z": GOALS[:, 2]}
+    ).to_csv(goals, index=False)
     traj = _curved(60)
     tr = tmp_path / "traj.csv"
-    pd.DataFrame({"t": np.arange(60) / 10, "x": traj[:, 0], "y": traj[:, 1],
-                  "z": traj[:, 2]}).to_csv(tr, index=False)
+    pd.DataFrame(
+        {"t": np.arange(60) / 10, "x": traj[:, 0], "y": traj[:, 1], "z": traj[:, 2]}
+    ).to_csv(tr, index=False)
     out = _predict("--goals", str(goals), "--trajectory", str(tr), "--method", "amnesic")
     assert out.returncode == 0, out.stderr
     df = pd.read_csv(io.StringIO(out.stdout))
     assert list(df.columns) == ["t", "p_box", "p_bottle", "predicted", "confidence"]
-    nearest = np.where(np.linalg.norm(traj - GOALS[1], axis=1)
-                       < np.linalg.norm(traj - GOALS[0], axis=1), "bottle", "box")
+    nearest = np.where(
+        np.linalg.norm(traj - GOALS[1], axis=1) < np.linalg.norm(traj - GOALS[0], axis=1),
+        "bottle",
+        "box",
+    )
     assert (df["predicted"].to_numpy() == nearest).all()
     assert np.allclose(df["confidence"], df[["p_box", "p_bottle"]].max(axis=1), atol=1e-5)
-    mem = _predict("--goals", str(goals), "--trajectory", str(tr), "--method", "memory",
-                   "--cost", "length")
+    mem = _predict(
+        "--goals", str(goals), "--trajectory", str(tr), "--method", "memory", "--cost", "length"
+    )
     assert mem.returncode == 0 and mem.stdout.count("\n") == 61
     # the protocol format's cost name and the short one are the same cost
-    named = [_predict("--goals", str(goals), "--trajectory", str(tr), "--method", "memory",
-                      "--cost", cost) for cost in ("squared_velocity", "sqvel")]
+    named = [
+        _predict(
+            "--goals", str(goals), "--trajectory", str(tr), "--method", "memory", "--cost", cost
+        )
+        for cost in ("squared_velocity", "sqvel")
+    ]
     assert named[0].returncode == 0 and named[0].stdout == named[1].stdout != mem.stdout
     # configuration-space columns q1..qn work the same way
     pd.DataFrame({"goal": ["a", "b"], "q1": [0, 1], "q2": [0, 1]}).to_csv(goals, index=False)
     pd.DataFrame({"t": [0, 1, 2], "q1": [0.1, 0.6, 0.9], "q2": [0, 0.5, 1]}).to_csv(tr, index=False)
     q = _predict("--goals", str(goals), "--trajectory", str(tr), "--method", "amnesic")
-    assert q.returncode == 0 and list(pd.read_csv(io.StringIO(q.stdout))["predicted"]) == \
-        ["a", "b", "b"]
+    assert q.returncode == 0 and list(pd.read_csv(io.StringIO(q.stdout))["predicted"]) == [
+        "a",
+        "b",
+        "b",
+    ]
     # bad input: clear message, exit 2, no traceback
     pd.DataFrame({"t": [0, 1], "q1": ["x", 0.3], "q2": [0, 1]}).to_csv(tr, index=False)
     bad = _predict("--goals", str(goals), "--trajectory", str(tr), "--method", "memory")
@@ -160,12 +178,17 @@ def test_replay_moves_goals_where_the_robot_moved_them(protocol_path: Path) -> N
     for _ in range(80):
         trial.tick()
     recs = trial.records
-    samples = pd.DataFrame({
-        "trial_id": 1, "tick": [r.tick for r in recs], "t": [r.t for r in recs],
-        "target_x": [r.user_target[0] for r in recs], "target_y": [r.user_target[1] for r in recs],
-        "target_z": [r.user_target[2] for r in recs],
-        "events": [json.dumps(list(r.events)) for r in recs],
-    })
+    samples = pd.DataFrame(
+        {
+            "trial_id": 1,
+            "tick": [r.tick for r in recs],
+            "t": [r.t for r in recs],
+            "target_x": [r.user_target[0] for r in recs],
+            "target_y": [r.user_target[1] for r in recs],
+            "target_z": [r.user_target[2] for r in recs],
+            "events": [json.dumps(list(r.events)) for r in recs],
+        }
+    )
     _, xyz, moved = trial_trajectories(samples)[1]
     names = list(trial.scene.goals.names)
     moves = goal_moves(moved, names, 1)
@@ -182,16 +205,23 @@ def test_protocol_predictors_take_the_protocols_tables() -> None:
     from analysis.prediction_eval import protocol_predictors
     from analysis.protocol_info import load_protocol_info
 
-    paper, how = protocol_predictors(load_protocol_info(ROOT / "protocols" / "dragan2013.toml")
-                                     .prediction)
+    paper, how = protocol_predictors(
+        load_protocol_info(ROOT / "protocols" / "dragan2013.toml").prediction
+    )
     assert paper == PREDICTORS  # [prediction.wrong] is amnesic at 0.05; no memory table
     assert "[prediction.wrong]" in how[0].source and "paper's default" in how[1].source
-    m3, how = protocol_predictors(load_protocol_info(ROOT / "protocols" / "memory3.toml")
-                                  .prediction)
+    m3, how = protocol_predictors(
+        load_protocol_info(ROOT / "protocols" / "memory3.toml").prediction
+    )
     assert m3["memory"] == {"kind": "memory", "cost": "length", "rationality": 30.0}
-    assert how[1].describe() == ("memory: cost length, rationality 30 (the protocol's "
-                                 "[prediction.memory])")
-    joint, how = protocol_predictors({"m": {"kind": "memory", "space": "configuration"},
-                                      "a": {"kind": "amnesic", "temperature": 0.1}})
+    assert how[1].describe() == (
+        "memory: cost length, rationality 30 (the protocol's [prediction.memory])"
+    )
+    joint, how = protocol_predictors(
+        {
+            "m": {"kind": "memory", "space": "configuration"},
+            "a": {"kind": "amnesic", "temperature": 0.1},
+        }
+    )
     assert joint["memory"] == PREDICTORS["memory"] and "configuration space" in how[1].source
     assert joint["amnesic"] == {"kind": "amnesic", "temperature": 0.1}

@@ -25,8 +25,11 @@ def edited_after_the_study(tmp_path: Path, protocol_path: Path) -> tuple[Path, P
     protocol = load_protocol(path)
     open_store(tmp_path / "study.db", protocol).close()
     ran_with = {m.name: dict(m.arbitration) for m in protocol.modes}
-    text, n = re.subn(r"(?m)^(arbitration = \{ kind = \"timid\", alpha_max = )[0-9.]+",
-                      r"\g<1>0.25", path.read_text())
+    text, n = re.subn(
+        r"(?m)^(arbitration = \{ kind = \"timid\", alpha_max = )[0-9.]+",
+        r"\g<1>0.25",
+        path.read_text(),
+    )
     assert n == 1 and ran_with["timid"]["alpha_max"] != 0.25
     path.write_text(text)
     return tmp_path / "study.db", path, ran_with
@@ -48,8 +51,7 @@ def test_stored_protocol_wins_over_a_file_edited_afterwards(edited_after_the_stu
     assert any(str(path) in n and "not used" in n for n in info.notes)
 
 
-def test_report_hash_and_figure_come_from_the_store(edited_after_the_study,
-                                                    tmp_path: Path) -> None:
+def test_report_hash_and_figure_come_from_the_store(edited_after_the_study, tmp_path: Path) -> None:
     db, path, _ = edited_after_the_study
     trials = synthetic_tables(2, seed=1, with_samples=False)["trials"]
     tables = from_frames(trials[trials.phase == "training"], source=str(db))

@@ -20,9 +20,24 @@ ROOT = Path(__file__).resolve().parents[1]
 @pytest.fixture(scope="module")
 def store(tmp_path_factory: pytest.TempPathFactory) -> Path:
     db = tmp_path_factory.mktemp("store") / "study.db"
-    run = subprocess.run([sys.executable, "-m", "study", "run", "--db", str(db),
-                          "--participant", "P01", "--seed", "3"], cwd=ROOT,
-                         capture_output=True, text=True, timeout=300)
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "study",
+            "run",
+            "--db",
+            str(db),
+            "--participant",
+            "P01",
+            "--seed",
+            "3",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert run.returncode == 0, run.stderr[-2000:]
     return db
 
@@ -33,21 +48,29 @@ def test_store_loads_into_the_contract_tables(store: Path) -> None:
     cells, _ = task_cells(tables.trials)
     assert len(cells) == 8
     assert set(zip(cells["task"], cells["mode"], strict=True)) == {
-        (t, m) for t in ("easy-right", "easy-wrong", "hard-right", "hard-wrong")
-        for m in ("timid", "aggressive")}
+        (t, m)
+        for t in ("easy-right", "easy-wrong", "hard-right", "hard-wrong")
+        for m in ("timid", "aggressive")
+    }
     assert (tables.trials[tables.trials.phase == "training"]["mode"] == "none").all()
     evals, notes = evaluate_predictions(cells, tables.samples, workers=1)
     assert notes == () and len(evals) == 16
     assert evals["success_rate"].between(0, 1).all()
     ticks = tables.samples.groupby("trial_id").size()
-    assert (evals.set_index("trial_id")["n_ticks"].groupby(level=0).first()
-            == ticks.reindex(evals["trial_id"].unique())).all()
+    assert (
+        evals.set_index("trial_id")["n_ticks"].groupby(level=0).first()
+        == ticks.reindex(evals["trial_id"].unique())
+    ).all()
 
 
 def test_report_from_a_one_participant_store(store: Path, tmp_path: Path) -> None:
-    run = subprocess.run([sys.executable, "-m", "analysis", "report", "--db", str(store),
-                          "--out", str(tmp_path)], cwd=ROOT, capture_output=True, text=True,
-                         timeout=300)
+    run = subprocess.run(
+        [sys.executable, "-m", "analysis", "report", "--db", str(store), "--out", str(tmp_path)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert run.returncode == 0, run.stderr
     doc = json.loads((tmp_path / "results.json").read_text())
     assert doc["participants"] == 1
@@ -61,19 +84,36 @@ def test_report_from_a_one_participant_store(store: Path, tmp_path: Path) -> Non
 
 
 @pytest.mark.parametrize("fmt", ["csv", "parquet"])
-def test_exported_files_give_the_same_numbers_as_the_store(store: Path, tmp_path: Path,
-                                                           fmt: str) -> None:
-    run = subprocess.run([sys.executable, "-m", "study", "export", "--db", str(store), "--out",
-                          str(tmp_path), "--format", fmt], cwd=ROOT, capture_output=True,
-                         text=True, timeout=300)
+def test_exported_files_give_the_same_numbers_as_the_store(
+    store: Path, tmp_path: Path, fmt: str
+) -> None:
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "study",
+            "export",
+            "--db",
+            str(store),
+            "--out",
+            str(tmp_path),
+            "--format",
+            fmt,
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert run.returncode == 0, run.stderr
     from_db, from_files = load_tables(db=store), load_tables(export_dir=tmp_path)
     assert from_files.protocol_hash == from_db.protocol_hash
     a, _ = task_cells(from_db.trials)
     b, _ = task_cells(from_files.trials)
     cols = ["participant", "task", "mode", "duration_s", "preference_aggressive", "trial_id"]
-    pd.testing.assert_frame_equal(a[cols].reset_index(drop=True), b[cols].reset_index(drop=True),
-                                  check_dtype=False)
+    pd.testing.assert_frame_equal(
+        a[cols].reset_index(drop=True), b[cols].reset_index(drop=True), check_dtype=False
+    )
     ea, _ = evaluate_predictions(a, from_db.samples, workers=1)
     eb, _ = evaluate_predictions(b, from_files.samples, workers=1)
     pd.testing.assert_frame_equal(ea, eb, check_dtype=False)

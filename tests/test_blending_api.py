@@ -212,9 +212,7 @@ def test_factories_build_the_protocol_examples() -> None:
     assert orc.update(None).index == 1
     mem = predictor_from_config({"kind": "memory", "cost": "length", "rationality": 5}, points=g)
     assert isinstance(mem, MemoryPredictor) and mem.rationality == 5.0
-    sq = predictor_from_config(
-        {"kind": "memory", "cost": "squared_velocity", "steps": 4}, points=g
-    )
+    sq = predictor_from_config({"kind": "memory", "cost": "squared_velocity", "steps": 4}, points=g)
     assert sq.cost.steps == 4
     d = confidence_from_config({"kind": "distance", "D": 0.4})
     assert d(None, 0.1) == pytest.approx(0.75)
@@ -225,42 +223,84 @@ def test_factories_build_the_protocol_examples() -> None:
 @pytest.mark.parametrize(
     ("factory", "cfg", "message"),
     [
-        (arbitration_from_config, {"kind": "timid", "alpha_max": 1.5},
-         "modes.x.alpha_max: must be in (0, 1), got 1.5"),
-        (arbitration_from_config, {"kind": "aggressive", "threshold": -0.1},
-         "modes.x.threshold: must be in [0, 1], got -0.1"),
+        (
+            arbitration_from_config,
+            {"kind": "timid", "alpha_max": 1.5},
+            "modes.x.alpha_max: must be in (0, 1), got 1.5",
+        ),
+        (
+            arbitration_from_config,
+            {"kind": "aggressive", "threshold": -0.1},
+            "modes.x.threshold: must be in [0, 1], got -0.1",
+        ),
         (arbitration_from_config, {"kind": "aggressive"}, "modes.x.threshold: missing"),
-        (arbitration_from_config, {"kind": "timid", "alpha_max": 0.5, "sat": 1},
-         "modes.x.sat: unknown key"),
+        (
+            arbitration_from_config,
+            {"kind": "timid", "alpha_max": 0.5, "sat": 1},
+            "modes.x.sat: unknown key",
+        ),
         (arbitration_from_config, {"kind": "bold"}, "modes.x.kind: must be one of"),
         (arbitration_from_config, {"alpha_max": 0.5}, "modes.x.kind: missing"),
-        (arbitration_from_config, {"kind": "piecewise_linear", "points": [[0, 0.5], [1, 0.2]]},
-         "modes.x.points: alpha must not decrease"),
-        (arbitration_from_config, {"kind": "timid", "alpha_max": "big"},
-         "modes.x.alpha_max: expected a number"),
-        (confidence_from_config, {"kind": "distance", "D": -0.4},
-         "modes.x.D: must be finite and > 0, got -0.4"),
+        (
+            arbitration_from_config,
+            {"kind": "piecewise_linear", "points": [[0, 0.5], [1, 0.2]]},
+            "modes.x.points: alpha must not decrease",
+        ),
+        (
+            arbitration_from_config,
+            {"kind": "timid", "alpha_max": "big"},
+            "modes.x.alpha_max: expected a number",
+        ),
+        (
+            confidence_from_config,
+            {"kind": "distance", "D": -0.4},
+            "modes.x.D: must be finite and > 0, got -0.4",
+        ),
         (confidence_from_config, {"kind": "distance"}, "modes.x.D: missing"),
-        (predictor_from_config, {"kind": "amnesic", "temperature": 0},
-         "modes.x.temperature: must be finite and > 0"),
-        (predictor_from_config, {"kind": "memory", "cost": "jerk"},
-         "modes.x.cost: must be 'length' or 'squared_velocity'"),
-        (predictor_from_config, {"kind": "memory", "rationality": float("nan")},
-         "modes.x.rationality: must be finite"),
-        (predictor_from_config, {"kind": "memory", "prior": [1, -1]},
-         "modes.x.prior: weights must be >= 0"),
-        (predictor_from_config, {"kind": "memory", "prior": [1, 1, 1]},
-         "modes.x.prior: expected last dimension 2"),
+        (
+            predictor_from_config,
+            {"kind": "amnesic", "temperature": 0},
+            "modes.x.temperature: must be finite and > 0",
+        ),
+        (
+            predictor_from_config,
+            {"kind": "memory", "cost": "jerk"},
+            "modes.x.cost: must be 'length' or 'squared_velocity'",
+        ),
+        (
+            predictor_from_config,
+            {"kind": "memory", "rationality": float("nan")},
+            "modes.x.rationality: must be finite",
+        ),
+        (
+            predictor_from_config,
+            {"kind": "memory", "prior": [1, -1]},
+            "modes.x.prior: weights must be >= 0",
+        ),
+        (
+            predictor_from_config,
+            {"kind": "memory", "prior": [1, 1, 1]},
+            "modes.x.prior: expected last dimension 2",
+        ),
         (predictor_from_config, {"kind": "oracle"}, "modes.x.goal: oracle prediction needs"),
         (predictor_from_config, {"kind": "oracle", "goal": 5}, "modes.x.goal: must be an index"),
-        (predictor_from_config, {"kind": "oracle", "goal": "nope"},
-         "modes.x.goal: no goal called 'nope'"),
+        (
+            predictor_from_config,
+            {"kind": "oracle", "goal": "nope"},
+            "modes.x.goal: no goal called 'nope'",
+        ),
         (predictor_from_config, {"kind": "amnesic", "space": "joint"}, "modes.x.space: must be"),
         (predictor_from_config, {"kind": "laplace", "cost": "length"}, "modes.x.cost: eq. 8"),
-        (policy_from_config, {"kind": "straight_line", "max_speed": 0},
-         "modes.x.max_speed: must be a finite number > 0"),
-        (policy_from_config, {"kind": "workspace_line", "max_speed": 0.2},
-         "modes.x.kind: 'workspace_line' needs fk="),
+        (
+            policy_from_config,
+            {"kind": "straight_line", "max_speed": 0},
+            "modes.x.max_speed: must be a finite number > 0",
+        ),
+        (
+            policy_from_config,
+            {"kind": "workspace_line", "max_speed": 0.2},
+            "modes.x.kind: 'workspace_line' needs fk=",
+        ),
     ],
 )
 def test_factory_errors_name_the_key_path(factory, cfg, message) -> None:
@@ -292,8 +332,7 @@ def test_workspace_policy_runs_without_goal_configurations() -> None:
 
     g = GoalSet(["a", "b"], [[0.4, 0, 0.1], [0.8, 0, 0.1]])
     a = np.hstack([np.eye(3), np.zeros((3, 4))])
-    pol = WorkspaceLinePolicy(fk=lambda q: a @ q, jacobian=lambda q: a, max_step=0.01,
-                              damping=0.0)
+    pol = WorkspaceLinePolicy(fk=lambda q: a @ q, jacobian=lambda q: a, max_step=0.01, damping=0.0)
     b = make_blender(g, policy=pol, feature=lambda q: a @ q)
     b.reset([0.0, 0.0, 0.1])
     q = np.array([0.3, 0.0, 0.1, 0, 0, 0, 0])

@@ -272,8 +272,7 @@ def test_arbitration_rejects_bad_functions() -> None:
         FunctionArbitration(lambda c: c - 0.1)
     # a dip between grid points is caught through the declared breakpoint
     with pytest.raises(InvalidArbitrationError, match="must not decrease"):
-        FunctionArbitration(lambda c: 0.0 if 0.50005 < c < 0.50007 else c,
-                            breakpoints=[0.50006])
+        FunctionArbitration(lambda c: 0.0 if 0.50005 < c < 0.50007 else c, breakpoints=[0.50006])
     with pytest.raises(InvalidArbitrationError, match="must not decrease"):
         PiecewiseLinear([(0.0, 0.5), (1.0, 0.2)])
     with pytest.raises(InvalidArbitrationError, match="must stay in"):
@@ -307,8 +306,9 @@ def test_is_adversarial_theorem_1() -> None:
     p = np.tile(rng.normal(size=7), (20, 1))
     assert not is_adversarial(u, p, np.full(20, 0.5))
     # zero user inputs are excluded; all-zero is an error
-    assert is_adversarial(np.vstack([u, np.zeros(7)]), np.vstack([-u, np.ones(7)]),
-                          np.r_[np.full(20, 0.5), 0.3])
+    assert is_adversarial(
+        np.vstack([u, np.zeros(7)]), np.vstack([-u, np.ones(7)]), np.r_[np.full(20, 0.5), 0.3]
+    )
     with pytest.raises(InvalidInputError, match="every sample is zero"):
         is_adversarial(np.zeros((2, 3)), np.zeros((2, 3)), [0.5, 0.5])
     with pytest.raises(InvalidInputError, match="alpha: values must be in"):

@@ -144,8 +144,12 @@ def test_confidences_in_unit_interval(raw, distance) -> None:
         raw = raw + 1.0
     p = raw / raw.sum()
     pred = GoalPrediction(p, int(p.argmax()))
-    for conf in (DistanceHinge(0.4), ProbabilityConfidence(), EntropyConfidence(),
-                 MarginConfidence()):
+    for conf in (
+        DistanceHinge(0.4),
+        ProbabilityConfidence(),
+        EntropyConfidence(),
+        MarginConfidence(),
+    ):
         c = conf(pred, distance)
         assert 0.0 <= c <= 1.0
 
@@ -158,11 +162,15 @@ def test_confidences_in_unit_interval(raw, distance) -> None:
     arbitrations(),
 )
 def test_command_is_a_convex_combination(q, u, x, arb) -> None:
-    goals = GoalSet(["a", "b"], [[0.5, 0, 0], [0, 0.5, 0]],
-                    configurations=[[0.3] * 7, [-0.3] * 7])
-    b = PolicyBlender(goals=goals, predictor=MemoryPredictor(goals.positions, rationality=5),
-                      confidence=DistanceHinge(1.0), arbitration=arb,
-                      policy=StraightLinePolicy(0.05), space="workspace")
+    goals = GoalSet(["a", "b"], [[0.5, 0, 0], [0, 0.5, 0]], configurations=[[0.3] * 7, [-0.3] * 7])
+    b = PolicyBlender(
+        goals=goals,
+        predictor=MemoryPredictor(goals.positions, rationality=5),
+        confidence=DistanceHinge(1.0),
+        arbitration=arb,
+        policy=StraightLinePolicy(0.05),
+        space="workspace",
+    )
     b.reset(np.zeros(3))
     rec = b.step(q, u, x=x)
     assert 0.0 <= rec.alpha <= 1.0
@@ -186,13 +194,20 @@ def test_extreme_finite_inputs_never_give_a_nan_command(q, u, x, kind) -> None:
     """Whatever finite input: a finite command or a typed BlendingError, never a NaN."""
     from app.blending import BlendingError
 
-    goals = GoalSet(["a", "b"], [[0.5, 0, 0], [0, 0.5, 0]],
-                    configurations=[[0.3] * 7, [-0.3] * 7])
-    pred = (AmnesicPredictor(goals.positions, temperature=0.05) if kind == "amnesic"
-            else MemoryPredictor(goals.positions, rationality=5))
-    b = PolicyBlender(goals=goals, predictor=pred, confidence=DistanceHinge(0.4),
-                      arbitration=Aggressive(0.4, 0.9), policy=StraightLinePolicy(0.05),
-                      space="workspace")
+    goals = GoalSet(["a", "b"], [[0.5, 0, 0], [0, 0.5, 0]], configurations=[[0.3] * 7, [-0.3] * 7])
+    pred = (
+        AmnesicPredictor(goals.positions, temperature=0.05)
+        if kind == "amnesic"
+        else MemoryPredictor(goals.positions, rationality=5)
+    )
+    b = PolicyBlender(
+        goals=goals,
+        predictor=pred,
+        confidence=DistanceHinge(0.4),
+        arbitration=Aggressive(0.4, 0.9),
+        policy=StraightLinePolicy(0.05),
+        space="workspace",
+    )
     b.reset(np.zeros(3))
     try:
         rec = b.step(q, u, x=x)

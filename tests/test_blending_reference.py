@@ -18,8 +18,9 @@ def test_log_partition_hand_computed_corridor() -> None:
     # -> Z1 = w / (1 - w^2), Z0 = w^2 / (1 - w^2)
     w = math.exp(-B)
     lz = grid_log_partition((1, 3), (0, 2), rationality=B)
-    np.testing.assert_allclose(lz[0], [math.log(w * w / (1 - w * w)),
-                                       math.log(w / (1 - w * w)), 0.0])
+    np.testing.assert_allclose(
+        lz[0], [math.log(w * w / (1 - w * w)), math.log(w / (1 - w * w)), 0.0]
+    )
 
 
 def test_soft_bellman_equation_holds() -> None:
@@ -31,8 +32,11 @@ def test_soft_bellman_equation_holds() -> None:
         for j in range(shape[1]):
             if (i, j) == goal:
                 continue
-            terms = [-B * math.hypot(di, dj) - v[i + di, j + dj] for di, dj in _MOVES
-                     if 0 <= i + di < shape[0] and 0 <= j + dj < shape[1]]
+            terms = [
+                -B * math.hypot(di, dj) - v[i + di, j + dj]
+                for di, dj in _MOVES
+                if 0 <= i + di < shape[0] and 0 <= j + dj < shape[1]
+            ]
             assert v[i, j] == pytest.approx(-np.logaddexp.reduce(terms), abs=1e-9)
     # the soft value is a little below the shortest path length (many near-optimal paths)
     assert 0 < B * 3 - v[2, 2] < 1.0

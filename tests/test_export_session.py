@@ -21,16 +21,44 @@ PAPER = ROOT / "protocols" / "dragan2013.toml"
 def test_session_export_has_every_condition_rating_and_covariate(tmp_path: Path) -> None:
     db = tmp_path / "study.sqlite"
     run = subprocess.run(
-        [sys.executable, "-m", "study", "run", "--protocol", str(PAPER), "--db", str(db),
-         "--participant", "P01", "--seed", "1"],
-        cwd=ROOT, capture_output=True, text=True, timeout=300,
+        [
+            sys.executable,
+            "-m",
+            "study",
+            "run",
+            "--protocol",
+            str(PAPER),
+            "--db",
+            str(db),
+            "--participant",
+            "P01",
+            "--seed",
+            "1",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert run.returncode == 0, run.stderr[-2000:]
     out = tmp_path / "export"
     export = subprocess.run(
-        [sys.executable, "-m", "study", "export", "--db", str(db), "--out", str(out),
-         "--protocol", str(PAPER)],
-        cwd=ROOT, capture_output=True, text=True, timeout=300,
+        [
+            sys.executable,
+            "-m",
+            "study",
+            "export",
+            "--db",
+            str(db),
+            "--out",
+            str(out),
+            "--protocol",
+            str(PAPER),
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert export.returncode == 0, export.stderr
     protocol = load_protocol(PAPER)

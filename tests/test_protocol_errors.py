@@ -76,25 +76,31 @@ def _parent(doc: dict[str, Any], key: str) -> tuple[dict[str, Any], str]:
 
 def put(key: str, value: Any) -> Edit:
     """Set (or add) the value at the dotted ``key``."""
+
     def edit(doc: dict[str, Any]) -> None:
         table, last = _parent(doc, key)
         table[last] = value
+
     return edit
 
 
 def change(key: str, f: Callable[[Any], Any]) -> Edit:
     """Replace the value at ``key`` by ``f(value)``."""
+
     def edit(doc: dict[str, Any]) -> None:
         table, last = _parent(doc, key)
         table[last] = f(table[last])
+
     return edit
 
 
 def rename(key: str, new: str) -> Edit:
     """Move the value at ``key`` to the sibling key ``new``."""
+
     def edit(doc: dict[str, Any]) -> None:
         table, last = _parent(doc, key)
         table[new] = table.pop(last)
+
     return edit
 
 
@@ -102,6 +108,7 @@ def drop(key: str) -> Edit:
     def edit(doc: dict[str, Any]) -> None:
         table, last = _parent(doc, key)
         del table[last]
+
     return edit
 
 
@@ -145,69 +152,159 @@ _HARD_GOALS = len(DATA["scenes"]["hard"]["objects"])
 
 CASES = [
     # (edit, error class, key, problem fragment)
-    (rename("modes.timid.arbitration.alpha_max", "alpha_maz"), UnknownKeyError,
-     "modes.timid.arbitration.alpha_maz", "unknown key 'alpha_maz'"),
+    (
+        rename("modes.timid.arbitration.alpha_max", "alpha_maz"),
+        UnknownKeyError,
+        "modes.timid.arbitration.alpha_maz",
+        "unknown key 'alpha_maz'",
+    ),
     (put("training.secne", "x"), UnknownKeyError, "training.secne", "unknown"),
     (put("consnet", {"x": 1}), UnknownKeyError, "consnet", "unknown"),
-    (put("control.rate_hz", "fast"), ProtocolTypeError, "control.rate_hz",
-     "expected a number, got a string"),
+    (
+        put("control.rate_hz", "fast"),
+        ProtocolTypeError,
+        "control.rate_hz",
+        "expected a number, got a string",
+    ),
     (put("training.runs", 2.5), ProtocolTypeError, "training.runs", "expected an integer"),
     (put("training.runs", True), ProtocolTypeError, "training.runs", "got a boolean"),
     (put("training.runs", 0), ProtocolValueError, "training.runs", "must be >= 1"),
-    (put("modes.aggressive.arbitration.alpha_high", 1.5), ProtocolValueError,
-     "modes.aggressive.arbitration.alpha_high", "must be <= 1.0"),
+    (
+        put("modes.aggressive.arbitration.alpha_high", 1.5),
+        ProtocolValueError,
+        "modes.aggressive.arbitration.alpha_high",
+        "must be <= 1.0",
+    ),
     (change("confidence.D", lambda d: -d), ProtocolValueError, "confidence.D", "must be > 0"),
-    (put("control.physics_dt", _PERIOD / 2.5), ProtocolValueError, "control.physics_dt",
-     "whole number of times"),
+    (
+        put("control.physics_dt", _PERIOD / 2.5),
+        ProtocolValueError,
+        "control.physics_dt",
+        "whole number of times",
+    ),
     (put("policy.kind", "spline"), ProtocolValueError, "policy.kind", "'spline' is not one of"),
-    (put("tasks.hard-wrong.scene", "hrad"), UndefinedReferenceError, "tasks.hard-wrong.scene",
-     "scene 'hrad' is not defined"),
-    (put("tasks.hard-wrong.difficulty", "medium"), UndefinedReferenceError,
-     "tasks.hard-wrong.difficulty", "'medium' is not a level"),
-    (put("tasks.hard-wrong.correctness", "right"), ProtocolValueError, "tasks.hard-wrong",
-     "same difficulty and correctness as task"),
-    (put("training.scene", "nowhere"), UndefinedReferenceError, "training.scene",
-     "not defined"),
-    (put("factors.mode", ["timid", "aggressive", "bold"]), UndefinedReferenceError,
-     "modes.bold", "needs a [modes.bold] table"),
-    (put("factors.mode", ["timid", "timid"]), ProtocolValueError, "factors.mode",
-     "listed twice"),
+    (
+        put("tasks.hard-wrong.scene", "hrad"),
+        UndefinedReferenceError,
+        "tasks.hard-wrong.scene",
+        "scene 'hrad' is not defined",
+    ),
+    (
+        put("tasks.hard-wrong.difficulty", "medium"),
+        UndefinedReferenceError,
+        "tasks.hard-wrong.difficulty",
+        "'medium' is not a level",
+    ),
+    (
+        put("tasks.hard-wrong.correctness", "right"),
+        ProtocolValueError,
+        "tasks.hard-wrong",
+        "same difficulty and correctness as task",
+    ),
+    (put("training.scene", "nowhere"), UndefinedReferenceError, "training.scene", "not defined"),
+    (
+        put("factors.mode", ["timid", "aggressive", "bold"]),
+        UndefinedReferenceError,
+        "modes.bold",
+        "needs a [modes.bold] table",
+    ),
+    (put("factors.mode", ["timid", "timid"]), ProtocolValueError, "factors.mode", "listed twice"),
     (put("factors.mode", ["timid"]), UnknownKeyError, "modes.aggressive", "unknown key"),
-    (rename("prediction.wrong", "wrnog"), UndefinedReferenceError, "prediction.wrong",
-     "needs a [prediction.wrong] table; is [prediction.wrnog] a misspelling of it?"),
-    (rename("modes.aggressive", "agressive"), UndefinedReferenceError, "modes.aggressive",
-     "needs a [modes.aggressive] table; is [modes.agressive] a misspelling of it?"),
-    (change("questionnaire.scales.helpfulness.anchors", lambda a: a[:-1]), ScaleMismatchError,
-     "questionnaire.scales.helpfulness.anchors",
-     f"{len(_HELPFULNESS) - 1} anchors for a {DATA['questionnaire']['points']}-point "
-     "questionnaire"),
-    (change("questionnaire.after_run", lambda items: [*items[:-1], "fun"]),
-     UndefinedReferenceError, f"questionnaire.after_run[{len(_AFTER_RUN) - 1}]",
-     "item 'fun' is not defined"),
-    (put("questionnaire.items.teammate.scale", "team"), UndefinedReferenceError,
-     "questionnaire.items.teammate.scale", "scale 'team' is not defined"),
-    (change("instructions.rating", lambda text: "{who}, " + text), ProtocolValueError,
-     "instructions.rating", "unknown placeholder {who}"),
-    (change("instructions.pause", lambda text: text + " (timid mode)"), BlindingError,
-     "instructions.pause", "condition word(s) ['timid']"),
-    (change("questionnaire.scales.preference.anchors",
-            lambda a: [*a[:3], a[3] + ", all right", *a[4:]]), BlindingError,
-     "questionnaire.scales.preference.anchors[3]", "['right']"),
-    (change("debrief.text", lambda text: "That was hard. " + text), BlindingError,
-     "debrief.text", "['hard']"),
+    (
+        rename("prediction.wrong", "wrnog"),
+        UndefinedReferenceError,
+        "prediction.wrong",
+        "needs a [prediction.wrong] table; is [prediction.wrnog] a misspelling of it?",
+    ),
+    (
+        rename("modes.aggressive", "agressive"),
+        UndefinedReferenceError,
+        "modes.aggressive",
+        "needs a [modes.aggressive] table; is [modes.agressive] a misspelling of it?",
+    ),
+    (
+        change("questionnaire.scales.helpfulness.anchors", lambda a: a[:-1]),
+        ScaleMismatchError,
+        "questionnaire.scales.helpfulness.anchors",
+        f"{len(_HELPFULNESS) - 1} anchors for a {DATA['questionnaire']['points']}-point "
+        "questionnaire",
+    ),
+    (
+        change("questionnaire.after_run", lambda items: [*items[:-1], "fun"]),
+        UndefinedReferenceError,
+        f"questionnaire.after_run[{len(_AFTER_RUN) - 1}]",
+        "item 'fun' is not defined",
+    ),
+    (
+        put("questionnaire.items.teammate.scale", "team"),
+        UndefinedReferenceError,
+        "questionnaire.items.teammate.scale",
+        "scale 'team' is not defined",
+    ),
+    (
+        change("instructions.rating", lambda text: "{who}, " + text),
+        ProtocolValueError,
+        "instructions.rating",
+        "unknown placeholder {who}",
+    ),
+    (
+        change("instructions.pause", lambda text: text + " (timid mode)"),
+        BlindingError,
+        "instructions.pause",
+        "condition word(s) ['timid']",
+    ),
+    (
+        change(
+            "questionnaire.scales.preference.anchors",
+            lambda a: [*a[:3], a[3] + ", all right", *a[4:]],
+        ),
+        BlindingError,
+        "questionnaire.scales.preference.anchors[3]",
+        "['right']",
+    ),
+    (
+        change("debrief.text", lambda text: "That was hard. " + text),
+        BlindingError,
+        "debrief.text",
+        "['hard']",
+    ),
     (put("instructions.welcom", "x"), UnknownKeyError, "instructions.welcom", "unknown"),
-    (put("prediction.wrong", {"kind": "memory", "prior": [1] * (_HARD_GOALS + 1)}),
-     ProtocolValueError, "prediction.wrong.prior", str(_HARD_GOALS + 1)),
-    (put("prediction.wrong", {"kind": "laplace", "cost": "length"}), ProtocolValueError,
-     "prediction.wrong.cost", "squared_velocity"),
-    (put("modes.timid.arbitration.alpha_max", 0.0), ProtocolValueError,
-     "modes.timid.arbitration.alpha_max", "must be in (0, 1)"),
-    (put("training.prediction", {"kind": "oracle", "goal": "cup"}), UnknownKeyError,
-     "training.prediction.goal", "unknown key 'goal'"),
-    (change("study.participants", lambda n: n + 1), ProtocolValueError, "study.participants",
-     "use a multiple of 8"),  # one balanced cycle: 4 task orders x 2 mode orders
-    (rename("factors.difficulty", "dificulty"), UnknownKeyError, "factors.dificulty",
-     "unknown key 'dificulty'"),
+    (
+        put("prediction.wrong", {"kind": "memory", "prior": [1] * (_HARD_GOALS + 1)}),
+        ProtocolValueError,
+        "prediction.wrong.prior",
+        str(_HARD_GOALS + 1),
+    ),
+    (
+        put("prediction.wrong", {"kind": "laplace", "cost": "length"}),
+        ProtocolValueError,
+        "prediction.wrong.cost",
+        "squared_velocity",
+    ),
+    (
+        put("modes.timid.arbitration.alpha_max", 0.0),
+        ProtocolValueError,
+        "modes.timid.arbitration.alpha_max",
+        "must be in (0, 1)",
+    ),
+    (
+        put("training.prediction", {"kind": "oracle", "goal": "cup"}),
+        UnknownKeyError,
+        "training.prediction.goal",
+        "unknown key 'goal'",
+    ),
+    (
+        change("study.participants", lambda n: n + 1),
+        ProtocolValueError,
+        "study.participants",
+        "use a multiple of 8",
+    ),  # one balanced cycle: 4 task orders x 2 mode orders
+    (
+        rename("factors.difficulty", "dificulty"),
+        UnknownKeyError,
+        "factors.dificulty",
+        "unknown key 'dificulty'",
+    ),
     (change("schema", lambda v: v + 1), ProtocolValueError, "schema", "reads schema 1"),
     (drop("schema"), MissingKeyError, "schema", "required key is missing"),
 ]
@@ -270,27 +367,35 @@ def test_preference_needs_two_modes(tmp_path: Path) -> None:
     )
     path = edited(tmp_path, *three_modes, name="three_modes.toml")
     expect(path, ProtocolValueError, "questionnaire.after_task", "needs exactly 2 modes")
-    path = edited(tmp_path, *three_modes, put("questionnaire.after_task", []),
-                  name="three_modes.toml")
+    path = edited(
+        tmp_path, *three_modes, put("questionnaire.after_task", []), name="three_modes.toml"
+    )
     assert load_protocol(path).mode_names == ("timid", "aggressive", "bold")
 
 
 def test_every_difficulty_correctness_cell_needs_a_task(tmp_path: Path) -> None:
     path = edited(tmp_path, drop("tasks.hard-wrong"), name="three_tasks.toml")
-    expect(path, UndefinedReferenceError, "tasks",
-           "no task has difficulty = 'hard' and correctness = 'wrong'")
+    expect(
+        path,
+        UndefinedReferenceError,
+        "tasks",
+        "no task has difficulty = 'hard' and correctness = 'wrong'",
+    )
 
 
 def test_object_names_must_not_name_a_level_of_this_protocol(tmp_path: Path) -> None:
     objects = MEMORY3["scenes"]["three"]["objects"]
     i = len(objects) - 1
     renamed = [*objects[:i], {**objects[i], "name": "memory-card"}]
-    path = edited(tmp_path, put("scenes.three.objects", renamed), base=MEMORY3,
-                  name="memory3.toml")
+    path = edited(tmp_path, put("scenes.three.objects", renamed), base=MEMORY3, name="memory3.toml")
     expect(path, BlindingError, f"scenes.three.objects[{i}].name", "['memory']")
 
 
 def test_target_description_is_checked_for_this_protocols_levels(tmp_path: Path) -> None:
-    path = edited(tmp_path, change("instructions.task", lambda text: text + " (linear)"),
-                  base=MEMORY3, name="memory3.toml")
+    path = edited(
+        tmp_path,
+        change("instructions.task", lambda text: text + " (linear)"),
+        base=MEMORY3,
+        name="memory3.toml",
+    )
     expect(path, BlindingError, "instructions.task", "['linear']")

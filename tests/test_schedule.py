@@ -179,7 +179,10 @@ def test_active_participants_always_hold_distinct_rows_without_gaps(withdrawn) -
 def run_cli(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run(
         [sys.executable, "-m", "study", "schedule", *args],
-        cwd=ROOT, capture_output=True, text=True, timeout=60,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
 
 
@@ -218,7 +221,10 @@ def test_cli_reports_bad_input(tmp_path: Path) -> None:
 def test_cli_default_protocol_from_any_directory(tmp_path: Path) -> None:
     out = subprocess.run(
         [sys.executable, "-m", "study", "schedule", "--participants", "8"],
-        cwd=tmp_path, capture_output=True, text=True, timeout=60,
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=60,
         env={**os.environ, "PYTHONPATH": str(ROOT)},
     )
     assert out.returncode == 0, out.stderr

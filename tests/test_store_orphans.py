@@ -27,8 +27,9 @@ def open_store(path: Path) -> Store:
 
 def sample(trial_id: int, tick: int) -> list[object]:
     values: dict[str, object] = {c: 0.0 for c in SAMPLE_COLUMNS}
-    values.update(trial_id=trial_id, tick=tick, t=0.01 * tick, predicted=0,
-                  probabilities="[1.0]", events="[]")
+    values.update(
+        trial_id=trial_id, tick=tick, t=0.01 * tick, predicted=0, probabilities="[1.0]", events="[]"
+    )
     return [values[c] for c in SAMPLE_COLUMNS]
 
 
@@ -37,8 +38,16 @@ def running_trial(store: Store, participant: str = "P01", *, samples: int = 4) -
     with store.transaction() as tx:
         sid = tx.enrol(participant, schedule_row=0, assignments=[], seed=1)
         tid = tx.insert_trial(
-            session_id=sid, participant=participant, step=1, trial_number=1, phase="training",
-            mode="none", attempt=1, seed=1, goal_names=["mug"], goal_positions=[[0.5, 0, 0]],
+            session_id=sid,
+            participant=participant,
+            step=1,
+            trial_number=1,
+            phase="training",
+            mode="none",
+            attempt=1,
+            seed=1,
+            goal_names=["mug"],
+            goal_positions=[[0.5, 0, 0]],
         )
     store.insert_samples([sample(tid, k) for k in range(samples)])
     return tid
@@ -74,7 +83,10 @@ def test_running_trial_without_a_live_lease_reads_as_interrupted(tmp_path: Path)
     out = tmp_path / "out"
     proc = subprocess.run(
         [sys.executable, "-m", "study", "export", "--db", str(db), "--out", str(out)],
-        cwd=ROOT, capture_output=True, text=True, timeout=120,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert proc.returncode == 0, proc.stderr
     assert f"trials [{tid}] were left running by a process that died" in proc.stderr

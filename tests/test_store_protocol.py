@@ -69,7 +69,10 @@ def test_export_uses_the_stored_protocol_after_the_file_changed(
     out = tmp_path / "out"
     proc = subprocess.run(
         [sys.executable, "-m", "study", "export", "--db", str(db), "--out", str(out)],
-        cwd=ROOT, capture_output=True, text=True, timeout=120,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert proc.returncode == 0, proc.stderr
     assert "note:" not in proc.stderr

@@ -26,31 +26,51 @@ COSTS = {"length": "length", "squared_velocity": "squared_velocity", "sqvel": "s
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--goals", required=True, help="CSV with columns goal,x,y[,z] or goal,q1..qn")
-    parser.add_argument("--trajectory", required=True,
-                        help="CSV with columns t,x,y[,z] or t,q1..qn")
+    parser.add_argument(
+        "--goals", required=True, help="CSV with columns goal,x,y[,z] or goal,q1..qn"
+    )
+    parser.add_argument(
+        "--trajectory", required=True, help="CSV with columns t,x,y[,z] or t,q1..qn"
+    )
     parser.add_argument("--method", required=True, choices=["amnesic", "memory"])
-    parser.add_argument("--cost", choices=list(COSTS), default="squared_velocity",
-                        help="memory-based cost: path length or sum of squared velocities "
-                             "(default squared_velocity, as protocols name it and the paper's "
-                             "offline analysis uses; sqvel for short)")
-    parser.add_argument("--temperature", type=float, default=0.05,
-                        help="amnesic softmin temperature (distance units)")
-    parser.add_argument("--rationality", type=float, default=1.0,
-                        help="memory-based rationality b in exp(-b C)")
-    parser.add_argument("--distance-threshold", type=float, default=None, metavar="D",
-                        help="report the distance hinge max(0, 1 - d/D) as confidence")
+    parser.add_argument(
+        "--cost",
+        choices=list(COSTS),
+        default="squared_velocity",
+        help="memory-based cost: path length or sum of squared velocities "
+        "(default squared_velocity, as protocols name it and the paper's "
+        "offline analysis uses; sqvel for short)",
+    )
+    parser.add_argument(
+        "--temperature",
+        type=float,
+        default=0.05,
+        help="amnesic softmin temperature (distance units)",
+    )
+    parser.add_argument(
+        "--rationality", type=float, default=1.0, help="memory-based rationality b in exp(-b C)"
+    )
+    parser.add_argument(
+        "--distance-threshold",
+        type=float,
+        default=None,
+        metavar="D",
+        help="report the distance hinge max(0, 1 - d/D) as confidence",
+    )
 
 
 def coordinate_columns(goals: pd.DataFrame) -> list[str]:
     """``x,y[,z]`` when present, else ``q1..qn`` in order."""
     if {"x", "y"} <= set(goals.columns):
         return ["x", "y"] + (["z"] if "z" in goals.columns else [])
-    qs = sorted((c for c in goals.columns if re.fullmatch(r"q\d+", str(c))),
-                key=lambda c: int(c[1:]))
+    qs = sorted(
+        (c for c in goals.columns if re.fullmatch(r"q\d+", str(c))), key=lambda c: int(c[1:])
+    )
     if not qs:
-        raise SchemaError("the goals file needs coordinate columns x,y[,z] or q1..qn besides "
-                          f"'goal'; it has {', '.join(map(str, goals.columns))}")
+        raise SchemaError(
+            "the goals file needs coordinate columns x,y[,z] or q1..qn besides "
+            f"'goal'; it has {', '.join(map(str, goals.columns))}"
+        )
     if qs != [f"q{i}" for i in range(1, len(qs) + 1)]:
         raise SchemaError(f"configuration columns must be q1..qn without gaps, got {qs}")
     return qs

@@ -32,7 +32,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--db", type=Path, required=True, help="the study's SQLite store")
     parser.add_argument("--out", type=Path, required=True, help="directory to write into")
     parser.add_argument(
-        "--protocol", type=Path, default=None,
+        "--protocol",
+        type=Path,
+        default=None,
         help="protocol the study ran with (default: the one the store keeps, else "
         "protocols/<study id>.toml if its content hash matches)",
     )
@@ -63,12 +65,24 @@ def main(args: argparse.Namespace) -> int:
                 )
         book = codebook(tables, protocol=protocol)
         written = write_export(
-            args.out, tables, codebook=book, metadata=metadata, protocol_text=stored_text,
+            args.out,
+            tables,
+            codebook=book,
+            metadata=metadata,
+            protocol_text=stored_text,
             formats=formats,
         )
     except (StoreError, ProtocolError, ExportError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    print(json.dumps({"out": str(args.out), "rows": metadata["rows"], "files": len(written),
-                      "protocol": metadata["protocol_file"]}))
+    print(
+        json.dumps(
+            {
+                "out": str(args.out),
+                "rows": metadata["rows"],
+                "files": len(written),
+                "protocol": metadata["protocol_file"],
+            }
+        )
+    )
     return 0

@@ -24,11 +24,15 @@ COLUMNS = ("participant", "position", "task", "mode")
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--protocol", type=Path, default=DEFAULT_PROTOCOL,
+        "--protocol",
+        type=Path,
+        default=DEFAULT_PROTOCOL,
         help="protocol TOML file (default: the repository's protocols/dragan2013.toml)",
     )
     parser.add_argument(
-        "--participants", type=int, default=None,
+        "--participants",
+        type=int,
+        default=None,
         help="number of participants (default: the protocol's study.participants)",
     )
     parser.add_argument("--format", choices=("csv", "json"), default="csv", help="output format")

@@ -1,11 +1,11 @@
 """Protocols: a study defined in TOML, validated on load.
 
-    from study.protocol import load_protocol
-    protocol = load_protocol("protocols/dragan2013.toml")
-    protocol.tasks, protocol.modes
-    protocol.trial_config("hard-right", "aggressive")   # -> app.trial.TrialConfig
-    protocol.describe_trial("hard-right")               # participant-facing, no condition word
-    protocol_from_store(store)                          # the exact protocol a store ran with
+from study.protocol import load_protocol
+protocol = load_protocol("protocols/dragan2013.toml")
+protocol.tasks, protocol.modes
+protocol.trial_config("hard-right", "aggressive")   # -> app.trial.TrialConfig
+protocol.describe_trial("hard-right")               # participant-facing, no condition word
+protocol_from_store(store)                          # the exact protocol a store ran with
 """
 
 from study.protocol.errors import (

@@ -136,7 +136,13 @@ def component(t: Table, role: str) -> dict[str, Any]:
 
 
 def build_check(
-    role: str, cfg: Mapping[str, Any], *, where: str, file: str, goals: int = 2, target: int = 0,
+    role: str,
+    cfg: Mapping[str, Any],
+    *,
+    where: str,
+    file: str,
+    goals: int = 2,
+    target: int = 0,
     rate_hz: float = 100.0,
 ) -> None:
     """Build ``cfg`` once with the ``app.blending`` factory for ``role``; its ``ConfigError``
@@ -160,7 +166,10 @@ def build_check(
             arbitration_from_config(dict(cfg), where=where)
         else:
             policy_from_config(
-                dict(cfg), rate_hz=rate_hz, where=where, fk=lambda q: q[:3],
+                dict(cfg),
+                rate_hz=rate_hz,
+                where=where,
+                fk=lambda q: q[:3],
                 jacobian=lambda q: np.zeros((6, len(q))),
             )
     except BlendingError as e:

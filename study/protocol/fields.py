@@ -122,7 +122,11 @@ class Table:
         return value
 
     def integer(
-        self, name: str, default: Any = _MISSING, *, minimum: int | None = None,
+        self,
+        name: str,
+        default: Any = _MISSING,
+        *,
+        minimum: int | None = None,
         maximum: int | None = None,
     ) -> int:
         value = self._get(name, default)
@@ -132,13 +136,16 @@ class Table:
         return value
 
     def number(
-        self, name: str, default: Any = _MISSING, *, minimum: float | None = None,
-        maximum: float | None = None, positive: bool = False,
+        self,
+        name: str,
+        default: Any = _MISSING,
+        *,
+        minimum: float | None = None,
+        maximum: float | None = None,
+        positive: bool = False,
     ) -> float:
         value = self._get(name, default)
-        return check_number(
-            self, name, value, minimum=minimum, maximum=maximum, positive=positive
-        )
+        return check_number(self, name, value, minimum=minimum, maximum=maximum, positive=positive)
 
     def boolean(self, name: str, default: Any = _MISSING) -> bool:
         value = self._get(name, default)
@@ -189,8 +196,13 @@ class Table:
 
 
 def check_number(
-    table: Table, name: str | int, value: object, *, minimum: float | None = None,
-    maximum: float | None = None, positive: bool = False,
+    table: Table,
+    name: str | int,
+    value: object,
+    *,
+    minimum: float | None = None,
+    maximum: float | None = None,
+    positive: bool = False,
 ) -> float:
     """``value`` as a finite float in range, else a typed error at ``table.where(name)``."""
     if isinstance(value, bool) or not isinstance(value, int | float):

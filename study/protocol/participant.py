@@ -35,7 +35,8 @@ def read_questionnaire(t: Table, *, n_modes: int) -> Questionnaire:
             raise ScaleMismatchError(
                 f"{len(anchors)} anchors for a {points}-point questionnaire"
                 f" (questionnaire.points = {points}); give one anchor per point",
-                file=t.file, key=sub.where("anchors"),
+                file=t.file,
+                key=sub.where("anchors"),
             )
         scales[name] = Scale(name=name, anchors=anchors)
     items: dict[str, LikertItem] = {}
@@ -51,10 +52,12 @@ def read_questionnaire(t: Table, *, n_modes: int) -> Questionnaire:
             raise UndefinedReferenceError(
                 f"scale {scale_name!r} is not defined in questionnaire.scales"
                 f" ({', '.join(scales) or 'none'})",
-                file=t.file, key=sub.where("scale"),
+                file=t.file,
+                key=sub.where("scale"),
             )
-        items[item_id] = LikertItem(id=item_id, prompt=sub.string("prompt"),
-                                    scale=scales[scale_name])
+        items[item_id] = LikertItem(
+            id=item_id, prompt=sub.string("prompt"), scale=scales[scale_name]
+        )
     asked: dict[str, tuple[LikertItem, ...]] = {}
     for phase in PHASES:
         ids = t.strings(phase, [], nonempty=False)
@@ -62,7 +65,8 @@ def read_questionnaire(t: Table, *, n_modes: int) -> Questionnaire:
             if item_id not in items:
                 raise UndefinedReferenceError(
                     f"item {item_id!r} is not defined in questionnaire.items",
-                    file=t.file, key=join_key(t.where(phase), i),
+                    file=t.file,
+                    key=join_key(t.where(phase), i),
                 )
         asked[phase] = tuple(items[i] for i in ids)
     if asked["after_task"] and n_modes != 2:
@@ -126,8 +130,10 @@ def participant_texts(p: Protocol) -> list[tuple[str, str]]:
         texts.append((f"questionnaire.items.{item.id}.prompt", item.prompt))
         scales[item.scale.name] = item.scale
     for scale in scales.values():
-        texts += [(f"questionnaire.scales.{scale.name}.anchors[{i}]", a)
-                  for i, a in enumerate(scale.anchors)]
+        texts += [
+            (f"questionnaire.scales.{scale.name}.anchors[{i}]", a)
+            for i, a in enumerate(scale.anchors)
+        ]
     for name in dict.fromkeys([*(t.scene for t in p.tasks), p.training.scene]):
         scene = p.scenes[name]
         texts += [(f"scenes.{name}.objects[{i}].name", o) for i, o in enumerate(scene.object_names)]
@@ -146,5 +152,6 @@ def check_blinding(p: Protocol) -> None:
             raise BlindingError(
                 f"participant-facing text contains the condition word(s) {found} (as a word or"
                 f" inside one, e.g. 'bright' holds 'right'); rephrase: {text[:60]!r}",
-                file=p.path, key=key,
+                file=p.path,
+                key=key,
             )

@@ -156,9 +156,7 @@ class Protocol:
             extra=self._extra(difficulty=t.difficulty, correctness=t.correctness, phase="task"),
         )
 
-    def config_for(
-        self, task: str, mode: str, *, time_limit_s: float | None = None
-    ) -> TrialConfig:
+    def config_for(self, task: str, mode: str, *, time_limit_s: float | None = None) -> TrialConfig:
         """Like :meth:`trial_config`, plus ``mode="none"`` (unassisted, alpha = 0),
         ``task="training"`` (the training run) and an optional time-limit override."""
         if task == "training":
