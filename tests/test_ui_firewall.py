@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import asyncio
+import inspect
 import math
 
 import msgspec
 import viser
 from viser.infra import _infra
+from viser.infra._async_message_buffer import AsyncMessageBuffer
+from viser.infra._messages import Message
 
+from study.server import blinding
 from study.server.firewall import MAX_MESSAGE_BYTES, Firewall
 
 
@@ -78,6 +83,38 @@ def test_the_viser_internals_the_firewall_relies_on_are_where_it_expects() -> No
     """viser is pinned to the tested minor version; this fails loudly if a hook moved."""
     assert viser.__version__.startswith("1.1.")
     assert callable(viser._messages.Message.deserialize)
+
+
+def test_the_viser_internals_the_blinding_guard_patches_are_where_it_expects() -> None:
+    """Each hook of study.server.blinding.PATCHED_HOOKS exists with the signature the wrapper
+    forwards, and the server keeps its event loop where install() reads it."""
+    hooks = {
+        "viser.infra._async_message_buffer.AsyncMessageBuffer.push": (
+            blinding._ORIGINAL_PUSH,
+            ["self", "message"],
+        ),
+        "viser.infra._messages.Message.as_serializable_dict": (
+            blinding._ORIGINAL_SERIALIZE,
+            ["self", "binary_buffers"],
+        ),
+    }
+    assert set(hooks) == set(blinding.PATCHED_HOOKS)
+    assert AsyncMessageBuffer.__module__ == "viser.infra._async_message_buffer"
+    assert Message.__module__ == "viser.infra._messages"
+    for name, (original, params) in hooks.items():
+        assert list(inspect.signature(original).parameters) == params, name
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        loop = server._websock_server._background_event_loop
+        assert isinstance(loop, asyncio.AbstractEventLoop)
+        guard = blinding.install(server, words=("hard",))
+        assert AsyncMessageBuffer.push is blinding._guarded_push
+        assert Message.as_serializable_dict is blinding._guarded_serialize
+        server.gui.add_markdown("a hard one")
+        assert guard.checked >= 1 and guard.blocked == 1
+    finally:
+        blinding.uninstall(server)
+        server.stop()
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     try:
         ws = server._websock_server

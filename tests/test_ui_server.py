@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from study.server.blinding import find_condition_words
+from study.protocol.blinding import find_words
 from study.server.join import ALPHABET, CODE_LENGTH, JoinThrottle, new_join_code, normalize_code
 from study.server.participant import DECLINE
 from tests.browser.harness import iter_strings, run_async, start_server, wait_until
@@ -73,7 +73,7 @@ def test_participant_socket_carries_nothing_of_the_console(tmp_path: Path) -> No
         strings = [s for s in strings if s != code]  # the code the participant typed, echoed
         for marker in ("Experimenter console", "Enrol", "Withdraw", "Arbitration", code):
             assert not any(marker in s for s in strings), marker
-        assert not any(find_condition_words(s) for s in strings)
+        assert not any(find_words(s, rs.protocol.condition_words) for s in strings)
     finally:
         rs.stop()
 

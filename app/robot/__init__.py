@@ -19,11 +19,10 @@ from app.robot.errors import (
 )
 from app.robot.kinematics import IKResult, Kinematics, downward_rotation
 from app.robot.scene import Scene, build_scene, grasp_position, grasp_rotation
-from app.robot.scene_spec import CONDITION_WORDS, ObjectSpec, SceneSpec, TableSpec
+from app.robot.scene_spec import ObjectSpec, SceneSpec, TableSpec
 from app.robot.simulation import Simulation, SimulationError
 
 __all__ = [
-    "CONDITION_WORDS",
     "Arm",
     "IKResult",
     "Kinematics",

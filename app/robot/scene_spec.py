@@ -15,8 +15,6 @@ from typing import Any
 
 from app.robot.errors import SceneError
 
-# Names reach the participant's browser: they must not reveal the condition (blinding).
-CONDITION_WORDS = ("right", "wrong", "easy", "hard", "timid", "aggressive")
 SHAPES = {
     "cylinder": 2,
     "box": 3,
@@ -227,12 +225,6 @@ def _object(d: Any, where: str) -> ObjectSpec:
         raise SceneError(
             f"{where}.name: {name!r} must be lower-case letters, digits, '_' or '-' (max 32)"
         )
-    for word in CONDITION_WORDS:
-        if word in name:
-            raise SceneError(
-                f"{where}.name: {name!r} contains the condition word {word!r}; object names"
-                " reach the participant's browser, choose a neutral name (e.g. 'bottle')"
-            )
     shape = d["shape"]
     if shape not in SHAPES:
         raise SceneError(f"{where}.shape: {shape!r} is not one of {sorted(SHAPES)}")

@@ -104,6 +104,7 @@ def main(args: argparse.Namespace) -> int:
         return 2
     server = StudyServer(
         session_factory(store, protocol),
+        condition_words=protocol.condition_words,
         host=args.host,
         port=args.port,
         experimenter_port=args.experimenter_port,

@@ -1,8 +1,9 @@
 """The participant-facing part of a protocol: questionnaire, texts, and the blinding check.
 
 Everything here reaches the participant's browser, so :func:`check_blinding` rejects any text
-containing a condition word (a level of any factor, as a word or inside one: "bright" holds
-"right"), the same rule the UI's blinding guard applies to every message it sends.
+containing a word of the protocol's blinded vocabulary (:mod:`study.protocol.blinding`: a level
+of any factor, a task or mode name, or one of the fixed words; as a word or inside one: "bright"
+holds "right"), the same words the study server's wire guard blocks for this protocol.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import re
 import string
 from types import MappingProxyType
 
+from study.protocol.blinding import find_words
 from study.protocol.errors import BlindingError, ScaleMismatchError, UndefinedReferenceError
 from study.protocol.fields import Table, join_key
 from study.protocol.model import Texts
@@ -134,8 +136,7 @@ def participant_texts(p: Protocol) -> list[tuple[str, str]]:
             (f"questionnaire.scales.{scale.name}.anchors[{i}]", a)
             for i, a in enumerate(scale.anchors)
         ]
-    for name in dict.fromkeys([*(t.scene for t in p.tasks), p.training.scene]):
-        scene = p.scenes[name]
+    for name, scene in p.scenes.items():  # object names label the participant's 3-D scene
         texts += [(f"scenes.{name}.objects[{i}].name", o) for i, o in enumerate(scene.object_names)]
     for task in p.tasks:
         texts.append((f"scenes.{task.scene}.target", p.describe_trial(task.name)))
@@ -147,11 +148,16 @@ def check_blinding(p: Protocol) -> None:
     """Raise :class:`BlindingError` at the first participant-facing text naming a condition."""
     words = p.condition_words
     for key, text in participant_texts(p):
-        found = [w for w in words if w in text.lower()]
+        found = find_words(text, words)
         if found:
+            fix = (
+                "choose a neutral object name (e.g. 'bottle')"
+                if key.endswith(".name")
+                else f"rephrase: {text[:60]!r}"
+            )
             raise BlindingError(
                 f"participant-facing text contains the condition word(s) {found} (as a word or"
-                f" inside one, e.g. 'bright' holds 'right'); rephrase: {text[:60]!r}",
+                f" inside one, e.g. 'bright' holds 'right'); {fix}",
                 file=p.path,
                 key=key,
             )

@@ -9,11 +9,13 @@ comes from :meth:`Protocol.describe_trial`, :meth:`Protocol.describe_training` a
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from study.protocol.blinding import blinded_words
 from study.protocol.errors import ConditionError
 from study.protocol.model import Control, Mode, StudyInfo, Task, Texts, Training
 from study.protocol.questionnaire import Questionnaire
@@ -70,20 +72,21 @@ class Protocol:
 
     @property
     def factors(self) -> dict[str, tuple[str, ...]]:
-        """Factor -> levels, in file order: ``difficulty``, ``correctness``, ``mode``."""
+        """Factor -> levels, in file order: ``difficulty``, ``correctness``, ``mode``. Every
+        level listed here is blinded (:attr:`condition_words`): a new factor goes here."""
         return {
             "difficulty": self.difficulty_levels,
             "correctness": self.correctness_levels,
             "mode": self.mode_names,
         }
 
-    @property
+    @functools.cached_property
     def condition_words(self) -> tuple[str, ...]:
-        """Every word that would reveal a condition to the participant (all factor levels)."""
-        words: list[str] = []
-        for levels in self.factors.values():
-            words.extend(w.lower() for w in levels if w.lower() not in words)
-        return tuple(words)
+        """Every word that would reveal a condition to the participant, lower-cased: the fixed
+        list :data:`study.protocol.blinding.FIXED_WORDS`, every level of every factor in
+        :attr:`factors`, every task and mode name. The loader checks participant-facing text
+        against it; the study server guards the wire with it."""
+        return blinded_words(self.factors, tasks=self.task_names, modes=self.mode_names)
 
     def task(self, name: str) -> Task:
         for t in self.tasks:

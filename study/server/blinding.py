@@ -1,6 +1,15 @@
 """Blinding guard: no condition name ever reaches the participant's browser.
 
-Two layers, both installed by :func:`install` for one viser server (the participant's):
+The words are those of the protocol the server runs (:attr:`study.protocol.Protocol.
+condition_words`: every factor level, task and mode name, plus a fixed list), given to
+:func:`install`. Our own code checks each text where it hands it to viser (:func:`check_text`,
+used by :mod:`study.server.participant`); this guard then checks what viser actually sends,
+which also covers what viser echoes back (text a tab typed) and names in the 3-D scene.
+
+viser has no public hook on outgoing messages, so the guard wraps two private ones
+(:data:`PATCHED_HOOKS`); viser is pinned to the tested minor version in ``pyproject.toml`` and
+``tests/test_ui_firewall.py`` fails loudly when one of them moves. Two layers, both installed by
+:func:`install` for one viser server (the participant's):
 
 1. Queue: every message a viser server queues passes through an ``AsyncMessageBuffer`` (the
    broadcast buffer or one per client). ``AsyncMessageBuffer.push`` is wrapped once per
@@ -32,25 +41,26 @@ import viser
 from viser.infra._async_message_buffer import AsyncMessageBuffer
 from viser.infra._messages import Message as _WireMessage
 
+from study.protocol.blinding import find_words
+from study.server.viser_vocabulary import is_viser_setting
+
 LOGGER = logging.getLogger("study.server.blinding")
 
-CONDITION_WORDS: tuple[str, ...] = ("timid", "aggressive", "right", "wrong", "easy", "hard")
-"""Words that name a study condition (factor levels and modes); never sent to a participant."""
+PATCHED_HOOKS: tuple[str, ...] = (
+    "viser.infra._async_message_buffer.AsyncMessageBuffer.push",
+    "viser.infra._messages.Message.as_serializable_dict",
+)
+"""The private viser functions :func:`install` wraps (it also reads the server's event loop,
+``ViserServer._websock_server._background_event_loop``)."""
 
 
 class BlindingViolation(RuntimeError):
     """A participant-facing string names a condition. Rephrase the text without the word."""
 
 
-def find_condition_words(text: str, *, words: Iterable[str] = CONDITION_WORDS) -> list[str]:
-    """Return the forbidden words occurring in ``text`` (case-insensitive substrings)."""
-    low = text.lower()
-    return [w for w in words if w in low]
-
-
-def check_text(text: str, *, words: Iterable[str] = CONDITION_WORDS) -> str:
+def check_text(text: str, *, words: Iterable[str]) -> str:
     """Return ``text`` unchanged, or raise :class:`BlindingViolation` naming the word found."""
-    found = find_condition_words(text, words=words)
+    found = find_words(text, words)
     if found:
         raise BlindingViolation(
             f"participant text {text[:80]!r} contains condition word(s) {found}; rephrase it"
@@ -59,7 +69,9 @@ def check_text(text: str, *, words: Iterable[str] = CONDITION_WORDS) -> str:
 
 
 def iter_strings(obj: Any, *, _depth: int = 0) -> Iterator[str]:
-    """Yield every string inside a viser message (dataclass fields, mappings, sequences)."""
+    """Yield every string inside a viser message (dataclass fields, mappings, sequences),
+    except a field's value that is one of viser's own fixed settings for that field
+    (:mod:`study.server.viser_vocabulary`: the same in every condition)."""
     if _depth > 32 or obj is None:
         return
     if isinstance(obj, str):
@@ -68,11 +80,15 @@ def iter_strings(obj: Any, *, _depth: int = 0) -> Iterator[str]:
         return
     elif dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         for field in dataclasses.fields(obj):
-            yield from iter_strings(getattr(obj, field.name), _depth=_depth + 1)
+            value = getattr(obj, field.name)
+            if not (isinstance(value, str) and is_viser_setting(field.name, value)):
+                yield from iter_strings(value, _depth=_depth + 1)
     elif isinstance(obj, dict):
         for key, value in obj.items():
             if isinstance(key, str):
                 yield key
+                if isinstance(value, str) and is_viser_setting(key, value):
+                    continue
             yield from iter_strings(value, _depth=_depth + 1)
     elif isinstance(obj, (list, tuple, set, frozenset)):
         for item in obj:
@@ -98,8 +114,10 @@ class BlindingGuard:
     message type, so a client that types condition words into a field and has them echoed
     cannot flood the log or the memory."""
 
-    def __init__(self, *, words: Iterable[str] = CONDITION_WORDS, block: bool = True) -> None:
+    def __init__(self, *, words: Iterable[str], block: bool = True) -> None:
         self.words = tuple(w.lower() for w in words)
+        if not self.words or not all(self.words):
+            raise ValueError("a blinding guard needs a non-empty list of non-empty words")
         self.block = block
         self.violations: list[Violation] = []
         """The first ``MAX_KEPT`` violations (``blocked`` counts them all)."""
@@ -126,7 +144,7 @@ class BlindingGuard:
     def inspect(self, message: Any) -> Violation | None:
         """Return the first violation in ``message``, or ``None`` when it is clean."""
         for text in iter_strings(message):
-            found = find_condition_words(text, words=self.words)
+            found = find_words(text, self.words)
             if found:
                 return Violation(type(message).__name__, text[:120], tuple(found))
         return None
@@ -152,7 +170,7 @@ class BlindingGuard:
     def redact(self, obj: Any, *, message_type: str) -> Any:
         """``obj`` (a serialisable dict tree) with every string naming a condition blanked."""
         if isinstance(obj, str):
-            found = find_condition_words(obj, words=self.words)
+            found = find_words(obj, self.words)
             if not found:
                 return obj
             violation = Violation(message_type, obj[:120], tuple(found))
@@ -163,9 +181,11 @@ class BlindingGuard:
             return ""
         if isinstance(obj, dict):
             return {
-                k: self.redact(v, message_type=message_type)
+                k: v
+                if isinstance(v, str) and is_viser_setting(k, v)
+                else self.redact(v, message_type=message_type)
                 for k, v in obj.items()
-                if not (isinstance(k, str) and find_condition_words(k, words=self.words))
+                if not (isinstance(k, str) and find_words(k, self.words))
             }
         if isinstance(obj, list | tuple):
             return type(obj)(self.redact(v, message_type=message_type) for v in obj)
@@ -196,17 +216,18 @@ def _guarded_serialize(self: Any, binary_buffers: Any = None) -> dict[str, Any]:
         return out
     with guard._lock:
         guard.serialized += 1
-    if any(find_condition_words(t, words=guard.words) for t in iter_strings(out)):
+    if any(find_words(t, guard.words) for t in iter_strings(out)):
         out = guard.redact(out, message_type=type(self).__name__)
     return out
 
 
-def install(server: viser.ViserServer, guard: BlindingGuard | None = None) -> BlindingGuard:
-    """Guard every message ``server`` sends from now on; return the guard."""
+def install(server: viser.ViserServer, *, words: Iterable[str]) -> BlindingGuard:
+    """Guard every message ``server`` sends from now on against ``words`` (the served
+    protocol's :attr:`~study.protocol.Protocol.condition_words`); return the guard."""
     loop = server._websock_server._background_event_loop
     if loop is None:  # pragma: no cover - viser starts its loop in the constructor
         raise RuntimeError("the viser server has no event loop yet; install after it starts")
-    guard = guard or BlindingGuard()
+    guard = BlindingGuard(words=words)
     with _INSTALL_LOCK:
         if AsyncMessageBuffer.push is not _guarded_push:
             AsyncMessageBuffer.push = _guarded_push  # type: ignore[method-assign]

@@ -83,7 +83,7 @@ _TEMPLATE = r"""
     let changed = false;
     m.scene.traverse((o) => {
       const mat = o.material;
-      if (mat && mat.isMeshStandardMaterial && mat.metalness > 0) {
+      if (mat && typeof mat.metalness === "number" && mat.metalness > 0) {
         mat.metalness = 0;
         mat.needsUpdate = true;
         changed = true;

@@ -21,7 +21,7 @@ import logging
 import re
 import threading
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -109,9 +109,11 @@ def parse_key_state(value: object) -> tuple[int, frozenset[str]]:
 class ParticipantPage:
     """What one participant's browser tab shows."""
 
-    def __init__(self, client: viser.ClientHandle, *, title: str) -> None:
+    def __init__(self, client: viser.ClientHandle, *, title: str, words: Iterable[str]) -> None:
         self.client = client
-        self.title = check_text(title)
+        self.words = tuple(words)
+        """The blinded vocabulary every text shown is checked against."""
+        self.title = check_text(title, words=self.words)
         self.screen = 0
         self.screen_name = "none"
         self._lock = threading.RLock()
@@ -133,9 +135,9 @@ class ParticipantPage:
         self.run_script(page_script(keys_uuid=self._keys._impl.uuid, title=self.title))
 
     def run_script(self, source: str) -> None:
-        """Run ``source`` (JavaScript) in this tab once."""
+        """Run ``source`` (JavaScript) in this tab once (checked for condition words too)."""
         self.client._websock_connection.queue_message(
-            viser_messages.RunJavascriptMessage(source=source)
+            viser_messages.RunJavascriptMessage(source=check_text(source, words=self.words))
         )
 
     async def _on_key_state(self, _event: object) -> None:
@@ -165,12 +167,12 @@ class ParticipantPage:
             return self.screen
 
     def _md(self, text: str) -> viser.GuiMarkdownHandle:
-        h = self.client.gui.add_markdown(check_text(text))
+        h = self.client.gui.add_markdown(check_text(text, words=self.words))
         self._handles.append(h)
         return h
 
     def _button(self, label: str, *, disabled: bool = False) -> viser.GuiButtonHandle:
-        h = self.client.gui.add_button(check_text(label), disabled=disabled)
+        h = self.client.gui.add_button(check_text(label, words=self.words), disabled=disabled)
         self._handles.append(h)
         return h
 
@@ -198,7 +200,9 @@ class ParticipantPage:
     def notify(self, text: str) -> None:
         """A short notice in the corner of the page (it closes by itself)."""
         with contextlib.suppress(Exception):
-            self.client.add_notification(check_text(text), "", auto_close_seconds=3.0, color="blue")
+            self.client.add_notification(
+                check_text(text, words=self.words), "", auto_close_seconds=3.0, color="blue"
+            )
 
     def _header(self, progress: str | None) -> None:
         self._md(f"### {self.title}" + (f"\n\n{progress}" if progress else ""))
@@ -255,7 +259,9 @@ class ParticipantPage:
                 " press Join." + (f"\n\n_{notice}_" if notice else "")
             )
             text = self.client.gui.add_text(
-                check_text("Join code"), initial_value="", hint="six letters and digits"
+                check_text("Join code", words=self.words),
+                initial_value="",
+                hint="six letters and digits",
             )
             self._handles.append(text)
             b = self._button("Join")

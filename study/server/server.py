@@ -20,14 +20,17 @@ import contextlib
 import logging
 import threading
 import time
+from collections.abc import Iterable
 
 import viser
 
+from study.protocol.blinding import find_words
 from study.server import blinding, firewall
 from study.server.experimenter import ACTIONS, ExperimenterConsole, SessionDetail, SessionSummary
 from study.server.firewall import LOOPBACK_NAMES
 from study.server.join import JoinThrottle, new_join_code, normalize_code
 from study.server.live import LiveSession, SessionFactory
+from study.server.page_script import page_script
 from study.server.participant import ParticipantPage
 from study.server.scene import frame_task
 
@@ -50,12 +53,16 @@ JOIN_THROTTLED = "Too many tries. Please wait a minute, then ask the experimente
 
 
 class StudyServer:
-    """Owns the participant and experimenter ``ViserServer``s and the live sessions."""
+    """Owns the participant and experimenter ``ViserServer``s and the live sessions.
+
+    ``condition_words``: what the participant's page must never receive, the served
+    protocol's :attr:`~study.protocol.Protocol.condition_words`."""
 
     def __init__(
         self,
         factory: SessionFactory,
         *,
+        condition_words: Iterable[str],
         host: str = "0.0.0.0",
         port: int = 8080,
         experimenter_host: str = "127.0.0.1",
@@ -80,7 +87,8 @@ class StudyServer:
         self.firewall = firewall.Firewall(allow_share=allow_share)
         with firewall.hardened_serve(self.firewall):
             self.participant = viser.ViserServer(host=host, port=port, verbose=verbose)
-        self.guard = blinding.install(self.participant)
+        self.guard = blinding.install(self.participant, words=condition_words)
+        _check_page_is_blind(self.guard.words)
         firewall.install(self.participant, self.firewall)
         self.participant.gui.configure_theme(
             show_share_button=False, show_logo=False, control_width="large"
@@ -182,7 +190,7 @@ class StudyServer:
 
     # -- participant tabs ----------------------------------------------------------------------
     def _participant_connected(self, client: viser.ClientHandle) -> None:
-        page = ParticipantPage(client, title=PAGE_TITLE)
+        page = ParticipantPage(client, title=PAGE_TITLE, words=self.guard.words)
         page.address = _address(self.participant, client.client_id)
         frame_task(client.camera, look_at=(0.45, 0.0, 0.15))
         with self._lock:
@@ -315,6 +323,19 @@ def _address(server: viser.ViserServer, client_id: int) -> str:
     connection = server._websock_server._live_connections.get(client_id)
     remote = getattr(connection, "remote_address", None)
     return str(remote[0]) if isinstance(remote, tuple) and remote else "unknown"
+
+
+def _check_page_is_blind(words: tuple[str, ...]) -> None:
+    """Raise :class:`ServerError` when a condition word of the served protocol occurs in the
+    participant page's own script or fixed texts (the guard would block them, breaking the page):
+    the level must be renamed."""
+    fixed = [page_script(keys_uuid="", title=PAGE_TITLE), JOIN_FAILED, JOIN_THROTTLED]
+    found = sorted({w for text in fixed for w in find_words(text, words)})
+    if found:
+        raise ServerError(
+            f"the protocol's condition word(s) {found} occur in the participant page's own"
+            " script or texts, which the blinding guard would then block; rename those levels"
+        )
 
 
 def _lan_address() -> str:

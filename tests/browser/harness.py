@@ -12,6 +12,7 @@ import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import msgspec
@@ -19,6 +20,9 @@ import numpy as np
 import viser
 import viser.transforms as vtf
 import zstandard
+
+from tests.protocol_copies import PAPER_PROTOCOL
+from tests.protocol_copies import short_protocol as copy
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = [
@@ -154,12 +158,16 @@ def wait_until(predicate: Any, *, timeout: float = 20.0, interval: float = 0.05)
 # -- a study server on free ports, with a shortened copy of the paper's protocol -----------------
 
 
-def short_protocol(directory: Any, *, time_limit_s: float = 6.0, training_runs: int = 1) -> Any:
-    """A copy of the paper's protocol with short trials and ``training_runs`` practice runs, so a
-    test walks through every kind of screen quickly."""
-    from tests.protocol_copies import short_protocol as copy
-
-    return copy(directory, time_limit_s=time_limit_s, training_runs=training_runs)
+def short_protocol(
+    directory: Any,
+    *,
+    time_limit_s: float = 6.0,
+    training_runs: int = 1,
+    source: Path = PAPER_PROTOCOL,
+) -> Any:
+    """A copy of the protocol ``source`` (the paper's by default) with short trials and
+    ``training_runs`` practice runs, so a test walks through every kind of screen quickly."""
+    return copy(directory, time_limit_s=time_limit_s, training_runs=training_runs, source=source)
 
 
 @dataclass
@@ -190,8 +198,6 @@ def start_server(
 ) -> RunningServer:
     """A ``StudyServer`` on free ports over a fresh store in ``directory`` (``server_kw`` go
     to the ``StudyServer``, e.g. ``kiosk=True``)."""
-    from pathlib import Path
-
     from study.protocol import load_protocol
     from study.server.live import session_factory
     from study.server.server import StudyServer
@@ -201,6 +207,7 @@ def start_server(
     store = open_store(Path(directory) / "study.db", protocol)
     server = StudyServer(
         session_factory(store, protocol),
+        condition_words=protocol.condition_words,
         host=host,
         port=0,
         experimenter_port=0,

@@ -22,7 +22,6 @@ import pytest
 from PIL import Image
 from playwright.sync_api import expect
 
-from study.server.blinding import CONDITION_WORDS
 from tests.browser.harness import (
     FrameLog,
     RunningServer,
@@ -137,9 +136,9 @@ def _without_client_warning(text: str) -> str:
     return "\n".join(ln for ln in lines if "WebGL" not in ln and "hardware acceleration" not in ln)
 
 
-def _texts_ok(texts: list[str]) -> None:
+def _texts_ok(texts: list[str], words: tuple[str, ...]) -> None:
     joined = "\n".join(texts).lower()
-    for word in CONDITION_WORDS:
+    for word in words:
         assert word not in joined, f"condition word {word!r} reached the participant"
 
 
@@ -303,12 +302,13 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     assert study.store.session("P01").status == "completed"
 
     # Blinding: page text, every websocket message, and the guard itself.
-    _texts_ok(seen)
+    words = study.protocol.condition_words  # (every shipped protocol: tests/browser/test_blinding)
+    _texts_ok(seen, words)
     strings = frames.strings() + intruder_frames.strings()
     assert len(strings) > 100
-    _texts_ok(strings)
+    _texts_ok(strings, words)
     raw = frames.raw_bytes() + intruder_frames.raw_bytes()  # incl. mesh (GLB) buffers
-    for word in CONDITION_WORDS:
+    for word in words:
         assert word.encode() not in raw, word
     assert srv.guard.violations == []
     for marker in EXPERIMENTER_ONLY:
