@@ -14,7 +14,8 @@ import study.headless
 from study.protocol import load_protocol
 from study.session import Session, open_store
 from study.simulated import DEFAULT_POPULATION_PATH
-from study.simulated.runner import plan_jobs, run_participant
+from study.simulated.job import run_participant
+from study.simulated.runner import plan_jobs
 
 
 def test_simulated_parameters_are_recorded_through_the_session(

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 from study.simulated.errors import SimulationRunError
 
 if TYPE_CHECKING:
-    from study.simulated.runner import ParticipantResult
+    from study.simulated.job import ParticipantResult
     from study.store import Store
 
 _SRC = "bundle"

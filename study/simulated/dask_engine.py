@@ -43,7 +43,7 @@ from study.simulated.errors import SchedulerUnreachableError, SimulationRunError
 if TYPE_CHECKING:
     from distributed import Client
 
-    from study.simulated.runner import ParticipantJob, ParticipantResult
+    from study.simulated.job import ParticipantJob, ParticipantResult
     from study.store import Store
 
 CONNECT_TIMEOUT_S = 5.0
@@ -72,7 +72,7 @@ def simulate_remote(job: ParticipantJob, inputs: RunInputs) -> ParticipantBundle
     """The task: simulate ``job``'s participant into a scratch store; return it as a bundle."""
     from study.protocol import load_protocol
     from study.session import open_store
-    from study.simulated.runner import run_participant
+    from study.simulated.job import run_participant
 
     worker = _current_worker()
     trials = 0
