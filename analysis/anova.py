@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 from scipy import special
 
-from analysis.design import effect_name, effect_terms, numeric_column, require_columns
+from analysis.design import cell_means, effect_name, effect_terms, numeric_column, require_columns
 from analysis.errors import DesignError
 
 COLUMNS = ["effect", "df1", "df2", "F", "p", "np2", "SS"]
@@ -236,7 +236,6 @@ def covariate_anova(
     Subjects enter only through their covariates (as in the paper: residual df =
     N - cells - covariates); incomplete subjects raise DesignError unless dropped.
     """
-    from analysis.design import cell_means
 
     roles = [dv, subject, *within, *covariates]
     dupes = sorted({n for n in roles if roles.count(n) > 1})

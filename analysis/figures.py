@@ -26,6 +26,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from analysis.prediction_eval import Replay, first_lasting_correct
+from app.blending import arbitration_from_config
 
 TASK_ORDER = ["easy-right", "easy-wrong", "hard-right", "hard-wrong"]
 TASK_LABELS = {
@@ -72,7 +73,6 @@ def save(fig: Figure, out_dir: Path, name: str, title: str) -> SavedFigure:
 
 def arbitration_figure(arbitrations: Mapping[str, Mapping[str, Any]]) -> Figure:
     """Fig. 7: ``alpha`` against confidence ``c`` for each mode's arbitration table."""
-    from app.blending import arbitration_from_config
 
     fig = _new(4.5, 3.2)
     ax = fig.add_subplot()

@@ -18,6 +18,7 @@ import pandas as pd
 
 from analysis.design import require_columns
 from analysis.errors import SchemaError, SourceError
+from study.store import Store
 
 TABLES = ("trials", "samples", "ratings", "events")
 TRIAL_COLUMNS = (
@@ -130,14 +131,10 @@ def from_store(path: str | Path) -> StudyTables:
     p = Path(path)
     if not p.exists():
         raise SourceError(f"no study store at {p}; check the --db path")
-    try:
-        from study.export import tidy_tables
-    except ImportError as e:
-        raise SourceError(
-            f"cannot read {p}: study.export.tidy_tables is not available ({e}); "
-            "export the store with `python -m study export` and pass "
-            "--export-dir instead"
-        ) from e
+    # study.export loads study.protocol, hence app.robot (pinocchio, scipy.linalg): +0.8-1.1 s
+    # (-X importtime) that `python -m analysis anova` on exported files must not pay
+    from study.export import tidy_tables
+
     try:
         tables = tidy_tables(p)
     except Exception as e:  # the store's own typed errors say what is wrong
@@ -157,8 +154,6 @@ def from_store(path: str | Path) -> StudyTables:
 
 def _store_protocol_hash(path: Path) -> str | None:
     try:
-        from study.store import Store
-
         with Store.open_readonly(path) as store:
             return str(store.meta.protocol_hash)
     except Exception:  # the hash is informative; the data were already read

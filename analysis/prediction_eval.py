@@ -27,9 +27,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
+from analysis.anova import factorial_anova
 from analysis.design import require_columns
 from analysis.errors import DataError, SchemaError
-from analysis.rm_anova import RMAnovaResult
+from analysis.rm_anova import RMAnovaResult, rm_anova
+from analysis.timing import design_levels
+from app.blending import GOAL_MOVED, BlendingError, GoalMoves, predictor_from_config
 
 if TYPE_CHECKING:
     from analysis.anova import FactorialAnovaResult
@@ -134,7 +137,6 @@ class Replay:
 
 def make_predictor(config: Mapping[str, Any], points: np.ndarray) -> Any:
     """A predictor from ``app.blending`` built from a plain config table over ``points``."""
-    from app.blending import BlendingError, predictor_from_config
 
     try:
         return predictor_from_config(dict(config), points=points, where="predictor")
@@ -153,7 +155,6 @@ def replay(
 ) -> Replay:
     """Feed ``trajectory`` (T, d) to ``predictor`` over goals ``points`` (n, d), tick by tick;
     ``moves`` (logged goal moves) are applied before the prediction of their row."""
-    from app.blending import BlendingError
 
     traj = np.ascontiguousarray(trajectory, dtype=float)
     if traj.ndim != 2 or traj.shape[0] == 0:
@@ -226,7 +227,6 @@ Trajectory = tuple[np.ndarray, np.ndarray, list[tuple[int, Any]]]
 
 
 def trial_trajectories(samples: pd.DataFrame) -> dict[Any, Trajectory]:
-    from app.blending import GOAL_MOVED
 
     require_columns(samples, ["trial_id", "t", *TARGET_COLUMNS], what="the samples table")
     order = ["trial_id", "tick"] if "tick" in samples.columns else ["trial_id", "t"]
@@ -255,7 +255,6 @@ def trial_trajectories(samples: pd.DataFrame) -> dict[Any, Trajectory]:
 
 def goal_moves(rows: list[tuple[int, Any]], names: Sequence[str], tid: Any) -> GoalMoves | None:
     """The logged goal moves of trial ``tid`` (``None`` when its goals never moved)."""
-    from app.blending import BlendingError, GoalMoves
 
     if not rows:
         return None
@@ -364,8 +363,6 @@ def prediction_anova(
 ) -> FactorialAnovaResult:
     """Factorial ANOVA of ``dv`` on predictor x difficulty x correctness x mode (type III);
     design factors with a single level in the data are left out of the model."""
-    from analysis.anova import factorial_anova
-    from analysis.timing import design_levels
 
     data = evals.copy()
     orders = {"predictor": tuple(dict.fromkeys(evals["predictor"])), **design_levels(evals, levels)}
@@ -385,8 +382,6 @@ def prediction_rm_anova(
     participant's mean per predictor and condition (repeated trials averaged), so a trajectory's
     two replays and a participant's trials are not counted as independent observations;
     participants lacking a cell are dropped (named in the notes)."""
-    from analysis.rm_anova import rm_anova
-    from analysis.timing import design_levels
 
     data = evals.copy()
     orders = {"predictor": tuple(dict.fromkeys(evals["predictor"])), **design_levels(evals, levels)}

@@ -5,20 +5,18 @@ The protocol the data were collected with comes first: the text a study store ke
 (``study.protocol.protocol_from_store``) or an export folder's ``protocol.toml``; then the file
 passed with --protocol (by default protocols/dragan2013.toml), which may have been edited since;
 only a file the user named is reported as differing from the stored protocol.
-Read through ``study.protocol`` (validated, canonical content hash); if that package is
-unavailable, the TOML is read directly and hashed byte for byte (said in the notes).
+Read through ``study.protocol`` (validated, canonical content hash).
 """
 
 from __future__ import annotations
 
-import hashlib
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from analysis.errors import SourceError
+from study.store import Store
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_PROTOCOL = ROOT / "protocols" / "dragan2013.toml"
@@ -85,11 +83,10 @@ def _stored_info(source: Path) -> tuple[ProtocolInfo | None, str | None]:
             return None, f"the protocol exported with the data was not used: {e}"
     if not source.is_file():
         return None, None
-    try:
-        from study.protocol import protocol_from_store
-        from study.store import Store
-    except ImportError:
-        return None, None
+    # study.protocol loads app.robot (pinocchio, scipy.linalg): +0.8 s (-X importtime), paid
+    # only when a protocol is read, not by every `import analysis.report`
+    from study.protocol import protocol_from_store
+
     try:
         with Store.open_readonly(source) as store:
             proto = protocol_from_store(store)
@@ -133,38 +130,10 @@ def _file_info(path: str | Path) -> ProtocolInfo:
     p = Path(path)
     if not p.exists():
         raise SourceError(f"no protocol file at {p}; pass --protocol PATH")
+    from study.protocol import load_protocol  # +0.8 s: see _stored_info
+
     try:
-        from study.protocol import load_protocol
-    except ImportError:
-        load_protocol = None  # type: ignore[assignment]
-    if load_protocol is not None:
-        try:
-            proto = load_protocol(p)
-        except Exception as e:  # the protocol's typed errors name file, key and problem
-            raise SourceError(f"cannot load the protocol {p}: {e}") from e
-        return _info(proto, path=str(p))
-    raw = p.read_bytes()
-    try:
-        doc = tomllib.loads(raw.decode("utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise SourceError(f"{p} is not valid TOML: {e}") from e
-    modes = doc.get("modes", {})
-    return ProtocolInfo(
-        path=str(p),
-        study_id=doc.get("study", {}).get("id"),
-        content_hash=hashlib.sha256(raw).hexdigest(),
-        arbitrations={
-            k: v["arbitration"]
-            for k, v in modes.items()
-            if isinstance(v, dict) and isinstance(v.get("arbitration"), dict)
-        },
-        amnesic_temperature=_temperature(doc.get("prediction")),
-        prediction=_prediction_tables(doc.get("prediction")),
-        factors={
-            k: tuple(map(str, v)) for k, v in doc.get("factors", {}).items() if isinstance(v, list)
-        },
-        notes=(
-            "study.protocol is unavailable: the protocol was read as plain TOML and its hash "
-            "is the sha256 of the file's bytes",
-        ),
-    )
+        proto = load_protocol(p)
+    except Exception as e:  # the protocol's typed errors name file, key and problem
+        raise SourceError(f"cannot load the protocol {p}: {e}") from e
+    return _info(proto, path=str(p))

@@ -167,18 +167,6 @@ def test_fig7_curves_follow_the_arbitration_tables() -> None:
     np.testing.assert_allclose(lines["aggressive"].get_ydata(), np.where(c >= 0.3, 0.8, 0.0))
 
 
-def test_protocol_fallback_without_study_package(
-    protocol_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    import hashlib
-
-    monkeypatch.setitem(sys.modules, "study.protocol", None)  # import now fails
-    info = load_protocol_info(protocol_path)
-    assert info.content_hash == hashlib.sha256(protocol_path.read_bytes()).hexdigest()
-    assert set(info.arbitrations) == {"timid", "aggressive"}
-    assert "plain TOML" in info.notes[0]
-
-
 def test_report_with_training_runs_only(tmp_path: Path) -> None:
     from analysis.load import from_frames
     from analysis.report import write_report

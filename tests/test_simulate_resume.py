@@ -22,10 +22,9 @@ from typing import Any
 
 import pytest
 
-import study.session
 from app.cli import dispatch
 from study.__main__ import COMMANDS
-from study.simulated import simulate
+from study.simulated import runner, simulate
 from study.store import Store
 from tests.disk_full import cap
 from tests.protocol_copies import short_protocol
@@ -199,7 +198,7 @@ def test_simulation_on_a_full_disk_reports_it_and_resumes(
         str(SEED),
         "--no-progress",
     ]
-    real = study.session.open_store
+    real = runner.open_store
 
     def open_capped(path: Any, protocol: Any, **kw: Any) -> Store:
         store = real(path, protocol, **kw)
@@ -207,7 +206,7 @@ def test_simulation_on_a_full_disk_reports_it_and_resumes(
         return store
 
     with monkeypatch.context() as patch:
-        patch.setattr(study.session, "open_store", open_capped)
+        patch.setattr(runner, "open_store", open_capped)  # where simulate() opens the store
         code, summary, err = cli(capsys, *args)
     assert code == 2
     assert "the disk is full" in summary["error"]

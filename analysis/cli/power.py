@@ -16,6 +16,10 @@ import time
 from pathlib import Path
 
 from analysis.cli import fail, friendly, note
+from analysis.figures import power_figure, save
+from analysis.load import load_tables, task_cells
+from analysis.power import bootstrap_power, pilot_cells
+from analysis.report import _jsonable
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -45,10 +49,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 @friendly
 def main(args: argparse.Namespace) -> int:
-    from analysis.figures import power_figure, save
-    from analysis.load import load_tables, task_cells
-    from analysis.power import bootstrap_power, pilot_cells
-    from analysis.report import _jsonable
 
     start = time.perf_counter()
     tables = load_tables(db=args.db, export_dir=args.export_dir)

@@ -10,7 +10,9 @@ import sys
 import time
 
 from analysis.cli import fail, friendly, note
+from analysis.load import load_tables
 from analysis.protocol_info import DEFAULT_PROTOCOL, ROOT
+from analysis.report import write_report
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -34,8 +36,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 @friendly
 def main(args: argparse.Namespace) -> int:
-    from analysis.load import load_tables
-    from analysis.report import write_report
 
     start = time.perf_counter()
     tables = load_tables(db=args.db, export_dir=args.export_dir)

@@ -37,8 +37,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from tqdm import tqdm
+
+from study.protocol import load_protocol
+from study.session import open_store
 from study.simulated.bundle import ParticipantBundle, merge_bundle, read_bundle_file
 from study.simulated.errors import SchedulerUnreachableError, SimulationRunError
+from study.simulated.job import run_participant
+from study.store import StoreWriteError
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -70,9 +76,6 @@ class RunInputs:
 
 def simulate_remote(job: ParticipantJob, inputs: RunInputs) -> ParticipantBundle:
     """The task: simulate ``job``'s participant into a scratch store; return it as a bundle."""
-    from study.protocol import load_protocol
-    from study.session import open_store
-    from study.simulated.job import run_participant
 
     worker = _current_worker()
     trials = 0
@@ -147,7 +150,6 @@ class _Bars:
     """The overall bar (participants written) and one bar per participant in flight."""
 
     def __init__(self, *, total: int, trials_each: int, enabled: bool, run_token: str) -> None:
-        from tqdm import tqdm
 
         self._tqdm = tqdm
         self._lock = threading.Lock()
@@ -227,7 +229,6 @@ def run_on_dask(
     queued participants are cancelled, and ``--resume`` continues once the disk is fixed.
     ``client``: an already-connected client to use (a sweep shares one across its runs);
     ``scheduler`` and ``workers`` are then ignored."""
-    from study.store import StoreWriteError
 
     inputs = RunInputs(
         protocol_name=protocol_path.name,

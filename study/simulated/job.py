@@ -14,7 +14,11 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from study.headless import run_headless
+from study.session import Session
+from study.simulated.participant import SimulatedParticipant
 from study.simulated.population import load_population
+from study.store import StoreWriteError
 
 if TYPE_CHECKING:
     from study.protocol import Protocol
@@ -62,10 +66,6 @@ def run_participant(
     on_trial: Callable[[], None] | None = None,
 ) -> ParticipantResult:
     """Enrol ``job``'s participant and drive their whole session to the end."""
-    from study.headless import run_headless
-    from study.session import Session
-    from study.simulated.participant import SimulatedParticipant
-    from study.store import StoreWriteError
 
     start = time.perf_counter()
     params = load_population(population_path).draw(job.index, seed=seed)

@@ -40,7 +40,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from tqdm import tqdm
 
+from study.protocol import load_protocol
+from study.schedule import Enrollment, next_row
+from study.session import open_store
+from study.simulated.dask_engine import run_on_dask
 from study.simulated.errors import SimulationRunError
 from study.simulated.job import (
     ParticipantJob,
@@ -49,6 +54,7 @@ from study.simulated.job import (
     run_participant,
 )
 from study.simulated.population import DEFAULT_POPULATION_PATH, load_population
+from study.store import StoreWriteError
 
 if TYPE_CHECKING:
     from study.protocol import Protocol
@@ -137,7 +143,6 @@ def plan_run(store: Store, *, n: int, seed: int, first: int = 0, resume: bool = 
     planned from the history as it stood before the first of these participants was enrolled,
     which is what the interrupted run planned, and every enrolled participant's stored row and
     seed must match that plan (else this is not the same run: wrong ``--seed`` or ``--first``)."""
-    from study.schedule import Enrollment, next_row
 
     ids = [participant_id(index, seed=seed) for index in range(first, first + n)]
     with store.transaction() as tx:
@@ -198,8 +203,6 @@ _worker: dict[str, Any] = {}
 def _init_worker(
     protocol_path: str, db: str, population_path: str, seed: int, synchronous: str, progress: Any
 ) -> None:
-    from study.protocol import load_protocol
-    from study.session import open_store
 
     protocol = load_protocol(protocol_path)
     _worker.update(
@@ -252,8 +255,6 @@ def simulate(
 
     A store that takes no more writes stops the run: the report's ``error`` says why, and the
     participants finished before it are in ``results``."""
-    from study.protocol import load_protocol
-    from study.session import open_store
 
     if participants < 1:
         raise SimulationRunError(f"participants must be at least 1, got {participants}")
@@ -284,8 +285,6 @@ def simulate(
         jobs = plan.jobs
         per_person = protocol.training.runs + len(protocol.tasks) * len(protocol.modes)
         if engine == "dask" and jobs:
-            from study.simulated.dask_engine import run_on_dask
-
             fault = run_on_dask(
                 jobs,
                 results,
@@ -357,9 +356,6 @@ def _run_local(
 ) -> str | None:
     """The local engine: ``jobs`` in this process, or in ``workers`` processes writing the same
     store; returns the store fault that stopped the run, else ``None``."""
-    from tqdm import tqdm
-
-    from study.store import StoreWriteError
 
     fault: str | None = None
     # overall: participants done; below it the trials, of the participant running in this
@@ -430,7 +426,6 @@ def _run_pool(
 ) -> str | None:
     """Run ``jobs`` in worker processes, appending to ``results``; returns the store fault that
     stopped the run (queued participants are then not started), else ``None``."""
-    from study.store import StoreWriteError
 
     ctx = mp.get_context("spawn")
     ticks = ctx.Queue()

@@ -19,7 +19,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from tqdm import tqdm
+
+from study.simulated import simulate
+from study.simulated.dask_engine import connect
 from study.simulated.population import DEFAULT_POPULATION_PATH
+from study.store import Store
 from study.sweep.criteria import Criteria, Measure, choose, measure
 from study.sweep.errors import SweepError
 from study.sweep.grid import AGGRESSIVE, TIMID, Setting, current_settings, write_variant
@@ -75,10 +80,6 @@ def sweep(
 ) -> SweepResult:
     """Simulate ``participants`` people under every setting of ``grid`` (plus the protocol's
     own settings) and judge each by ``criteria``; writes variants and stores under ``out``."""
-    from tqdm import tqdm
-
-    from study.simulated import simulate
-    from study.store import Store
 
     text = Path(protocol_path).read_text(encoding="utf-8")
     current_timid, current_aggressive, saturation = current_settings(text)
@@ -92,8 +93,6 @@ def sweep(
     with ExitStack() as stack:
         client = None
         if engine == "dask":
-            from study.simulated.dask_engine import connect
-
             client = connect(scheduler=scheduler, workers=workers, stack=stack)
         bar = stack.enter_context(
             tqdm(
