@@ -17,28 +17,20 @@ from app.robot.errors import (
     SceneError,
     UnreachableError,
 )
-from app.robot.kinematics import IKResult, Kinematics, downward_rotation
-from app.robot.scene import Scene, build_scene, grasp_position, grasp_rotation
-from app.robot.scene_spec import ObjectSpec, SceneSpec, TableSpec
+from app.robot.scene import Scene, build_scene
+from app.robot.scene_spec import SceneSpec
 from app.robot.simulation import Simulation, SimulationError
 
 __all__ = [
     "Arm",
-    "IKResult",
-    "Kinematics",
     "ModelNotFoundError",
-    "ObjectSpec",
     "RobotError",
     "Scene",
     "SceneError",
     "SceneSpec",
     "Simulation",
     "SimulationError",
-    "TableSpec",
     "UnreachableError",
     "build_scene",
-    "downward_rotation",
-    "grasp_position",
-    "grasp_rotation",
     "load_arm",
 ]

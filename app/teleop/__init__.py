@@ -8,14 +8,12 @@ into the next configuration ``U`` with a velocity limit; input sources (``GizmoI
 from app.teleop.errors import InvalidTargetError, TeleopError
 from app.teleop.gizmo import GizmoInput
 from app.teleop.ik_step import IKStep
-from app.teleop.keyboard import GRASP_KEYS, KEYMAP, KeyboardInput
+from app.teleop.keyboard import KeyboardInput
 from app.teleop.reach import ReachRegion
 from app.teleop.scripted import IdleInput, ScriptedInput
 from app.teleop.types import InputSource, TeleopCommand, TrialObservation
 
 __all__ = [
-    "GRASP_KEYS",
-    "KEYMAP",
     "GizmoInput",
     "IKStep",
     "IdleInput",

@@ -6,7 +6,7 @@ runner that drives them through the real session engine.
 - :class:`SimulatedUser`: an ``app.teleop.InputSource`` for one trial (goal-directed minimum-jerk
   input, reaction delay, noise, steering against a wrong robot, relaxing when helped, grasping);
   with ``goal_level`` it only says where the user wants the handle.
-- :class:`InterfaceUser`: the input a simulated participant gives through the page's gizmo
+- :class:`~study.simulated.interface.InterfaceUser`: the input a simulated participant gives through the page's gizmo
   handles or held keys (``study.server.inputs.ParticipantInput``), driven by a goal-level user.
 - :class:`QuestionnaireModel`: Likert ratings and preferences from a run's experience.
 - :class:`SimulatedParticipant`: one person across a session (input factory + answerer for
@@ -16,15 +16,8 @@ runner that drives them through the real session engine.
   (``study.simulated.dask_engine``, one writer merging ``study.simulated.bundle`` bundles).
 """
 
-from study.simulated.errors import (
-    ObservationError,
-    PopulationError,
-    SchedulerUnreachableError,
-    SimulationError,
-    SimulationRunError,
-)
-from study.simulated.experience import ExperienceLog, RunExperience
-from study.simulated.interface import InterfaceUser
+from study.simulated.errors import PopulationError, SimulationError, SimulationRunError
+from study.simulated.experience import RunExperience
 from study.simulated.participant import SimulatedParticipant
 from study.simulated.population import (
     DEFAULT_POPULATION_PATH,
@@ -34,21 +27,16 @@ from study.simulated.population import (
     participant_rng,
 )
 from study.simulated.questionnaire import QuestionnaireModel
-from study.simulated.runner import ParticipantResult, SimulationReport, simulate
+from study.simulated.runner import SimulationReport, simulate
 from study.simulated.user_model import SimulatedUser
 
 __all__ = [
     "DEFAULT_POPULATION_PATH",
-    "ExperienceLog",
-    "InterfaceUser",
-    "ObservationError",
     "ParticipantParams",
-    "ParticipantResult",
     "Population",
     "PopulationError",
     "QuestionnaireModel",
     "RunExperience",
-    "SchedulerUnreachableError",
     "SimulatedParticipant",
     "SimulatedUser",
     "SimulationError",

@@ -8,13 +8,12 @@ a figure, the evidence and the chosen parameters as a protocol snippet (:mod:`st
 
 from study.sweep.criteria import Criteria, Measure, choose, measure
 from study.sweep.errors import SweepError, SweepGridError, SweepProtocolError
-from study.sweep.grid import Setting, aggressive, current_settings, make_grid, timid, variant_text
+from study.sweep.grid import aggressive, current_settings, make_grid, timid, variant_text
 from study.sweep.run import SweepResult, sweep
 
 __all__ = [
     "Criteria",
     "Measure",
-    "Setting",
     "SweepError",
     "SweepGridError",
     "SweepProtocolError",
