@@ -23,6 +23,10 @@ viser has no public hook on outgoing messages, so the guard wraps two private on
    server's own event loop just before encoding, is wrapped too: any string still carrying a
    forbidden word is blanked in the outgoing dict and the violation logged.
 
+A string that is exactly one of viser's own fixed values for the field it sits in passes both
+layers (:mod:`study.server.viser_vocabulary`: memory3's level "standard" is also every mesh's
+``material``); such a value is the same in every condition.
+
 Other servers (the experimenter's) pass through untouched.
 """
 
