@@ -21,6 +21,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from app.trial.events import TrialEvent, encode_events
 from study.store import DOF, SampleFormatError, Store, StoreError, StoreWriteError
 
 MAX_FLUSH_INTERVAL_S = 0.25
@@ -46,7 +47,7 @@ class TickLike(Protocol):
     user_target: Any
     ee: Any
     gripper: float
-    events: Sequence[str]
+    events: Sequence[TrialEvent]
 
 
 def _vector(value: Any, n: int, name: str) -> list[float]:
@@ -66,7 +67,6 @@ def sample_row(trial_id: int, tick: int, record: TickLike) -> tuple[Any, ...]:
         probs_json = str([float(x) for x in probs])  # JSON for finite floats, 3x faster
         if "n" in probs_json:  # nan or inf: let json spell them (NaN, Infinity)
             probs_json = json.dumps(probs)
-        events = record.events
         return (
             trial_id,
             tick,
@@ -82,7 +82,7 @@ def sample_row(trial_id: int, tick: int, record: TickLike) -> tuple[Any, ...]:
             *_vector(record.user_target, 3, "user_target"),
             *_vector(record.ee, 3, "ee"),
             float(record.gripper),
-            json.dumps(list(events)) if events else "[]",
+            encode_events(record.events),
         )
     except (AttributeError, TypeError, ValueError) as exc:
         if isinstance(exc, SampleFormatError):

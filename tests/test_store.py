@@ -14,6 +14,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from app.trial.events import EventKind, TrialEvent
 from study.sample_writer import MAX_FLUSH_INTERVAL_S, SampleWriter, sample_row
 from study.store import (
     SAMPLE_COLUMNS,
@@ -64,7 +65,7 @@ def tick(i: int) -> SimpleNamespace:
         user_target=np.array([0.5, 0.1, 0.2]),
         ee=np.array([0.4, 0.0, 0.3]),
         gripper=0.0,
-        events=("grasp",) if i == 3 else (),
+        events=(TrialEvent(EventKind.GRASP_REQUESTED),) if i == 3 else (),
     )
 
 
@@ -219,7 +220,7 @@ def test_samples_round_trip(tmp_path: Path) -> None:
         assert df["tick"].tolist() == [0, 1, 2, 3, 4]
         assert df.loc[2, "q7"] == pytest.approx(8.0)
         assert df.loc[2, "cmd1"] == pytest.approx(2.3)
-        assert df.loc[3, "events"] == '["grasp"]'
+        assert df.loc[3, "events"] == '["grasp_requested"]'
         assert df.loc[0, "probabilities"] == "[0.2, 0.8]"
         assert store.sample_count(tid) == 5
         with pytest.raises(StoreError, match=r"UNIQUE constraint failed.*nothing of this write"):

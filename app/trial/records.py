@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+from app.trial.events import TrialEvent, decode, decode_events, encode
+
 OUTCOMES = ("success", "wrong_object", "dropped", "pushed_off", "timeout", "aborted", "interrupted")
 
 
@@ -21,7 +23,7 @@ class TickRecord:
     ``u``: the user's next configuration U; ``p``: the policy's P; ``command``:
     ``(1 - alpha) U + alpha P`` sent to the servos; ``probabilities``: ``P(G | xi)``;
     ``predicted``: index of G*; ``user_target``: the clamped target (3,); ``ee``: TCP (3,);
-    ``gripper``: finger opening (m); ``events``: what happened this tick.
+    ``gripper``: finger opening (m); ``events``: what happened this tick (``app.trial.events``).
     """
 
     tick: int
@@ -37,14 +39,16 @@ class TickRecord:
     user_target: np.ndarray
     ee: np.ndarray
     gripper: float
-    events: tuple[str, ...] = ()
+    events: tuple[TrialEvent, ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
-        """Plain JSON-able values (lists for arrays)."""
-        return {
+        """Plain JSON-able values (lists for arrays, events as their stored text)."""
+        out = {
             name: (value.tolist() if isinstance(value, np.ndarray) else value)
             for name, value in ((n, getattr(self, n)) for n in self.__slots__)
         }
+        out["events"] = [encode(e) for e in self.events]
+        return out
 
 
 @dataclass(frozen=True)
@@ -61,7 +65,7 @@ class TrialResult:
     seed: int
     task: str = ""
     mode: str = ""
-    events: tuple[tuple[float, str], ...] = field(default=())
+    events: tuple[tuple[float, TrialEvent], ...] = field(default=())
 
     def summary(self) -> dict[str, Any]:
         """The one-line JSON summary the CLI prints."""
@@ -96,15 +100,16 @@ def save_records(result: TrialResult, path: str | Path) -> Path:
     meta = {
         **result.summary(),
         "goal_names": list(result.goal_names),
-        "events": [[t, e] for t, e in result.events],
-        "tick_events": [list(r.events) for r in recs],
+        "events": [[t, encode(e)] for t, e in result.events],
+        "tick_events": [[encode(e) for e in r.events] for r in recs],
     }
     np.savez_compressed(path, meta=np.array(json.dumps(meta)), **arrays)
     return path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
 
 
 def load_records(path: str | Path) -> tuple[dict[str, Any], tuple[TickRecord, ...]]:
-    """Read what ``save_records`` wrote: ``(summary, records)``."""
+    """Read what ``save_records`` wrote: ``(summary, records)`` (the summary's ``events`` stay
+    ``[t, text]`` pairs; ``app.trial.events.decode`` reads a text)."""
     with np.load(Path(path), allow_pickle=False) as z:
         meta = json.loads(str(z["meta"]))
         cols = {k: z[k] for k in z.files if k != "meta"}
@@ -123,7 +128,7 @@ def load_records(path: str | Path) -> tuple[dict[str, Any], tuple[TickRecord, ..
             user_target=cols["user_target"][i],
             ee=cols["ee"][i],
             gripper=float(cols["gripper"][i]),
-            events=tuple(meta["tick_events"][i]),
+            events=tuple(decode(e) for e in meta["tick_events"][i]),
         )
         for i in range(len(cols["t"]))
     )
@@ -151,7 +156,6 @@ def records_from_samples(samples: Any) -> tuple[TickRecord, ...]:
     out = []
     for i, row in enumerate(samples.itertuples(index=False)):
         probs = row.probabilities
-        events = row.events
         out.append(
             TickRecord(
                 tick=int(row.tick),
@@ -167,7 +171,7 @@ def records_from_samples(samples: Any) -> tuple[TickRecord, ...]:
                 user_target=target[i],
                 ee=ee[i],
                 gripper=float(row.gripper),
-                events=tuple(json.loads(events) if isinstance(events, str) else events),
+                events=decode_events(row.events),
             )
         )
     return tuple(out)
