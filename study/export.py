@@ -36,9 +36,10 @@ import pandas as pd
 import app
 from app.trial.contacts import contact_totals
 from app.trial.events import TrialEvent, decode_events
+from app.trial.samples import SAMPLE_COLUMNS
 from study.codebook import write_codebook
 from study.protocol import TRAINING_MODE, ProtocolError, load_protocol, protocol_from_store
-from study.store import DOF, Store, now_iso
+from study.store import Store, now_iso
 
 if TYPE_CHECKING:
     from study.protocol import Protocol
@@ -75,27 +76,9 @@ TRIAL_COLUMNS = (
 )
 """Fixed leading columns of ``trials``; Likert and preference columns and ``trial_id`` follow."""
 
-VECTORS = ("q", "u", "p", "cmd")
-SAMPLE_HEAD = (
-    "trial_id",
-    "participant",
-    "tick",
-    "t",
-    *(f"{v}{i}" for v in VECTORS for i in range(1, DOF + 1)),
-    "alpha",
-    "confidence",
-    "predicted",
-)
-SAMPLE_TAIL = (
-    "target_x",
-    "target_y",
-    "target_z",
-    "ee_x",
-    "ee_y",
-    "ee_z",
-    "gripper",
-    "events",
-)
+SAMPLE_KEY = ("trial_id", "participant", "tick")
+"""Leading columns of ``samples``; the store's sample columns (``app.trial.samples``) follow,
+``predicted`` as the goal's name and ``probabilities`` spread over ``prob_<k>``."""
 RATING_COLUMNS = (
     "participant",
     "session_id",
@@ -337,7 +320,8 @@ class _Exporter:
         ]
         for k, col in enumerate(prob_cols):
             out[col] = matrix[:, k]
-        out = out[[*SAMPLE_HEAD, *prob_cols, *SAMPLE_TAIL]].reset_index(drop=True)
+        columns = [c for s in SAMPLE_COLUMNS for c in (prob_cols if s == "probabilities" else [s])]
+        out = out[[*SAMPLE_KEY, *columns]].reset_index(drop=True)
         return _typed(out, ints=("trial_id", "tick"), bools=())
 
     # -- ratings and events ------------------------------------------------------------------

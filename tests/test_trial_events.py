@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from analysis.prediction_eval import goal_moves, trial_trajectories
+from app.trial import records_from_samples
 from app.trial.events import EventKind, TrialEvent, TrialEventError, decode, encode
-from app.trial.records import records_from_samples
 from study.export import tidy_tables
 from study.sample_writer import sample_row
 from study.store import SAMPLE_COLUMNS, Store

@@ -14,8 +14,7 @@ import pytest
 
 from app.robot.scene import build_scene
 from app.teleop import ScriptedInput
-from app.trial import run_trial
-from app.trial.records import records_from_samples, save_records
+from app.trial import records_from_samples, run_trial, save_records
 from app.trial.video import render_live, replay
 from study.protocol import trial_config_from_protocol
 from study.sample_writer import sample_row

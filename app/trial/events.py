@@ -22,8 +22,10 @@ text                                 meaning
                                      ``J`` (N s, 4 decimals)
 ===================================  ==========================================================
 
-``decode(encode(e)) == e`` for every event, and ``encode(decode(s)) == s`` for every string the
-trial writes, so stores and exports written before events were typed read unchanged.
+An event holds its numbers at the stored resolution (a position to the micrometre, an impulse
+to 1e-4 N s), so ``decode(encode(e)) == e`` for every event, and ``encode(decode(s)) == s`` for
+every string the trial writes: stores and exports written before events were typed read
+unchanged.
 """
 
 from __future__ import annotations
@@ -108,8 +110,8 @@ class TrialEvent:
     """One event: its ``kind`` and the payload that kind carries (see the module table).
 
     ``obj``: an object or goal name; ``part``: an arm part (``app.robot.simulation.ARM_PARTS``);
-    ``position``: (x, y, z) metres; ``impulse_ns``: N s; ``text``: outcome, error type or
-    message. Build with the keyword a kind needs, e.g. ``TrialEvent(EventKind.GRASPED,
+    ``position``: (x, y, z) metres, rounded to 6 decimals; ``impulse_ns``: N s, rounded to 4;
+    ``text``: outcome, error type or message. Build with the keyword a kind needs, e.g. ``TrialEvent(EventKind.GRASPED,
     obj="bottle")``; a missing or extra payload raises ``TrialEventError``.
     """
 
@@ -138,9 +140,9 @@ class TrialEvent:
                 raise TrialEventError(
                     f"goal {self.obj!r} moved to {self.position!r}: not (x, y, z)"
                 )
-            object.__setattr__(self, "position", position)
+            object.__setattr__(self, "position", tuple(float(f"{v:.6f}") for v in position))
         if self.impulse_ns is not None:
-            object.__setattr__(self, "impulse_ns", float(self.impulse_ns))
+            object.__setattr__(self, "impulse_ns", float(f"{float(self.impulse_ns):.4f}"))
 
 
 def encode(event: TrialEvent) -> str:

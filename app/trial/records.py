@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from app.trial.events import TrialEvent, decode, decode_events, encode
+from app.trial.events import TrialEvent, decode, encode
 
 OUTCOMES = ("success", "wrong_object", "dropped", "pushed_off", "timeout", "aborted", "interrupted")
 
@@ -133,45 +132,3 @@ def load_records(path: str | Path) -> tuple[dict[str, Any], tuple[TickRecord, ..
         for i in range(len(cols["t"]))
     )
     return meta, records
-
-
-def records_from_samples(samples: Any) -> tuple[TickRecord, ...]:
-    """Tick records from a study store's ``samples`` rows of one trial (a pandas DataFrame with
-    ``tick, t, q1..q7, u1.., p1.., cmd1.., alpha, confidence, predicted, probabilities,
-    target_x.., ee_x.., gripper, events``; ``probabilities`` and ``events`` as JSON text)."""
-    cols = samples.columns
-
-    def block(prefix: str, names: Sequence[str]) -> np.ndarray:
-        missing = [n for n in names if n not in cols]
-        if missing:
-            raise ValueError(f"samples: missing column(s) {missing}")
-        return samples[list(names)].to_numpy(dtype=float)
-
-    q = block("q", [f"q{i}" for i in range(1, 8)])
-    u = block("u", [f"u{i}" for i in range(1, 8)])
-    p = block("p", [f"p{i}" for i in range(1, 8)])
-    cmd = block("cmd", [f"cmd{i}" for i in range(1, 8)])
-    target = block("target", ["target_x", "target_y", "target_z"])
-    ee = block("ee", ["ee_x", "ee_y", "ee_z"])
-    out = []
-    for i, row in enumerate(samples.itertuples(index=False)):
-        probs = row.probabilities
-        out.append(
-            TickRecord(
-                tick=int(row.tick),
-                t=float(row.t),
-                q=q[i],
-                u=u[i],
-                p=p[i],
-                command=cmd[i],
-                alpha=float(row.alpha),
-                confidence=float(row.confidence),
-                probabilities=np.array(json.loads(probs) if isinstance(probs, str) else probs),
-                predicted=int(row.predicted),
-                user_target=target[i],
-                ee=ee[i],
-                gripper=float(row.gripper),
-                events=decode_events(row.events),
-            )
-        )
-    return tuple(out)

@@ -12,6 +12,7 @@ import os
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
+import cv2
 import mujoco
 import numpy as np
 
@@ -53,8 +54,6 @@ class VideoWriter:
         height: int = 480,
         camera: mujoco.MjvCamera | None = None,
     ) -> None:
-        import cv2
-
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
