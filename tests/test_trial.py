@@ -14,9 +14,8 @@ import pytest
 
 from app.robot.scene import build_scene
 from app.teleop import GizmoInput, IdleInput, ScriptedInput, TeleopCommand, TrialObservation
-from app.trial import OUTCOMES, Trial, run_trial
+from app.trial import OUTCOMES, Trial, load_records, run_trial, save_records
 from app.trial.events import EventKind, TrialEvent, decode, encode
-from app.trial.records import load_records, save_records
 from study.protocol import trial_config_from_protocol
 
 

@@ -13,7 +13,8 @@ Formats, each declared once: ``app.trial.events`` (event kinds and their text co
 from app.trial.config import TrialConfig
 from app.trial.errors import TrialConfigError, TrialError
 from app.trial.events import EventKind, TrialEvent, TrialEventError
-from app.trial.records import OUTCOMES, TickRecord, TrialResult, load_records, save_records
+from app.trial.record_file import load_records, save_records
+from app.trial.records import OUTCOMES, TickRecord, TrialResult
 from app.trial.samples import records_from_samples
 from app.trial.trial import Trial, run_trial
 

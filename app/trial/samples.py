@@ -228,8 +228,8 @@ def _column_values(f: SampleField, samples: Any) -> Sequence[Any]:
     if f.axes:
         return samples[list(f.columns)].to_numpy(dtype=float)
     values = samples[f.columns[0]].tolist()
-    if f.kind is ColumnKind.REAL:
-        return [float(v) for v in values]
+    if f.kind is ColumnKind.REAL:  # empty (a column the store predates): nan
+        return [np.nan if v is None else float(v) for v in values]
     if f.kind is ColumnKind.INDEX:
         return [int(v) for v in values]
     if f.kind is ColumnKind.FLOATS:
