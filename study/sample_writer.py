@@ -19,8 +19,8 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
+from app.trial import samples as layout
 from app.trial.records import TickRecord
-from app.trial.samples import sample_values
 from study.store import SampleFormatError, Store, StoreError, StoreWriteError
 
 MAX_FLUSH_INTERVAL_S = 0.25
@@ -34,7 +34,7 @@ much room. A commit costs about 0.2 ms (no fsync: ``Store.insert_samples``)."""
 def sample_row(trial_id: int, tick: int, record: TickRecord) -> tuple[Any, ...]:
     """The ``samples`` row (``SAMPLE_COLUMNS`` order) for one tick record."""
     try:
-        return (trial_id, tick, *sample_values(record))
+        return layout.sample_row(trial_id, tick, record)
     except (AttributeError, TypeError, ValueError) as exc:
         raise SampleFormatError(f"tick {tick} cannot be stored as a sample: {exc}") from exc
 
