@@ -111,8 +111,9 @@ class TrialEvent:
 
     ``obj``: an object or goal name; ``part``: an arm part (``app.robot.simulation.ARM_PARTS``);
     ``position``: (x, y, z) metres, rounded to 6 decimals; ``impulse_ns``: N s, rounded to 4;
-    ``text``: outcome, error type or message. Build with the keyword a kind needs, e.g. ``TrialEvent(EventKind.GRASPED,
-    obj="bottle")``; a missing or extra payload raises ``TrialEventError``.
+    ``text``: outcome, error type or message. Build with the keywords a kind needs, e.g.
+    ``TrialEvent(EventKind.GRASPED, obj="bottle")``; a missing or extra payload raises
+    ``TrialEventError``.
     """
 
     kind: EventKind

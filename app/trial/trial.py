@@ -180,8 +180,9 @@ class Trial:
     def _follow_objects(self, events: list[TrialEvent]) -> None:
         """Re-aim the robot at objects a grasp moved: ``G_k <-`` object ``k``'s grasp point now,
         with its grasp configuration by IK from the old one, once ``G_k`` is ``GOAL_MOVED_M``
-        off. Each move is logged (a ``goal_moved`` event with the new position) at the tick it takes effect, so
-        a replay can apply it. A knocked-over object keeps its goal (no top-down grasp there).
+        off. Each move is logged (a ``goal_moved`` event with the new position) at the tick it
+        takes effect, so a replay can apply it. A knocked-over object keeps its goal (no
+        top-down grasp there).
         """
         goals = self.blender.goals
         off = np.linalg.norm(self._grasp_points - goals.positions, axis=1)
