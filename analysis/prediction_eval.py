@@ -22,21 +22,18 @@ import threading
 from collections.abc import Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from analysis.anova import factorial_anova
+from analysis.anova import FactorialAnovaResult, factorial_anova
 from analysis.design import require_columns
 from analysis.errors import DataError, SchemaError
 from analysis.rm_anova import RMAnovaResult, rm_anova
 from analysis.timing import design_levels
-from app.blending import GOAL_MOVED, BlendingError, GoalMoves, predictor_from_config
-
-if TYPE_CHECKING:
-    from analysis.anova import FactorialAnovaResult
-    from app.blending import GoalMoves
+from app.blending import BlendingError, GoalMoves, predictor_from_config
+from app.trial.events import EventKind, TrialEventError, decode_events
 
 PREDICTORS: dict[str, dict[str, Any]] = {
     "amnesic": {"kind": "amnesic", "temperature": 0.05},
@@ -137,7 +134,6 @@ class Replay:
 
 def make_predictor(config: Mapping[str, Any], points: np.ndarray) -> Any:
     """A predictor from ``app.blending`` built from a plain config table over ``points``."""
-
     try:
         return predictor_from_config(dict(config), points=points, where="predictor")
     except BlendingError as e:
@@ -155,7 +151,6 @@ def replay(
 ) -> Replay:
     """Feed ``trajectory`` (T, d) to ``predictor`` over goals ``points`` (n, d), tick by tick;
     ``moves`` (logged goal moves) are applied before the prediction of their row."""
-
     traj = np.ascontiguousarray(trajectory, dtype=float)
     if traj.ndim != 2 or traj.shape[0] == 0:
         raise DataError(f"a trajectory must be a non-empty (T, d) array, got shape {traj.shape}")
@@ -227,7 +222,6 @@ Trajectory = tuple[np.ndarray, np.ndarray, list[tuple[int, Any]]]
 
 
 def trial_trajectories(samples: pd.DataFrame) -> dict[Any, Trajectory]:
-
     require_columns(samples, ["trial_id", "t", *TARGET_COLUMNS], what="the samples table")
     order = ["trial_id", "tick"] if "tick" in samples.columns else ["trial_id", "t"]
     s = samples.sort_values(order, kind="stable")
@@ -238,7 +232,9 @@ def trial_trajectories(samples: pd.DataFrame) -> dict[Any, Trajectory]:
         return {}
     moving = np.zeros(len(ids), dtype=bool)
     if "events" in s.columns:  # JSON text (store, CSV) or lists (Parquet): search their text
-        moving = s["events"].astype(str).str.contains(GOAL_MOVED, regex=False).to_numpy()
+        moving = (
+            s["events"].astype(str).str.contains(EventKind.GOAL_MOVED.value, regex=False).to_numpy()
+        )
     events = s["events"].to_numpy() if moving.any() else None
     cuts = np.flatnonzero(ids[1:] != ids[:-1]) + 1
     starts, ends = np.r_[0, cuts], np.r_[cuts, len(ids)]
@@ -255,14 +251,17 @@ def trial_trajectories(samples: pd.DataFrame) -> dict[Any, Trajectory]:
 
 def goal_moves(rows: list[tuple[int, Any]], names: Sequence[str], tid: Any) -> GoalMoves | None:
     """The logged goal moves of trial ``tid`` (``None`` when its goals never moved)."""
-
     if not rows:
         return None
     try:
-        return GoalMoves.from_events(
-            [(row, list(ev) if isinstance(ev, np.ndarray) else ev) for row, ev in rows], names
-        )
-    except (BlendingError, ValueError) as e:
+        moves = [
+            (row, event.obj, event.position)
+            for row, events in rows
+            for event in decode_events(events)
+            if event.kind is EventKind.GOAL_MOVED
+        ]
+        return GoalMoves.from_moves(moves, names)
+    except (BlendingError, TrialEventError, ValueError) as e:
         raise SchemaError(f"trial {tid}: a goal_moved event cannot be read: {e}") from e
 
 

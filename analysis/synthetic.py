@@ -15,6 +15,8 @@ import json
 import numpy as np
 import pandas as pd
 
+from app.trial.samples import SAMPLE_COLUMNS
+
 TASKS = {  # task -> (difficulty, correctness)
     "easy-right": ("easy", "right"),
     "easy-wrong": ("easy", "wrong"),
@@ -240,23 +242,23 @@ def _samples(
         if mode == "aggressive"
         else np.minimum(conf / 0.7, 1.0) * 0.5
     )
-    cols: dict[str, object] = {
-        "trial_id": trial_id,
-        "participant": pid,
-        "tick": np.arange(n),
-        "t": np.arange(n) / rate_hz,
-    }
-    for prefix in ("q", "u", "p", "cmd"):
-        for j in range(1, 8):
-            cols[f"{prefix}{j}"] = np.zeros(n)
-    cols.update({"alpha": alpha, "confidence": conf, "predicted": np.array(names)[pred]})
-    for k in range(len(names)):
-        cols[f"prob_{k}"] = prob[:, k]
+    cols: dict[str, object] = {"trial_id": trial_id, "participant": pid, "tick": np.arange(n)}
+    for column in SAMPLE_COLUMNS:  # the export's samples columns, zeros unless set below
+        if column == "probabilities":
+            cols.update({f"prob_{k}": prob[:, k] for k in range(len(names))})
+        else:
+            cols[column] = np.zeros(n)
+    cols.update(
+        t=np.arange(n) / rate_hz,
+        alpha=alpha,
+        confidence=conf,
+        predicted=np.array(names)[pred],
+        gripper=np.where(np.arange(n) > 0.9 * n, 1.0, 0.0),
+        events="",
+    )
     for j, axis in enumerate("xyz"):
         cols[f"target_{axis}"] = xyz[:, j]
         cols[f"ee_{axis}"] = xyz[:, j]
-    cols["gripper"] = np.where(np.arange(n) > 0.9 * n, 1.0, 0.0)
-    cols["events"] = ""
     return pd.DataFrame(cols)
 
 

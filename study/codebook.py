@@ -16,17 +16,12 @@ from typing import TYPE_CHECKING
 
 import pandas as pd
 
+from app.trial.samples import SAMPLE_DOCS
+
 if TYPE_CHECKING:
     from study.protocol import Protocol
 
 CODEBOOK_COLUMNS = ("table", "column", "dtype", "description", "values")
-
-_JOINT = {
-    "q": "robot configuration Q",
-    "u": "user's next configuration U",
-    "p": "robot's predicted next configuration P",
-    "cmd": "blended command (1 - alpha) U + alpha P",
-}
 
 FIXED: dict[str, dict[str, tuple[str, str]]] = {
     "trials": {
@@ -82,25 +77,8 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
         "trial_id": ("trial attempt id (joins trials)", ""),
         "participant": ("participant id", ""),
         "tick": ("control tick, 0-based", ""),
-        "t": ("trial time at this tick, seconds, pauses excluded", "s"),
-        "alpha": ("arbitration alpha in [0, 1]: weight of the robot's prediction", "0..1"),
-        "confidence": ("the robot's confidence in its predicted goal", "0..1"),
-        "predicted": ("name of the goal the robot predicts", ""),
-        "target_x": ("user target (the interface's absolute end-effector input), x", "m"),
-        "target_y": ("user target, y", "m"),
-        "target_z": ("user target, z", "m"),
-        "ee_x": ("end-effector position, x", "m"),
-        "ee_y": ("end-effector position, y", "m"),
-        "ee_z": ("end-effector position, z", "m"),
-        "gripper": ("gripper opening", "m"),
-        "events": (
-            "JSON list of events at this tick (grasp_requested, grasped:<object>, "
-            "lifted:<object>, goal_moved:<object>@x,y,z when the robot re-aims at a moved "
-            "object, contact:<part>:<object> when an arm part starts touching an object, "
-            "contact_end:<part>:<object>:<impulse N s> when it stops, "
-            "pushed_off:<object>, outcome:<outcome> ...)",
-            "",
-        ),
+        "predicted": ("name of the goal the robot predicts", ""),  # the store keeps its index
+        # every other samples column is described where it is declared: app.trial.samples
     },
     "ratings": {
         "participant": ("participant id", ""),
@@ -134,9 +112,8 @@ def _describe(
     fixed = FIXED.get(table, {})
     if column in fixed:
         return fixed[column]
-    m = re.fullmatch(r"(q|u|p|cmd)([1-7])", column)
-    if table == "samples" and m:
-        return f"{_JOINT[m.group(1)]}, joint {m.group(2)}", "rad"
+    if table == "samples" and column in SAMPLE_DOCS:
+        return SAMPLE_DOCS[column]
     m = re.fullmatch(r"prob_(\d+)", column)
     if table == "samples" and m:
         return (

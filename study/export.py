@@ -33,8 +33,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
+import app
+from app.trial.contacts import contact_totals
+from app.trial.events import TrialEvent, decode_events
+from app.trial.samples import SAMPLE_COLUMNS
+from study.codebook import write_codebook
 from study.protocol import TRAINING_MODE, ProtocolError, load_protocol, protocol_from_store
-from study.store import DOF, Store, now_iso
+from study.store import Store, now_iso
 
 if TYPE_CHECKING:
     from study.protocol import Protocol
@@ -71,27 +76,9 @@ TRIAL_COLUMNS = (
 )
 """Fixed leading columns of ``trials``; Likert and preference columns and ``trial_id`` follow."""
 
-VECTORS = ("q", "u", "p", "cmd")
-SAMPLE_HEAD = (
-    "trial_id",
-    "participant",
-    "tick",
-    "t",
-    *(f"{v}{i}" for v in VECTORS for i in range(1, DOF + 1)),
-    "alpha",
-    "confidence",
-    "predicted",
-)
-SAMPLE_TAIL = (
-    "target_x",
-    "target_y",
-    "target_z",
-    "ee_x",
-    "ee_y",
-    "ee_z",
-    "gripper",
-    "events",
-)
+SAMPLE_KEY = ("trial_id", "participant", "tick")
+"""Leading columns of ``samples``; the store's sample columns (``app.trial.samples``) follow,
+``predicted`` as the goal's name and ``probabilities`` spread over ``prob_<k>``."""
 RATING_COLUMNS = (
     "participant",
     "session_id",
@@ -333,7 +320,8 @@ class _Exporter:
         ]
         for k, col in enumerate(prob_cols):
             out[col] = matrix[:, k]
-        out = out[[*SAMPLE_HEAD, *prob_cols, *SAMPLE_TAIL]].reset_index(drop=True)
+        columns = [c for s in SAMPLE_COLUMNS for c in (prob_cols if s == "probabilities" else [s])]
+        out = out[[*SAMPLE_KEY, *columns]].reset_index(drop=True)
         return _typed(out, ints=("trial_id", "tick"), bools=())
 
     # -- ratings and events ------------------------------------------------------------------
@@ -349,12 +337,10 @@ class _Exporter:
 def _with_contacts(trials: pd.DataFrame, samples: pd.DataFrame) -> pd.DataFrame:
     """``contacts`` (touch onsets of the arm on objects) and ``contact_impulse_ns`` per trial,
     totalled from the samples' events (``app.trial.contacts``)."""
-    from app.trial.contacts import contact_totals
-
     touched = samples[samples["events"].astype(str).str.contains("contact", regex=False)]
-    lists: dict[Any, list[str]] = {}
+    lists: dict[Any, list[TrialEvent]] = {}
     for tid, events in zip(touched["trial_id"], touched["events"], strict=True):
-        lists.setdefault(tid, []).extend(json.loads(events) if isinstance(events, str) else events)
+        lists.setdefault(tid, []).extend(decode_events(events))
     totals = {tid: contact_totals(e) for tid, e in lists.items()}
     trials["contacts"] = trials["trial_id"].map(lambda k: totals.get(k, (0, 0.0))[0])
     trials["contact_impulse_ns"] = trials["trial_id"].map(lambda k: totals.get(k, (0, 0.0))[1])
@@ -451,8 +437,6 @@ def write_export(
     ``metadata.json`` last, so a failed export leaves ``out`` as it was. Files of an earlier
     export that this one does not replace (tables of another format, a ``protocol.toml``) are
     removed; files an export does not write are left alone."""
-    from study.codebook import write_codebook
-
     formats = _check_formats(formats)
     out_dir = Path(out)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -492,8 +476,6 @@ def export_metadata(
     many rows each table has, and ``orphaned_trials``: trials left running by a process that
     died, exported as interrupted (resuming their sessions records that in the store).
     ``write_export`` adds ``formats``, the table file formats it wrote."""
-    import app
-
     return {
         "store": str(store.path),
         "store_schema": store.meta.version,

@@ -13,15 +13,15 @@ rows held in memory reach the file once space is freed.
 
 from __future__ import annotations
 
-import json
 import threading
 import time
 from collections import deque
-from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
-from study.store import DOF, SampleFormatError, Store, StoreError, StoreWriteError
+from app.trial import samples as layout
+from app.trial.records import TickRecord
+from study.store import SampleFormatError, Store, StoreError, StoreWriteError
 
 MAX_FLUSH_INTERVAL_S = 0.25
 DEFAULT_FLUSH_INTERVAL_S = 0.05
@@ -31,62 +31,11 @@ browser and four sessions: up to about 130 ms) delays only itself, so the period
 much room. A commit costs about 0.2 ms (no fsync: ``Store.insert_samples``)."""
 
 
-class TickLike(Protocol):
-    """The fields of ``app.trial.TickRecord`` that are stored per sample."""
-
-    t: float
-    q: Any
-    u: Any
-    p: Any
-    command: Any
-    alpha: float
-    confidence: float
-    probabilities: Any
-    predicted: int
-    user_target: Any
-    ee: Any
-    gripper: float
-    events: Sequence[str]
-
-
-def _vector(value: Any, n: int, name: str) -> list[float]:
-    values = value.tolist() if hasattr(value, "tolist") else list(value)
-    if len(values) != n:
-        raise SampleFormatError(
-            f"tick record field {name!r} has {len(values)} values, expected {n}"
-        )
-    return values
-
-
-def sample_row(trial_id: int, tick: int, record: TickLike) -> tuple[Any, ...]:
+def sample_row(trial_id: int, tick: int, record: TickRecord) -> tuple[Any, ...]:
     """The ``samples`` row (``SAMPLE_COLUMNS`` order) for one tick record."""
     try:
-        probabilities = record.probabilities
-        probs = probabilities.tolist() if hasattr(probabilities, "tolist") else list(probabilities)
-        probs_json = str([float(x) for x in probs])  # JSON for finite floats, 3x faster
-        if "n" in probs_json:  # nan or inf: let json spell them (NaN, Infinity)
-            probs_json = json.dumps(probs)
-        events = record.events
-        return (
-            trial_id,
-            tick,
-            float(record.t),
-            *_vector(record.q, DOF, "q"),
-            *_vector(record.u, DOF, "u"),
-            *_vector(record.p, DOF, "p"),
-            *_vector(record.command, DOF, "command"),
-            float(record.alpha),
-            float(record.confidence),
-            None if record.predicted is None else int(record.predicted),
-            probs_json,
-            *_vector(record.user_target, 3, "user_target"),
-            *_vector(record.ee, 3, "ee"),
-            float(record.gripper),
-            json.dumps(list(events)) if events else "[]",
-        )
+        return layout.sample_row(trial_id, tick, record)
     except (AttributeError, TypeError, ValueError) as exc:
-        if isinstance(exc, SampleFormatError):
-            raise
         raise SampleFormatError(f"tick {tick} cannot be stored as a sample: {exc}") from exc
 
 
@@ -132,7 +81,7 @@ class SampleWriter:
         self._thread = threading.Thread(target=self._run, name="sample-writer", daemon=True)
         self._thread.start()
 
-    def add(self, trial_id: int, tick: int, record: TickLike) -> None:
+    def add(self, trial_id: int, tick: int, record: TickRecord) -> None:
         """Queue one tick's record (converted now, so a malformed record fails here). If earlier
         commits failed, the row is still queued and ``StoreError`` says so."""
         self.add_row(sample_row(trial_id, tick, record))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import subprocess
 import sys
@@ -19,10 +20,16 @@ from analysis.prediction_eval import (
     goal_moves,
     make_predictor,
     prediction_anova,
+    protocol_predictors,
     replay,
     trial_trajectories,
 )
+from analysis.protocol_info import load_protocol_info
 from analysis.synthetic import synthetic_tables
+from app.teleop import GizmoInput
+from app.trial import Trial
+from app.trial.events import encode_events
+from study.protocol import trial_config_from_protocol
 
 ROOT = Path(__file__).resolve().parents[1]
 GOALS = np.array([[0.45, -0.05, 0.05], [0.60, 0.25, 0.08]])  # box (near), bottle (target)
@@ -159,13 +166,6 @@ def test_parallel_replay_gives_the_same_table() -> None:
 def test_replay_moves_goals_where_the_robot_moved_them(protocol_path: Path) -> None:
     """A trial whose box was nudged: replaying its samples reproduces the robot's own amnesic
     prediction tick by tick only when the logged goal moves are applied."""
-    import dataclasses
-    import json
-
-    from app.teleop import GizmoInput
-    from app.trial import Trial
-    from study.protocol import trial_config_from_protocol
-
     cfg = trial_config_from_protocol(protocol_path, "easy-wrong", "timid")
     gizmo = GizmoInput()
     trial = Trial(dataclasses.replace(cfg, time_limit_s=30), gizmo)
@@ -186,7 +186,7 @@ def test_replay_moves_goals_where_the_robot_moved_them(protocol_path: Path) -> N
             "target_x": [r.user_target[0] for r in recs],
             "target_y": [r.user_target[1] for r in recs],
             "target_z": [r.user_target[2] for r in recs],
-            "events": [json.dumps(list(r.events)) for r in recs],
+            "events": [encode_events(r.events) for r in recs],
         }
     )
     _, xyz, moved = trial_trajectories(samples)[1]
@@ -202,9 +202,6 @@ def test_replay_moves_goals_where_the_robot_moved_them(protocol_path: Path) -> N
 
 
 def test_protocol_predictors_take_the_protocols_tables() -> None:
-    from analysis.prediction_eval import protocol_predictors
-    from analysis.protocol_info import load_protocol_info
-
     paper, how = protocol_predictors(
         load_protocol_info(ROOT / "protocols" / "dragan2013.toml").prediction
     )

@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
+import pandas as pd
 import pytest
 
+from app.robot.errors import SceneError
 from app.robot.scene_spec import SceneSpec
 from app.teleop import TeleopCommand, TrialObservation
 from app.trial import OUTCOMES, Trial, run_trial
 from app.trial.contacts import ContactLog
+from app.trial.events import EventKind, TrialEvent, encode
+from study.export import _with_contacts
 from study.protocol import trial_config_from_protocol
 
 
@@ -52,11 +57,11 @@ def test_the_gripper_no_longer_passes_through_an_object(protocol_path) -> None:
     result, moved, trial = _through_box(protocol_path, "always")
     events = [e for _, e in result.events]
     assert moved > 0.03, "the box should be pushed aside"
-    touches = [e for e in events if e.startswith("contact:")]
-    assert touches and all(e.endswith(":box") for e in touches)
-    ends = [e for e in events if e.startswith("contact_end:")]
+    touches = [e for e in events if e.kind is EventKind.CONTACT]
+    assert touches and all(e.obj == "box" for e in touches)
+    ends = [e for e in events if e.kind is EventKind.CONTACT_END]
     assert len(ends) == len(touches)  # every touch ends (at the latest with the trial)
-    impulse = sum(float(e.rsplit(":", 1)[1]) for e in ends)
+    impulse = sum(e.impulse_ns for e in ends)
     assert impulse > 0.0 and trial.contacts.impulse_ns == pytest.approx(impulse, rel=1e-3)
     assert trial.contacts.count == len(touches)
 
@@ -64,7 +69,8 @@ def test_the_gripper_no_longer_passes_through_an_object(protocol_path) -> None:
 def test_grasp_only_contacts_restore_the_earlier_behaviour(protocol_path) -> None:
     result, moved, _ = _through_box(protocol_path, "grasp")
     assert moved < 1e-3
-    assert not any(e.startswith("contact") for _, e in result.events)
+    contact = (EventKind.CONTACT, EventKind.CONTACT_END)
+    assert not any(e.kind in contact for _, e in result.events)
 
 
 def test_an_object_pushed_off_the_table_ends_the_trial(protocol_path) -> None:
@@ -96,8 +102,8 @@ def test_an_object_pushed_off_the_table_ends_the_trial(protocol_path) -> None:
     result = run_trial(_config(protocol_path, scene), sweep)
     events = [e for _, e in result.events]
     assert result.outcome == "pushed_off" and "pushed_off" in OUTCOMES
-    assert "pushed_off:box" in events
-    assert any(e.startswith("contact:") and e.endswith(":box") for e in events)
+    assert TrialEvent(EventKind.PUSHED_OFF, obj="box") in events
+    assert any(e.kind is EventKind.CONTACT and e.obj == "box" for e in events)
 
 
 def test_a_grasp_is_not_a_collision() -> None:
@@ -105,21 +111,16 @@ def test_a_grasp_is_not_a_collision() -> None:
     finger, hand = 2, 1
     assert log.update([(finger, 0, 5.0)], dt=0.01, grasping=True, held=None) == []
     assert log.update([(finger, 0, 5.0), (hand, 1, 2.0)], dt=0.01, grasping=True) == [
-        "contact:hand:box"
+        TrialEvent(EventKind.CONTACT, part="hand", obj="box")
     ]
     assert log.update([], dt=0.05, grasping=False) == []  # a short break continues the touch
     assert log.update([(hand, 1, 2.0)], dt=0.01, grasping=False) == []
-    assert log.update([], dt=0.1, grasping=False) == ["contact_end:hand:box:0.0400"]
+    (end,) = log.update([], dt=0.1, grasping=False)
+    assert encode(end) == "contact_end:hand:box:0.0400"
     assert log.count == 1 and log.impulse_ns == pytest.approx(0.04)
 
 
 def test_contacts_are_a_measure_per_trial_in_the_export() -> None:
-    import json
-
-    import pandas as pd
-
-    from study.export import _with_contacts
-
     samples = pd.DataFrame(
         {
             "trial_id": [1, 1, 1, 2],
@@ -137,8 +138,6 @@ def test_contacts_are_a_measure_per_trial_in_the_export() -> None:
 
 
 def test_the_protocol_chooses_the_contact_mode(protocol_path) -> None:
-    from app.robot.errors import SceneError
-
     base = {
         "target": "box",
         "start_q": list(_scene(protocol_path).start_q),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import sqlite3
 import subprocess
@@ -9,11 +10,12 @@ import sys
 import textwrap
 import time
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from app.trial import TickRecord
+from app.trial.events import EventKind, TrialEvent
 from study.sample_writer import MAX_FLUSH_INTERVAL_S, SampleWriter, sample_row
 from study.store import (
     SAMPLE_COLUMNS,
@@ -49,9 +51,10 @@ def enrol(store: Store, participant: str = "P01") -> int:
         )
 
 
-def tick(i: int) -> SimpleNamespace:
+def tick(i: int) -> TickRecord:
     v = np.arange(7, dtype=float) + i
-    return SimpleNamespace(
+    return TickRecord(
+        tick=i,
         t=i * 0.01,
         q=v,
         u=v + 0.1,
@@ -64,7 +67,7 @@ def tick(i: int) -> SimpleNamespace:
         user_target=np.array([0.5, 0.1, 0.2]),
         ee=np.array([0.4, 0.0, 0.3]),
         gripper=0.0,
-        events=("grasp",) if i == 3 else (),
+        events=(TrialEvent(EventKind.GRASP_REQUESTED),) if i == 3 else (),
     )
 
 
@@ -219,14 +222,13 @@ def test_samples_round_trip(tmp_path: Path) -> None:
         assert df["tick"].tolist() == [0, 1, 2, 3, 4]
         assert df.loc[2, "q7"] == pytest.approx(8.0)
         assert df.loc[2, "cmd1"] == pytest.approx(2.3)
-        assert df.loc[3, "events"] == '["grasp"]'
+        assert df.loc[3, "events"] == '["grasp_requested"]'
         assert df.loc[0, "probabilities"] == "[0.2, 0.8]"
         assert store.sample_count(tid) == 5
         with pytest.raises(StoreError, match=r"UNIQUE constraint failed.*nothing of this write"):
             store.insert_samples([sample_row(tid, 5, tick(5)), sample_row(tid, 4, tick(4))])
         assert store.sample_count(tid) == 5  # the whole batch rolled back
-        bad = tick(0)
-        bad.q = np.zeros(6)
+        bad = dataclasses.replace(tick(0), q=np.zeros(6))
         with pytest.raises(SampleFormatError, match="'q' has 6 values, expected 7"):
             sample_row(tid, 9, bad)
 

@@ -12,11 +12,10 @@ import time
 import numpy as np
 import pytest
 
-from app.blending import parse_goal_moved
 from app.robot.scene import build_scene
 from app.teleop import GizmoInput, IdleInput, ScriptedInput, TeleopCommand, TrialObservation
-from app.trial import OUTCOMES, Trial, run_trial
-from app.trial.records import load_records, save_records
+from app.trial import OUTCOMES, Trial, load_records, run_trial, save_records
+from app.trial.events import EventKind, TrialEvent, decode, encode
 from study.protocol import trial_config_from_protocol
 
 
@@ -35,14 +34,15 @@ def test_easy_task_unassisted_succeeds_with_full_records(config) -> None:
     assert result.ticks == len(result.records)
     assert result.duration_s == pytest.approx(result.ticks / 100)
     last = result.records[-1]
-    assert f"lifted:{result.target}" in last.events and "outcome:success" in last.events
+    assert TrialEvent(EventKind.LIFTED, obj=result.target) in last.events
+    assert TrialEvent(EventKind.OUTCOME, text="success") in last.events
     for rec in result.records[::50]:
         assert rec.q.shape == rec.u.shape == rec.p.shape == rec.command.shape == (7,)
         assert rec.user_target.shape == rec.ee.shape == (3,)
         assert rec.probabilities.shape == (2,) and rec.probabilities.sum() == pytest.approx(1)
         assert rec.alpha == 0.0
         json.dumps(rec.as_dict())
-    assert any(e == f"grasped:{result.target}" for _, e in result.events)
+    assert any(e == TrialEvent(EventKind.GRASPED, obj=result.target) for _, e in result.events)
 
 
 @pytest.mark.parametrize("task", ["hard-right", "hard-wrong"])
@@ -56,7 +56,8 @@ def test_hard_task_needs_assistance(config, task: str) -> None:
         assert alone.outcome == "timeout"
         closest = min(np.linalg.norm(r.ee - grasp) for r in alone.records)
         assert closest > 0.02
-        assert sum("target_clamped" in r.events for r in alone.records) > 500
+        clamped = TrialEvent(EventKind.TARGET_CLAMPED)
+        assert sum(clamped in r.events for r in alone.records) > 500
         # A user who tries to grasp anyway at the limit: no success either.
         trying = run_trial(config(task, "none", time_limit_s=15), ScriptedInput(seed=seed))
         assert not trying.success and trying.outcome in ("timeout", "dropped")
@@ -66,9 +67,7 @@ def test_hard_task_needs_assistance(config, task: str) -> None:
             if task == "hard-wrong" and mode == "aggressive":
                 # wrong and aggressive, the robot drives the gripper into the decoy first
                 decoy = next(n for n in helped.goal_names if n != helped.target)
-                assert any(
-                    e.startswith("contact:") and e.endswith(f":{decoy}") for _, e in helped.events
-                )
+                assert any(e.kind is EventKind.CONTACT and e.obj == decoy for _, e in helped.events)
                 continue
             assert helped.outcome == "success", (task, mode, seed, helped.outcome)
 
@@ -85,7 +84,7 @@ def test_knocking_the_target_over_ends_the_trial(config) -> None:
     while not trial.done:
         trial.tick()
     assert trial.outcome == "dropped" and trial.t < 0.5
-    assert f"knocked_over:{trial.scene.target}" in trial.records[-1].events
+    assert TrialEvent(EventKind.KNOCKED_OVER, obj=trial.scene.target) in trial.records[-1].events
 
 
 def test_unassisted_gripper_in_the_hard_task_closes_short_of_the_target(config) -> None:
@@ -93,8 +92,8 @@ def test_unassisted_gripper_in_the_hard_task_closes_short_of_the_target(config) 
     # whatever the user does there, nothing is grasped and the box is not knocked over.
     result = run_trial(config("hard-right", "none", time_limit_s=30), ScriptedInput(seed=0))
     assert result.outcome == "timeout"
-    lost = ("grasped:", f"knocked_over:{result.target}")
-    assert not any(e.startswith(lost) for _, e in result.events)
+    knocked = TrialEvent(EventKind.KNOCKED_OVER, obj=result.target)
+    assert not any(e.kind is EventKind.GRASPED or e == knocked for _, e in result.events)
 
 
 def test_observation_follows_objects_that_move(config) -> None:
@@ -132,17 +131,17 @@ def test_grasping_the_other_object_is_an_outcome(config) -> None:
     result = run_trial(config("easy-right", "none", time_limit_s=30), ScriptedInput(goal=1))
     assert result.outcome == "wrong_object" and not result.success
     other = next(name for name in result.goal_names if name != result.target)
-    assert f"lifted:{other}" in result.records[-1].events
+    assert TrialEvent(EventKind.LIFTED, obj=other) in result.records[-1].events
 
 
 def test_dropping_is_an_outcome(config) -> None:
     trial = Trial(config("easy-right", "none", time_limit_s=30), ScriptedInput(seed=0))
     while not trial.done:
         rec = trial.tick()
-        if any(e.startswith("grasped:") for e in rec.events):
+        if any(e.kind is EventKind.GRASPED for e in rec.events):
             trial.sim.set_grip_contacts(False)  # the bottle slips through the fingers
     assert trial.outcome == "dropped"
-    assert f"dropped:{trial.scene.target}" in trial.records[-1].events
+    assert TrialEvent(EventKind.DROPPED, obj=trial.scene.target) in trial.records[-1].events
 
 
 def test_timeout_and_abort(config) -> None:
@@ -178,7 +177,7 @@ class BadInput:
 def test_bad_input_is_logged_never_crashes(config) -> None:
     result = run_trial(config("easy-wrong", "aggressive", time_limit_s=1), BadInput())
     assert result.outcome == "timeout"
-    events = [e for r in result.records for e in r.events]
+    events = [encode(e) for r in result.records for e in r.events]
     for expected in ("invalid_target", "target_far_outside", "input_error:RuntimeError"):
         assert expected in events
     for rec in result.records:
@@ -196,7 +195,8 @@ def test_pause_excludes_time_and_is_logged(config) -> None:
     assert trial.paused and trial.tick() is None and trial.t == pytest.approx(0.1)
     trial.resume()
     rec = trial.tick()
-    assert rec.t == pytest.approx(0.11) and rec.events[:2] == ("paused", "resumed")
+    assert rec.t == pytest.approx(0.11)
+    assert rec.events[:2] == (TrialEvent(EventKind.PAUSED), TrialEvent(EventKind.RESUMED))
 
 
 def test_realtime_run_is_paced_and_pauses_from_another_thread(config) -> None:
@@ -220,7 +220,7 @@ def test_realtime_run_is_paced_and_pauses_from_another_thread(config) -> None:
     assert result.duration_s == pytest.approx(0.5)  # paused time is excluded
     assert wall >= 0.5 + 0.3 - 0.05
     assert np.allclose(result.records[-1].user_target, [0.5, 0.1, 0.3])
-    assert any("paused" in r.events for r in result.records)
+    assert any(TrialEvent(EventKind.PAUSED) in r.events for r in result.records)
 
 
 def test_records_round_trip(config, tmp_path) -> None:
@@ -271,8 +271,8 @@ def test_the_robot_re_aims_at_an_object_that_was_moved(config) -> None:
     trial.sim.data.qpos[addr : addr + 2] += (0.04, -0.03)  # ... and pushed it 5 cm
     for _ in range(40):
         trial.tick()
-    moves = [e for r in trial.records for e in r.events if e.startswith("goal_moved:")]
-    assert moves and all(e.startswith("goal_moved:box@") for e in moves)
+    moves = [e for r in trial.records for e in r.events if e.kind is EventKind.GOAL_MOVED]
+    assert moves and all(e.obj == "box" for e in moves)
     goals = trial.blender.goals
     assert np.allclose(goals.positions[k], start[k] + (0.04, -0.03, 0.0), atol=3e-3)
     assert np.array_equal(goals.positions[other], start[other])
@@ -280,5 +280,5 @@ def test_the_robot_re_aims_at_an_object_that_was_moved(config) -> None:
     assert np.linalg.norm(trial.kinematics.fk(goals.configurations[k]) - goals.positions[k]) < 1e-3
     assert np.array_equal(trial.observation().goal_positions, goals.positions)
     # the logged position is the one the robot used, to the micrometre
-    name, logged = parse_goal_moved(moves[-1])
-    assert name == "box" and np.allclose(logged, goals.positions[k], atol=1e-6)
+    logged = decode(encode(moves[-1]))
+    assert logged.obj == "box" and np.allclose(logged.position, goals.positions[k], atol=1e-6)

@@ -9,14 +9,17 @@ import sys
 
 import cv2
 import numpy as np
+import pandas as pd
 import pytest
 
 from app.robot.scene import build_scene
 from app.teleop import ScriptedInput
-from app.trial import run_trial
-from app.trial.records import save_records
+from app.trial import records_from_samples, run_trial, save_records
 from app.trial.video import render_live, replay
 from study.protocol import trial_config_from_protocol
+from study.sample_writer import sample_row
+from study.store import Store
+from study.store.schema import SAMPLE_COLUMNS
 
 
 def frame_count(path) -> int:
@@ -91,12 +94,6 @@ def test_render_cli_replays_saved_records(config, repo_root, tmp_path) -> None:
 
 def test_replay_from_store_rows(config, tmp_path) -> None:
     """Records rebuilt from the study store's sample rows replay the same path."""
-    import pandas as pd
-
-    from app.trial.records import records_from_samples
-    from study.sample_writer import sample_row
-    from study.store.schema import SAMPLE_COLUMNS
-
     result = run_trial(config, ScriptedInput(seed=4))
     rows = [sample_row(7, r.tick, r) for r in result.records]
     records = records_from_samples(pd.DataFrame(rows, columns=list(SAMPLE_COLUMNS)))
@@ -118,8 +115,6 @@ def test_render_cli_replays_a_trial_from_a_study_store(repo_root, tmp_path) -> N
         cwd=repo_root, capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert run.returncode == 0, run.stderr
-    from study.store import Store
-
     store = Store.open_readonly(db)
     trial = next(t for t in store.trials() if t.phase == "task" and t.success)
     out = tmp_path / "store.mp4"

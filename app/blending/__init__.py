@@ -49,7 +49,7 @@ from .config import (
     predictor_from_config,
 )
 from .errors import BlendingError, ConfigError, InvalidArbitrationError, InvalidInputError
-from .goal_moves import GOAL_MOVED, GoalMoves, goal_moved_event, moved_goals, parse_goal_moved
+from .goal_moves import GoalMoves, moved_goals
 from .goals import GoalSet
 from .policy import Policy, StraightLinePolicy, WorkspaceLinePolicy
 from .prediction import (
@@ -69,7 +69,6 @@ from .prediction import (
 )
 
 __all__ = [
-    "GOAL_MOVED",
     "Aggressive",
     "AmnesicPredictor",
     "Arbitration",
@@ -109,10 +108,8 @@ __all__ = [
     "check_arbitration",
     "confidence_from_config",
     "euclidean",
-    "goal_moved_event",
     "is_adversarial",
     "moved_goals",
-    "parse_goal_moved",
     "policy_from_config",
     "predictor_from_config",
     "softmax",

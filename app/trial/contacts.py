@@ -1,10 +1,11 @@
 """The arm's touches on objects as events: which part, which object, how hard.
 
 ``ContactLog.update(touches, dt=..., grasping=...)`` takes the contact points of one control tick
-(``Simulation.arm_contacts``: part, object, normal force) and returns the events of that tick:
+(``Simulation.arm_contacts``: part, object, normal force) and returns the events of that tick
+(``app.trial.events``):
 
-- ``contact:<part>:<object>`` when a part starts touching an object (one event per touch);
-- ``contact_end:<part>:<object>:<impulse>`` when it stops, with the touch's normal impulse in
+- ``contact`` (part, object) when a part starts touching an object (one event per touch);
+- ``contact_end`` (part, object, impulse) when it stops, with the touch's normal impulse in
   N s, ``J = sum over ticks of (sum of the pair's normal forces) * dt`` (forces sampled once per
   tick, after its last physics substep).
 
@@ -23,6 +24,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 
 from app.robot.simulation import ARM_PARTS
+from app.trial.events import EventKind, TrialEvent
 
 GAP_S = 0.1
 """Apart this long (s), a touch has ended; a shorter break continues it."""
@@ -49,7 +51,7 @@ class ContactLog:
         dt: float,
         grasping: bool,
         held: int | None = None,
-    ) -> list[str]:
+    ) -> list[TrialEvent]:
         """Events of one tick from its contact points ``(part, object, normal force N)``.
 
         ``grasping``: fingers touching an object are part of the grasp (``held``, if known,
@@ -59,7 +61,7 @@ class ContactLog:
         for part, obj, f in touches:
             key = (part, obj)
             force[key] = force.get(key, 0.0) + f
-        events: list[str] = []
+        events: list[TrialEvent] = []
         for key in [k for k in self._touching if k not in force]:
             self._apart[key] = self._apart.get(key, 0.0) + dt
             if self._apart[key] >= self.gap_s - 1e-9:
@@ -72,19 +74,23 @@ class ContactLog:
                     self._silent.add(key)
                 else:
                     self.count += 1
-                    events.append(f"contact:{ARM_PARTS[part]}:{self.object_names[obj]}")
+                    events.append(
+                        TrialEvent(
+                            EventKind.CONTACT, part=ARM_PARTS[part], obj=self.object_names[obj]
+                        )
+                    )
                 self._touching[key] = 0.0
             self._touching[key] += f * dt
         return events
 
-    def close(self) -> list[str]:
+    def close(self) -> list[TrialEvent]:
         """End every touch still going (the trial is over)."""
-        events: list[str] = []
+        events: list[TrialEvent] = []
         for key in list(self._touching):
             events.extend(self._end(key))
         return events
 
-    def _end(self, key: tuple[int, int]) -> list[str]:
+    def _end(self, key: tuple[int, int]) -> list[TrialEvent]:
         impulse = self._touching.pop(key)
         self._apart.pop(key, None)
         if key in self._silent:
@@ -92,16 +98,23 @@ class ContactLog:
             return []
         self.impulse_ns += impulse
         part, obj = key
-        return [f"contact_end:{ARM_PARTS[part]}:{self.object_names[obj]}:{impulse:.4f}"]
+        touch = TrialEvent(
+            EventKind.CONTACT_END,
+            part=ARM_PARTS[part],
+            obj=self.object_names[obj],
+            impulse_ns=impulse,
+        )
+        return [touch]
 
 
-def contact_totals(events: Iterable[str]) -> tuple[int, float]:
+def contact_totals(events: Iterable[TrialEvent]) -> tuple[int, float]:
     """``(touches, impulse N s)`` of a trial from its logged events (the measure ``ContactLog``
-    keeps while it runs), for readers of the store or an export."""
+    keeps while it runs), for readers of the store or an export: ``contact`` onsets counted,
+    ``contact_end`` impulses summed."""
     count, impulse = 0, 0.0
     for event in events:
-        if event.startswith("contact:"):
+        if event.kind is EventKind.CONTACT:
             count += 1
-        elif event.startswith("contact_end:"):
-            impulse += float(event.rsplit(":", 1)[1])
+        elif event.kind is EventKind.CONTACT_END and event.impulse_ns is not None:
+            impulse += event.impulse_ns
     return count, impulse

@@ -29,7 +29,6 @@ from app.blending import (
     PolicyBlender,
     arbitration_from_config,
     confidence_from_config,
-    goal_moved_event,
     moved_goals,
     policy_from_config,
     predictor_from_config,
@@ -40,6 +39,7 @@ from app.teleop.ik_step import IKStep
 from app.teleop.types import InputSource, TeleopCommand, TrialObservation
 from app.trial.config import TrialConfig
 from app.trial.contacts import ContactLog
+from app.trial.events import EventKind, TrialEvent
 from app.trial.records import TickRecord, TrialResult
 
 CLOSE_S = 0.4  # gripper closing time before judging the grasp
@@ -78,7 +78,7 @@ class Trial:
         self.blender.reset(self.scene.start_ee)
         self._lock = threading.RLock()
         self._paused = False
-        self._pause_events: list[str] = []
+        self._pause_events: list[TrialEvent] = []
         self.ticks = 0
         self.outcome: str | None = None
         self._phase = "reach"
@@ -102,7 +102,7 @@ class Trial:
         self._grasp_points = self.scene.goals.positions
         self._last = (0.0, 0.0, np.full(n, 1.0 / n), -1)
         self.records: list[TickRecord] = []
-        self.events: list[tuple[float, str]] = []
+        self.events: list[tuple[float, TrialEvent]] = []
 
     # ---- state -------------------------------------------------------------------------
     @property
@@ -126,13 +126,13 @@ class Trial:
         with self._lock:
             if not self._paused and not self.done:
                 self._paused = True
-                self._pause_events.append("paused")
+                self._pause_events.append(TrialEvent(EventKind.PAUSED))
 
     def resume(self) -> None:
         with self._lock:
             if self._paused:
                 self._paused = False
-                self._pause_events.append("resumed")
+                self._pause_events.append(TrialEvent(EventKind.RESUMED))
 
     def abort(self, outcome: str = "aborted") -> None:
         """End the trial now (experimenter: ``aborted``; lost participant: ``interrupted``)."""
@@ -140,7 +140,7 @@ class Trial:
             raise ValueError(f"outcome: 'aborted' or 'interrupted', got {outcome!r}")
         with self._lock:
             if not self.done:
-                self._finish(outcome, [outcome])
+                self._finish(outcome, [TrialEvent(EventKind(outcome))])
 
     def interrupt(self) -> None:
         self.abort("interrupted")
@@ -177,11 +177,12 @@ class Trial:
         self._object_positions = pos
         self._grasp_points = self.scene.goals.positions + (pos - self.sim.rest_positions)
 
-    def _follow_objects(self, events: list[str]) -> None:
+    def _follow_objects(self, events: list[TrialEvent]) -> None:
         """Re-aim the robot at objects a grasp moved: ``G_k <-`` object ``k``'s grasp point now,
         with its grasp configuration by IK from the old one, once ``G_k`` is ``GOAL_MOVED_M``
-        off. Each move is logged (``goal_moved:<name>@x,y,z``) at the tick it takes effect, so
-        a replay can apply it. A knocked-over object keeps its goal (no top-down grasp there).
+        off. Each move is logged (a ``goal_moved`` event with the new position) at the tick it
+        takes effect, so a replay can apply it. A knocked-over object keeps its goal (no
+        top-down grasp there).
         """
         goals = self.blender.goals
         off = np.linalg.norm(self._grasp_points - goals.positions, axis=1)
@@ -200,7 +201,9 @@ class Trial:
                 rot_tol=5e-3,
             )
             moves[k] = (position, solved.q)
-            events.append(goal_moved_event(goals.names[k], position))
+            events.append(
+                TrialEvent(EventKind.GOAL_MOVED, obj=goals.names[k], position=tuple(position))
+            )
         if moves:
             self.blender.set_goals(moved_goals(goals, moves))
 
@@ -241,7 +244,7 @@ class Trial:
         with self._lock:
             if self._paused or self.done:
                 return None
-            events: list[str] = self._pause_events
+            events: list[TrialEvent] = self._pause_events
             self._pause_events = []
             q = self._q
             if self.sim.objects_live and self._phase == "reach" and self.ticks % 10 == 0:
@@ -258,7 +261,7 @@ class Trial:
                     substeps=self._substeps,
                 )
             except SimulationError as exc:  # pragma: no cover - guarded by clipping
-                events.append(f"physics_error:{exc}")
+                events.append(TrialEvent(EventKind.PHYSICS_ERROR, text=str(exc)))
                 self.ticks += 1
                 self._q = self.sim.q
                 self._ee = self.sim.ee
@@ -282,20 +285,20 @@ class Trial:
                 self._finish("timeout", events)
             return self._record(u, p, command, events)
 
-    def _ask_input(self, events: list[str]) -> TeleopCommand:
+    def _ask_input(self, events: list[TrialEvent]) -> TeleopCommand:
         try:
             return self.input_source.command(self._observation())
         except Exception as exc:  # an input device must never stop the loop
-            events.append(f"input_error:{type(exc).__name__}")
+            events.append(TrialEvent(EventKind.INPUT_ERROR, text=type(exc).__name__))
             return TeleopCommand(self.user_target.copy(), False)
 
-    def _set_user_target(self, cmd: TeleopCommand, events: list[str]) -> None:
+    def _set_user_target(self, cmd: TeleopCommand, events: list[TrialEvent]) -> None:
         try:
             raw = np.asarray(cmd.target, dtype=float).reshape(-1).tolist()
         except (TypeError, ValueError):
             raw = []
         if len(raw) != 3 or not math.isfinite(raw[0] + raw[1] + raw[2]):
-            events.append("invalid_target")
+            events.append(TrialEvent(EventKind.INVALID_TARGET))
             return
         # clamp to the reach box in scalars (three numbers: cheaper than array operations)
         x, y, z = raw
@@ -305,16 +308,19 @@ class Trial:
         cz = lz if z < lz else (hz if z > hz else z)
         outside = math.sqrt((x - cx) ** 2 + (y - cy) ** 2 + (z - cz) ** 2)
         if outside > 0.0:
-            events.append("target_far_outside" if outside > FAR_OUTSIDE_M else "target_clamped")
+            far = outside > FAR_OUTSIDE_M
+            events.append(
+                TrialEvent(EventKind.TARGET_FAR_OUTSIDE if far else EventKind.TARGET_CLAMPED)
+            )
         self.user_target = np.array((cx, cy, cz))
 
     def _control(
-        self, q: np.ndarray, request: bool, events: list[str]
+        self, q: np.ndarray, request: bool, events: list[TrialEvent]
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         t = self.t
         if self._phase == "reach":
             if request:
-                self._enter("closing", events, "grasp_requested")
+                self._enter("closing", events, TrialEvent(EventKind.GRASP_REQUESTED))
                 if self.sim.contacts == "grasp":  # wake what the fingers can reach
                     near = self.sim.objects_near(self.sim.ee, WAKE_M)
                     self.sim.set_grip_contacts(True, only=near)
@@ -332,17 +338,17 @@ class Trial:
                 if self.sim.contacts == "grasp":
                     self.sim.set_grip_contacts(False)
             else:  # disturbed objects stay physical (they may be moving or tipped)
-                events.append("objects_disturbed")
+                events.append(TrialEvent(EventKind.OBJECTS_DISTURBED))
             self._enter("reach", events)
         return self._hold_q, self._hold_q, self._hold_q
 
-    def _enter(self, phase: str, events: list[str], event: str | None = None) -> None:
+    def _enter(self, phase: str, events: list[TrialEvent], event: TrialEvent | None = None) -> None:
         self._phase = phase
         self._phase_t = self.t
-        if event:
+        if event is not None:
             events.append(event)
 
-    def _judge(self, events: list[str]) -> None:
+    def _judge(self, events: list[TrialEvent]) -> None:
         check_tilts = self.ticks % 10 == 0
         if self._phase == "reach" and not check_tilts:
             return  # nothing to judge while reaching, except now and then a knocked object
@@ -351,14 +357,14 @@ class Trial:
         if self._phase == "closing" and t - self._phase_t >= CLOSE_S:
             held = self.sim.held_object()
             if held is None:
-                self._enter("reopening", events, "grasp_missed")
+                self._enter("reopening", events, TrialEvent(EventKind.GRASP_MISSED))
             else:
                 self._held = held
                 self._lost_t = None
                 self._lift_target = self.sim.ee + np.array(
                     [0.0, 0.0, self.config.lift_height_m + 0.03]
                 )
-                self._enter("lifting", events, f"grasped:{names[held]}")
+                self._enter("lifting", events, TrialEvent(EventKind.GRASPED, obj=names[held]))
         elif self._phase == "lifting" and self._held is not None:
             i = self._held
             if self.sim.held_object() == i:
@@ -367,38 +373,38 @@ class Trial:
                 self._lost_t = t
             height = float(self.sim.object_heights()[i])
             if height >= self.config.lift_height_m and self._lost_t is None:
-                events.append(f"lifted:{names[i]}")
+                events.append(TrialEvent(EventKind.LIFTED, obj=names[i]))
                 self._finish("success" if i == self.scene.target_index else "wrong_object", events)
             elif self._lost_t is not None and t - self._lost_t >= DROP_S:
-                events.append(f"dropped:{names[i]}")
+                events.append(TrialEvent(EventKind.DROPPED, obj=names[i]))
                 self._finish("dropped", events)
             elif t - self._phase_t >= LIFT_TIMEOUT_S:
-                events.append(f"lift_failed:{names[i]}")
+                events.append(TrialEvent(EventKind.LIFT_FAILED, obj=names[i]))
                 self._finish("dropped", events)
         if check_tilts and not self.done:
             off = self.sim.objects_off_table()
             if off:  # an object on the floor ends the trial, whichever it was
-                events.extend(f"pushed_off:{names[i]}" for i in off)
+                events.extend(TrialEvent(EventKind.PUSHED_OFF, obj=names[i]) for i in off)
                 self._finish("pushed_off", events)
                 return
             for i in np.flatnonzero(self.sim.object_tilts() > TILT_RAD):
                 if int(i) not in self._knocked:
                     self._knocked.add(int(i))
-                    events.append(f"knocked_over:{names[i]}")
+                    events.append(TrialEvent(EventKind.KNOCKED_OVER, obj=names[i]))
                     if int(i) == self.scene.target_index:  # it cannot be grasped any more
                         self._finish("dropped", events)
                         break
 
-    def _finish(self, outcome: str, events: list[str]) -> None:
+    def _finish(self, outcome: str, events: list[TrialEvent]) -> None:
         if outcome == "timeout":
-            events.append("timeout")
+            events.append(TrialEvent(EventKind.TIMEOUT))
         self.outcome = outcome
         self._phase = "done"
         events.extend(self.contacts.close())
-        events.append(f"outcome:{outcome}")
+        events.append(TrialEvent(EventKind.OUTCOME, text=outcome))
 
     def _record(
-        self, u: np.ndarray, p: np.ndarray, command: np.ndarray, events: list[str]
+        self, u: np.ndarray, p: np.ndarray, command: np.ndarray, events: list[TrialEvent]
     ) -> TickRecord:
         alpha, confidence, probabilities, predicted = self._last
         if self._phase != "reach":

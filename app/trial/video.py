@@ -3,7 +3,7 @@
 ``render_live`` runs a trial and films its physics; ``replay`` rebuilds each recorded tick from
 its record alone (arm configuration, gripper opening, grasp events), so a trial stored in the
 study database can be filmed afterwards. A replayed object rests where the scene put it until
-a ``grasped:<name>`` event, then moves rigidly with the gripper.
+a ``grasped`` event names it, then moves rigidly with the gripper.
 """
 
 from __future__ import annotations
@@ -12,12 +12,14 @@ import os
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
+import cv2
 import mujoco
 import numpy as np
 
 from app.robot.scene import Scene
 from app.teleop.types import InputSource
 from app.trial.config import TrialConfig
+from app.trial.events import EventKind
 from app.trial.records import TickRecord, TrialResult
 from app.trial.trial import Trial
 
@@ -52,8 +54,6 @@ class VideoWriter:
         height: int = 480,
         camera: mujoco.MjvCamera | None = None,
     ) -> None:
-        import cv2
-
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
@@ -137,8 +137,8 @@ def replay_states(
             data.qpos[addr : addr + 7] = rest[k]
         mujoco.mj_kinematics(model, data)
         for event in rec.events:
-            if event.startswith("grasped:") and event[8:] in names:
-                k = names.index(event[8:])
+            if event.kind is EventKind.GRASPED and event.obj in names:
+                k = names.index(event.obj)
                 rot = data.site_xmat[site].reshape(3, 3).copy()
                 obj = rest[k][:3]
                 attached = (k, rot.T @ (obj - data.site_xpos[site]), rot)

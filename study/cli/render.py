@@ -24,7 +24,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 from app.cli import non_negative_int, positive_float, positive_int
 from app.robot.scene import build_scene
-from app.trial.records import load_records, records_from_samples
+from app.trial import load_records, records_from_samples
 from app.trial.video import render_live, replay
 from study.cli.trial import DEFAULT_PROTOCOL, INPUTS, make_input
 from study.protocol import protocol_from_store, trial_config_from_protocol

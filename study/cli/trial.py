@@ -16,7 +16,7 @@ from pathlib import Path
 
 from app.cli import non_negative_float, non_negative_int, positive_float
 from app.teleop import IdleInput, InputSource, ScriptedInput
-from app.trial.records import save_records
+from app.trial import save_records
 from app.trial.trial import run_trial
 from study.protocol import trial_config_from_protocol
 

@@ -36,6 +36,7 @@ import numpy as np
 
 from app.teleop.errors import TeleopError
 from app.teleop.keyboard import KEYMAP
+from app.trial.events import EventKind, TrialEvent
 from study.server.experimenter import SessionDetail, SessionSummary
 from study.server.inputs import InputFrozen, ParticipantInput
 from study.server.loop import PacedLoop
@@ -384,7 +385,7 @@ class LiveSession:
     def _after_tick(self, run: Any, record: Any) -> None:
         """What the page and console need of a tick: the snapshot, a missed-grasp notice, the
         plots' data."""
-        if "grasp_missed" in record.events:
+        if TrialEvent(EventKind.GRASP_MISSED) in record.events:
             self._missed_grasp.set()  # the render loop tells the participant
         self._snap(run)
         with self._plot_lock:

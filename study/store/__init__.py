@@ -4,7 +4,8 @@
 ``study.session.open_store(path, protocol)``), ``Store.open_readonly(path)`` for export and
 analysis. Tables: protocols (the full text of the study's protocol), participants, demographics
 (apart from trial data), sessions, assignments (the schedule), leases, trials, samples (one row
-per control tick), ratings, events.
+per control tick, columns from ``app.trial.samples``), ratings, events. The record classes are
+what ``Store``'s readers return.
 """
 
 from study.store.errors import (
@@ -23,7 +24,7 @@ from study.store.errors import (
     UnknownParticipantError,
 )
 from study.store.opening import changed_sections
-from study.store.orphans import ORPHAN_NOTE, STALE_AFTER_S
+from study.store.orphans import ORPHAN_NOTE
 from study.store.records import (
     AssignmentRecord,
     EventRecord,
@@ -34,17 +35,15 @@ from study.store.records import (
     StoreMeta,
     TrialRecord,
 )
-from study.store.schema import DOF, SAMPLE_COLUMNS, SCHEMA_VERSION, TABLES
+from study.store.schema import SAMPLE_COLUMNS, SCHEMA_VERSION, TABLES
 from study.store.store import Store
 from study.store.transaction import Transaction
 from study.store.values import check_participant_id, now_iso
 
 __all__ = [
-    "DOF",
     "ORPHAN_NOTE",
     "SAMPLE_COLUMNS",
     "SCHEMA_VERSION",
-    "STALE_AFTER_S",
     "TABLES",
     "AssignmentRecord",
     "DuplicateParticipantError",

@@ -1,5 +1,6 @@
 """Opening a store file: connect, read and check its schema version and protocol, create the
-schema in an empty file, upgrade an older schema, keep the protocol's text.
+schema in an empty file, upgrade an older schema (and add the sample columns it lacks), keep the
+protocol's text.
 
 Nothing here writes to a file whose version or protocol is refused.
 """
@@ -14,7 +15,14 @@ from pathlib import Path
 from study.store import faults
 from study.store.errors import NotAStoreError, ProtocolMismatchError, SchemaVersionError, StoreError
 from study.store.records import StoreMeta
-from study.store.schema import DDL, MIGRATIONS, READABLE_VERSIONS, SCHEMA_VERSION
+from study.store.schema import (
+    ADDED_SAMPLE_TYPES,
+    DDL,
+    MIGRATIONS,
+    READABLE_VERSIONS,
+    SAMPLE_COLUMNS,
+    SCHEMA_VERSION,
+)
 from study.store.values import now_iso
 
 
@@ -90,6 +98,31 @@ def migrate(conn: sqlite3.Connection, meta: StoreMeta) -> StoreMeta:
             conn.execute("ROLLBACK")
         raise
     return dataclasses.replace(meta, version=SCHEMA_VERSION)
+
+
+def sample_columns(conn: sqlite3.Connection) -> frozenset[str]:
+    """The columns the file's ``samples`` table has."""
+    return frozenset(row[1] for row in conn.execute("PRAGMA table_info(samples)"))
+
+
+def add_sample_columns(conn: sqlite3.Connection) -> tuple[str, ...]:
+    """Add the declared sample columns (``app.trial.samples``) the file lacks, empty for the
+    ticks already stored; returns their names. One transaction; another process may have
+    added them meanwhile."""
+    if sample_columns(conn) >= set(SAMPLE_COLUMNS):
+        return ()
+    conn.execute("BEGIN IMMEDIATE")
+    try:
+        have = sample_columns(conn)
+        added = tuple(c for c in SAMPLE_COLUMNS if c not in have)
+        for column in added:
+            conn.execute(f"ALTER TABLE samples ADD COLUMN {column} {ADDED_SAMPLE_TYPES[column]}")
+        conn.execute("COMMIT")
+    except BaseException:
+        if conn.in_transaction:
+            conn.execute("ROLLBACK")
+        raise
+    return added
 
 
 def stored_text(conn: sqlite3.Connection, content_hash: str) -> str | None:

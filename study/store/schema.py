@@ -3,11 +3,15 @@
 One row in ``schema_version`` says which schema and which protocol (study id + content hash)
 wrote the file; ``protocols`` keeps that protocol's full TOML text keyed by its content hash, so
 the exact study definition can be rebuilt from the store alone. Demographics live in their own table, apart from trial data. ``samples`` holds
-one row per control tick, keyed by ``(trial_id, tick)``; the 7-vectors are spread over columns
-``q1..q7`` etc. so the file stays readable with any SQLite client.
+one row per control tick, keyed by ``(trial_id, tick)``, with the columns ``app.trial.samples``
+declares (the 7-vectors spread over ``q1..q7`` etc. so the file stays readable with any SQLite
+client). Sample columns are matched by name: a declared column an older file lacks is added when
+it is opened read-write and read as ``NULL`` when it is opened read-only (no version change).
 """
 
 from __future__ import annotations
+
+from app.trial import samples as layout
 
 SCHEMA_VERSION = 2
 """Version 2 added the ``protocols`` table; a version-1 file is read as it is (no stored
@@ -27,36 +31,31 @@ CREATE TABLE protocols (
 MIGRATIONS: dict[int, tuple[str, ...]] = {1: (PROTOCOLS_DDL,)}
 """``{from_version: statements}`` that bring a file to ``from_version + 1``."""
 
-DOF = 7
-"""Joint-space vectors stored per sample (the Panda arm's 7 joints)."""
+SAMPLE_KEY = ("trial_id", "tick")
+"""A sample row's key: the trial and its control tick (0-based, in the order stored)."""
 
-VECTOR_PREFIXES = ("q", "u", "p", "cmd")
-SAMPLE_COLUMNS: tuple[str, ...] = (
-    "trial_id",
-    "tick",
-    "t",
-    *(f"{prefix}{i}" for prefix in VECTOR_PREFIXES for i in range(1, DOF + 1)),
-    "alpha",
-    "confidence",
-    "predicted",
-    "probabilities",
-    "target_x",
-    "target_y",
-    "target_z",
-    "ee_x",
-    "ee_y",
-    "ee_z",
-    "gripper",
-    "events",
-)
-"""Column order of a sample row (``predicted`` is the goal index; ``probabilities`` and
-``events`` are JSON lists)."""
+SAMPLE_COLUMNS: tuple[str, ...] = (*SAMPLE_KEY, *layout.SAMPLE_COLUMNS)
+"""Column order of a sample row: the key, then the data columns ``app.trial.samples``
+declares (``predicted`` is the goal index; ``probabilities`` and ``events`` are JSON lists)."""
+
+SAMPLE_TYPES: dict[str, str] = {
+    c: layout.SQL_TYPES[f.kind] for f in layout.SAMPLE_FIELDS for c in f.columns
+}
+"""SQLite type of each data column of a new store."""
+
+ADDED_SAMPLE_TYPES: dict[str, str] = {
+    c: layout.ADDED_SQL_TYPES[f.kind] for f in layout.SAMPLE_FIELDS for c in f.columns
+}
+"""SQLite type of a data column added to an existing store (``opening.add_sample_columns``)."""
 
 _SAMPLE_DDL = ",\n    ".join(
-    ["trial_id INTEGER NOT NULL REFERENCES trials(trial_id)", "tick INTEGER NOT NULL"]
-    + [f"{c} REAL" for c in SAMPLE_COLUMNS[2:] if c not in ("predicted", "probabilities", "events")]
-    + ["predicted INTEGER", "probabilities TEXT NOT NULL", "events TEXT NOT NULL DEFAULT '[]'"]
-    + ["PRIMARY KEY (trial_id, tick)"]
+    [
+        "trial_id INTEGER NOT NULL REFERENCES trials(trial_id)",
+        "tick INTEGER NOT NULL",
+        # the REAL columns first, as in every store written so far (for ``SELECT *`` readers)
+        *sorted((f"{c} {t}" for c, t in SAMPLE_TYPES.items()), key=lambda d: " REAL" not in d),
+        "PRIMARY KEY (trial_id, tick)",
+    ]
 )
 
 DDL = f"""

@@ -137,6 +137,7 @@ class Store:
             conn.execute(f"PRAGMA synchronous={synchronous}")
             conn.execute("PRAGMA foreign_keys=ON")
             meta = opening.migrate(conn, meta)
+            opening.add_sample_columns(conn)
             if protocol_text is not None and opening.stored_text(conn, protocol_hash) is None:
                 opening.record_protocol(conn, meta, protocol_text)
         except sqlite3.Error as exc:  # a disk that fills up or turns read-only while opening
@@ -430,8 +431,12 @@ class Store:
 
     def samples(self, trial_id: int | None = None) -> pd.DataFrame:
         """Sample rows (``SAMPLE_COLUMNS``) ordered by trial and tick; ``probabilities`` and
-        ``events`` stay JSON text (expand them with ``json.loads``)."""
-        sql = f"SELECT {', '.join(SAMPLE_COLUMNS)} FROM samples"
+        ``events`` stay JSON text (``app.trial.events.decode_events`` reads events). A column
+        the file predates (opened read-only) reads as empty."""
+        with self._lock:
+            have = opening.sample_columns(self.conn)
+        columns = (c if c in have else f"NULL AS {c}" for c in SAMPLE_COLUMNS)
+        sql = f"SELECT {', '.join(columns)} FROM samples"
         params: tuple[Any, ...] = ()
         if trial_id is not None:
             sql += " WHERE trial_id = ?"
