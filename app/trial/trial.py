@@ -435,7 +435,11 @@ def _blender(config: TrialConfig, scene: Scene) -> PolicyBlender:
     if isinstance(prediction, Mapping):
         space = str(prediction.get("space", "workspace"))
         prediction = predictor_from_config(
-            dict(prediction), points=goals, where="prediction", target=scene.target_index
+            dict(prediction),
+            points=goals,
+            where="prediction",
+            target=scene.target_index,
+            rate_hz=config.rate_hz,
         )
     confidence = config.confidence
     if isinstance(confidence, Mapping):
@@ -444,7 +448,9 @@ def _blender(config: TrialConfig, scene: Scene) -> PolicyBlender:
     if arbitration is None:
         arbitration = NoAssistance()
     elif isinstance(arbitration, Mapping):
-        arbitration = arbitration_from_config(dict(arbitration), where="arbitration")
+        arbitration = arbitration_from_config(
+            dict(arbitration), where="arbitration", rate_hz=config.rate_hz
+        )
     policy = config.policy
     if isinstance(policy, Mapping):
         policy = policy_from_config(dict(policy), rate_hz=config.rate_hz, where="policy")
