@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from .adaptive import UserConfidence, Yielding
 from .arbitration import Aggressive, Linear, NoAssistance, PiecewiseLinear, Timid
 from .confidence import DistanceHinge, EntropyConfidence, MarginConfidence, ProbabilityConfidence
 from .errors import BlendingError, ConfigError
@@ -46,8 +47,15 @@ SPACE = Param(
 )
 COST = Choice(("length", "squared_velocity"))
 RATIONALITY = Param(
-    "rationality", POSITIVE, "b, the user model's inverse temperature (1/m for length)", 1.0
+    "rationality",
+    Choice(("online",), POSITIVE),
+    "b, the user model's inverse temperature (1/m for length); 'online': estimated each tick"
+    " from the user's recent motion (length cost)",
+    1.0,
 )
+THRESHOLD = Param("threshold", UNIT, "confidence at which the robot takes charge")
+ALPHA_HIGH = Param("alpha_high", Number(0.0, 1.0, lo_open=True), "alpha above it", 1.0)
+FLOOR = Param("floor", UNIT, "alpha never yields below this (unless the curve is)", 0.1)
 PRIOR = Param("prior", Weights(), "P(G), normalised; uniform when absent", None)
 STEPS = Param("steps", Integer(1, 1000), "ticks per segment of the squared-velocity cost", 1)
 MAX_SPEED = Param("max_speed", Number(0.0, 10.0, lo_open=True), "speed limit per second")
@@ -216,12 +224,54 @@ BUILTIN: tuple[Kind, ...] = (
         "arbitration",
         "aggressive",
         "alpha = alpha_high once c >= threshold, else 0",
-        (
-            Param("threshold", UNIT, "confidence at which the robot takes charge"),
-            Param("alpha_high", Number(0.0, 1.0, lo_open=True), "alpha above it", 1.0),
-        ),
+        (THRESHOLD, ALPHA_HIGH),
         lambda p, ctx: Aggressive(p["threshold"], p["alpha_high"]),
         example={"threshold": 0.4, "alpha_high": 0.9},
+    ),
+    Kind(
+        "arbitration",
+        "yielding",
+        "aggressive while the user agrees (Fig. 15's cos(P - Q, U - Q)); when the agreement"
+        " stays below agree_below for window_s, alpha falls to floor (time constant fall_s),"
+        " and recovers (recover_s) once the user agrees again",
+        (
+            THRESHOLD,
+            ALPHA_HIGH,
+            Param("agree_below", Number(-1.0, 1.0), "agreement below this is fighting", 0.0),
+            Param("window_s", Number(0.0, 10.0), "fighting this long makes alpha fall, s", 0.3),
+            FLOOR,
+            Param("fall_s", Number(0.0, 10.0, lo_open=True), "time constant of the fall, s", 0.2),
+            Param("recover_s", Number(0.0, 60.0, lo_open=True), "of the recovery, s", 2.0),
+            Param(
+                "signal",
+                Choice(("motion", "policy")),
+                "agreement of the user's motion with the robot's heading (Fig. 15), or"
+                " cos(P - Q, U - Q)",
+                "motion",
+            ),
+        ),
+        lambda p, ctx: Yielding(rate_hz=ctx.rate_hz, **p),
+        example={"threshold": 0.4, "alpha_high": 0.9, "window_s": 0.3, "floor": 0.1},
+        needs=("rate_hz",),
+    ),
+    Kind(
+        "arbitration",
+        "user_confidence",
+        "aggressive scaled by min(1, b(G*) / max(beta_ref, max b(G))): the user's estimated"
+        " rationality toward the predicted goal, against the best-explaining goal",
+        (
+            THRESHOLD,
+            ALPHA_HIGH,
+            Param(
+                "beta_ref",
+                Number(0.0, 1000.0, lo_open=True),
+                "rationality of full trust, 1/m",
+                20.0,
+            ),
+            FLOOR,
+        ),
+        lambda p, ctx: UserConfidence(**p),
+        example={"threshold": 0.4, "alpha_high": 0.9, "beta_ref": 20.0},
     ),
     Kind(
         "arbitration",

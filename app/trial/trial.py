@@ -321,7 +321,7 @@ class Trial:
                 self._hold_q = q
                 return q, q, q
             u = self.ik(q, self.user_target)
-            rec = self.blender.step(q, u, x=self.user_target)
+            rec = self.blender.step(q, u, x=self.user_target, robot_x=self._ee)
             self._last = (rec.alpha, rec.confidence, rec.probabilities, rec.predicted)
             return u, rec.P, rec.command
         if self._phase == "lifting":
