@@ -21,7 +21,10 @@ class TickRecord:
     ``u``: the user's next configuration U; ``p``: the policy's P; ``command``:
     ``(1 - alpha) U + alpha P`` sent to the servos; ``probabilities``: ``P(G | xi)``;
     ``predicted``: index of G*; ``user_target``: the clamped target (3,); ``ee``: TCP (3,);
-    ``gripper``: finger opening (m); ``events``: what happened this tick (``app.trial.events``).
+    ``gripper``: finger opening (m); ``events``: what happened this tick (``app.trial.events``);
+    ``motion_agreement``: cosine of the user's motion and the robot's heading (Fig. 15);
+    ``rationality``: the user's estimated rationality toward G* (1/m). Both from
+    ``app.blending.BlendRecord`` while reaching (0 and NaN otherwise).
     """
 
     tick: int
@@ -38,6 +41,8 @@ class TickRecord:
     ee: np.ndarray
     gripper: float
     events: tuple[TrialEvent, ...] = ()
+    motion_agreement: float = 0.0
+    rationality: float = float("nan")
 
     def as_dict(self) -> dict[str, Any]:
         """Plain JSON-able values (lists for arrays, events as their stored text)."""

@@ -168,6 +168,18 @@ SAMPLE_FIELDS: tuple[SampleField, ...] = (
         "",
         kind=ColumnKind.EVENTS,
     ),
+    SampleField.scalar(
+        "motion_agreement",
+        "cosine of the user's actual motion (their input's latest cm) and the robot's heading "
+        "to its predicted goal (Fig. 15; 0 before the user moves; empty in older stores)",
+        "-1..1",
+    ),
+    SampleField.scalar(
+        "rationality",
+        "the user's rationality toward the predicted goal, estimated online from their recent "
+        "motion (eq. 9's b for the path-length cost; 11.3 = no evidence yet)",
+        "1/m",
+    ),
 )
 """The per-tick sample layout, in column order."""
 
