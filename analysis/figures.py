@@ -34,7 +34,9 @@ TASK_LABELS = {
     "hard-right": "Hard&Right",
     "hard-wrong": "Hard&Wrong",
 }
-MODE_COLORS = {"timid": "#4c72b0", "aggressive": "#dd8452"}
+MODE_COLORS = {"timid": "#4c72b0", "aggressive": "#dd8452", "yielding": "#55a868"}
+OTHER_MODE_COLORS = ("#8172b2", "#937860", "#da8bc3", "#8c8c8c", "#ccb974", "#64b5cd")
+"""Colours for modes not named in MODE_COLORS, handed out in order (see :func:`mode_colors`)."""
 RIGHT, WRONG = "#2ca02c", "#d62728"
 
 
@@ -50,6 +52,13 @@ class SavedFigure:
         text = self.svg.read_text(encoding="utf-8")
         text = re.sub(r"<\?xml[^>]*\?>\s*", "", text)
         return re.sub(r"<!DOCTYPE[^>]*>\s*", "", text)
+
+
+def mode_colors(modes: Sequence[str]) -> dict[str, str]:
+    """A distinct colour per mode: the fixed ones of MODE_COLORS, then OTHER_MODE_COLORS in
+    order (cycled past six unnamed modes), so any number of modes can be told apart."""
+    others = iter(OTHER_MODE_COLORS * (1 + len(modes) // len(OTHER_MODE_COLORS)))
+    return {m: MODE_COLORS[m] if m in MODE_COLORS else next(others) for m in modes}
 
 
 def _new(width: float, height: float) -> Figure:
@@ -77,10 +86,11 @@ def arbitration_figure(arbitrations: Mapping[str, Mapping[str, Any]]) -> Figure:
     fig = _new(4.5, 3.2)
     ax = fig.add_subplot()
     c = np.linspace(0.0, 1.0, 801)
+    colors = mode_colors(list(arbitrations))
     for name, table in arbitrations.items():
         arb = arbitration_from_config(dict(table), where=f"modes.{name}.arbitration")
         alpha = np.array([arb(float(x)) for x in c])
-        ax.plot(c, alpha, lw=2, label=name, color=MODE_COLORS.get(name))
+        ax.plot(c, alpha, lw=2, label=name, color=colors[name])
     ax.set(
         xlabel="confidence c",
         ylabel="arbitration α",
@@ -134,7 +144,7 @@ def timing_preference_figure(
         dict.fromkeys(summary["task"])
     )
     present = [m for m in modes if m in set(summary["mode"])]
-    _bars(axes[0], summary, "mean", "se", tasks, present, "mode", "task", MODE_COLORS)
+    _bars(axes[0], summary, "mean", "se", tasks, present, "mode", "task", mode_colors(present))
     axes[0].set(ylabel="time to complete (s)", title="(a) Time per task and mode")
     top = axes[0].get_ylim()[1]
     axes[0].set_ylim(0, top * 1.18)  # head-room: the legend sits above the bars, not on them
