@@ -154,12 +154,20 @@ def wait_until(predicate: Any, *, timeout: float = 20.0, interval: float = 0.05)
 # -- a study server on free ports, with a shortened copy of the paper's protocol -----------------
 
 
-def short_protocol(directory: Any, *, time_limit_s: float = 6.0, training_runs: int = 1) -> Any:
-    """A copy of the paper's protocol with short trials and ``training_runs`` practice runs, so a
-    test walks through every kind of screen quickly."""
+def short_protocol(
+    directory: Any, *, time_limit_s: float = 6.0, training_runs: int = 1, source: Any = None
+) -> Any:
+    """A copy of the paper's protocol (or of ``source``) with short trials and
+    ``training_runs`` practice runs, so a test walks through every kind of screen quickly."""
+    from tests.protocol_copies import PAPER_PROTOCOL
     from tests.protocol_copies import short_protocol as copy
 
-    return copy(directory, time_limit_s=time_limit_s, training_runs=training_runs)
+    return copy(
+        directory,
+        time_limit_s=time_limit_s,
+        training_runs=training_runs,
+        source=source or PAPER_PROTOCOL,
+    )
 
 
 @dataclass
