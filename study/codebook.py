@@ -93,6 +93,17 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
         "ee_y": ("end-effector position, y", "m"),
         "ee_z": ("end-effector position, z", "m"),
         "gripper": ("gripper opening", "m"),
+        "motion_agreement": (
+            "cosine of the user's actual motion (their input's latest cm) and the robot's "
+            "heading to its predicted goal (Fig. 15; 0 before the user moves; empty in files "
+            "recorded before schema 3)",
+            "-1..1",
+        ),
+        "rationality": (
+            "the user's rationality toward the predicted goal, estimated online from their "
+            "recent motion (eq. 9's b for the path-length cost; 11.3 = no evidence yet)",
+            "1/m",
+        ),
         "events": (
             "JSON list of events at this tick (grasp_requested, grasped:<object>, "
             "lifted:<object>, goal_moved:<object>@x,y,z when the robot re-aims at a moved "

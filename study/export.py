@@ -91,6 +91,8 @@ SAMPLE_TAIL = (
     "ee_z",
     "gripper",
     "events",
+    "motion_agreement",
+    "rationality",
 )
 RATING_COLUMNS = (
     "participant",

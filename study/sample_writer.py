@@ -14,6 +14,7 @@ rows held in memory reach the file once space is freed.
 from __future__ import annotations
 
 import json
+import math
 import threading
 import time
 from collections import deque
@@ -47,6 +48,7 @@ class TickLike(Protocol):
     ee: Any
     gripper: float
     events: Sequence[str]
+    # optional: motion_agreement (0.0 when absent) and rationality (NaN, stored as NULL)
 
 
 def _vector(value: Any, n: int, name: str) -> list[float]:
@@ -83,6 +85,8 @@ def sample_row(trial_id: int, tick: int, record: TickLike) -> tuple[Any, ...]:
             *_vector(record.ee, 3, "ee"),
             float(record.gripper),
             json.dumps(list(events)) if events else "[]",
+            float(getattr(record, "motion_agreement", 0.0)),
+            float(getattr(record, "rationality", math.nan)),
         )
     except (AttributeError, TypeError, ValueError) as exc:
         if isinstance(exc, SampleFormatError):

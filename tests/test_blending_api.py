@@ -239,7 +239,7 @@ def test_factories_build_the_protocol_examples() -> None:
             {"kind": "timid", "alpha_max": 0.5, "sat": 1},
             "modes.x.sat: unknown key",
         ),
-        (arbitration_from_config, {"kind": "bold"}, "modes.x.kind: must be one of"),
+        (arbitration_from_config, {"kind": "bold"}, "modes.x.kind: 'bold' is not one of timid"),
         (arbitration_from_config, {"alpha_max": 0.5}, "modes.x.kind: missing"),
         (
             arbitration_from_config,
@@ -254,18 +254,18 @@ def test_factories_build_the_protocol_examples() -> None:
         (
             confidence_from_config,
             {"kind": "distance", "D": -0.4},
-            "modes.x.D: must be finite and > 0, got -0.4",
+            "modes.x.D: must be in (0, 5], got -0.4",
         ),
         (confidence_from_config, {"kind": "distance"}, "modes.x.D: missing"),
         (
             predictor_from_config,
             {"kind": "amnesic", "temperature": 0},
-            "modes.x.temperature: must be finite and > 0",
+            "modes.x.temperature: must be > 0, got 0",
         ),
         (
             predictor_from_config,
             {"kind": "memory", "cost": "jerk"},
-            "modes.x.cost: must be 'length' or 'squared_velocity'",
+            "modes.x.cost: 'jerk' is not one of 'length', 'squared_velocity'",
         ),
         (
             predictor_from_config,
@@ -289,12 +289,16 @@ def test_factories_build_the_protocol_examples() -> None:
             {"kind": "oracle", "goal": "nope"},
             "modes.x.goal: no goal called 'nope'",
         ),
-        (predictor_from_config, {"kind": "amnesic", "space": "joint"}, "modes.x.space: must be"),
+        (
+            predictor_from_config,
+            {"kind": "amnesic", "space": "joint"},
+            "modes.x.space: 'joint' is not one of",
+        ),
         (predictor_from_config, {"kind": "laplace", "cost": "length"}, "modes.x.cost: eq. 8"),
         (
             policy_from_config,
             {"kind": "straight_line", "max_speed": 0},
-            "modes.x.max_speed: must be a finite number > 0",
+            "modes.x.max_speed: must be in (0, 10], got 0",
         ),
         (
             policy_from_config,

@@ -12,6 +12,7 @@ from hypothesis.extra.numpy import arrays
 from app.blending import (
     Aggressive,
     AmnesicPredictor,
+    BlendingError,
     DistanceHinge,
     EntropyConfidence,
     GoalPrediction,
@@ -192,7 +193,6 @@ big = st.floats(-1e300, 1e300, allow_nan=False, allow_infinity=False)
 )
 def test_extreme_finite_inputs_never_give_a_nan_command(q, u, x, kind) -> None:
     """Whatever finite input: a finite command or a typed BlendingError, never a NaN."""
-    from app.blending import BlendingError
 
     goals = GoalSet(["a", "b"], [[0.5, 0, 0], [0, 0.5, 0]], configurations=[[0.3] * 7, [-0.3] * 7])
     pred = (

@@ -173,9 +173,9 @@ CASES = [
         put("modes.aggressive.arbitration.alpha_high", 1.5),
         ProtocolValueError,
         "modes.aggressive.arbitration.alpha_high",
-        "must be <= 1.0",
+        "must be in (0, 1], got 1.5",
     ),
-    (change("confidence.D", lambda d: -d), ProtocolValueError, "confidence.D", "must be > 0"),
+    (change("confidence.D", lambda d: -d), ProtocolValueError, "confidence.D", "must be in (0, 5]"),
     (
         put("control.physics_dt", _PERIOD / 2.5),
         ProtocolValueError,

@@ -14,7 +14,7 @@ import pytest
 from study.export import export_metadata, resolve_protocol, tidy_tables
 from study.protocol import StoredProtocolError, load_protocol, protocol_from_store
 from study.session import Session, open_store
-from study.store import SCHEMA_VERSION, ProtocolMismatchError, Store
+from study.store import SAMPLE_COLUMNS, SCHEMA_VERSION, ProtocolMismatchError, Store
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "protocols" / "dragan2013.toml"
@@ -118,6 +118,8 @@ def make_schema_1(db: Path) -> None:
     """Turn a store into what the schema-1 platform wrote (no protocols table)."""
     conn = sqlite3.connect(db)
     conn.execute("DROP TABLE protocols")
+    conn.execute("ALTER TABLE samples DROP COLUMN motion_agreement")  # schema 3's columns
+    conn.execute("ALTER TABLE samples DROP COLUMN rationality")
     conn.execute("UPDATE schema_version SET version = 1")
     conn.commit()
     conn.close()
@@ -131,6 +133,9 @@ def test_schema_1_store_reads_then_upgrades_when_opened_for_writing(
     with Store.open_readonly(db) as store:
         assert store.meta.version == 1 and store.protocol_text() is None
         assert store.frame("protocols").empty
+        samples = store.samples()  # the columns schema 1 lacks come back empty
+        assert list(samples.columns) == list(SAMPLE_COLUMNS)
+        assert samples["rationality"].isna().all()
         with pytest.raises(StoredProtocolError, match="pass the protocol file"):
             protocol_from_store(store)
         protocol, source = resolve_protocol(store, search=[path.parent])

@@ -3,24 +3,33 @@
 Per control tick: goal prediction ``P(G | xi_{S->U})`` -> confidence ``c`` -> arbitration
 ``alpha(c)`` -> trajectory prediction ``P`` -> ``command = (1 - alpha) U + alpha P``.
 
-Example (the study's "wrong" condition, timid mode)::
+Example: a 2-D arm between two goals, "aggressive" arbitration, built from protocol tables::
 
-    goals = GoalSet(["box", "bottle"], positions, configurations=goal_qs)
-    blender = PolicyBlender(
-        goals=goals,
-        predictor=predictor_from_config({"kind": "amnesic", "space": "workspace"}, points=goals),
-        confidence=confidence_from_config({"kind": "distance", "D": 0.4}),
-        arbitration=arbitration_from_config({"kind": "timid", "alpha_max": 0.5,
-                                             "saturation": 0.7}),
-        policy=policy_from_config({"kind": "straight_line", "max_speed": 1.0}, rate_hz=100),
-        space="workspace",
-    )
-    blender.reset(start_target)                      # S, in the predictor's space
-    record = blender.step(q, u, x=user_target)       # per tick; record.command -> actuators
+    >>> from app.blending import (GoalSet, PolicyBlender, arbitration_from_config,
+    ...     confidence_from_config, policy_from_config, predictor_from_config)
+    >>> goals = GoalSet(["box", "bottle"], [[1, 0, 0], [0, 1, 0]],
+    ...                 configurations=[[1, 0], [0, 1]])
+    >>> blender = PolicyBlender(
+    ...     goals=goals,
+    ...     predictor=predictor_from_config({"kind": "amnesic", "space": "configuration"},
+    ...                                     points=goals),
+    ...     confidence=confidence_from_config({"kind": "distance", "D": 1.0}),
+    ...     arbitration=arbitration_from_config({"kind": "aggressive", "threshold": 0.3}),
+    ...     policy=policy_from_config({"kind": "straight_line", "max_speed": 1.0}, rate_hz=10),
+    ...     space="configuration",
+    ... )
+    >>> blender.reset([0.0, 0.0])                     # S, the user's first input
+    >>> rec = blender.step([0.5, 0.1], [0.6, 0.1])    # robot Q, the user's next U
+    >>> goals.names[rec.predicted], round(rec.confidence, 2), rec.alpha
+    ('box', 0.59, 1.0)
+    >>> rec.command.round(3).tolist()                 # alpha = 1: the robot's P
+    [0.598, 0.08]
 
-Modules: goals, goal_moves (goals that follow moved objects, logged for replay), prediction/ (base, amnesic, memory, laplace, oracle, costs), confidence,
-arbitration, policy, blend, config (factories from protocol tables), errors, reference (exact
-soft value iteration on a 2-D grid, to test eq. 9 against).
+Every component kind is declared once in :mod:`app.blending.spec` (the built-in ones in
+:mod:`app.blending.kinds`); :func:`register` adds a new one, which the builders, the protocol
+loader and the docs then know. Modules: goals, goal_moves, prediction/ (amnesic, memory eq. 9,
+laplace eq. 8, oracle, costs), confidence, arbitration, policy, blend, spec, kinds, config,
+errors, reference (exact soft value iteration on a 2-D grid, to test eq. 9 against).
 """
 
 from .arbitration import (
@@ -54,19 +63,15 @@ from .goals import GoalSet
 from .policy import Policy, StraightLinePolicy, WorkspaceLinePolicy
 from .prediction import (
     AmnesicPredictor,
-    Cost,
     GoalPrediction,
-    HessianCost,
     LaplacePredictor,
     MemoryPredictor,
-    Metric,
     OraclePredictor,
     PathLengthCost,
     Predictor,
     SquaredVelocityCost,
-    euclidean,
-    softmax,
 )
+from .spec import BuildContext, Kind, Param, register, unregister
 
 __all__ = [
     "GOAL_MOVED",
@@ -75,25 +80,25 @@ __all__ = [
     "Arbitration",
     "BlendRecord",
     "BlendingError",
+    "BuildContext",
     "Confidence",
     "ConfigError",
-    "Cost",
     "DistanceHinge",
     "EntropyConfidence",
     "FunctionArbitration",
     "GoalMoves",
     "GoalPrediction",
     "GoalSet",
-    "HessianCost",
     "InvalidArbitrationError",
     "InvalidInputError",
+    "Kind",
     "LaplacePredictor",
     "Linear",
     "MarginConfidence",
     "MemoryPredictor",
-    "Metric",
     "NoAssistance",
     "OraclePredictor",
+    "Param",
     "PathLengthCost",
     "PiecewiseLinear",
     "Policy",
@@ -108,12 +113,12 @@ __all__ = [
     "blend",
     "check_arbitration",
     "confidence_from_config",
-    "euclidean",
     "goal_moved_event",
     "is_adversarial",
     "moved_goals",
     "parse_goal_moved",
     "policy_from_config",
     "predictor_from_config",
-    "softmax",
+    "register",
+    "unregister",
 ]

@@ -2,8 +2,10 @@
 
 Per tick :meth:`PolicyBlender.step` takes the robot configuration ``Q`` and the user's next
 configuration ``U`` (and optionally the user's input ``x`` in the predictor's space), and runs
-predict (``P(G | xi)``, ``G*``) -> confidence -> arbitration (``alpha``) -> policy (``P``) ->
-blend, returning a :class:`BlendRecord` for logging.
+predict (``P(G | xi)``, ``G*``) -> confidence -> policy (``P``) -> agreement -> arbitration
+(``alpha``) -> blend, returning a :class:`BlendRecord` for logging. Alongside, it estimates the
+user's rationality toward each goal from their recent inputs (``RationalityEstimator``), which
+it logs and which a :class:`StatefulArbitration` may use with the agreement.
 """
 
 from __future__ import annotations
@@ -15,12 +17,14 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from .adaptive import StatefulArbitration, TickSignals
 from .arbitration import Arbitration
 from .confidence import Confidence
 from .errors import BlendingError, InvalidInputError
 from .goals import GoalSet
 from .policy import Policy
 from .prediction.base import GoalPrediction, Predictor
+from .prediction.rationality import RationalityEstimator
 
 __all__ = ["BlendRecord", "PolicyBlender", "blend"]
 
@@ -46,7 +50,11 @@ class BlendRecord(NamedTuple):
     probabilities: ``P(G | xi)`` (a copy); predicted: index of G*; agreement: cosine of
     ``P - Q`` and ``U - Q`` (the robot's policy against the user's input direction, Fig. 15:
     near -1 when the user fights the robot, the "aggressive and wrong" signal; 0 when either
-    velocity is zero).
+    velocity is zero); rationality: the user's estimated rationality toward G* (1/m);
+    motion_agreement: cosine of the user's actual motion (the latest centimetre of their input)
+    and the robot's heading (from the robot to G*, predictor space), 0 before they have moved:
+    Fig. 15's "dot product between the robot's policy and the user's motion", which, unlike
+    ``agreement``, stays positive when an assisting robot merely runs ahead of the user.
     """
 
     command: np.ndarray
@@ -57,6 +65,8 @@ class BlendRecord(NamedTuple):
     probabilities: np.ndarray
     predicted: int
     agreement: float
+    rationality: float = math.nan
+    motion_agreement: float = 0.0
 
 
 class PolicyBlender:
@@ -73,6 +83,7 @@ class PolicyBlender:
             forward kinematics); ``None`` means ``x = U``.
         space: the predictor's space, ``"workspace"`` or ``"configuration"``; default
             ``"workspace"`` when ``feature`` is given, else ``"configuration"``.
+        rationality: the user's rationality estimator (a default one when ``None``).
     """
 
     def __init__(
@@ -85,6 +96,7 @@ class PolicyBlender:
         policy: Policy,
         feature: Callable[[np.ndarray], Any] | None = None,
         space: str | None = None,
+        rationality: RationalityEstimator | None = None,
     ) -> None:
         if not isinstance(goals, GoalSet):
             raise InvalidInputError(f"goals: expected a GoalSet, got {type(goals).__name__}")
@@ -111,6 +123,7 @@ class PolicyBlender:
         self.arbitration = arbitration
         self.policy = policy
         self.feature = feature
+        self.rationality = rationality if rationality is not None else RationalityEstimator()
         self._update: Callable[[np.ndarray], GoalPrediction] = getattr(
             predictor, "_update", predictor.update
         )
@@ -176,6 +189,9 @@ class PolicyBlender:
         if not np.isfinite(s).all():
             raise InvalidInputError(f"start_x: contains NaN or infinite values: {s!r}")
         self.predictor.reset(s)
+        self.rationality.reset(s)
+        if isinstance(self.arbitration, StatefulArbitration):
+            self.arbitration.reset()
         self._started = True
 
     def _bad_input(self, q: np.ndarray, u: np.ndarray, x: np.ndarray) -> BlendingError:
@@ -189,8 +205,9 @@ class PolicyBlender:
                 )
         return InvalidInputError("inputs: not finite")  # pragma: no cover
 
-    def step(self, Q: Any, U: Any, *, x: Any = None) -> BlendRecord:
-        """One tick; ``x`` defaults to ``feature(U)`` (or ``U``)."""
+    def step(self, Q: Any, U: Any, *, x: Any = None, robot_x: Any = None) -> BlendRecord:
+        """One tick; ``x`` defaults to ``feature(U)`` (or ``U``); ``robot_x`` is where the robot
+        is in the predictor's space (e.g. its end effector), ``x`` when not given."""
         if not self._started:
             raise InvalidInputError("reset(start_x) must be called before step(Q, U)")
         q = np.asarray(Q, dtype=np.float64)
@@ -224,13 +241,12 @@ class PolicyBlender:
 
         pred = self._update(x)
         i = pred.index
+        b = self.rationality.update(x, self._points)
+        motion = self._motion_agreement(x if robot_x is None else robot_x, i)
         distance = math.dist(xs, self._point_lists[i])
         c = float(self.confidence(pred, distance))
         if not 0.0 <= c <= 1.0:
             raise BlendingError(f"confidence: returned {c!r}, outside [0, 1]")
-        alpha = float(self.arbitration(c))
-        if not 0.0 <= alpha <= 1.0:
-            raise BlendingError(f"arbitration: returned alpha = {alpha!r}, outside [0, 1]")
         p = self.policy.step(q, self._targets[i])
         ps = np.asarray(p, dtype=np.float64).tolist()
         if len(ps) != dof:
@@ -241,10 +257,26 @@ class PolicyBlender:
         pp = sum(map(mul, pv, pv))
         if not math.isfinite(pp) and not np.isfinite(p).all():  # NaN/inf in P make pp so
             raise BlendingError(f"policy: returned a non-finite P {p!r}")
-        cmd = u * (1.0 - alpha)
-        if alpha != 0.0:  # alpha = 0 (no assistance yet): the command is U itself
-            cmd += alpha * p
         nn = math.sqrt(pp * sum(map(mul, uv, uv)))
         agreement = sum(map(mul, pv, uv)) / nn if nn > 0.0 else 0.0
         agreement = 1.0 if agreement > 1.0 else (-1.0 if agreement < -1.0 else agreement)
-        return BlendRecord(cmd, p, alpha, c, distance, pred.probabilities.copy(), i, agreement)
+        arb = self.arbitration
+        if isinstance(arb, StatefulArbitration):
+            alpha = float(arb.update(TickSignals(c, agreement, motion, i, b)))
+        else:
+            alpha = float(arb(c))
+        if not 0.0 <= alpha <= 1.0:
+            raise BlendingError(f"arbitration: returned alpha = {alpha!r}, outside [0, 1]")
+        cmd = u * (1.0 - alpha)
+        if alpha != 0.0:  # alpha = 0 (no assistance yet): the command is U itself
+            cmd += alpha * p
+        probs = pred.probabilities.copy()
+        return BlendRecord(cmd, p, alpha, c, distance, probs, i, agreement, float(b[i]), motion)
+
+    def _motion_agreement(self, robot_x: Any, i: int) -> float:
+        d = self.rationality.direction
+        if d is None:
+            return 0.0
+        heading = self._points[i] - np.asarray(robot_x, dtype=np.float64)
+        n = math.sqrt(float(heading.dot(heading)))
+        return float(d.dot(heading)) / n if n > 0.0 else 0.0

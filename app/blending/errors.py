@@ -22,4 +22,20 @@ class InvalidArbitrationError(BlendingError):
 
 
 class ConfigError(BlendingError):
-    """A plain-dict configuration (protocol table) is invalid; the message names the key path."""
+    """A plain-dict configuration (protocol table) is invalid; the message names the key path.
+
+    ``key``: the full key path (``modes.timid.arbitration.alpha_max``); ``category``:
+    ``missing``, ``unknown``, ``type`` or ``value``; ``problem``: the message after the key.
+    """
+
+    def __init__(
+        self, message: str, *, key: str = "", category: str = "value", problem: str = ""
+    ) -> None:
+        super().__init__(message)
+        if not key:  # "<key>: <problem>", the form every message here takes
+            head, sep, tail = message.partition(": ")
+            if sep and " " not in head:
+                key, problem = head, problem or tail
+        self.key = key
+        self.category = category
+        self.problem = problem or message

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +22,10 @@ class TickRecord:
     ``u``: the user's next configuration U; ``p``: the policy's P; ``command``:
     ``(1 - alpha) U + alpha P`` sent to the servos; ``probabilities``: ``P(G | xi)``;
     ``predicted``: index of G*; ``user_target``: the clamped target (3,); ``ee``: TCP (3,);
-    ``gripper``: finger opening (m); ``events``: what happened this tick.
+    ``gripper``: finger opening (m); ``events``: what happened this tick;
+    ``motion_agreement``: cosine of the user's motion and the robot's heading (Fig. 15);
+    ``rationality``: the user's estimated rationality toward G* (1/m). Both from
+    ``app.blending.BlendRecord`` while reaching (0 and NaN otherwise).
     """
 
     tick: int
@@ -38,6 +42,8 @@ class TickRecord:
     ee: np.ndarray
     gripper: float
     events: tuple[str, ...] = ()
+    motion_agreement: float = 0.0
+    rationality: float = float("nan")
 
     def as_dict(self) -> dict[str, Any]:
         """Plain JSON-able values (lists for arrays)."""
@@ -90,6 +96,8 @@ def save_records(result: TrialResult, path: str | Path) -> Path:
         "confidence": np.array([r.confidence for r in recs]),
         "predicted": np.array([r.predicted for r in recs], dtype=np.int64),
         "gripper": np.array([r.gripper for r in recs]),
+        "motion_agreement": np.array([r.motion_agreement for r in recs]),
+        "rationality": np.array([r.rationality for r in recs]),
     }
     for name in ("q", "u", "p", "command", "probabilities", "user_target", "ee"):
         arrays[name] = np.array([getattr(r, name) for r in recs]).reshape(len(recs), -1)
@@ -108,6 +116,7 @@ def load_records(path: str | Path) -> tuple[dict[str, Any], tuple[TickRecord, ..
     with np.load(Path(path), allow_pickle=False) as z:
         meta = json.loads(str(z["meta"]))
         cols = {k: z[k] for k in z.files if k != "meta"}
+    new = "rationality" in cols  # files saved before these columns existed lack them
     records = tuple(
         TickRecord(
             tick=int(cols["tick"][i]),
@@ -124,6 +133,8 @@ def load_records(path: str | Path) -> tuple[dict[str, Any], tuple[TickRecord, ..
             ee=cols["ee"][i],
             gripper=float(cols["gripper"][i]),
             events=tuple(meta["tick_events"][i]),
+            motion_agreement=float(cols["motion_agreement"][i]) if new else 0.0,
+            rationality=float(cols["rationality"][i]) if new else math.nan,
         )
         for i in range(len(cols["t"]))
     )
@@ -133,7 +144,8 @@ def load_records(path: str | Path) -> tuple[dict[str, Any], tuple[TickRecord, ..
 def records_from_samples(samples: Any) -> tuple[TickRecord, ...]:
     """Tick records from a study store's ``samples`` rows of one trial (a pandas DataFrame with
     ``tick, t, q1..q7, u1.., p1.., cmd1.., alpha, confidence, predicted, probabilities,
-    target_x.., ee_x.., gripper, events``; ``probabilities`` and ``events`` as JSON text)."""
+    target_x.., ee_x.., gripper, events``, optionally ``motion_agreement, rationality``;
+    ``probabilities`` and ``events`` as JSON text)."""
     cols = samples.columns
 
     def block(prefix: str, names: Sequence[str]) -> np.ndarray:
@@ -168,6 +180,13 @@ def records_from_samples(samples: Any) -> tuple[TickRecord, ...]:
                 ee=ee[i],
                 gripper=float(row.gripper),
                 events=tuple(json.loads(events) if isinstance(events, str) else events),
+                motion_agreement=_number(getattr(row, "motion_agreement", None), 0.0),
+                rationality=_number(getattr(row, "rationality", None), math.nan),
             )
         )
     return tuple(out)
+
+
+def _number(value: Any, empty: float) -> float:
+    """A stored number, ``empty`` for a missing or NULL one."""
+    return empty if value is None or value != value else float(value)

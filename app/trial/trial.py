@@ -100,7 +100,7 @@ class Trial:
         self._ee = self.sim.ee
         self._object_positions = self.sim.object_positions()
         self._grasp_points = self.scene.goals.positions
-        self._last = (0.0, 0.0, np.full(n, 1.0 / n), -1)
+        self._last = (0.0, 0.0, np.full(n, 1.0 / n), -1, 0.0, math.nan)
         self.records: list[TickRecord] = []
         self.events: list[tuple[float, str]] = []
 
@@ -151,7 +151,7 @@ class Trial:
             return self._observation()
 
     def _observation(self) -> TrialObservation:
-        alpha, _, _, predicted = self._last
+        alpha, _, _, predicted, _, _ = self._last
         held = self._held
         return TrialObservation(
             t=self.t,
@@ -321,8 +321,15 @@ class Trial:
                 self._hold_q = q
                 return q, q, q
             u = self.ik(q, self.user_target)
-            rec = self.blender.step(q, u, x=self.user_target)
-            self._last = (rec.alpha, rec.confidence, rec.probabilities, rec.predicted)
+            rec = self.blender.step(q, u, x=self.user_target, robot_x=self._ee)
+            self._last = (
+                rec.alpha,
+                rec.confidence,
+                rec.probabilities,
+                rec.predicted,
+                rec.motion_agreement,
+                rec.rationality,
+            )
             return u, rec.P, rec.command
         if self._phase == "lifting":
             cmd = self.ik(q, self._lift_target, max_speed=LIFT_SPEED)
@@ -400,9 +407,9 @@ class Trial:
     def _record(
         self, u: np.ndarray, p: np.ndarray, command: np.ndarray, events: list[str]
     ) -> TickRecord:
-        alpha, confidence, probabilities, predicted = self._last
+        alpha, confidence, probabilities, predicted, motion, rationality = self._last
         if self._phase != "reach":
-            alpha = 0.0
+            alpha, motion, rationality = 0.0, 0.0, math.nan
         t = self.t
         if events:
             self.events.extend((t, e) for e in events)
@@ -423,6 +430,8 @@ class Trial:
             ee=self._ee,
             gripper=self.sim.gripper_opening,
             events=tuple(events),
+            motion_agreement=float(motion),
+            rationality=float(rationality),
         )
         self.records.append(rec)
         return rec
@@ -435,7 +444,11 @@ def _blender(config: TrialConfig, scene: Scene) -> PolicyBlender:
     if isinstance(prediction, Mapping):
         space = str(prediction.get("space", "workspace"))
         prediction = predictor_from_config(
-            dict(prediction), points=goals, where="prediction", target=scene.target_index
+            dict(prediction),
+            points=goals,
+            where="prediction",
+            target=scene.target_index,
+            rate_hz=config.rate_hz,
         )
     confidence = config.confidence
     if isinstance(confidence, Mapping):
@@ -444,7 +457,9 @@ def _blender(config: TrialConfig, scene: Scene) -> PolicyBlender:
     if arbitration is None:
         arbitration = NoAssistance()
     elif isinstance(arbitration, Mapping):
-        arbitration = arbitration_from_config(dict(arbitration), where="arbitration")
+        arbitration = arbitration_from_config(
+            dict(arbitration), where="arbitration", rate_hz=config.rate_hz
+        )
     policy = config.policy
     if isinstance(policy, Mapping):
         policy = policy_from_config(dict(policy), rate_hz=config.rate_hz, where="policy")

@@ -451,13 +451,18 @@ class _Loader:
                 file=file,
                 goals=len(scene.objects),
                 target=scene.target_index,
+                rate_hz=control.rate_hz,
             )
         build_check("confidence", confidence, where="confidence", file=file)
         build_check("policy", policy, where="policy", file=file, rate_hz=control.rate_hz)
         for m in modes:
             if m.arbitration is not None:
                 build_check(
-                    "arbitration", m.arbitration, where=f"modes.{m.name}.arbitration", file=file
+                    "arbitration",
+                    m.arbitration,
+                    where=f"modes.{m.name}.arbitration",
+                    file=file,
+                    rate_hz=control.rate_hz,
                 )
             if m.confidence is not None:
                 build_check(

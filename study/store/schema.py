@@ -9,11 +9,12 @@ one row per control tick, keyed by ``(trial_id, tick)``; the 7-vectors are sprea
 
 from __future__ import annotations
 
-SCHEMA_VERSION = 2
-"""Version 2 added the ``protocols`` table; a version-1 file is read as it is (no stored
-protocol text) and upgraded when opened read-write (``MIGRATIONS``)."""
+SCHEMA_VERSION = 3
+"""Version 2 added the ``protocols`` table, version 3 the samples' ``motion_agreement`` and
+``rationality`` columns; an older file is read as it is (no stored protocol text, those sample
+columns empty) and upgraded when opened read-write (``MIGRATIONS``)."""
 
-READABLE_VERSIONS = (1, 2)
+READABLE_VERSIONS = (1, 2, 3)
 
 PROTOCOLS_DDL = """
 CREATE TABLE protocols (
@@ -24,7 +25,13 @@ CREATE TABLE protocols (
     recorded_at TEXT NOT NULL
 )"""
 
-MIGRATIONS: dict[int, tuple[str, ...]] = {1: (PROTOCOLS_DDL,)}
+MIGRATIONS: dict[int, tuple[str, ...]] = {
+    1: (PROTOCOLS_DDL,),
+    2: (
+        "ALTER TABLE samples ADD COLUMN motion_agreement REAL",
+        "ALTER TABLE samples ADD COLUMN rationality REAL",
+    ),
+}
 """``{from_version: statements}`` that bring a file to ``from_version + 1``."""
 
 DOF = 7
@@ -48,9 +55,12 @@ SAMPLE_COLUMNS: tuple[str, ...] = (
     "ee_z",
     "gripper",
     "events",
+    "motion_agreement",
+    "rationality",
 )
 """Column order of a sample row (``predicted`` is the goal index; ``probabilities`` and
-``events`` are JSON lists)."""
+``events`` are JSON lists; ``motion_agreement`` and ``rationality`` (version 3) come last, where
+``ALTER TABLE`` puts them in an upgraded file)."""
 
 _SAMPLE_DDL = ",\n    ".join(
     ["trial_id INTEGER NOT NULL REFERENCES trials(trial_id)", "tick INTEGER NOT NULL"]

@@ -430,8 +430,12 @@ class Store:
 
     def samples(self, trial_id: int | None = None) -> pd.DataFrame:
         """Sample rows (``SAMPLE_COLUMNS``) ordered by trial and tick; ``probabilities`` and
-        ``events`` stay JSON text (expand them with ``json.loads``)."""
-        sql = f"SELECT {', '.join(SAMPLE_COLUMNS)} FROM samples"
+        ``events`` stay JSON text (expand them with ``json.loads``). Columns an older file
+        (opened read-only) lacks come back empty."""
+        with self._lock:
+            have = {r[1] for r in self.conn.execute("PRAGMA table_info(samples)")}
+        cols = (c if c in have else f"NULL AS {c}" for c in SAMPLE_COLUMNS)
+        sql = f"SELECT {', '.join(cols)} FROM samples"
         params: tuple[Any, ...] = ()
         if trial_id is not None:
             sql += " WHERE trial_id = ?"

@@ -7,6 +7,12 @@ with ``b`` the rationality (inverse temperature of the MaxEnt user model
 running sum and ``C(xi*_{S->G})`` is computed once at ``reset`` (or when the goals change), so a
 tick costs ``O(n_goals * dim)`` however long the trajectory is. ``C(xi_{S->U})`` is shared by
 all goals and cancels in the normalisation; it is kept for ``log_likelihood`` and clarity.
+
+``rationality="online"`` (path-length cost only) adapts ``b`` to the user: each tick
+``b = max_G b_G``, the rationality toward the goal that best explains the user's recent motion
+(:class:`~app.blending.prediction.rationality.RationalityEstimator`). A deliberate user
+sharpens the prediction; a wandering one flattens it (and so lowers a probability-based
+confidence).
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ from .._checks import as_points, positive, probability_vector
 from ..errors import InvalidInputError
 from .base import GoalPoints, GoalPrediction, check_x, softmax
 from .costs import Cost, PathLengthCost
+from .rationality import GRID, RationalityEstimator
 
 __all__ = ["MemoryPredictor"]
 
@@ -30,7 +37,8 @@ class MemoryPredictor(GoalPoints):
     Args:
         points: ``(n, d)`` goals in the predictor's space.
         cost: :class:`PathLengthCost` (default) or :class:`SquaredVelocityCost` or any ``Cost``.
-        rationality: ``b > 0``; larger means the user is modelled as closer to optimal.
+        rationality: ``b > 0``; larger means the user is modelled as closer to optimal;
+            ``"online"`` estimates it from the user's motion (path-length cost only).
         prior: ``(n,)`` non-negative weights ``P(G)`` (normalised); uniform by default.
         space: label of the predictor's space, informative.
     """
@@ -40,7 +48,7 @@ class MemoryPredictor(GoalPoints):
         points: Any,
         *,
         cost: Cost | None = None,
-        rationality: float = 1.0,
+        rationality: float | str = 1.0,
         prior: Any | None = None,
         space: str | None = None,
     ) -> None:
@@ -49,6 +57,15 @@ class MemoryPredictor(GoalPoints):
             raise InvalidInputError(
                 f"cost: needs step(a, b) and to_go(x, points) methods, got {cost!r}"
             )
+        self.estimator: RationalityEstimator | None = None
+        if rationality == "online":
+            if not isinstance(self.cost, PathLengthCost):
+                raise InvalidInputError(
+                    "rationality: 'online' estimates b for the path-length cost; use cost "
+                    "'length' or give a number"
+                )
+            self.estimator = RationalityEstimator()
+            rationality = float(np.exp(np.log(GRID).mean()))  # the estimator's prior
         self.rationality = positive(rationality, name="rationality")
         self.space = space
         self.points: np.ndarray | None = None
@@ -86,6 +103,8 @@ class MemoryPredictor(GoalPoints):
         self._prev = s
         self._c_su = 0.0
         self._c_sg = self.cost.to_go(s, self.points)
+        if self.estimator is not None:
+            self.estimator.reset(s)
 
     def _require_reset(self) -> None:
         if self._start is None:
@@ -113,4 +132,6 @@ class MemoryPredictor(GoalPoints):
     def _update(self, x: np.ndarray) -> GoalPrediction:
         self._c_su += self.cost.step(self._prev, x)
         self._prev = x.copy()
+        if self.estimator is not None:
+            self.rationality = float(self.estimator.update(x, self.points).max())
         return softmax(self._logits(x, self._c_su))

@@ -1,0 +1,102 @@
+"""Online estimate of the user's rationality ``b`` toward each goal, from their recent motion.
+
+Eq. 9 models the user as noisily optimal, ``P(xi | G) ∝ exp(-b C(xi))``, with ``b`` fixed. Later
+work from the same lab (Fisac et al. 2018, "Probabilistically safe robot planning with
+confidence-based human predictions"; Bajcsy et al. 2018) estimates this rationality online and
+reads a low value as "the model does not explain the person now". Here, for the path-length
+cost ``C = ||dx||``: a small step ``dx`` from ``x`` toward goal ``G`` changes the cost-to-go by
+``-|dx| cos(theta)`` (``theta`` between ``dx`` and ``G - x``), so under the MaxEnt model the
+step's direction is von Mises-Fisher distributed with concentration ``kappa = b |dx|``:
+
+    p(dx_hat | G, b) = kappa / (4 pi sinh kappa) exp(kappa cos theta).
+
+The user's input is read in chunks of at least ``min_step_m`` (so jitter and the tick rate do
+not matter). Over a log-spaced grid ``b_k`` (uniform prior on the grid) each goal keeps a
+log-likelihood with exponential forgetting over the last ``memory_m`` metres of motion,
+
+    L_{G,k} <- exp(-|dx| / memory_m) L_{G,k} + log p(dx_hat | G, b_k),
+
+(the sphere's normaliser: exact for 3-D inputs, an approximation in other dimensions),
+and the estimate is the posterior geometric mean ``b_G = exp(sum_k w_{G,k} log b_k)``,
+``w_{G,k} ∝ exp(L_{G,k})``. Motion straight at ``G`` drives ``b_G`` to the top of the grid,
+motion across or away from it to the bottom; a user who stands still keeps their estimate.
+``direction`` is the unit vector of the latest chunk (``None`` before the user has moved): the
+user's actual motion, for the agreement signal of Fig. 15.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .._checks import positive
+from ..errors import InvalidInputError
+
+__all__ = ["RationalityEstimator"]
+
+GRID = np.geomspace(0.5, 256.0, 10)
+"""The rationalities considered, 1/m (``kappa`` from 0.005 to 2.6 per centimetre moved)."""
+
+
+def _log_norm(kappa: np.ndarray) -> np.ndarray:
+    """``log(kappa / sinh kappa)`` (the vMF normaliser on the sphere, up to ``-log 4 pi``)."""
+    small = kappa < 1e-6
+    k = np.where(small, 1.0, kappa)
+    out = np.log(k) - (k + np.log1p(-np.exp(-2.0 * k)) - math.log(2.0))
+    return np.where(small, 0.0, out)
+
+
+class RationalityEstimator:
+    """``update(x, points) -> b`` per goal (1/m); see the module docstring.
+
+    Args:
+        memory_m: metres of recent motion the estimate mostly rests on (forgetting scale).
+        min_step_m: the input must move this far before a step counts as evidence.
+    """
+
+    def __init__(self, *, memory_m: float = 0.1, min_step_m: float = 0.01) -> None:
+        self.memory_m = positive(memory_m, name="memory_m")
+        self.min_step_m = positive(min_step_m, name="min_step_m")
+        self._log_b = np.log(GRID)
+        self._anchor: np.ndarray | None = None
+        self._loglik = np.zeros((0, GRID.size))
+        self.estimate = np.zeros(0)
+        self.direction: np.ndarray | None = None
+
+    def reset(self, start: Any) -> None:
+        """Forget the past; the next evidence is motion away from ``start``."""
+        self._anchor = np.array(start, dtype=np.float64)
+        self._loglik = np.zeros((0, GRID.size))
+        self.estimate = np.zeros(0)
+        self.direction = None
+
+    def update(self, x: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """Take the user's input ``x`` this tick and the goal ``points`` ``(n, d)``; return the
+        estimate per goal (the prior's, ``sqrt(0.5 * 256) = 11.3``, before any motion)."""
+        if self._anchor is None:
+            raise InvalidInputError("reset(start) must be called before update(x)")
+        n = points.shape[0]
+        if self._loglik.shape[0] != n:  # the goals changed in number: start over
+            self._loglik = np.zeros((n, GRID.size))
+            self.estimate = self._estimate()
+        step = x - self._anchor
+        s = math.sqrt(float(step.dot(step)))
+        if s >= self.min_step_m:
+            to_goal = points - self._anchor
+            dist = np.linalg.norm(to_goal, axis=1)
+            cos = np.where(dist > 0, to_goal.dot(step) / (np.maximum(dist, 1e-12) * s), 1.0)
+            kappa = GRID * s
+            self._loglik *= math.exp(-s / self.memory_m)
+            self._loglik += _log_norm(kappa)[None, :] + cos[:, None] * kappa[None, :]
+            self._anchor = x.copy()
+            self.direction = step / s
+            self.estimate = self._estimate()
+        return self.estimate
+
+    def _estimate(self) -> np.ndarray:
+        z = self._loglik - self._loglik.max(axis=1, keepdims=True)
+        w = np.exp(z)
+        w /= w.sum(axis=1, keepdims=True)
+        return np.exp(w @ self._log_b)
