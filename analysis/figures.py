@@ -26,6 +26,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from analysis.prediction_eval import Replay, first_lasting_correct
+from app.blending import arbitration_from_config
+from app.blending.adaptive import StatefulArbitration
 
 TASK_ORDER = ["easy-right", "easy-wrong", "hard-right", "hard-wrong"]
 TASK_LABELS = {
@@ -79,18 +81,34 @@ def save(fig: Figure, out_dir: Path, name: str, title: str) -> SavedFigure:
     return SavedFigure(name=name, title=title, png=png, svg=svg)
 
 
-def arbitration_figure(arbitrations: Mapping[str, Mapping[str, Any]]) -> Figure:
-    """Fig. 7: ``alpha`` against confidence ``c`` for each mode's arbitration table."""
-    from app.blending import arbitration_from_config
+def arbitration_figure(
+    arbitrations: Mapping[str, Mapping[str, Any]], *, rate_hz: float = 100.0
+) -> Figure:
+    """Fig. 7: ``alpha`` against confidence ``c`` for each mode's arbitration table.
 
+    A stateful kind (``app.blending.adaptive``: yielding, user_confidence) has a family of
+    curves, ``min(a(c), max(floor, g a(c)))`` over its gain ``g``: drawn at ``g = 1`` (the user
+    agrees, or is trusted: solid) and at ``g = 0`` (fully yielded: dashed). ``rate_hz``, the
+    protocol's control rate, only builds such kinds; the curves do not depend on it."""
     fig = _new(4.5, 3.2)
     ax = fig.add_subplot()
     c = np.linspace(0.0, 1.0, 801)
     colors = mode_colors(list(arbitrations))
     for name, table in arbitrations.items():
-        arb = arbitration_from_config(dict(table), where=f"modes.{name}.arbitration")
+        arb = arbitration_from_config(
+            dict(table), where=f"modes.{name}.arbitration", rate_hz=rate_hz
+        )
+        if isinstance(arb, StatefulArbitration):
+            arb.reset()
         alpha = np.array([arb(float(x)) for x in c])
-        ax.plot(c, alpha, lw=2, label=name, color=colors[name])
+        # a stateful kind's full curve often equals another mode's: thinner, drawn on top
+        lw = 1.2 if isinstance(arb, StatefulArbitration) else 2.0
+        ax.plot(c, alpha, lw=lw, label=name, color=colors[name])
+        if isinstance(arb, StatefulArbitration):
+            arb.gain = 0.0
+            low = np.array([arb(float(x)) for x in c])
+            ax.plot(c, low, lw=1.5, ls="--", label=f"{name}, yielded", color=colors[name])
+            arb.reset()
     ax.set(
         xlabel="confidence c",
         ylabel="arbitration α",

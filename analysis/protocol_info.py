@@ -34,6 +34,7 @@ class ProtocolInfo:
     notes: tuple[str, ...] = field(default_factory=tuple)
     factors: dict[str, tuple[str, ...]] = field(default_factory=dict)  # [factors], in order
     prediction: dict[str, dict[str, Any]] = field(default_factory=dict)  # [prediction.<name>]
+    rate_hz: float = 100.0  # [control] rate_hz (builds arbitration kinds with time constants)
 
 
 def _temperature(prediction: Mapping[str, Any] | None) -> float:
@@ -125,6 +126,7 @@ def _info(proto: Any, *, path: str) -> ProtocolInfo:
         amnesic_temperature=_temperature(proto.prediction),
         factors={k: tuple(map(str, v)) for k, v in dict(proto.factors).items()},
         prediction=_prediction_tables(proto.prediction),
+        rate_hz=float(proto.control.rate_hz),
     )
 
 
@@ -160,6 +162,7 @@ def _file_info(path: str | Path) -> ProtocolInfo:
         },
         amnesic_temperature=_temperature(doc.get("prediction")),
         prediction=_prediction_tables(doc.get("prediction")),
+        rate_hz=float(doc.get("control", {}).get("rate_hz", 100.0)),
         factors={
             k: tuple(map(str, v)) for k, v in doc.get("factors", {}).items() if isinstance(v, list)
         },

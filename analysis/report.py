@@ -609,7 +609,7 @@ def _figures(
     made: dict[str, figs.SavedFigure] = {}
     if proto is not None and proto.arbitrations:
         made["fig7"] = figs.save(
-            figs.arbitration_figure(proto.arbitrations),
+            figs.arbitration_figure(proto.arbitrations, rate_hz=proto.rate_hz),
             out,
             "fig7_arbitration",
             "Fig. 7: arbitration α(c) of each mode",

@@ -123,6 +123,21 @@ def main() -> int:
             cue = live.scene_view.intent
             result["ring_shown"] = cue is not None and cue.visible_goal is not None
             result["ring_updates"] = 0 if cue is None else cue.updates
+            if cue is not None:  # paired windows in the same run: ring off, ring on
+                pairs = []
+                for _ in range(args.repeats):
+                    cue.suppressed = True
+                    off = _window(page, live, args.seconds)[0]
+                    cue.suppressed = False
+                    pairs.append((off, _window(page, live, args.seconds)[0]))
+                result["ring_ab"] = {
+                    "fps_without": [round(a, 1) for a, _ in pairs],
+                    "fps_with": [round(b, 1) for _, b in pairs],
+                    "median_difference": round(float(np.median([b - a for a, b in pairs])), 1),
+                }
+                print(
+                    f"ring A/B (off, on) frames/s: {[(round(a, 1), round(b, 1)) for a, b in pairs]}"
+                )
             stop.set()
             feeder.join()
             page.wait_for_timeout(1500)  # the arm settles

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.figures import mode_colors
+from analysis.figures import arbitration_figure, mode_colors
 from analysis.load import from_frames
 from analysis.outcomes import success_comparisons, success_summary, wilson_interval
 from analysis.report import write_report
@@ -122,3 +122,20 @@ def test_success_tables_follow_the_protocols_mode_order() -> None:
     c = success_comparisons(trials, modes=("a", "b")).iloc[0]
     assert c["comparison"] == "a - b" and (c["first_only"], c["second_only"]) == (0, 1)
     assert c["difference"] == -0.5
+
+
+def test_fig7_draws_a_stateful_kind_at_full_and_at_no_gain() -> None:
+    fig = arbitration_figure(
+        {
+            "aggressive": {"kind": "aggressive", "threshold": 0.4, "alpha_high": 0.9},
+            "yielding": {"kind": "yielding", "threshold": 0.4, "alpha_high": 0.9, "floor": 0.1},
+        },
+        rate_hz=100.0,
+    )
+    lines = {ln.get_label(): ln for ln in fig.axes[0].get_lines()}
+    assert set(lines) == {"aggressive", "yielding", "yielding, yielded"}
+    c, full = lines["yielding"].get_data()
+    _, low = lines["yielding, yielded"].get_data()
+    assert np.allclose(full, lines["aggressive"].get_data()[1])
+    assert np.allclose(low[c >= 0.4], 0.1) and np.allclose(low[c < 0.4], 0.0)
+    assert lines["yielding, yielded"].get_linestyle() == "--"

@@ -109,6 +109,12 @@ def test_ring_follows_the_prediction_and_the_object_and_sends_nothing_idle() -> 
     assert cue.visible_goal is None and h.visible is False
     cue.update(_xpos(), 7, 0.9)  # not a goal index: hidden
     assert cue.visible_goal is None
+    cue.suppressed = True  # the page benchmark's "off" windows
+    cue.update(_xpos(), 0, 0.9)
+    assert cue.visible_goal is None
+    cue.suppressed = False
+    cue.update(_xpos(), 0, 0.9)
+    assert cue.visible_goal == 0 and h.visible is True
 
 
 def _with_mode(text: str, table: str) -> str:

@@ -104,6 +104,9 @@ class IntentCue:
         self._at: np.ndarray | None = None
         self.updates = 0
         """How many times the ring changed (for tests and the page benchmark)."""
+        self.suppressed = False
+        """True keeps the ring hidden whatever the prediction: benchmarks/page_fps.py compares
+        frame rates with and without it within one run."""
 
     @property
     def visible_goal(self) -> int | None:
@@ -113,7 +116,7 @@ class IntentCue:
     def update(self, xpos: np.ndarray, predicted: int, confidence: float) -> None:
         """Place the ring for goal ``predicted`` at confidence ``confidence``; body positions
         ``xpos (nbody, 3)``. Sends nothing when nothing visible changed."""
-        opacity = ring_opacity(confidence)
+        opacity = 0.0 if self.suppressed else ring_opacity(confidence)
         if opacity <= 0.0 or not 0 <= predicted < len(self.goals.body_ids):
             if self._shown is not None:
                 self._ring.visible = False
