@@ -20,6 +20,9 @@ import viser
 import viser.transforms as vtf
 import zstandard
 
+from tests.protocol_copies import PAPER_PROTOCOL
+from tests.protocol_copies import short_protocol as copy
+
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = [
     "--no-sandbox",
@@ -159,9 +162,6 @@ def short_protocol(
 ) -> Any:
     """A copy of the paper's protocol (or of ``source``) with short trials and
     ``training_runs`` practice runs, so a test walks through every kind of screen quickly."""
-    from tests.protocol_copies import PAPER_PROTOCOL
-    from tests.protocol_copies import short_protocol as copy
-
     return copy(
         directory,
         time_limit_s=time_limit_s,
