@@ -23,7 +23,8 @@ from app.blending import (
     register,
     unregister,
 )
-from app.blending.spec import UNIT, kinds, markdown
+from app.blending.params import UNIT
+from app.blending.spec import kinds, markdown
 from app.teleop.scripted import ScriptedInput
 from app.trial import run_trial
 from study.protocol import parse_protocol

@@ -28,10 +28,13 @@ Example: a 2-D arm between two goals, "aggressive" arbitration, built from proto
 Every component kind is declared once in :mod:`app.blending.spec` (the built-in ones in
 :mod:`app.blending.kinds`); :func:`register` adds a new one, which the builders, the protocol
 loader and the docs then know. Modules: goals, goal_moves, prediction/ (amnesic, memory eq. 9,
-laplace eq. 8, oracle, costs), confidence, arbitration, policy, blend, spec, kinds, config,
-errors, reference (exact soft value iteration on a 2-D grid, to test eq. 9 against).
+laplace eq. 8, oracle, costs, rationality: the user's rationality estimated online),
+confidence, arbitration, adaptive (stateful arbitration: yielding, user_confidence), policy,
+blend, spec, kinds, config, errors, reference (exact soft value iteration on a 2-D grid, to test
+eq. 9 against).
 """
 
+from .adaptive import StatefulArbitration, TickSignals, UserConfidence, Yielding
 from .arbitration import (
     Aggressive,
     Arbitration,
@@ -71,6 +74,7 @@ from .prediction import (
     Predictor,
     SquaredVelocityCost,
 )
+from .prediction.rationality import RationalityEstimator
 from .spec import BuildContext, Kind, Param, register, unregister
 
 __all__ = [
@@ -105,10 +109,15 @@ __all__ = [
     "PolicyBlender",
     "Predictor",
     "ProbabilityConfidence",
+    "RationalityEstimator",
     "SquaredVelocityCost",
+    "StatefulArbitration",
     "StraightLinePolicy",
+    "TickSignals",
     "Timid",
+    "UserConfidence",
     "WorkspaceLinePolicy",
+    "Yielding",
     "arbitration_from_config",
     "blend",
     "check_arbitration",

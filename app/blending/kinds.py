@@ -13,6 +13,7 @@ from .arbitration import Aggressive, Linear, NoAssistance, PiecewiseLinear, Timi
 from .confidence import DistanceHinge, EntropyConfidence, MarginConfidence, ProbabilityConfidence
 from .errors import BlendingError, ConfigError
 from .goals import GoalSet
+from .params import POSITIVE, UNIT, Choice, IndexOrName, Integer, Number, Pairs, Weights
 from .policy import StraightLinePolicy, WorkspaceLinePolicy
 from .prediction import (
     AmnesicPredictor,
@@ -22,20 +23,7 @@ from .prediction import (
     PathLengthCost,
     SquaredVelocityCost,
 )
-from .spec import (
-    POSITIVE,
-    UNIT,
-    BuildContext,
-    Choice,
-    IndexOrName,
-    Integer,
-    Kind,
-    Number,
-    Pairs,
-    Param,
-    Weights,
-    register,
-)
+from .spec import BuildContext, Kind, Param, register
 
 __all__ = ["BUILTIN"]
 

@@ -40,14 +40,6 @@ GRID = np.geomspace(0.5, 256.0, 10)
 """The rationalities considered, 1/m (``kappa`` from 0.005 to 2.6 per centimetre moved)."""
 
 
-def _log_norm(kappa: np.ndarray) -> np.ndarray:
-    """``log(kappa / sinh kappa)`` (the vMF normaliser on the sphere, up to ``-log 4 pi``)."""
-    small = kappa < 1e-6
-    k = np.where(small, 1.0, kappa)
-    out = np.log(k) - (k + np.log1p(-np.exp(-2.0 * k)) - math.log(2.0))
-    return np.where(small, 0.0, out)
-
-
 class RationalityEstimator:
     """``update(x, points) -> b`` per goal (1/m); see the module docstring.
 
@@ -59,6 +51,7 @@ class RationalityEstimator:
     def __init__(self, *, memory_m: float = 0.1, min_step_m: float = 0.01) -> None:
         self.memory_m = positive(memory_m, name="memory_m")
         self.min_step_m = positive(min_step_m, name="min_step_m")
+        self._min_step2 = self.min_step_m**2
         self._log_b = np.log(GRID)
         self._anchor: np.ndarray | None = None
         self._loglik = np.zeros((0, GRID.size))
@@ -75,28 +68,32 @@ class RationalityEstimator:
     def update(self, x: np.ndarray, points: np.ndarray) -> np.ndarray:
         """Take the user's input ``x`` this tick and the goal ``points`` ``(n, d)``; return the
         estimate per goal (the prior's, ``sqrt(0.5 * 256) = 11.3``, before any motion)."""
-        if self._anchor is None:
+        anchor = self._anchor
+        if anchor is None:
             raise InvalidInputError("reset(start) must be called before update(x)")
-        n = points.shape[0]
-        if self._loglik.shape[0] != n:  # the goals changed in number: start over
-            self._loglik = np.zeros((n, GRID.size))
+        if self._loglik.shape[0] != points.shape[0]:  # the goals changed in number: start over
+            self._loglik = np.zeros((points.shape[0], GRID.size))
             self.estimate = self._estimate()
-        step = x - self._anchor
-        s = math.sqrt(float(step.dot(step)))
-        if s >= self.min_step_m:
-            to_goal = points - self._anchor
-            dist = np.linalg.norm(to_goal, axis=1)
-            cos = np.where(dist > 0, to_goal.dot(step) / (np.maximum(dist, 1e-12) * s), 1.0)
-            kappa = GRID * s
-            self._loglik *= math.exp(-s / self.memory_m)
-            self._loglik += _log_norm(kappa)[None, :] + cos[:, None] * kappa[None, :]
-            self._anchor = x.copy()
-            self.direction = step / s
-            self.estimate = self._estimate()
+        step = x - anchor
+        ss = float(step.dot(step))
+        if ss < self._min_step2:
+            return self.estimate
+        s = math.sqrt(ss)
+        to_goal = points - anchor
+        # cos(theta) per goal; a goal exactly at the anchor gives 0 (no information)
+        cos = to_goal @ step
+        cos /= np.maximum(np.sqrt(np.einsum("ij,ij->i", to_goal, to_goal)), 1e-12) * s
+        kappa = GRID * s
+        loglik = self._loglik
+        loglik *= math.exp(-s / self.memory_m)
+        loglik += np.log(kappa) - kappa - np.log1p(-np.exp(-2.0 * kappa))
+        loglik += np.multiply.outer(cos, kappa)
+        self._anchor = x.copy()
+        self.direction = step / s
+        self.estimate = self._estimate()
         return self.estimate
 
     def _estimate(self) -> np.ndarray:
-        z = self._loglik - self._loglik.max(axis=1, keepdims=True)
-        w = np.exp(z)
-        w /= w.sum(axis=1, keepdims=True)
-        return np.exp(w @ self._log_b)
+        w = self._loglik - self._loglik.max(axis=1, keepdims=True)
+        np.exp(w, out=w)
+        return np.exp((w @ self._log_b) / w.sum(axis=1))
