@@ -26,8 +26,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from analysis.prediction_eval import Replay, first_lasting_correct
-from app.blending import arbitration_from_config
-from app.blending.adaptive import StatefulArbitration
+from app.blending import StatefulArbitration, arbitration_from_config
 
 TASK_ORDER = ["easy-right", "easy-wrong", "hard-right", "hard-wrong"]
 TASK_LABELS = {
