@@ -26,7 +26,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from analysis.prediction_eval import Replay, first_lasting_correct
-from app.blending import arbitration_from_config
+from app.blending import StatefulArbitration, arbitration_from_config
 
 TASK_ORDER = ["easy-right", "easy-wrong", "hard-right", "hard-wrong"]
 TASK_LABELS = {
@@ -35,7 +35,9 @@ TASK_LABELS = {
     "hard-right": "Hard&Right",
     "hard-wrong": "Hard&Wrong",
 }
-MODE_COLORS = {"timid": "#4c72b0", "aggressive": "#dd8452"}
+MODE_COLORS = {"timid": "#4c72b0", "aggressive": "#dd8452", "yielding": "#55a868"}
+OTHER_MODE_COLORS = ("#8172b2", "#937860", "#da8bc3", "#8c8c8c", "#ccb974", "#64b5cd")
+"""Colours for modes not named in MODE_COLORS, handed out in order (see :func:`mode_colors`)."""
 RIGHT, WRONG = "#2ca02c", "#d62728"
 
 
@@ -51,6 +53,13 @@ class SavedFigure:
         text = self.svg.read_text(encoding="utf-8")
         text = re.sub(r"<\?xml[^>]*\?>\s*", "", text)
         return re.sub(r"<!DOCTYPE[^>]*>\s*", "", text)
+
+
+def mode_colors(modes: Sequence[str]) -> dict[str, str]:
+    """A distinct colour per mode: the fixed ones of MODE_COLORS, then OTHER_MODE_COLORS in
+    order (cycled past six unnamed modes), so any number of modes can be told apart."""
+    others = iter(OTHER_MODE_COLORS * (1 + len(modes) // len(OTHER_MODE_COLORS)))
+    return {m: MODE_COLORS[m] if m in MODE_COLORS else next(others) for m in modes}
 
 
 def _new(width: float, height: float) -> Figure:
@@ -71,16 +80,34 @@ def save(fig: Figure, out_dir: Path, name: str, title: str) -> SavedFigure:
     return SavedFigure(name=name, title=title, png=png, svg=svg)
 
 
-def arbitration_figure(arbitrations: Mapping[str, Mapping[str, Any]]) -> Figure:
-    """Fig. 7: ``alpha`` against confidence ``c`` for each mode's arbitration table."""
+def arbitration_figure(
+    arbitrations: Mapping[str, Mapping[str, Any]], *, rate_hz: float = 100.0
+) -> Figure:
+    """Fig. 7: ``alpha`` against confidence ``c`` for each mode's arbitration table.
 
+    A stateful kind (``app.blending.adaptive``: yielding, user_confidence) has a family of
+    curves, ``min(a(c), max(floor, g a(c)))`` over its gain ``g``: drawn at ``g = 1`` (the user
+    agrees, or is trusted: solid) and at ``g = 0`` (fully yielded: dashed). ``rate_hz``, the
+    protocol's control rate, only builds such kinds; the curves do not depend on it."""
     fig = _new(4.5, 3.2)
     ax = fig.add_subplot()
     c = np.linspace(0.0, 1.0, 801)
+    colors = mode_colors(list(arbitrations))
     for name, table in arbitrations.items():
-        arb = arbitration_from_config(dict(table), where=f"modes.{name}.arbitration")
+        arb = arbitration_from_config(
+            dict(table), where=f"modes.{name}.arbitration", rate_hz=rate_hz
+        )
+        if isinstance(arb, StatefulArbitration):
+            arb.reset()
         alpha = np.array([arb(float(x)) for x in c])
-        ax.plot(c, alpha, lw=2, label=name, color=MODE_COLORS.get(name))
+        # a stateful kind's full curve often equals another mode's: thinner, drawn on top
+        lw = 1.2 if isinstance(arb, StatefulArbitration) else 2.0
+        ax.plot(c, alpha, lw=lw, label=name, color=colors[name])
+        if isinstance(arb, StatefulArbitration):
+            arb.gain = 0.0
+            low = np.array([arb(float(x)) for x in c])
+            ax.plot(c, low, lw=1.5, ls="--", label=f"{name}, yielded", color=colors[name])
+            arb.reset()
     ax.set(
         xlabel="confidence c",
         ylabel="arbitration α",
@@ -134,7 +161,7 @@ def timing_preference_figure(
         dict.fromkeys(summary["task"])
     )
     present = [m for m in modes if m in set(summary["mode"])]
-    _bars(axes[0], summary, "mean", "se", tasks, present, "mode", "task", MODE_COLORS)
+    _bars(axes[0], summary, "mean", "se", tasks, present, "mode", "task", mode_colors(present))
     axes[0].set(ylabel="time to complete (s)", title="(a) Time per task and mode")
     top = axes[0].get_ylim()[1]
     axes[0].set_ylim(0, top * 1.18)  # head-room: the legend sits above the bars, not on them

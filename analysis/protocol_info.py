@@ -32,6 +32,7 @@ class ProtocolInfo:
     notes: tuple[str, ...] = field(default_factory=tuple)
     factors: dict[str, tuple[str, ...]] = field(default_factory=dict)  # [factors], in order
     prediction: dict[str, dict[str, Any]] = field(default_factory=dict)  # [prediction.<name>]
+    rate_hz: float = 100.0  # [control] rate_hz (builds arbitration kinds with time constants)
 
 
 def _temperature(prediction: Mapping[str, Any] | None) -> float:
@@ -122,6 +123,7 @@ def _info(proto: Any, *, path: str) -> ProtocolInfo:
         amnesic_temperature=_temperature(proto.prediction),
         factors={k: tuple(map(str, v)) for k, v in dict(proto.factors).items()},
         prediction=_prediction_tables(proto.prediction),
+        rate_hz=float(proto.control.rate_hz),
     )
 
 

@@ -29,6 +29,7 @@ from analysis.contact_summary import contact_section
 from analysis.decoy_share import decoy_section
 from analysis.errors import AnalysisError
 from analysis.load import StudyTables
+from analysis.outcomes import success_comparisons, success_section, success_summary
 from analysis.prediction_eval import (
     PREDICTORS,
     PredictorChoice,
@@ -608,7 +609,7 @@ def _figures(
     made: dict[str, figs.SavedFigure] = {}
     if proto is not None and proto.arbitrations:
         made["fig7"] = figs.save(
-            figs.arbitration_figure(proto.arbitrations),
+            figs.arbitration_figure(proto.arbitrations, rate_hz=proto.rate_hz),
             out,
             "fig7_arbitration",
             "Fig. 7: arbitration α(c) of each mode",
@@ -656,8 +657,14 @@ def _jsonable(v: Any) -> Any:
     return v
 
 
-def results_document(res: StudyResults, meta: Mapping[str, Any]) -> dict[str, Any]:
-    """Everything results.json holds: metadata, model fits, every statistic, notes."""
+def results_document(
+    res: StudyResults,
+    meta: Mapping[str, Any],
+    *,
+    success: tuple[pd.DataFrame, pd.DataFrame] | None = None,
+) -> dict[str, Any]:
+    """Everything results.json holds: metadata, model fits, every statistic, notes, and (if
+    given) the task success summary and paired comparisons of :mod:`analysis.outcomes`."""
     fits: dict[str, Any] = {}
     if res.timing is not None:
         a = res.timing.ancova
@@ -703,6 +710,9 @@ def results_document(res: StudyResults, meta: Mapping[str, Any]) -> dict[str, An
         doc["prediction_summary"] = res.prediction_summary.to_dict(orient="records")
     if res.timing is not None:
         doc["timing_summary"] = res.timing.summary.to_dict(orient="records")
+    if success is not None and not success[0].empty:
+        doc["success_summary"] = success[0].to_dict(orient="records")
+        doc["success_comparisons"] = success[1].to_dict(orient="records")
     return _jsonable(doc)
 
 
@@ -777,13 +787,34 @@ def write_report(
             "data: pass the protocol the study ran with (--protocol)",
         )
     sections = _sections(res, figures, tables.trials, choices)
-    extra = [s for s in (decoy_section(tables), contact_section(tables)) if s is not None]
+    modes = proto.factors.get("mode") if proto is not None else None
+    extra = [
+        s
+        for s in (
+            decoy_section(tables),
+            success_section(tables, modes=modes),
+            contact_section(tables),
+        )
+        if s is not None
+    ]
     sections[min(2, len(sections)) : min(2, len(sections))] = extra
     html_path, md_path, json_path = out / "report.html", out / "report.md", out / "results.json"
     html_path.write_text(render_html(sections, meta), encoding="utf-8")
     md_path.write_text(render_markdown(sections, meta), encoding="utf-8")
     json_path.write_text(
-        json.dumps(results_document(res, meta), indent=1, allow_nan=False), encoding="utf-8"
+        json.dumps(
+            results_document(
+                res,
+                meta,
+                success=(
+                    success_summary(tables.trials, modes=modes),
+                    success_comparisons(tables.trials, modes=modes),
+                ),
+            ),
+            indent=1,
+            allow_nan=False,
+        ),
+        encoding="utf-8",
     )
     paths = tuple(p for f in figures.values() for p in (f.png, f.svg))
     return ReportFiles(

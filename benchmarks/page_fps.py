@@ -12,6 +12,12 @@ It also counts the scene frames the server sent in each window. Run it on an idl
 the load average is printed with the figures. Example::
 
     .venv/bin/python benchmarks/page_fps.py --seconds 5 --repeats 3
+
+By default the measured run is the paper protocol's practice run. ``--protocol`` and ``--mode``
+measure the first run of another protocol in a given mode (the experimenter skips the runs
+before it), e.g. the intent display's ring::
+
+    .venv/bin/python benchmarks/page_fps.py --protocol protocols/intent.toml --mode aggressive_shown
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ from playwright.sync_api import sync_playwright
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from benchmarks.server import feed_gizmo
+from study.session import SessionStateError
 from tests.browser.harness import launch, start_server
 from tests.browser.test_participant_flow import AGREE, join
 
@@ -49,15 +56,43 @@ def _window(page, live, seconds: float) -> tuple[float, float]:
     return fps, (live.scene_view.frames_sent - sent) / (time.monotonic() - t)
 
 
+def _skip_to(srv, code: str, live, mode: str) -> None:
+    """Skip runs and items, as the experimenter would, until the next run is in ``mode``."""
+    while True:
+        try:
+            if live.session.trial_config().mode == mode:
+                return
+        except SessionStateError:  # a questions screen
+            pass
+        srv.act(code, "skip", reason="benchmark: measure a later run")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=5.0, help="length of each window")
     parser.add_argument("--repeats", type=int, default=3, help="windows per condition")
+    parser.add_argument("--protocol", default=None, help="protocol TOML (default: the paper's)")
+    parser.add_argument("--mode", default=None, help="measure the first run in this mode")
+    parser.add_argument(
+        "--center",
+        default="0.45,0,0.3",
+        help="x,y,z (m) the handle's target circles around (0.58,0.04,0.15: near the paper "
+        "scenes' box, where the robot is confident enough to show its intent)",
+    )
     args = parser.parse_args()
 
-    rs = start_server(tempfile.mkdtemp(prefix="bench-fps-"), time_limit_s=600.0, training_runs=1)
+    rs = start_server(
+        tempfile.mkdtemp(prefix="bench-fps-"),
+        time_limit_s=600.0,
+        training_runs=1,
+        source=args.protocol,
+    )
     srv = rs.server
-    result: dict = {"load_average_1min": float(os.getloadavg()[0])}
+    result: dict = {
+        "load_average_1min": float(os.getloadavg()[0]),
+        "protocol": args.protocol or "protocols/dragan2013.toml",
+        "mode": args.mode,
+    }
     try:
         code = srv.enrol("B01")
         srv.act(code, "start")
@@ -70,14 +105,39 @@ def main() -> int:
             page.get_by_text("Connected").first.wait_for()
             join(page, code)
             page.get_by_role("button", name=AGREE).click()
+            page.get_by_role("button", name="Start").wait_for()
+            if args.mode is not None:
+                _skip_to(srv, code, live, args.mode)
+            page.wait_for_timeout(1000)
             page.get_by_role("button", name="Start").click()
             page.get_by_role("button", name="Close the gripper (G)").wait_for()
             page.wait_for_timeout(3000)  # the scene's first draw
             stop = threading.Event()
-            feeder = threading.Thread(target=feed_gizmo, args=(live, stop), daemon=True)
+            center = tuple(float(v) for v in args.center.split(","))
+            feeder = threading.Thread(
+                target=feed_gizmo, args=(live, stop), kwargs={"center": center}, daemon=True
+            )
             feeder.start()
             page.wait_for_timeout(1000)
             moving = [_window(page, live, args.seconds) for _ in range(args.repeats)]
+            cue = live.scene_view.intent
+            result["ring_shown"] = cue is not None and cue.visible_goal is not None
+            result["ring_updates"] = 0 if cue is None else cue.updates
+            if cue is not None:  # paired windows in the same run: ring off, ring on
+                pairs = []
+                for _ in range(args.repeats):
+                    cue.suppressed = True
+                    off = _window(page, live, args.seconds)[0]
+                    cue.suppressed = False
+                    pairs.append((off, _window(page, live, args.seconds)[0]))
+                result["ring_ab"] = {
+                    "fps_without": [round(a, 1) for a, _ in pairs],
+                    "fps_with": [round(b, 1) for _, b in pairs],
+                    "median_difference": round(float(np.median([b - a for a, b in pairs])), 1),
+                }
+                print(
+                    f"ring A/B (off, on) frames/s: {[(round(a, 1), round(b, 1)) for a, b in pairs]}"
+                )
             stop.set()
             feeder.join()
             page.wait_for_timeout(1500)  # the arm settles

@@ -64,13 +64,17 @@ def update_rate(frames: list[tuple[float, bytes]], t0: float, t1: float) -> tupl
     return float(np.median(counts)), len(stamps)
 
 
-def feed_gizmo(live, stop: threading.Event, *, rate_hz: float = 30.0) -> None:
-    """Gizmo poses at ``rate_hz`` with random phase, moving slowly inside the reach."""
+def feed_gizmo(
+    live, stop: threading.Event, *, rate_hz: float = 30.0, center=(0.45, 0.0, 0.3)
+) -> None:
+    """Gizmo poses at ``rate_hz`` with random phase, moving slowly inside the reach on a 5 cm
+    loop around ``center``."""
     rng = random.Random(1)
     k = 0
+    cx, cy, cz = center
     while not stop.is_set():
         k += 1
-        target = np.array([0.45 + 0.05 * np.sin(k / 30), 0.05 * np.cos(k / 40), 0.3])
+        target = np.array([cx + 0.05 * np.sin(k / 30), cy + 0.05 * np.cos(k / 40), cz])
         live._on_target(target)
         time.sleep(rng.uniform(0.5, 1.5) / rate_hz)
 

@@ -7,7 +7,12 @@ from pathlib import Path
 
 PROTOCOLS = Path(__file__).resolve().parents[1] / "protocols"
 PAPER_PROTOCOL = PROTOCOLS / "dragan2013.toml"
-STUDY_PROTOCOLS = (PAPER_PROTOCOL, PROTOCOLS / "memory3.toml")
+STUDY_PROTOCOLS = (
+    PAPER_PROTOCOL,
+    PROTOCOLS / "memory3.toml",
+    PROTOCOLS / "adaptive.toml",
+    PROTOCOLS / "intent.toml",
+)
 """Every shipped study protocol (protocols/population.toml describes simulated people)."""
 
 

@@ -29,7 +29,7 @@ from study.protocol.errors import (
     UndefinedReferenceError,
 )
 from study.protocol.fields import Table, join_key
-from study.protocol.model import Control, Mode, StudyInfo, Task, Training
+from study.protocol.model import INTENT_DISPLAYS, Control, Mode, StudyInfo, Task, Training
 from study.protocol.participant import check_blinding, read_questionnaire, read_texts
 from study.protocol.protocol import TRAINING_MODE, Protocol
 
@@ -405,12 +405,15 @@ class _Loader:
                     + _misspelt(t, level, levels),
                 )
             sub = t.table(level)
-            sub.only("arbitration", "confidence")
+            sub.only("arbitration", "confidence", "intent")
             arbitration = component(sub.table("arbitration"), "arbitration")
             confidence = (
                 component(sub.table("confidence"), "confidence") if "confidence" in sub else None
             )
-            sub.close(allowed="arbitration, confidence")
+            intent = sub.choice("intent", INTENT_DISPLAYS, "none")
+            if intent != "none" and arbitration["kind"] == "none":
+                raise sub.value_error("intent", "an unassisted mode has no intent to show")
+            sub.close(allowed="arbitration, confidence, intent")
             modes.append(
                 Mode(
                     name=level,
@@ -418,6 +421,7 @@ class _Loader:
                     if arbitration["kind"] == "none"
                     else MappingProxyType(arbitration),
                     confidence=None if confidence is None else MappingProxyType(confidence),
+                    intent=intent,
                 )
             )
         t.close(allowed=f"the mode levels {', '.join(levels)}")

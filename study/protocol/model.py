@@ -40,13 +40,23 @@ class Task:
     time_limit_s: float
 
 
+INTENT_DISPLAYS = ("none", "goal")
+"""What the participant page shows of the robot's intent: ``none``, or ``goal``: a neutral ring
+on the table around the object the robot predicts, its opacity following the robot's confidence
+(``study.server.intent_cue``)."""
+
+
 @dataclass(frozen=True)
 class Mode:
-    """One level of the within-task factor (the arbitration); ``arbitration`` None = unassisted."""
+    """One level of the within-task factor (the arbitration); ``arbitration`` None = unassisted.
+
+    ``intent``: one of :data:`INTENT_DISPLAYS`; two modes that differ only in it make intent
+    display a level of the mode factor, balanced by the same Williams square."""
 
     name: str
     arbitration: Mapping[str, Any] | None
     confidence: Mapping[str, Any] | None = None  # overrides the protocol's [confidence]
+    intent: str = "none"
 
 
 @dataclass(frozen=True)

@@ -156,7 +156,9 @@ class Protocol:
             lift_height_m=self.control.lift_height_m,
             task=t.name,
             mode=m.name,
-            extra=self._extra(difficulty=t.difficulty, correctness=t.correctness, phase="task"),
+            extra=self._extra(
+                difficulty=t.difficulty, correctness=t.correctness, phase="task", intent=m.intent
+            ),
         )
 
     def config_for(self, task: str, mode: str, *, time_limit_s: float | None = None) -> TrialConfig:
@@ -190,7 +192,7 @@ class Protocol:
             lift_height_m=self.control.lift_height_m,
             task="training",
             mode=TRAINING_MODE,
-            extra=self._extra(difficulty="", correctness="", phase="training"),
+            extra=self._extra(difficulty="", correctness="", phase="training", intent="none"),
         )
 
     def _extra(self, **fields: str) -> dict[str, str]:

@@ -39,6 +39,7 @@ from app.teleop.keyboard import KEYMAP
 from app.trial.events import EventKind, TrialEvent
 from study.server.experimenter import SessionDetail, SessionSummary
 from study.server.inputs import InputFrozen, ParticipantInput
+from study.server.intent_cue import IntentGoals, ring_opacity
 from study.server.loop import PacedLoop
 from study.server.participant import LikertItem, ParticipantPage
 from study.server.scene import SceneView, frame_scene
@@ -93,11 +94,14 @@ class LiveSession:
         self._control: PacedLoop | None = None
         self._render: PacedLoop | None = None
         self._view: SceneView | None = None
-        self._view_key: tuple[int, str] | None = None
+        self._view_key: tuple[int, str, bool] | None = None
         self._view_scene: Any = None
         # (run key, seq, xpos, xmat) after the last tick that moved something; the render loop
         # sends it only while the view shows that run (``_frame_key``), never an old run's pose
-        self._snapshot: tuple[object, int, np.ndarray, np.ndarray, np.ndarray] | None = None
+        # ... and the robot's intent (predicted goal, confidence), None before the first tick
+        self._snapshot: (
+            tuple[object, int, np.ndarray, np.ndarray, np.ndarray, tuple[int, float] | None] | None
+        ) = None
         self._frame_key: object = None
         self._rendered_seq = -1
         self.fault: str | None = None
@@ -357,19 +361,22 @@ class LiveSession:
         if self.page is not None:
             self._show_trial_scene(self.page)
 
-    def _snap(self, run: Any) -> None:
-        """Keep the run's body poses for the render loop when something moved since the last."""
+    def _snap(self, run: Any, record: Any = None) -> None:
+        """Keep the run's body poses and the robot's intent (``record``: the tick's output)
+        for the render loop when something moved, or the shown intent changed, since the last."""
         data = run.trial.sim.data
         last = self._snapshot
+        intent = None if record is None else (int(record.predicted), float(record.confidence))
         if (
             last is not None
             and last[0] is run
             and float(np.max(np.abs(data.xpos - last[2]))) < MOVED_M
             and float(np.max(np.abs(data.xmat - last[3]))) < 10 * MOVED_M
+            and _same_intent(last[5], intent)
         ):
             return
         seq = 0 if last is None else last[1] + 1
-        self._snapshot = (run, seq, data.xpos.copy(), data.xmat.copy(), run.trial.sim.ee)
+        self._snapshot = (run, seq, data.xpos.copy(), data.xmat.copy(), run.trial.sim.ee, intent)
 
     def _tick(self, run: Any) -> bool:
         if self.fault is not None:
@@ -387,7 +394,7 @@ class LiveSession:
         plots' data."""
         if TrialEvent(EventKind.GRASP_MISSED) in record.events:
             self._missed_grasp.set()  # the render loop tells the participant
-        self._snap(run)
+        self._snap(run, record)
         with self._plot_lock:
             self._plot.append(
                 (
@@ -404,7 +411,7 @@ class LiveSession:
         if run is None or source is None:
             return
         trial = run.trial
-        self._ensure_view(page, trial.scene, trial.sim.model)
+        self._ensure_view(page, trial.scene, trial.sim.model, intent=_shows_intent(run.config))
         start = source.last_target if source.last_target is not None else trial.user_target
         page.add_gizmo(np.asarray(start, float), on_target=self._on_target)
         if self._input_paused or run.paused:
@@ -426,16 +433,24 @@ class LiveSession:
             if self._run is not None and not self._run.over:
                 return  # Start was pressed meanwhile: the run's own frames show
             self._frame_key = ("preview", str(scene.name))  # the render loop keeps off it
-            view = self._ensure_view(page, scene, sim.model)
+            view = self._ensure_view(page, scene, sim.model, intent=_shows_intent(config))
             view.render(sim.data.xpos, sim.data.xmat, gripper=sim.ee)
 
-    def _ensure_view(self, page: ParticipantPage, scene: Any, model: Any) -> SceneView:
-        """The tab's view of ``scene``: rebuilt (and the camera framed on the task) when the
-        tab or the scene changed (``self._lock`` held)."""
-        key = (page.client.client_id, str(scene.name))
+    def _ensure_view(
+        self, page: ParticipantPage, scene: Any, model: Any, *, intent: bool
+    ) -> SceneView:
+        """The tab's view of ``scene``, with the intent ring if ``intent``: rebuilt (and the
+        camera framed on the task) when the tab, the scene or the display changed
+        (``self._lock`` held)."""
+        key = (page.client.client_id, str(scene.name), intent)
         if self._view is None or self._view_key != key:
             page.client.scene.reset()
-            self._view = SceneView(page.client, model, table_top=scene.spec.table.top_z)
+            self._view = SceneView(
+                page.client,
+                model,
+                table_top=scene.spec.table.top_z,
+                goals=IntentGoals.of_scene(scene) if intent else None,
+            )
             self._view_key = key
             self._view_scene = scene
             self._rendered_seq = -1
@@ -453,7 +468,7 @@ class LiveSession:
                 if snap[0] is self._frame_key and view is self._view:
                     self._rendered_seq = snap[1]
                     try:
-                        view.render(snap[2], snap[3], gripper=snap[4])
+                        view.render(snap[2], snap[3], gripper=snap[4], intent=snap[5])
                     except Exception:  # a tab closing mid-frame; the next tab gets the next
                         LOGGER.debug("render failed", exc_info=True)
         if page is not None and source is not None and source.key_moved.is_set():
@@ -739,6 +754,19 @@ class LiveSession:
         self._writer_pool.shutdown(wait=True, cancel_futures=True)
         with contextlib.suppress(Exception):
             self.session.close()
+
+
+def _shows_intent(config: Any) -> bool:
+    """Whether the trial of ``config`` (a ``TrialConfig``) shows the robot's intent: its mode's
+    ``intent`` (``study.protocol.model.INTENT_DISPLAYS``), carried in ``config.extra``."""
+    return config.extra.get("intent", "none") != "none"
+
+
+def _same_intent(a: tuple[int, float] | None, b: tuple[int, float] | None) -> bool:
+    """Whether intents ``a`` and ``b`` draw the same ring (same goal, same quantised opacity)."""
+    if a is None or b is None:
+        return a is b
+    return a[0] == b[0] and ring_opacity(a[1]) == ring_opacity(b[1])
 
 
 def _text(error: BaseException | None) -> str | None:

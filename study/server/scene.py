@@ -24,6 +24,7 @@ import viser
 from mjviser import ViserMujocoScene
 
 from app.robot.task_view import TaskViewError, task_view
+from study.server.intent_cue import IntentCue, IntentGoals
 
 LOGGER = logging.getLogger("study.server.scene")
 
@@ -135,7 +136,8 @@ class SceneView:
     """One participant's view of one simulated scene (per-client nodes, neutral names), with
     a depth cue under the gripper: a thin vertical rod down to the table and a dark disc on
     the table (two small meshes moved per frame; no shadows, which software WebGL cannot
-    afford)."""
+    afford). With ``goals``, the robot's intent too: a ring around the predicted object
+    (:class:`study.server.intent_cue.IntentCue`); without, no such node exists."""
 
     def __init__(
         self,
@@ -145,6 +147,7 @@ class SceneView:
         on_frame: Callable[[], None] | None = None,
         shadows: bool = False,
         table_top: float | None = None,
+        goals: IntentGoals | None = None,
     ) -> None:
         # Shadow maps cost a 10-50x frame rate drop in software WebGL (measured: 0.2-1.3 fps
         # with, 13-30 fps without, for the Panda scene in headless Chromium on 2 cores).
@@ -170,15 +173,22 @@ class SceneView:
             self._disc = scene.add_cylinder(
                 "/cue/disc", radius=0.018, height=0.002, color=(30, 30, 30), visible=False
             )
+        self.intent = IntentCue(target.scene, goals) if goals is not None else None
         self.frames_sent = 0
         self.render_s: deque[float] = deque(maxlen=4096)
         """Wall time of the last renders (seconds), for the server benchmark."""
 
     def render(
-        self, xpos: np.ndarray, xmat: np.ndarray, *, gripper: np.ndarray | None = None
+        self,
+        xpos: np.ndarray,
+        xmat: np.ndarray,
+        *,
+        gripper: np.ndarray | None = None,
+        intent: tuple[int, float] | None = None,
     ) -> None:
-        """Send one frame with body poses ``xpos (nbody,3)``, ``xmat (nbody,9)`` and the
-        depth cue under ``gripper`` (3,)."""
+        """Send one frame with body poses ``xpos (nbody,3)``, ``xmat (nbody,9)``, the depth
+        cue under ``gripper`` (3,) and, if this view shows intent, the ring for ``intent`` =
+        ``(predicted goal index, confidence)`` (None: no prediction yet, ring hidden)."""
         t = time.perf_counter()
         self._scene.update_from_arrays(
             np.asarray(xpos, float)[None], np.asarray(xmat, float).reshape(1, -1, 3, 3)
@@ -192,6 +202,9 @@ class SceneView:
             self._disc.position = (x, y, top + 0.001)
             if not self._drop.visible:
                 self._drop.visible = self._disc.visible = True
+        if self.intent is not None:
+            predicted, confidence = intent if intent is not None else (-1, 0.0)
+            self.intent.update(xpos, predicted, confidence)
         # mjviser flushes inside its atomic block, where viser cannot send yet; flushing again
         # here sends the frame now instead of after viser's 1/60 s window.
         self._flush()
