@@ -6,12 +6,12 @@ from pathlib import Path
 
 import pytest
 
-from study.screen import Item, Progress, Screen
+from study.session.screen import Item, Progress, Screen
+from study.session.trial_run import TrialSummary
 from study.simulated import SimulatedUser, SimulationRunError, load_population
 from study.simulated.interface import InterfaceUser
 from study.simulated.participant import SimulatedParticipant
 from study.simulated.runner import participant_id, plan_jobs, session_seed
-from study.trial_run import TrialSummary
 
 ANCHORS = tuple(str(k) for k in range(1, 8))
 

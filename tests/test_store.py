@@ -14,7 +14,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from study.sample_writer import MAX_FLUSH_INTERVAL_S, SampleWriter, sample_row
+from study.session.sample_writer import MAX_FLUSH_INTERVAL_S, SampleWriter, sample_row
 from study.store import (
     SAMPLE_COLUMNS,
     DuplicateParticipantError,

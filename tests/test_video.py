@@ -94,7 +94,7 @@ def test_replay_from_store_rows(config, tmp_path) -> None:
     import pandas as pd
 
     from app.trial.records import records_from_samples
-    from study.sample_writer import sample_row
+    from study.session.sample_writer import sample_row
     from study.store.schema import SAMPLE_COLUMNS
 
     result = run_trial(config, ScriptedInput(seed=4))

@@ -6,14 +6,14 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, Self
 
-from study.plan import run_label
-from study.sample_writer import DEFAULT_FLUSH_INTERVAL_S
 from study.schedule import Design, Enrollment, ScheduleError, next_row
-from study.session_core import FINAL_STATUSES, SessionCore
-from study.session_errors import MAX_SEED, InvalidSeedError, SessionStateError, check_seed
-from study.session_store import check_protocol
+from study.session.core import FINAL_STATUSES, SessionCore
+from study.session.errors import MAX_SEED, InvalidSeedError, SessionStateError, check_seed
+from study.session.plan import run_label
+from study.session.sample_writer import DEFAULT_FLUSH_INTERVAL_S
+from study.session.store_open import check_protocol
+from study.session.trial_run import TrialFactory
 from study.store import Store, check_participant_id
-from study.trial_run import TrialFactory
 
 if TYPE_CHECKING:
     from study.protocol import Protocol

@@ -2,8 +2,8 @@
 every transition is made of (phase, cursor moves, lease-checked transactions, trial rows).
 
 The participant- and experimenter-facing parts build on ``SessionCore``
-(``study.session_views``, ``study.session_participant``, ``study.session_experimenter``,
-``study.session_open``); ``study.session.Session`` puts them together. Methods whose names start
+(``study.session.views``, ``study.session.participant``, ``study.session.experimenter``,
+``study.session.opening``); ``study.session.Session`` puts them together. Methods whose names start
 with ``_`` are called with ``self._lock`` held.
 """
 
@@ -18,15 +18,15 @@ from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
 
-from study.event_limit import EventLimiter
-from study.lease_keeper import LeaseKeeper
-from study.plan import Plan, Step, build_plan
-from study.sample_writer import SampleWriter
-from study.screen import Phase, Screen
-from study.session_errors import SessionClosedError, SessionError, SessionStateError
-from study.session_store import check_protocol
+from study.session.errors import SessionClosedError, SessionError, SessionStateError
+from study.session.event_limit import EventLimiter
+from study.session.lease_keeper import LeaseKeeper
+from study.session.plan import Plan, Step, build_plan
+from study.session.sample_writer import SampleWriter
+from study.session.screen import Phase, Screen
+from study.session.store_open import check_protocol
+from study.session.trial_run import TrialFactory, TrialRun
 from study.store import SessionLockedError, Store, StoreError, Transaction
-from study.trial_run import TrialFactory, TrialRun
 
 if TYPE_CHECKING:
     from app.trial import TrialConfig
@@ -131,7 +131,7 @@ class SessionCore:
             session.record_event("participant_connected", {"client": 3})
 
         ``detail`` must be JSON-serialisable. Thread-safe. Each kind is rate-limited (10 at
-        once, then 1 per second; ``study.event_limit``) because a client can trigger some at
+        once, then 1 per second; ``study.session.event_limit``) because a client can trigger some at
         will: an event over the limit is counted instead of written, and the next one written
         carries ``"suppressed": k``; counts still pending at ``close()`` are written there as
         one ``events_suppressed`` event. The event is written in the same

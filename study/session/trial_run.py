@@ -16,12 +16,12 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
-from study.sample_writer import sample_row
-from study.session_errors import SessionStateError
+from study.session.errors import SessionStateError
+from study.session.sample_writer import sample_row
 
 if TYPE_CHECKING:
     from app.trial import TrialConfig
-    from study.sample_writer import SampleWriter
+    from study.session.sample_writer import SampleWriter
 
 
 class TrialLike(Protocol):

@@ -9,11 +9,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from study.protocol import AnswerError
-from study.screen import Screen
-from study.session_core import trial_seed
-from study.session_errors import InvalidAnswerError, UnknownItemError
-from study.session_views import SessionViews
-from study.trial_run import TrialRun, TrialSummary
+from study.session.core import trial_seed
+from study.session.errors import InvalidAnswerError, UnknownItemError
+from study.session.screen import Screen
+from study.session.trial_run import TrialRun, TrialSummary
+from study.session.views import SessionViews
 
 if TYPE_CHECKING:
     from app.trial import TrialConfig

@@ -15,11 +15,11 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
 from study.session import Session, trial_seed
-from study.trial_run import TrialSummary
+from study.session.trial_run import TrialSummary
 
 if TYPE_CHECKING:
     from app.trial import TrialConfig
-    from study.screen import Screen
+    from study.session.screen import Screen
 
 
 class Answerer(Protocol):

@@ -17,28 +17,23 @@ callback threads may call them concurrently. ``TrialRun.tick`` is for the single
 thread; it never takes the session lock except when its trial ends by itself, and never touches
 SQLite (the ``SampleWriter`` thread does). Listeners run after the lock is released.
 
-The engine is split by concern: ``study.session_core`` (state, lease, transactions),
-``study.session_views`` (``screen``/``overview``), ``study.session_participant`` and
-``study.session_experimenter`` (the actions), ``study.session_open`` (``enrol``/``reopen``),
-``study.session_store`` (``open_store``). Import from here: this module keeps every public name.
+The engine is split by concern: ``study.session.core`` (state, lease, transactions),
+``study.session.views`` (``screen``/``overview``), ``study.session.participant`` and
+``study.session.experimenter`` (the actions), ``study.session.opening`` (``enrol``/``reopen``),
+``study.session.store_open`` (``open_store``). Import from here: this module keeps every public name.
 """
 
 from __future__ import annotations
 
-# Re-exported names: this module is the session engine's public import path.
-from study.lease_keeper import LeaseKeeper  # noqa: F401
-from study.plan import Plan, Step, build_plan, run_label  # noqa: F401
 from study.protocol import AnswerError  # noqa: F401
-from study.sample_writer import SampleWriter  # noqa: F401
 from study.schedule import Design, Enrollment, next_row  # noqa: F401
-from study.screen import Item, Overview, Phase, Progress, Screen  # noqa: F401
-from study.session_core import (  # noqa: F401
+from study.session.core import (  # noqa: F401
     FINAL_STATUSES,
     Listener,
     default_trial_factory,
     trial_seed,
 )
-from study.session_errors import (  # noqa: F401
+from study.session.errors import (  # noqa: F401
     MAX_SEED,
     InvalidAnswerError,
     InvalidSeedError,
@@ -48,13 +43,20 @@ from study.session_errors import (  # noqa: F401
     SessionStateError,
     UnknownItemError,
 )
-from study.session_experimenter import ExperimenterActions, _reason  # noqa: F401
-from study.session_open import SessionOpening
-from study.session_participant import ParticipantActions
-from study.session_participant import goal_info as _goal_info  # noqa: F401
-from study.session_store import check_protocol as _check_protocol  # noqa: F401
-from study.session_store import open_store
-from study.session_views import LOGGER  # noqa: F401
+from study.session.experimenter import ExperimenterActions, _reason  # noqa: F401
+
+# Re-exported names: this module is the session engine's public import path.
+from study.session.lease_keeper import LeaseKeeper  # noqa: F401
+from study.session.opening import SessionOpening
+from study.session.participant import ParticipantActions
+from study.session.participant import goal_info as _goal_info  # noqa: F401
+from study.session.plan import Plan, Step, build_plan, run_label  # noqa: F401
+from study.session.sample_writer import SampleWriter  # noqa: F401
+from study.session.screen import Item, Overview, Phase, Progress, Screen  # noqa: F401
+from study.session.store_open import check_protocol as _check_protocol  # noqa: F401
+from study.session.store_open import open_store
+from study.session.trial_run import TrialFactory, TrialRun, TrialSummary  # noqa: F401
+from study.session.views import LOGGER  # noqa: F401
 from study.store import (  # noqa: F401
     ProtocolMismatchError,
     Store,
@@ -63,7 +65,6 @@ from study.store import (  # noqa: F401
     changed_sections,
     check_participant_id,
 )
-from study.trial_run import TrialFactory, TrialRun, TrialSummary  # noqa: F401
 
 
 class Session(SessionOpening, ParticipantActions, ExperimenterActions):

@@ -6,9 +6,9 @@ from __future__ import annotations
 import logging
 from typing import TYPE_CHECKING
 
-from study.screen import Item, Overview, Phase, Progress, Screen
-from study.session_core import SessionCore
-from study.session_errors import SessionStateError
+from study.session.core import SessionCore
+from study.session.errors import SessionStateError
+from study.session.screen import Item, Overview, Phase, Progress, Screen
 
 if TYPE_CHECKING:
     from app.trial import TrialConfig

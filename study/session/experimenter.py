@@ -3,11 +3,11 @@
 
 from __future__ import annotations
 
-from study.plan import Step
-from study.screen import Screen
-from study.session_core import FINAL_STATUSES
-from study.session_errors import MissingReasonError, SessionStateError
-from study.session_views import SessionViews
+from study.session.core import FINAL_STATUSES
+from study.session.errors import MissingReasonError, SessionStateError
+from study.session.plan import Step
+from study.session.screen import Screen
+from study.session.views import SessionViews
 from study.store import Transaction
 
 
