@@ -20,11 +20,12 @@ from app.robot.errors import (
 from app.robot.kinematics import IKResult, Kinematics, downward_rotation
 from app.robot.scene import Scene, build_scene, grasp_position, grasp_rotation
 from app.robot.scene_spec import CONDITION_WORDS, ObjectSpec, SceneSpec, TableSpec
-from app.robot.simulation import Simulation, SimulationError
+from app.robot.simulation import BodyPoses, Simulation, SimulationError
 
 __all__ = [
     "CONDITION_WORDS",
     "Arm",
+    "BodyPoses",
     "IKResult",
     "Kinematics",
     "ModelNotFoundError",

@@ -68,11 +68,9 @@ def _json_object(text: str) -> dict[str, Any]:
 def main(args: argparse.Namespace) -> int:
     from study.protocol import ProtocolError, load_protocol
     from study.schedule import ScheduleError
-    from study.session import Session, open_store
+    from study.session import Session, SessionError, TrialSummary, open_store
     from study.session.answers import ScriptedAnswers
-    from study.session.errors import SessionError
     from study.session.headless import run_headless
-    from study.session.trial_run import TrialSummary
     from study.store import StoreError
 
     result: dict[str, Any] = {"participant": args.participant}

@@ -1,144 +1,132 @@
-"""What a session shows: the participant's blind ``Screen``, the experimenter's ``Overview``,
-and the listeners told of every transition."""
+"""What a session shows, as functions of its state: the participant's blind ``Screen``, the
+experimenter's ``Overview`` and the experimenter actions valid now.
+
+Called with the session lock held; they read (``Steps``, the store), never write.
+"""
 
 from __future__ import annotations
 
-import logging
-from typing import TYPE_CHECKING
-
-from study.session.core import SessionCore
+from study.protocol import LikertItem
 from study.session.errors import SessionStateError
-from study.session.screen import Item, Overview, Phase, Progress, Screen
+from study.session.ledger import SessionInfo
+from study.session.screen import Overview, Progress, Screen
+from study.session.steps import PARTICIPANT_ACTIONS, Steps
 
-if TYPE_CHECKING:
-    from app.trial import TrialConfig
+EXPERIMENTER_ACTIONS: tuple[str, ...] = (
+    "start",
+    "pause",
+    "resume",
+    "redo",
+    "skip",
+    "withdraw",
+    "end",
+)
+"""Every experimenter action, in the console's button order (the only place they are listed)."""
 
-LOGGER = logging.getLogger("study.session")
+NEEDS_REASON: frozenset[str] = frozenset({"redo", "skip", "withdraw", "end"})
+"""The experimenter actions that take a ``reason`` for the record."""
 
 
-class SessionViews(SessionCore):
-    """The views of a session (every public method is thread-safe)."""
+def screen(steps: Steps, *, revision: int) -> Screen:
+    """What the participant should see now (no condition names anywhere)."""
+    state, protocol = steps.state, steps.protocol
+    phase = steps.phase()
+    texts = protocol.texts
+    step = steps.current()
+    progress = Progress(steps.trial_progress(), steps.plan.n_trials)
+    items: tuple[LikertItem, ...] = ()
+    actions = PARTICIPANT_ACTIONS.get(phase, ())
+    if phase == "waiting":
+        title, text = "Welcome", texts.instructions["welcome"]
+    elif phase == "consent":
+        title, text = "Consent", texts.consent
+    elif phase in ("ready", "running") and step is not None:
+        if step.phase == "training":
+            title = f"Practice run {step.trial_number} of {protocol.training.runs}"
+            text = protocol.describe_training()
+        else:
+            title = progress.text
+            text = protocol.describe_trial(step.task or "")
+    elif phase == "questions" and step is not None:
+        key = "preference" if step.questionnaire == "after_task" else "rating"
+        title = "Questions"
+        text = texts.instructions.get(key, texts.instructions["rating"])
+        items = tuple(steps.pending_items(step))
+    elif phase == "debrief":
+        title, text = "Thank you", texts.debrief
+    else:
+        title, text = "Done", texts.debrief if state.status == "completed" else ""
+    if state.paused:
+        text = texts.instructions.get("pause", "The session is paused.")
+        actions = ()
+    return Screen(
+        phase=phase,
+        title=title,
+        text=text.strip(),
+        progress=progress,
+        items=items,
+        actions=actions,
+        paused=state.paused,
+        questionnaire=step.questionnaire if phase == "questions" and step else None,
+        revision=revision,
+    )
 
-    def phase(self) -> Phase:
-        with self._lock:
-            return self._phase()
 
-    def screen(self) -> Screen:
-        """What the participant should see now (no condition names anywhere)."""
-        with self._lock:
-            phase = self._phase()
-            texts = self.protocol.texts
-            step = self._step()
-            progress = Progress(self._trial_progress(), self.plan.n_trials)
-            items: tuple[Item, ...] = ()
-            actions: tuple[str, ...] = ()
-            if phase == "waiting":
-                title, text = "Welcome", texts.instructions["welcome"]
-            elif phase == "consent":
-                title, text, actions = "Consent", texts.consent, ("agree",)
-            elif phase in ("ready", "running") and step is not None:
-                if step.phase == "training":
-                    title = f"Practice run {step.trial_number} of {self.protocol.training.runs}"
-                    text = self.protocol.describe_training()
-                else:
-                    title = progress.text
-                    text = self.protocol.describe_trial(step.task or "")
-                actions = ("start_trial",) if phase == "ready" else ()
-            elif phase == "questions" and step is not None:
-                pending = self._pending_items(step)
-                key = "preference" if step.questionnaire == "after_task" else "rating"
-                title = "Questions"
-                text = texts.instructions.get(key, texts.instructions["rating"])
-                items = tuple(Item(i.id, i.prompt, i.scale.anchors) for i in pending)
-                actions = ("answer",)
-            elif phase == "debrief":
-                title, text, actions = "Thank you", texts.debrief, ("finish",)
-            else:
-                title, text = "Done", texts.debrief if self._status == "completed" else ""
-            if self._paused:
-                text = texts.instructions.get("pause", "The session is paused.")
-                actions = ()
-            return Screen(
-                phase=phase,
-                title=title,
-                text=text.strip(),
-                progress=progress,
-                items=items,
-                actions=actions,
-                paused=self._paused,
-                questionnaire=step.questionnaire if phase == "questions" and step else None,
-                revision=self._revision,
-            )
+def overview(steps: Steps, info: SessionInfo) -> Overview:
+    """The experimenter's view: the current step's full condition and the schedule."""
+    state, protocol = steps.state, steps.protocol
+    step = steps.current()
+    run = state.active
+    trials = steps.store.trials(session_id=info.session_id)
+    attempt = None
+    if step is not None and step.kind == "trial":
+        attempt = run.attempt if run else steps.next_attempt(step.index)
+    task = protocol.task(step.task) if step is not None and step.task else None
+    return Overview(
+        participant=info.participant,
+        session_id=info.session_id,
+        status=state.status,
+        phase=steps.phase(),
+        paused=state.paused,
+        step=state.cursor,
+        steps=len(steps.plan),
+        step_kind=step.kind if step else None,
+        training_or_task=step.phase if step else None,
+        task=step.task if step else None,
+        difficulty=task.difficulty if task else None,
+        correctness=task.correctness if task else None,
+        mode=step.mode if step else None,
+        run=step.run if step else None,
+        attempt=attempt,
+        trial_id=run.trial_id if run else None,
+        trials_completed=sum(t.status == "completed" for t in trials),
+        ratings=len(steps.store.ratings(session_id=info.session_id)),
+        schedule_row=info.schedule_row,
+        schedule=tuple((a.position, a.task, a.run, a.mode) for a in info.assignments),
+        skipped_steps=tuple(sorted(state.skipped)),
+        experimenter_actions=experimenter_actions(steps),
+    )
 
-    def overview(self) -> Overview:
-        """The experimenter's view: the current step's full condition and the schedule."""
-        with self._lock:
-            step = self._step()
-            run = self._active
-            trials = self.store.trials(session_id=self.session_id)
-            attempt = None
-            if step is not None and step.kind == "trial":
-                attempt = run.attempt if run else self._next_attempt(step.index)
-            task = self.protocol.task(step.task) if step is not None and step.task else None
-            return Overview(
-                participant=self.participant,
-                session_id=self.session_id,
-                status=self._status,
-                phase=self._phase(),
-                paused=self._paused,
-                step=self._cursor,
-                steps=len(self.plan),
-                step_kind=step.kind if step else None,
-                training_or_task=step.phase if step else None,
-                task=step.task if step else None,
-                difficulty=task.difficulty if task else None,
-                correctness=task.correctness if task else None,
-                mode=step.mode if step else None,
-                run=step.run if step else None,
-                attempt=attempt,
-                trial_id=run.trial_id if run else None,
-                trials_completed=sum(t.status == "completed" for t in trials),
-                ratings=len(self.store.ratings(session_id=self.session_id)),
-                schedule_row=self.schedule_row,
-                schedule=tuple((a.position, a.task, a.run, a.mode) for a in self._assignments),
-                skipped_steps=tuple(sorted(self._skipped)),
-                experimenter_actions=self._experimenter_actions(),
-            )
 
-    def trial_config(self) -> TrialConfig:
-        """The current trial step's configuration (server side; carries the condition)."""
-        with self._lock:
-            step = self._require_phase("ready", "running", action="trial_config")
-            return self._config(step)
-
-    def _experimenter_actions(self) -> tuple[str, ...]:
-        phase = self._phase()
-        if phase == "done":
-            return ()
-        if phase == "waiting":
-            return ("start", "withdraw", "end")
-        actions = ["resume" if self._paused else "pause", "withdraw", "end"]
-        step = self._step()
+def experimenter_actions(steps: Steps) -> tuple[str, ...]:
+    """The experimenter actions valid now, in ``EXPERIMENTER_ACTIONS`` order."""
+    state = steps.state
+    phase = steps.phase()
+    if phase == "done":
+        return ()
+    if phase == "waiting":
+        valid = {"start", "withdraw", "end"}
+    else:
+        valid = {"resume" if state.paused else "pause", "withdraw", "end"}
+        step = steps.current()
         if step is not None and step.kind in ("trial", "questions"):
-            actions.append("skip")
+            valid.add("skip")
         try:
-            if self._active is not None or self._redo_target(step):
-                actions.append("redo")
+            if state.active is not None or steps.redo_target():
+                valid.add("redo")
         except SessionStateError:
             pass
-        return tuple(actions)
-
-    def _changed(self) -> Screen:
-        with self._lock:
-            self._revision += 1
-            listeners = list(self._listeners)
-        screen = self.screen()
-        for listener in listeners:
-            try:
-                listener(screen)
-            except Exception:  # a UI's bug must not undo or block a committed transition
-                LOGGER.exception("session listener %r failed", listener)
-        return screen
+    return tuple(a for a in EXPERIMENTER_ACTIONS if a in valid)
 
 
-__all__ = ["LOGGER", "SessionViews"]
+__all__ = ["EXPERIMENTER_ACTIONS", "NEEDS_REASON", "experimenter_actions", "overview", "screen"]
