@@ -75,7 +75,7 @@ def feed_gizmo(
     while not stop.is_set():
         k += 1
         target = np.array([cx + 0.05 * np.sin(k / 30), cy + 0.05 * np.cos(k / 40), cz])
-        live._on_target(target)
+        live.input.on_target(target)
         time.sleep(rng.uniform(0.5, 1.5) / rate_hz)
 
 
@@ -84,7 +84,7 @@ def batch_gaps(lives, t0: float, t1: float) -> dict:
     the first and last commit's distance from the window's edges (a stalled writer shows)."""
     gaps: list[float] = []
     for live in lives:
-        stamps = [t for t in live.session._writer.stats.committed_at if t0 <= t <= t1]
+        stamps = [t for t in live.session.sample_stats.committed_at if t0 <= t <= t1]
         if not stamps:
             gaps.append((t1 - t0) * 1e3)
             continue
@@ -106,7 +106,7 @@ def start_trial(live, page=None) -> None:
     if page is not None:
         page.get_by_role("button", name="Start").click(timeout=120_000)
     else:
-        live._start_trial()
+        live.start_trial()
     deadline = time.monotonic() + 60
     while live.control_loop is None and time.monotonic() < deadline:
         time.sleep(0.05)
@@ -141,7 +141,7 @@ def four_sessions(srv, running: list, *, seconds: float, wait) -> dict:
     for f in feeders:
         f.join()
     gaps = batch_gaps(lives, t0, t1)
-    commit_ms = np.array([c for s in lives for c in s.session._writer.stats.commit_s]) * 1e3
+    commit_ms = np.array([c for s in lives for c in s.session.sample_stats.commit_s]) * 1e3
     print(
         f"4 sessions: control {', '.join(f'{r:.2f}' for r in rates)} Hz;"
         f" sample batches max gap {gaps['max']:.0f} ms, p99 {gaps['p99']:.0f} ms,"

@@ -33,8 +33,8 @@ sys.path.insert(0, str(ROOT))
 from app.teleop import ScriptedInput  # noqa: E402
 from app.trial import TickRecord, Trial  # noqa: E402
 from study.protocol import load_protocol  # noqa: E402
-from study.sample_writer import SampleWriter, sample_row  # noqa: E402
 from study.session import Session, open_store  # noqa: E402
+from study.session.sample_writer import SampleWriter, sample_row  # noqa: E402
 from study.store import Store  # noqa: E402
 
 

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import pytest
 
-from study.event_limit import DEFAULT_BURST, DEFAULT_RATE_PER_S, EventLimiter
 from study.protocol import Protocol, load_protocol
 from study.session import Session, open_store
+from study.session.event_limit import DEFAULT_BURST, DEFAULT_RATE_PER_S, EventLimiter
 from study.store import Store
 from tests.test_session import enrol, to_step
 

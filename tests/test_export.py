@@ -12,9 +12,9 @@ import pytest
 
 from study.codebook import CodebookError, codebook
 from study.export import ExportError, tidy_tables
-from study.plan import run_label
 from study.protocol import load_protocol
 from study.schedule import Design
+from study.session.plan import run_label
 from study.store import SAMPLE_COLUMNS, Store
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -12,7 +12,7 @@ import pandas as pd
 from app.teleop.scripted import ScriptedInput
 from app.trial import records_from_samples, run_trial
 from study.protocol import parse_protocol
-from study.sample_writer import sample_row
+from study.session.sample_writer import sample_row
 from study.store import SAMPLE_COLUMNS
 
 MEMORY3 = Path(__file__).resolve().parents[1] / "protocols" / "memory3.toml"

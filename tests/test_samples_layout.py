@@ -16,7 +16,7 @@ from app.trial.samples import SAMPLE_COLUMNS, SAMPLE_DOCS, SAMPLE_FIELDS, Sample
 from study.codebook import codebook
 from study.export import tidy_tables
 from study.protocol import trial_config_from_protocol
-from study.sample_writer import sample_row
+from study.session.sample_writer import sample_row
 from study.store import Store
 from tests.test_store import enrol, new_trial, open_store
 

@@ -17,11 +17,10 @@ import numpy as np
 import pytest
 
 from app.trial import TickRecord
-from study.answers import ScriptedAnswers
-from study.headless import run_headless
 from study.protocol import Protocol, load_protocol, parse_protocol
 from study.session import Session, open_store
-from study.session_errors import (
+from study.session.answers import ScriptedAnswers
+from study.session.errors import (
     InvalidAnswerError,
     MissingReasonError,
     SessionClosedError,
@@ -29,6 +28,7 @@ from study.session_errors import (
     SessionStateError,
     UnknownItemError,
 )
+from study.session.headless import run_headless
 from study.store import (
     DuplicateParticipantError,
     InvalidParticipantIdError,

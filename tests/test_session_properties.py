@@ -14,11 +14,11 @@ from pathlib import Path
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from study.answers import ScriptedAnswers
-from study.headless import run_headless
 from study.protocol import load_protocol
 from study.session import Session, open_store
-from study.session_errors import SessionError
+from study.session.answers import ScriptedAnswers
+from study.session.errors import SessionError
+from study.session.headless import run_headless
 from study.store import TABLES, Store, StoreError
 from tests.test_session import stub_factory
 

@@ -117,7 +117,7 @@ def test_unexpected_failure_keeps_data_and_says_resume(
     monkeypatch: pytest.MonkeyPatch,
     short_protocol: Path,
 ) -> None:
-    import study.headless as headless
+    import study.session.headless as headless
 
     def crash_mid_trial(session, **_: object):
         session.start()

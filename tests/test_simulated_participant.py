@@ -6,12 +6,12 @@ from pathlib import Path
 
 import pytest
 
-from study.screen import Item, Progress, Screen
+from study.protocol import LikertItem, Scale
+from study.session import Progress, Screen, TrialSummary
 from study.simulated import SimulatedUser, SimulationRunError, load_population
 from study.simulated.interface import InterfaceUser
 from study.simulated.participant import SimulatedParticipant
 from study.simulated.runner import participant_id, plan_jobs, session_seed
-from study.trial_run import TrialSummary
 
 ANCHORS = tuple(str(k) for k in range(1, 8))
 
@@ -22,7 +22,7 @@ def screen(questionnaire: str, *items: str) -> Screen:
         title="Questions",
         text="",
         progress=Progress(1, 11),
-        items=tuple(Item(i, i, ANCHORS) for i in items),
+        items=tuple(LikertItem(i, i, Scale("agree7", ANCHORS)) for i in items),
         actions=("answer",),
         questionnaire=questionnaire,
     )

@@ -16,7 +16,7 @@ import pytest
 
 from app.trial import TickRecord
 from app.trial.events import EventKind, TrialEvent
-from study.sample_writer import MAX_FLUSH_INTERVAL_S, SampleWriter, sample_row
+from study.session.sample_writer import MAX_FLUSH_INTERVAL_S, SampleWriter, sample_row
 from study.store import (
     SAMPLE_COLUMNS,
     DuplicateParticipantError,

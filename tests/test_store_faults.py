@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from study.sample_writer import SampleWriter, sample_row
+from study.session.sample_writer import SampleWriter, sample_row
 from study.store import (
     NotAStoreError,
     Store,

@@ -12,7 +12,7 @@ from analysis.prediction_eval import goal_moves, trial_trajectories
 from app.trial import records_from_samples
 from app.trial.events import EventKind, TrialEvent, TrialEventError, decode, encode
 from study.export import tidy_tables
-from study.sample_writer import sample_row
+from study.session.sample_writer import sample_row
 from study.store import SAMPLE_COLUMNS, Store
 from tests.test_store import enrol, new_trial, open_store
 

@@ -130,7 +130,7 @@ def test_a_control_fault_pauses_the_trial_and_tells_the_experimenter(
         async with RawClient(srv.participant_port) as c:
             await _running(c, code)
             assert wait_until(lambda: live.control_loop is not None, timeout=10)
-            trial = live._run.trial
+            trial = live.run.trial
             real_tick = trial.tick
 
             def broken() -> Any:
@@ -140,7 +140,7 @@ def test_a_control_fault_pauses_the_trial_and_tells_the_experimenter(
             trial.tick = broken
             assert wait_until(lambda: live.fault is not None, timeout=5)
             await asyncio.sleep(0.5)
-            assert live._run.paused and live.control_loop.alive
+            assert live.run.paused and live.control_loop.alive
             assert any("experimenter will continue" in t for t in _markdown(c))
             detail = srv.detail(code)
             assert detail is not None and "OverflowError" in (detail.fault or "")
@@ -148,9 +148,9 @@ def test_a_control_fault_pauses_the_trial_and_tells_the_experimenter(
             await c.pose((0.55, 0.05, 0.3))
             await asyncio.sleep(0.3)
             srv.act(code, "resume")
-            assert wait_until(lambda: live.fault is None and not live._run.paused, timeout=5)
-            t = live._run.trial.t
-            assert wait_until(lambda: live._run.trial.t > t + 0.5, timeout=5)
+            assert wait_until(lambda: live.fault is None and not live.run.paused, timeout=5)
+            t = live.run.trial.t
+            assert wait_until(lambda: live.run.trial.t > t + 0.5, timeout=5)
 
     run_async(scenario())
     kinds = _kinds(study)
@@ -237,7 +237,7 @@ def test_the_ready_screen_shows_the_next_trials_start_never_the_last_end(tmp_pat
                 await c.pose((0.45 + 0.01 * k, 0.1, 0.3 + 0.01 * k), owner=owner)
                 await asyncio.sleep(0.05)
             await asyncio.sleep(1.0)
-            end = live._run.trial.sim.data.xpos.copy()
+            end = live.run.trial.sim.data.xpos.copy()
             view_render = type(live.scene_view).render
 
             def spy(view: Any, xpos: np.ndarray, xmat: np.ndarray, **kw: Any) -> None:
@@ -285,7 +285,7 @@ def test_nan_and_huge_poses_never_reach_the_trial(study: RunningServer) -> None:
                 await c.pose(position)
             await asyncio.sleep(0.5)
             assert live.control_loop.error is None and live.fault is None
-            assert float(np.max(np.abs(live._run.trial.user_target))) < 2.0
+            assert float(np.max(np.abs(live.run.trial.user_target))) < 2.0
 
     run_async(scenario())
     assert sum(srv.firewall.dropped.values()) >= 4
@@ -321,13 +321,13 @@ def test_a_full_disk_mid_trial_holds_the_trial_and_loses_no_sample(tmp_path: Pat
     async def scenario() -> None:
         async with RawClient(srv.participant_port) as c:
             await _running(c, code)
-            assert wait_until(lambda: live._run is not None and live._run.trial.t > 0.5)
+            assert wait_until(lambda: live.run is not None and live.run.trial.t > 0.5)
             disk_full.cap(rs.store, extra_pages=0)
             try:
                 assert wait_until(lambda: live.fault is not None, timeout=10)
-                held = live._run.trial.t
+                held = live.run.trial.t
                 await asyncio.sleep(1.0)
-                assert live._run.trial.t == pytest.approx(held, abs=0.02)  # the clock stopped
+                assert live.run.trial.t == pytest.approx(held, abs=0.02)  # the clock stopped
                 assert any("experimenter will continue" in t for t in _markdown(c))
                 detail = srv.detail(code)
                 assert detail is not None and "full" in (detail.fault or "").lower()
@@ -412,7 +412,7 @@ def test_a_message_flood_closes_its_connection_and_control_keeps_its_rate(
             assert rate > 50 and not honest.closed  # 100 Hz setting; one process runs both sides
             await honest.pose((0.5, 0.05, 0.3), owner=owner)
             assert wait_until(
-                lambda: abs(float(live._run.trial.user_target[1]) - 0.05) < 1e-9, timeout=5
+                lambda: abs(float(live.run.trial.user_target[1]) - 0.05) < 1e-9, timeout=5
             )
 
     run_async(flood())

@@ -7,10 +7,10 @@ import pytest
 
 from app.teleop import ReachRegion, TrialObservation
 from app.teleop.errors import InvalidTargetError
+from study.protocol import LikertItem, Scale
 from study.server.inputs import InputFrozen, ParticipantInput
 from study.server.participant import (
     InputRejected,
-    LikertItem,
     parse_answer,
     parse_key_state,
     parse_position,
@@ -91,7 +91,9 @@ def test_answers_must_be_on_the_scale() -> None:
     for bad in ("8", "0", "-1", "4.5", "x", ""):
         with pytest.raises(InputRejected):
             parse_answer(bad, points=7)
-    item = LikertItem("helpful", "How helpful?", tuple(f"a{k}" for k in range(1, 8)))
+    item = LikertItem(
+        "helpful", "How helpful?", Scale("agree7", tuple(f"a{k}" for k in range(1, 8)))
+    )
     assert item.points == 7 and item.anchor_text() == "1 = a1 · 4 = a4 · 7 = a7"
 
 

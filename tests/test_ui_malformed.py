@@ -166,8 +166,8 @@ def test_malformed_client_messages_are_rejected_and_the_server_keeps_running(
                 await c.pose((0.5, 0.1, 0.35), owner=owner)
                 assert wait_until(
                     lambda: (
-                        live._run is not None
-                        and abs(float(live._run.trial.user_target[1]) - 0.1) < 1e-9
+                        live.run is not None
+                        and abs(float(live.run.trial.user_target[1]) - 0.1) < 1e-9
                     ),
                     timeout=5,
                 )

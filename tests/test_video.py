@@ -17,7 +17,7 @@ from app.teleop import ScriptedInput
 from app.trial import records_from_samples, run_trial, save_records
 from app.trial.video import render_live, replay
 from study.protocol import trial_config_from_protocol
-from study.sample_writer import sample_row
+from study.session.sample_writer import sample_row
 from study.store import Store
 from study.store.schema import SAMPLE_COLUMNS
 

@@ -19,10 +19,11 @@ from app.robot.errors import (
 )
 from app.robot.scene import Scene, build_scene
 from app.robot.scene_spec import SceneSpec
-from app.robot.simulation import Simulation, SimulationError
+from app.robot.simulation import BodyPoses, Simulation, SimulationError
 
 __all__ = [
     "Arm",
+    "BodyPoses",
     "ModelNotFoundError",
     "RobotError",
     "Scene",

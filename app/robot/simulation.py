@@ -20,6 +20,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -42,6 +43,19 @@ ARM_PARTS = ("link6", "hand", "leftfinger", "rightfinger")
 """The arm's parts that can touch anything (``arm_contacts`` reports their index). The compiled
 model fuses the hand into ``panda_link7`` (a fixed joint): that body is the "hand"."""
 _PART_BODIES = ("panda_link6", "panda_link7", "panda_leftfinger", "panda_rightfinger")
+
+
+@dataclass(frozen=True)
+class BodyPoses:
+    """Every body's pose and the gripper's point at one instant: copies, safe to hand to another
+    thread (a renderer) while the simulation steps on."""
+
+    xpos: np.ndarray
+    """(nbody, 3) body positions, world frame."""
+    xmat: np.ndarray
+    """(nbody, 9) body rotation matrices, row-major."""
+    gripper: np.ndarray
+    """(3,) the TCP position."""
 
 
 class SimulationError(RobotError):
@@ -130,6 +144,10 @@ class Simulation:
     def ee(self) -> np.ndarray:
         """TCP position (3,), world frame, a copy."""
         return self._tcp.copy()
+
+    def poses(self) -> BodyPoses:
+        """The bodies' poses and the TCP now (copies)."""
+        return BodyPoses(self.data.xpos.copy(), self.data.xmat.copy(), self.ee)
 
     @property
     def gripper_opening(self) -> float:

@@ -34,7 +34,7 @@ from app.blending import (
     predictor_from_config,
 )
 from app.robot.scene import Scene, build_scene
-from app.robot.simulation import Simulation, SimulationError
+from app.robot.simulation import BodyPoses, Simulation, SimulationError
 from app.teleop.ik_step import IKStep
 from app.teleop.types import InputSource, TeleopCommand, TrialObservation
 from app.trial.config import TrialConfig
@@ -121,6 +121,10 @@ class Trial:
     @property
     def success(self) -> bool:
         return self.outcome == "success"
+
+    def poses(self) -> BodyPoses:
+        """The scene's body poses and the gripper now (copies, for a renderer's thread)."""
+        return self.sim.poses()
 
     def pause(self) -> None:
         with self._lock:

@@ -3,7 +3,7 @@
     python -m study run --protocol protocols/dragan2013.toml --db data/study.db \\
         --participant P01 --input scripted --seed 1 [--resume]
 
-Items are answered by the scripted rule of ``study.answers``. Progress goes to stderr; the last
+Items are answered by the scripted rule of ``study.session.answers``. Progress goes to stderr; the last
 line on stdout is one JSON object: participant, trials_completed, ratings, status (plus
 ``error`` when the run could not go on: exit code 2 for bad input, a refused store or a disk
 that is full or read-only, 1 for an unexpected failure, whose traceback goes to stderr; the
@@ -66,14 +66,12 @@ def _json_object(text: str) -> dict[str, Any]:
 
 
 def main(args: argparse.Namespace) -> int:
-    from study.answers import ScriptedAnswers
-    from study.headless import run_headless
     from study.protocol import ProtocolError, load_protocol
     from study.schedule import ScheduleError
-    from study.session import Session, open_store
-    from study.session_errors import SessionError
+    from study.session import Session, SessionError, TrialSummary, open_store
+    from study.session.answers import ScriptedAnswers
+    from study.session.headless import run_headless
     from study.store import StoreError
-    from study.trial_run import TrialSummary
 
     result: dict[str, Any] = {"participant": args.participant}
     session = None
@@ -139,7 +137,7 @@ def main(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGTERM, previous)
         if session is not None:
             if "trials_completed" not in result:
-                from study.headless import report as make_report
+                from study.session.headless import report as make_report
 
                 result = {**make_report(session).as_dict(), **result}
                 result.setdefault("status", session.status)

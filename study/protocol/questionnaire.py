@@ -42,6 +42,20 @@ class LikertItem:
     prompt: str
     scale: Scale
 
+    @property
+    def anchors(self) -> tuple[str, ...]:
+        return self.scale.anchors
+
+    @property
+    def points(self) -> int:
+        return self.scale.points
+
+    def anchor_text(self) -> str:
+        """The two end anchors, and the middle one when the scale has an odd length."""
+        k = self.points
+        marks = [1, k] if k % 2 == 0 else [1, (k + 1) // 2, k]
+        return " · ".join(f"{j} = {self.anchors[j - 1]}" for j in marks)
+
     def check(self, value: object) -> int:
         """``value`` as an int in ``1..points``, else :class:`AnswerError` saying the range."""
         if isinstance(value, bool) or not isinstance(value, int | float) or value != int(value):

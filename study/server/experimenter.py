@@ -18,11 +18,9 @@ import viser
 import viser.uplot as uplot
 
 from study.server.loop import PacedLoop
+from study.session import EXPERIMENTER_ACTIONS
 
 LOGGER = logging.getLogger("study.server.experimenter")
-
-ACTIONS: tuple[str, ...] = ("start", "pause", "resume", "redo", "skip", "withdraw", "end")
-"""Experimenter actions on the selected session, in button order."""
 
 
 @dataclass(frozen=True)
@@ -126,7 +124,9 @@ class ExperimenterConsole:
         self._session_folder = gui.add_folder("Selected session")
         with self._session_folder:
             self.status_md = gui.add_markdown("_Select a session._")
-            self.action_group = gui.add_button_group("Action", [a.capitalize() for a in ACTIONS])
+            self.action_group = gui.add_button_group(
+                "Action", [a.capitalize() for a in EXPERIMENTER_ACTIONS]
+            )
             self.reason = gui.add_text("Reason", initial_value="")
             self.action_status = gui.add_markdown("")
             self.alpha_plot = gui.add_uplot(

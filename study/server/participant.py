@@ -22,12 +22,12 @@ import re
 import threading
 from collections import deque
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import viser
 from viser import _messages as viser_messages
 
+from study.protocol import LikertItem
 from study.server.blinding import check_text
 from study.server.firewall import MAX_POSITION_M
 from study.server.page_script import ARROW_KEYCODES, MAX_KEY_MESSAGE, STEERING_CODES, page_script
@@ -48,26 +48,6 @@ _KEY_STATE = re.compile(r"([0-9]{1,12}) ([a-z]*)", re.ASCII)
 
 class InputRejected(ValueError):
     """A message from the browser was malformed (NaN pose, unknown answer); it was ignored."""
-
-
-@dataclass(frozen=True)
-class LikertItem:
-    """A k-point item: ``key`` stays on the server; ``prompt`` and ``anchors`` (answer ``j``
-    means ``anchors[j - 1]``) are shown."""
-
-    key: str
-    prompt: str
-    anchors: tuple[str, ...]
-
-    @property
-    def points(self) -> int:
-        return len(self.anchors)
-
-    def anchor_text(self) -> str:
-        """The two end anchors, and the middle one when the scale has an odd length."""
-        k = self.points
-        marks = [1, k] if k % 2 == 0 else [1, (k + 1) // 2, k]
-        return " · ".join(f"{j} = {self.anchors[j - 1]}" for j in marks)
 
 
 def parse_answer(value: object, *, points: int) -> int:
@@ -339,7 +319,7 @@ class ParticipantPage:
                     except InputRejected as exc:
                         self.reject(str(exc))
                         return
-                    answers[item.key] = answer
+                    answers[item.id] = answer
                     marked = [f"[{o}]" if int(o) == answer else o for o in plain]
                     group.options = tuple(marked)  # the chosen button reads [k]
                     chosen.content = f"Your answer: **{answer}** ({item.anchors[answer - 1]})"

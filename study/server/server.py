@@ -26,13 +26,14 @@ import viser
 
 from study.protocol.blinding import find_words
 from study.server import blinding, firewall
-from study.server.experimenter import ACTIONS, ExperimenterConsole, SessionDetail, SessionSummary
+from study.server.experimenter import ExperimenterConsole, SessionDetail, SessionSummary
 from study.server.firewall import LOOPBACK_NAMES
 from study.server.join import JoinThrottle, new_join_code, normalize_code
 from study.server.live import LiveSession, SessionFactory
 from study.server.page_script import page_script
 from study.server.participant import ParticipantPage
 from study.server.scene import frame_task
+from study.session import EXPERIMENTER_ACTIONS
 
 LOGGER = logging.getLogger("study.server.server")
 
@@ -182,8 +183,9 @@ class StudyServer:
         return None if live is None else live.detail()
 
     def act(self, code: str, action: str, *, reason: str = "") -> str:
-        if action not in ACTIONS:
-            raise ServerError(f"unknown action {action!r}; actions: {', '.join(ACTIONS)}")
+        if action not in EXPERIMENTER_ACTIONS:
+            actions = ", ".join(EXPERIMENTER_ACTIONS)
+            raise ServerError(f"unknown action {action!r}; actions: {actions}")
         result = self.session(code).act(action, reason=reason)
         self._offer_all()
         return result

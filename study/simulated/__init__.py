@@ -10,7 +10,7 @@ runner that drives them through the real session engine.
   handles or held keys (``study.server.inputs.ParticipantInput``), driven by a goal-level user.
 - :class:`QuestionnaireModel`: Likert ratings and preferences from a run's experience.
 - :class:`SimulatedParticipant`: one person across a session (input factory + answerer for
-  ``study.headless.run_headless``).
+  ``study.session.headless.run_headless``).
 - :func:`simulate`: enrol and run simulated participants through the real session engine into a
   store (``python -m study simulate``), optionally in worker processes or on a Dask cluster
   (``study.simulated.dask_engine``, one writer merging ``study.simulated.bundle`` bundles).

@@ -14,8 +14,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from study.headless import run_headless
 from study.session import Session
+from study.session.headless import run_headless
 from study.simulated.participant import SimulatedParticipant
 from study.simulated.population import load_population
 from study.store import StoreWriteError

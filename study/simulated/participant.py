@@ -1,6 +1,6 @@
 """``SimulatedParticipant``: one simulated person across a whole session.
 
-It plays both parts the headless session loop (``study.headless.run_headless``) asks of a
+It plays both parts the headless session loop (``study.session.headless.run_headless``) asks of a
 participant: the input factory (a fresh :class:`~study.simulated.interface.InterfaceUser` --
 the page's gizmo or keys, as the population draws -- for every trial attempt, seeded by the
 participant and the attempt's seed) and the answerer
@@ -28,8 +28,8 @@ from study.simulated.questionnaire import QuestionnaireModel
 
 if TYPE_CHECKING:
     from app.trial import TrialConfig
-    from study.screen import Screen
-    from study.trial_run import TrialSummary
+    from study.session.screen import Screen
+    from study.session.trial_run import TrialSummary
 
 
 class SimulatedParticipant:

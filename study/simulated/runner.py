@@ -1,7 +1,7 @@
 """Run simulated participants through the real session engine into a study store.
 
 Each participant is enrolled with ``study.session.Session.enrol`` and driven to the end by
-``study.headless.run_headless`` - the same state machine, trial loop (``app.trial.Trial``) and
+``study.session.headless.run_headless`` - the same state machine, trial loop (``app.trial.Trial``) and
 store writes as a live session - with a :class:`~study.simulated.participant.SimulatedParticipant`
 as its input and its answers. Headless, as fast as the machine allows.
 

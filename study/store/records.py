@@ -26,7 +26,7 @@ class ParticipantRecord:
 
 @dataclass(frozen=True, slots=True)
 class SessionRecord:
-    """A participant's session. ``cursor`` indexes the session plan (see ``study.plan``);
+    """A participant's session. ``cursor`` indexes the session plan (see ``study.session.plan``);
     ``status`` is one of ``enrolled``, ``running``, ``completed``, ``withdrawn``, ``ended``."""
 
     session_id: int

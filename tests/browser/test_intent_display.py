@@ -61,9 +61,9 @@ def _next_run(page: Any, live: Any) -> Any:
     _settle(page)
     page.get_by_role("button", name="Start").click()
     page.get_by_role("button", name="Close the gripper (G)").wait_for()
-    assert wait_until(lambda: live._run is not None and not live._run.over)
+    assert wait_until(lambda: live.run is not None and not live.run.over)
     assert wait_until(lambda: live.scene_view is not None and live.scene_view.frames_sent >= 1)
-    return live._run
+    return live.run
 
 
 def _finish_run(page: Any) -> None:

@@ -91,8 +91,8 @@ def test_keys_steer_the_arm_never_the_camera_and_a_pause_freezes_them(
     _keys_leave_the_camera_alone(page, updates)  # ready
     page.get_by_role("button", name="Start").click()
     page.get_by_role("button", name="Close the gripper (G)").wait_for()
-    assert wait_until(lambda: live._run is not None and live.scene_view is not None)
-    run = live._run
+    assert wait_until(lambda: live.run is not None and live.scene_view is not None)
+    run = live.run
     _settle(page)
 
     # Trial: each steering key moves the target along its axis at the key speed.

@@ -184,7 +184,7 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     assert wait_until(lambda: live.scene_view is not None and live.scene_view.frames_sent >= 1)
     text_now()
 
-    run = live._run
+    run = live.run
     start = np.array(run.trial.user_target, float)
     cam = live.page.client.camera
     grab = project(cam, start + np.array([0.0, 0.0, 0.2]))

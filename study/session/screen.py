@@ -2,7 +2,8 @@
 
 ``Screen`` is small, typed and blind: its text comes from the protocol's participant-facing
 texts (checked on load never to name a condition) and its fields carry no task, mode or
-correctness name, so a UI can send it to the participant's browser as is. ``Overview`` is for
+correctness name, so a UI can send it to the participant's browser as is. Its items are the
+protocol's own ``LikertItem`` (an id, a prompt, a scale): none of them names a condition either. ``Overview`` is for
 the experimenter only (127.0.0.1) and carries the full condition.
 """
 
@@ -11,23 +12,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+from study.protocol import LikertItem
+
 Phase = Literal["waiting", "consent", "ready", "running", "questions", "debrief", "done"]
 """``waiting``: before the experimenter starts (or continues) the session in this process;
 ``ready``: a trial is next and waits for Start; ``running``: a trial runs; ``questions``: items
 to answer; ``done``: completed, withdrawn or ended (see ``Overview.status``)."""
-
-
-@dataclass(frozen=True)
-class Item:
-    """One Likert item as the participant sees it: answer ``k`` means ``anchors[k - 1]``."""
-
-    id: str
-    prompt: str
-    anchors: tuple[str, ...]
-
-    @property
-    def points(self) -> int:
-        return len(self.anchors)
 
 
 @dataclass(frozen=True)
@@ -57,7 +47,7 @@ class Screen:
     title: str
     text: str
     progress: Progress
-    items: tuple[Item, ...] = ()
+    items: tuple[LikertItem, ...] = ()
     actions: tuple[str, ...] = ()
     paused: bool = False
     questionnaire: str | None = None

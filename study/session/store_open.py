@@ -3,12 +3,9 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
+from study.protocol import Protocol
 from study.store import ProtocolMismatchError, Store, changed_sections
-
-if TYPE_CHECKING:
-    from study.protocol import Protocol
 
 
 def open_store(path: str | Path, protocol: Protocol, *, synchronous: str = "FULL") -> Store:

@@ -15,13 +15,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
-from study.protocol import TRAINING_MODE
-
-if TYPE_CHECKING:
-    from study.protocol import LikertItem, Protocol
-    from study.store import AssignmentRecord
+from study.protocol import TRAINING_MODE, LikertItem, Protocol
+from study.store import AssignmentRecord
 
 StepKind = Literal["consent", "trial", "questions", "debrief"]
 RUN_LABELS = ("first", "second", "third", "fourth", "fifth", "sixth")

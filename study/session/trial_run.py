@@ -5,7 +5,8 @@ headless loop - calls ``tick()`` repeatedly; each tick advances the ``app.trial`
 control period and hands its ``TickRecord`` to the session's ``SampleWriter``. When the trial
 ends by itself the run reports to the session, which commits the trial and moves on. Pause,
 abort (redo, skip, withdraw, end) come from other threads through the session; a lock keeps them
-from interleaving with a tick.
+from interleaving with a tick. Whether the run is paused is not the run's to keep: it asks the
+session's ``RunState`` (``is_paused``) and follows it down to its trial (``follow_pause``).
 """
 
 from __future__ import annotations
@@ -14,14 +15,11 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import Any, Protocol
 
-from study.sample_writer import sample_row
-from study.session_errors import SessionStateError
-
-if TYPE_CHECKING:
-    from app.trial import TrialConfig
-    from study.sample_writer import SampleWriter
+from app.trial import TrialConfig
+from study.session.errors import SessionStateError
+from study.session.sample_writer import SampleWriter, sample_row
 
 
 class TrialLike(Protocol):
@@ -42,7 +40,7 @@ class TrialLike(Protocol):
     def resume(self) -> None: ...
 
 
-TrialFactory = Callable[["TrialConfig", Any, int], TrialLike]
+TrialFactory = Callable[[TrialConfig, Any, int], TrialLike]
 """``(config, input_source, seed) -> trial``; default: ``app.trial.Trial``."""
 
 
@@ -75,6 +73,7 @@ class TrialRun:
         config: TrialConfig,
         writer: SampleWriter,
         on_finished: Callable[[TrialRun], None],
+        is_paused: Callable[[], bool],
     ) -> None:
         self.trial = trial
         self.trial_id = trial_id
@@ -84,11 +83,11 @@ class TrialRun:
         self.config = config
         self._writer = writer
         self._on_finished = on_finished
+        self._is_paused = is_paused
         self._lock = threading.Lock()
         self._ticker: int | None = None
         self._ticks = 0
         self._last_t = 0.0
-        self._paused = False
         self._over = False
         self.summary: TrialSummary | None = None
 
@@ -105,7 +104,7 @@ class TrialRun:
                 "that started ticking it may call tick()"
             )
         with self._lock:
-            if self._over or self._paused:
+            if self._over or self._is_paused():
                 return None
             record = self.trial.tick()
             if record is not None:
@@ -135,7 +134,8 @@ class TrialRun:
 
     @property
     def paused(self) -> bool:
-        return self._paused
+        """The session is paused (asked of its ``RunState``)."""
+        return self._is_paused()
 
     @property
     def ticks(self) -> int:
@@ -147,19 +147,16 @@ class TrialRun:
         return float(value) if value is not None else self._last_t
 
     # ---- called by the session (under its lock) -----------------------------------------------------
-    def _pause(self) -> None:
+    def follow_pause(self) -> None:
+        """Pause or resume the trial's clock as the session's state says (no-op once over)."""
         with self._lock:
-            if not self._paused and not self._over:
-                self.trial.pause()
-                self._paused = True
+            if not self._over:
+                if self._is_paused():
+                    self.trial.pause()
+                else:
+                    self.trial.resume()
 
-    def _resume(self) -> None:
-        with self._lock:
-            if self._paused and not self._over:
-                self.trial.resume()
-                self._paused = False
-
-    def _finish(self, summary: TrialSummary | None) -> None:
+    def end(self, summary: TrialSummary | None) -> None:
         """Mark the run over (no further ticks); ``summary`` None for an aborted run, whose
         trial is told to stop (outcome ``aborted``)."""
         with self._lock:

@@ -12,14 +12,14 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import Any, Protocol
 
-from study.session import Session, trial_seed
-from study.trial_run import TrialSummary
-
-if TYPE_CHECKING:
-    from app.trial import TrialConfig
-    from study.screen import Screen
+from app.teleop import ScriptedInput
+from app.trial import TrialConfig
+from study.session.participant import trial_seed
+from study.session.screen import Screen
+from study.session.session import Session
+from study.session.trial_run import TrialRun, TrialSummary
 
 
 class Answerer(Protocol):
@@ -28,7 +28,7 @@ class Answerer(Protocol):
     def answer(self, screen: Screen) -> dict[str, int]: ...
 
 
-InputFactory = Callable[["TrialConfig", int], Any]
+InputFactory = Callable[[TrialConfig, int], Any]
 """``(config, seed) -> input source`` for one trial attempt."""
 
 
@@ -50,10 +50,8 @@ class HeadlessReport:
         }
 
 
-def scripted_input(config: TrialConfig, seed: int) -> Any:
+def scripted_input(config: TrialConfig, seed: int) -> ScriptedInput:
     """``app.teleop.ScriptedInput`` seeded for this attempt (moves straight to the target)."""
-    from app.teleop import ScriptedInput
-
     return ScriptedInput(seed=seed)
 
 
@@ -106,7 +104,7 @@ def report(session: Session) -> HeadlessReport:
     )
 
 
-def _drive(run: Any, *, realtime: bool, idle_s: float) -> TrialSummary | None:
+def _drive(run: TrialRun, *, realtime: bool, idle_s: float) -> TrialSummary | None:
     if not realtime:
         return run.run_to_end(idle_s=idle_s)
     dt = run.config.dt

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from study.screen import Screen
-from study.trial_run import TrialSummary
+from study.session.screen import Screen
+from study.session.trial_run import TrialSummary
 
 
 @dataclass(frozen=True)

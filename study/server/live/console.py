@@ -1,0 +1,158 @@
+"""What the experimenter's console shows of one live session: its row in the sessions list
+(``session_summary``) and the selected session's detail (``session_detail``): the schedule,
+the current condition, live plots of the running trial (``LivePlots``), the event log, a held
+fault and the attempts so far.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from app.trial import TickRecord
+from study.server.experimenter import SessionDetail, SessionSummary
+from study.session import Overview, Session, TrialRun
+
+LOGGER = logging.getLogger("study.server.live")
+
+PLOT_WINDOW = 1500
+"""Ticks kept for the console's live plots (15 s at 100 Hz)."""
+
+
+class LivePlots:
+    """The last ``PLOT_WINDOW`` ticks' arbitration, confidence and goal probabilities.
+
+    The control thread appends (``add``); the console thread reads (``arrays``)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._rows: deque[tuple[float, float, float, np.ndarray]] = deque(maxlen=PLOT_WINDOW)
+        self.goal_names: tuple[str, ...] = ()
+
+    def restart(self, goal_names: Sequence[str]) -> None:
+        """A new run: its goals, no rows."""
+        with self._lock:
+            self.goal_names = tuple(goal_names)
+            self._rows.clear()
+
+    def add(self, record: TickRecord) -> None:
+        row = (
+            float(record.t),
+            float(record.alpha),
+            float(record.confidence),
+            np.asarray(record.probabilities, float),
+        )
+        with self._lock:
+            self._rows.append(row)
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(t, alpha, confidence, probabilities (n, goals))``; empty when the rows do not all
+        have the current goals."""
+        with self._lock:
+            rows = list(self._rows)
+        n = len(self.goal_names)
+        if rows and all(len(r[3]) == n for r in rows):
+            return (
+                np.array([r[0] for r in rows]),
+                np.array([r[1] for r in rows]),
+                np.array([r[2] for r in rows]),
+                np.stack([r[3] for r in rows]),
+            )
+        return np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((0, n))
+
+
+@dataclass(frozen=True)
+class LiveFacts:
+    """What the live session knows that the session engine does not."""
+
+    code: str
+    connected: bool
+    opened_at: float
+    run: TrialRun | None
+    log: tuple[str, ...]
+    fault: str | None
+
+
+def session_summary(session: Session, facts: LiveFacts) -> SessionSummary:
+    return _summary(session.overview(), session.participant, facts)
+
+
+def _summary(o: Overview, participant: str, facts: LiveFacts) -> SessionSummary:
+    return SessionSummary(
+        code=facts.code,
+        participant=participant,
+        state=o.status
+        + (" / paused" if o.paused else "")
+        + (f" / {o.phase}" if o.phase != o.status else ""),
+        position=f"{min(o.step + 1, o.steps)}/{o.steps}",
+        connected=facts.connected,
+        elapsed_s=time.monotonic() - facts.opened_at,
+    )
+
+
+def session_detail(session: Session, facts: LiveFacts, plots: LivePlots) -> SessionDetail:
+    o = session.overview()
+    schedule = [
+        (
+            f"{s.kind} ({s.phase})" + (f" #{s.trial_number}" if s.trial_number else ""),
+            s.task or "-",
+            (s.mode or "-") + (f", {s.run} run" if s.run else ""),
+        )
+        for s in session.plan.steps
+    ]
+    if o.task:
+        condition = (
+            f"{o.training_or_task}: {o.task} ({o.difficulty}, {o.correctness}),"
+            f" mode {o.mode}, {o.run} run, attempt {o.attempt}"
+        )
+    elif o.step_kind == "trial":
+        condition = f"training, mode {o.mode}, attempt {o.attempt}"
+    else:
+        condition = o.step_kind or o.phase
+    t, alpha, conf, probs = plots.arrays()
+    run = facts.run
+    return SessionDetail(
+        summary=_summary(o, session.participant, facts),
+        schedule=schedule,
+        cursor=o.step,
+        condition=condition,
+        trial_elapsed_s=float(run.duration_s()) if run is not None else 0.0,
+        paused=o.paused,
+        t=t,
+        alpha=alpha,
+        confidence=conf,
+        probabilities=probs,
+        goal_names=plots.goal_names,
+        log=facts.log,
+        fault=facts.fault or _text(session.samples_error),
+        trials=_trial_rows(session),
+    )
+
+
+def _trial_rows(session: Session) -> tuple[tuple[str, int, str, str, str], ...]:
+    """The console's list of attempts, from the store (runs of earlier processes too)."""
+    try:
+        records = session.store.trials(participant=session.participant)
+    except Exception:
+        LOGGER.debug("could not read the trials for the console", exc_info=True)
+        return ()
+    return tuple(
+        (
+            f"{r.trial_number}. {r.phase}" + (f": {r.task}, {r.mode}" if r.task else ""),
+            int(r.attempt),
+            str(r.status),
+            str(r.outcome or "-"),
+            "-" if r.duration_s is None else f"{r.duration_s:.1f} s",
+        )
+        for r in records
+    )
+
+
+def _text(error: BaseException | None) -> str | None:
+    return None if error is None else f"{type(error).__name__}: {error}"[:300]

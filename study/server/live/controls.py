@@ -1,0 +1,118 @@
+"""``LiveInput``: the participant's input to the running trial, frozen while it is paused.
+
+The gizmo, the steering keys and the grasp (button or G) feed one ``ParticipantInput``. Any
+pause (the experimenter, a lost tab, a control fault) freezes it and hides the handle; on
+resume the target is the gripper and the handle is back on it, shown. Whether the input is
+frozen is the input's own state (``ParticipantInput.frozen``); whether the session is paused is
+the session's (``Session.paused``): nothing here keeps a second copy.
+
+An input refused while frozen is logged as an ``input_rejected`` event (rate-limited by the
+session) from one worker thread: input callbacks run on viser's event loop, which a store
+write must never hold up.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+
+from app.teleop.errors import TeleopError
+from app.teleop.keyboard import KEYMAP
+from study.server.inputs import InputFrozen, ParticipantInput
+from study.server.participant import ParticipantPage
+
+LOGGER = logging.getLogger("study.server.live")
+
+
+class LiveInput:
+    """One live session's participant input (see module docstring)."""
+
+    def __init__(self, *, code: str, record: Callable[[str, Mapping[str, Any]], bool]) -> None:
+        self.source: ParticipantInput | None = None
+        self._record = record
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix=f"events-{code}")
+
+    @property
+    def frozen(self) -> bool:
+        return self.source is not None and self.source.frozen
+
+    def take(self) -> ParticipantInput | None:
+        """End of a run: no trial, no input (keys do nothing); the old source, frozen."""
+        source, self.source = self.source, None
+        if source is not None:
+            source.freeze()
+        return source
+
+    def freeze(self, page: ParticipantPage | None) -> None:
+        """Freeze the input and hide the handle (idempotent)."""
+        if self.source is not None:
+            self.source.freeze()
+        if page is not None:
+            page.show_gizmo(False)
+
+    def thaw(self, page: ParticipantPage | None, gripper: np.ndarray) -> None:
+        """Thaw the input with the target at ``gripper``, the handle back on it and shown."""
+        source = self.source
+        if source is None:
+            return
+        source.thaw()
+        try:
+            source.set_target(gripper)
+        except (InputFrozen, TeleopError):
+            LOGGER.debug("could not put the target on the gripper", exc_info=True)
+        if page is not None:
+            page.move_gizmo(gripper)
+            page.show_gizmo(True)
+
+    # ---- viser callbacks ----------------------------------------------------------------------
+    def grasp(self) -> None:
+        source = self.source
+        if source is None:
+            return
+        try:
+            source.request_grasp()
+        except InputFrozen as exc:
+            self._refused(exc)
+
+    def on_target(self, target: np.ndarray) -> None:
+        source = self.source
+        if source is None:
+            return
+        try:
+            source.set_target(target)
+        except (InputFrozen, TeleopError) as exc:
+            self._refused(exc)
+
+    def on_keys(
+        self, down: frozenset[str], up: frozenset[str], *, reframe: Callable[[], None]
+    ) -> None:
+        """Key-state changes from the page: steering keys to the input, G grasps, V re-frames."""
+        source = self.source
+        if source is not None:
+            for key in up & set(KEYMAP):
+                source.key_up(key)
+        if "v" in down:
+            reframe()
+        if source is None:
+            return
+        for key in sorted(down):
+            try:
+                if key == "g":
+                    source.request_grasp()
+                elif key in KEYMAP:
+                    source.key_down(key)
+            except InputFrozen as exc:
+                self._refused(exc)
+
+    def _refused(self, exc: Exception) -> None:
+        problem = str(exc)[:200]
+        with contextlib.suppress(RuntimeError):  # closing: the worker is gone
+            self._pool.submit(self._record, "input_rejected", {"problem": problem})
+
+    def close(self) -> None:
+        self._pool.shutdown(wait=True, cancel_futures=True)

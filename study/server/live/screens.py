@@ -1,0 +1,97 @@
+"""How the session's blind ``Screen`` is shown on the participant's tab.
+
+One function of the screen and the live session's own state (a held control fault, who paused,
+the last run's outcome sentence): which page to build and which of the live session's handlers
+its buttons call. It decides nothing about the session: the handlers do that.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Protocol
+
+from study.server.live.texts import TAB_LOST_TEXT, WAIT_TEXT, WAITING_TEXT
+from study.server.participant import ParticipantPage
+from study.session import PauseCause, Screen
+
+
+class PageHandlers(Protocol):
+    """What the page's buttons and keys call (``LiveSession`` implements it)."""
+
+    def agree(self) -> None: ...
+    def decline(self) -> None: ...
+    def start_trial(self) -> None: ...
+    def answer(self, answers: Mapping[str, int]) -> None: ...
+    def finish(self) -> None: ...
+    def continue_after_tab_lost(self) -> None: ...
+    def seen_outcome(self) -> None: ...
+    def grasp(self) -> None: ...
+    def reframe(self) -> None: ...
+    def preview(self, page: ParticipantPage) -> None: ...
+
+
+def show_screen(
+    page: ParticipantPage,
+    screen: Screen,
+    *,
+    fault: bool,
+    paused_by: PauseCause | None,
+    outcome: str | None,
+    agree_label: str,
+    handlers: PageHandlers,
+) -> None:
+    """Build ``screen`` on ``page`` (see module docstring)."""
+    progress: str | None = screen.progress.text if screen.progress.of else None
+    title, text = screen.title, screen.text
+    if progress is not None and (progress in title or progress in text):
+        progress = None  # said once is enough
+    if fault:
+        page.show_message("Please wait", WAIT_TEXT, progress=progress)
+    elif screen.paused and paused_by == "tab_lost":
+        page.show_message(
+            "Paused",
+            TAB_LOST_TEXT,
+            progress=progress,
+            button="Continue",
+            on_button=handlers.continue_after_tab_lost,
+        )
+    elif screen.paused:
+        page.show_message("Please wait", text or WAIT_TEXT, progress=progress)
+    elif outcome is not None and screen.phase != "running":
+        page.show_message(
+            "Run finished",
+            outcome,
+            progress=progress,
+            button="Continue",
+            on_button=handlers.seen_outcome,
+        )
+    elif screen.phase == "consent":
+        page.show_consent(
+            text, on_agree=handlers.agree, agree=agree_label, on_decline=handlers.decline
+        )
+    elif screen.phase == "ready":
+        handlers.preview(page)
+        page.show_message(
+            title, text, progress=progress, button="Start", on_button=handlers.start_trial
+        )
+    elif screen.phase == "running":
+        page.show_trial(
+            heading=title,
+            instruction=text,
+            progress=progress,
+            on_grasp=handlers.grasp,
+            on_view=handlers.reframe,
+        )
+    elif screen.phase == "questions":
+        page.show_questions(
+            title, text, list(screen.items), progress=progress, on_submit=handlers.answer
+        )
+    elif screen.phase == "debrief":
+        page.show_message(title, text, progress=None, button="Finish", on_button=handlers.finish)
+    elif screen.phase == "done":
+        page.show_message(
+            title or "Done",
+            (text + "\n\n" if text else "Thank you. ") + "You may close this page now.",
+        )
+    else:  # waiting: the protocol's welcome, and that the experimenter starts the session
+        page.show_message(title, (text + "\n\n" if text else "") + WAITING_TEXT)

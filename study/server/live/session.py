@@ -1,0 +1,355 @@
+"""``LiveSession``: one study session served to one participant tab at a time.
+
+``study.session.Session`` decides what happens (the state machine, the store, whether the
+session is paused); this object connects it to the browser and to time, through its parts:
+
+* the page thread renders the session's blind ``Screen`` on the bound tab whenever the session
+  changes (a listener wakes it; ``screens.show_screen``) and turns clicks into session calls;
+  bad input is rejected with a message, never raised into viser;
+* while a trial runs, a ``PacedLoop`` ticks the session's ``TrialRun`` at the protocol's control
+  rate, and the render loop (``view.LiveView``) sends the scene to the tab from snapshots of
+  the bodies' poses taken after each tick;
+* a lost tab pauses the running trial (``Session.pause(cause="tab_lost")``) and the
+  participant resumes it from the next tab with "Continue";
+* any pause freezes the participant's input and hides the handle (``controls.LiveInput``);
+* an exception in a control tick holds the trial (``faults.ControlFaults``), is recorded and
+  shown to the experimenter, and the page asks to wait: the loop never dies silently;
+* each run ends with a neutral outcome sentence (``texts``); the console reads ``console``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from app.robot import Simulation, build_scene
+from study.server.experimenter import SessionDetail, SessionSummary
+from study.server.inputs import ParticipantInput
+from study.server.live.console import LiveFacts, LivePlots, session_detail, session_summary
+from study.server.live.controls import LiveInput
+from study.server.live.experimenter import ExperimenterControl
+from study.server.live.faults import ControlFaults
+from study.server.live.run import LiveRun
+from study.server.live.screens import show_screen
+from study.server.live.view import LiveView, shows_intent
+from study.server.loop import PacedLoop
+from study.server.participant import ParticipantPage
+from study.server.scene import SceneView
+from study.session import (
+    Session,
+    SessionClosedError,
+    TrialRun,
+)
+
+LOGGER = logging.getLogger("study.server.live")
+
+
+class LiveSession:
+    """A ``study.session.Session`` served to one participant tab at a time."""
+
+    def __init__(self, session: Session, *, code: str, title: str, render_hz: float = 60.0):
+        self.session = session
+        self.participant = session.participant
+        self.code = code
+        self.title = title
+        self.page: ParticipantPage | None = None
+        self.ever_attached = False
+        """A tab has held this session (a kiosk then asks for the code after a drop)."""
+        self.on_closed: Callable[[], None] | None = None
+        self.opened_at = time.monotonic()
+        self.log: deque[str] = deque(maxlen=20)
+        self._lock = threading.RLock()
+        """The current run, its trial, the input and the view against the page thread, viser
+        callbacks and the console (``study.session`` gives the lock order)."""
+        self._shown: tuple[object, ...] | None = None
+        self._dirty = threading.Event()
+        """Set when the page may need redrawing (the page thread waits on it)."""
+        self._stop = threading.Event()
+        self.input = LiveInput(code=code, record=self._event)
+        self.view = LiveView(code=code, render_hz=render_hz, tab=self._tab)
+        self.faults = ControlFaults(code=code, record=self._event)
+        self.plots = LivePlots()
+        self.trial_run = LiveRun(
+            session=session,
+            code=code,
+            view=self.view,
+            input=self.input,
+            faults=self.faults,
+            plots=self.plots,
+            page=lambda: self.page,
+            redraw=self._redraw,
+        )
+        self.experimenter = ExperimenterControl(
+            session=session,
+            faults=self.faults,
+            input=self.input,
+            tab=lambda: (self.page, self.trial_run.run),
+            wake=self._dirty.set,
+        )
+        self._closed_notified = False
+        session.add_listener(lambda _screen: self._dirty.set())
+        self._page_thread = threading.Thread(
+            target=self._page_loop, name=f"page-{code}", daemon=True
+        )
+        self._page_thread.start()
+
+    # -- state ---------------------------------------------------------------------------------
+    @property
+    def closed(self) -> bool:
+        """True once the session is completed, withdrawn or ended (no tab binds to it)."""
+        return self.session.finished
+
+    @property
+    def run(self) -> TrialRun | None:
+        """The current (or last) run of this live session."""
+        return self.trial_run.run
+
+    @property
+    def fault(self) -> str | None:
+        return self.faults.fault
+
+    @property
+    def control_loop(self) -> PacedLoop | None:
+        return self.trial_run.control
+
+    @property
+    def participant_input(self) -> ParticipantInput | None:
+        return self.input.source
+
+    @property
+    def scene_view(self) -> SceneView | None:
+        return self.view.view
+
+    def _redraw(self) -> None:
+        self._shown = None
+        self._dirty.set()
+
+    def _tab(self) -> tuple[ParticipantPage | None, ParticipantInput | None]:
+        return self.page, self.input.source
+
+    def _event(self, kind: str, detail: Mapping[str, Any]) -> bool:
+        """Append an event to the session's log (UI events: tabs, refusals, rejected input),
+        through ``Session.record_event``: written only while this process holds the lease.
+        False when the store refused it (it is in the server log then)."""
+        where = detail.get("address")
+        self.log.append(f"{time.strftime('%H:%M:%S')} {kind}" + (f" ({where})" if where else ""))
+        if self._stop.is_set():
+            return False  # shutting down: the store may already be closed
+        try:
+            self.session.record_event(kind, detail)
+        except SessionClosedError as exc:
+            # finished and released, or taken over by another process: not ours to log into
+            LOGGER.info("event %s not recorded: %s", kind, exc)
+            return False
+        except Exception:
+            LOGGER.exception("could not record event %s", kind)
+            return False
+        return True
+
+    # -- tabs ----------------------------------------------------------------------------------
+    def attach(self, page: ParticipantPage) -> None:
+        page.on_reject = lambda problem: self._event("input_rejected", {"problem": problem[:200]})
+        page.on_keys = lambda down, up: self.input.on_keys(down, up, reframe=self.reframe)
+        with self._lock:
+            self.page = page
+            self.ever_attached = True
+            self._shown = None
+        self._event(
+            "participant_connected",
+            {"client": page.client.client_id, "address": getattr(page, "address", "unknown")},
+        )
+        with self._lock:
+            if self.trial_run.running:
+                self.trial_run.show_scene(page)
+        self._dirty.set()
+
+    def detach(self, page: ParticipantPage) -> None:
+        with self._lock:
+            if self.page is not page:
+                return
+            self.page = None
+            self.view.drop()
+            running = self.trial_run.running
+        self._event("participant_disconnected", {"client": page.client.client_id})
+        if running and not self.session.finished:
+            self.input.freeze(None)
+            try:
+                if not self.session.paused:
+                    self.session.pause(cause="tab_lost")
+            except Exception as exc:
+                LOGGER.warning("could not pause after disconnect: %s", exc)
+
+    def note_refused_join(self, page: ParticipantPage) -> None:
+        """The right code from a second tab while one holds the session: logged for the
+        experimenter; the tab is told only that the code did not work."""
+        self._event(
+            "second_tab_refused",
+            {"client": page.client.client_id, "address": getattr(page, "address", "unknown")},
+        )
+
+    # -- what the page's buttons call (``screens.PageHandlers``) --------------------------------------
+    def _participant(self, action: str, call: Callable[[], object]) -> None:
+        page = self.page
+        try:
+            call()
+        except Exception as exc:  # a stale click or bad answer: tell, log, keep running
+            if page is not None:
+                page.reject(f"{action}: {exc}")
+            else:
+                self._event("input_rejected", {"problem": f"{action}: {exc}"[:200]})
+            self._shown = None  # redraw: the screen's buttons were disabled by the click
+            self._dirty.set()
+
+    def agree(self) -> None:
+        self._participant("agree", self.session.agree)
+
+    def decline(self) -> None:
+        reason = "participant declined consent"
+        self._participant("decline", lambda: self.session.withdraw(reason=reason))
+
+    def start_trial(self) -> None:
+        def start() -> None:
+            with self._lock:
+                if self.trial_run.running:
+                    return
+                source = ParticipantInput()
+                run = self.session.start_trial(input_source=source)
+                self.trial_run.begin(run, source)
+
+        self._participant("start_trial", start)
+
+    def answer(self, answers: Mapping[str, int]) -> None:
+        self._participant("answer", lambda: self.session.answer(answers))
+
+    def finish(self) -> None:
+        self._participant("finish", self.session.finish)
+
+    def continue_after_tab_lost(self) -> None:
+        self._participant("resume", self.session.resume)
+
+    def seen_outcome(self) -> None:
+        self.trial_run.outcome = None
+        self._dirty.set()
+
+    def grasp(self) -> None:
+        self.input.grasp()
+
+    def reframe(self) -> None:
+        """Put the tab's camera back on the task view."""
+        self.view.reframe(self.page)
+
+    def preview(self, page: ParticipantPage) -> None:
+        """Show the next trial's scene at its start state on the ready screen, so the browser
+        has loaded it (the first draw is slow in software WebGL) before the trial's clock runs."""
+        try:
+            config = self.session.trial_config()
+        except Exception:  # not on a trial step any more
+            return
+        scene = build_scene(config.scene)
+        sim = Simulation(scene, physics_dt=config.physics_dt)
+        with self._lock:
+            if self.trial_run.running:
+                return  # Start was pressed meanwhile: the run's own frames show
+            self.view.draw_preview(
+                page, scene, sim.model, sim.poses(), intent=shows_intent(config.extra)
+            )
+
+    def _end_run(self) -> None:
+        with self._lock:
+            page = self.page
+            self.trial_run.end()
+        if page is not None:
+            page.remove_gizmo()
+
+    # -- the page --------------------------------------------------------------------------------
+    def _page_loop(self) -> None:
+        while not self._stop.is_set():
+            self._dirty.wait(timeout=0.25)
+            self._dirty.clear()
+            if self._stop.is_set():
+                return
+            try:
+                self._sync()
+            except Exception:
+                LOGGER.exception("session %s: page update failed", self.code)
+
+    def _sync(self) -> None:
+        run = self.trial_run.run
+        if run is not None and run.over and self.trial_run.control is not None:
+            self._end_run()
+        if self.closed and not self._closed_notified:
+            self._closed_notified = True
+            self.view.stop()
+            with contextlib.suppress(Exception):
+                self.session.close()  # release the lease; the record stays readable
+            if self.on_closed is not None:
+                self.on_closed()
+        if run is not None and not run.over:
+            held = run.paused or self.faults.held
+            if held and not self.input.frozen:
+                self.input.freeze(self.page)
+            elif (
+                not held and self.input.frozen and (gripper := self.trial_run.gripper()) is not None
+            ):
+                self.input.thaw(self.page, gripper)
+        page = self.page
+        if page is None:
+            return
+        screen = self.session.screen()
+        paused_by = self.session.paused_by
+        key = (
+            page.client.client_id,
+            screen.revision,
+            paused_by,
+            screen.paused,
+            self.faults.held,
+            self.trial_run.outcome,
+        )
+        if key == self._shown:
+            return
+        show_screen(
+            page,
+            screen,
+            fault=self.faults.held,
+            paused_by=paused_by,
+            outcome=self.trial_run.outcome,
+            agree_label=self.session.protocol.texts.consent_agree or "I agree",
+            handlers=self,
+        )
+        self._shown = key  # only once shown: a screen that failed is tried again
+
+    # -- experimenter --------------------------------------------------------------------------
+    def act(self, action: str, *, reason: str = "") -> str:
+        """Run an experimenter action; returns a line for the console (errors raise)."""
+        return self.experimenter.act(action, reason=reason)
+
+    def _facts(self) -> LiveFacts:
+        return LiveFacts(
+            code=self.code,
+            connected=self.page is not None,
+            opened_at=self.opened_at,
+            run=self.trial_run.run,
+            log=tuple(self.log),
+            fault=self.faults.fault,
+        )
+
+    def summary(self) -> SessionSummary:
+        return session_summary(self.session, self._facts())
+
+    def detail(self) -> SessionDetail:
+        return session_detail(self.session, self._facts(), self.plots)
+
+    def close(self) -> None:
+        """Stop the threads and release the session (a running trial is marked interrupted)."""
+        self._stop.set()
+        self._dirty.set()
+        self.trial_run.stop()
+        self.view.stop()
+        self.input.close()
+        with contextlib.suppress(Exception):
+            self.session.close()

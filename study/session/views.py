@@ -1,0 +1,132 @@
+"""What a session shows, as functions of its state: the participant's blind ``Screen``, the
+experimenter's ``Overview`` and the experimenter actions valid now.
+
+Called with the session lock held; they read (``Steps``, the store), never write.
+"""
+
+from __future__ import annotations
+
+from study.protocol import LikertItem
+from study.session.errors import SessionStateError
+from study.session.ledger import SessionInfo
+from study.session.screen import Overview, Progress, Screen
+from study.session.steps import PARTICIPANT_ACTIONS, Steps
+
+EXPERIMENTER_ACTIONS: tuple[str, ...] = (
+    "start",
+    "pause",
+    "resume",
+    "redo",
+    "skip",
+    "withdraw",
+    "end",
+)
+"""Every experimenter action, in the console's button order (the only place they are listed)."""
+
+NEEDS_REASON: frozenset[str] = frozenset({"redo", "skip", "withdraw", "end"})
+"""The experimenter actions that take a ``reason`` for the record."""
+
+
+def screen(steps: Steps, *, revision: int) -> Screen:
+    """What the participant should see now (no condition names anywhere)."""
+    state, protocol = steps.state, steps.protocol
+    phase = steps.phase()
+    texts = protocol.texts
+    step = steps.current()
+    progress = Progress(steps.trial_progress(), steps.plan.n_trials)
+    items: tuple[LikertItem, ...] = ()
+    actions = PARTICIPANT_ACTIONS.get(phase, ())
+    if phase == "waiting":
+        title, text = "Welcome", texts.instructions["welcome"]
+    elif phase == "consent":
+        title, text = "Consent", texts.consent
+    elif phase in ("ready", "running") and step is not None:
+        if step.phase == "training":
+            title = f"Practice run {step.trial_number} of {protocol.training.runs}"
+            text = protocol.describe_training()
+        else:
+            title = progress.text
+            text = protocol.describe_trial(step.task or "")
+    elif phase == "questions" and step is not None:
+        key = "preference" if step.questionnaire == "after_task" else "rating"
+        title = "Questions"
+        text = texts.instructions.get(key, texts.instructions["rating"])
+        items = tuple(steps.pending_items(step))
+    elif phase == "debrief":
+        title, text = "Thank you", texts.debrief
+    else:
+        title, text = "Done", texts.debrief if state.status == "completed" else ""
+    if state.paused:
+        text = texts.instructions.get("pause", "The session is paused.")
+        actions = ()
+    return Screen(
+        phase=phase,
+        title=title,
+        text=text.strip(),
+        progress=progress,
+        items=items,
+        actions=actions,
+        paused=state.paused,
+        questionnaire=step.questionnaire if phase == "questions" and step else None,
+        revision=revision,
+    )
+
+
+def overview(steps: Steps, info: SessionInfo) -> Overview:
+    """The experimenter's view: the current step's full condition and the schedule."""
+    state, protocol = steps.state, steps.protocol
+    step = steps.current()
+    run = state.active
+    trials = steps.store.trials(session_id=info.session_id)
+    attempt = None
+    if step is not None and step.kind == "trial":
+        attempt = run.attempt if run else steps.next_attempt(step.index)
+    task = protocol.task(step.task) if step is not None and step.task else None
+    return Overview(
+        participant=info.participant,
+        session_id=info.session_id,
+        status=state.status,
+        phase=steps.phase(),
+        paused=state.paused,
+        step=state.cursor,
+        steps=len(steps.plan),
+        step_kind=step.kind if step else None,
+        training_or_task=step.phase if step else None,
+        task=step.task if step else None,
+        difficulty=task.difficulty if task else None,
+        correctness=task.correctness if task else None,
+        mode=step.mode if step else None,
+        run=step.run if step else None,
+        attempt=attempt,
+        trial_id=run.trial_id if run else None,
+        trials_completed=sum(t.status == "completed" for t in trials),
+        ratings=len(steps.store.ratings(session_id=info.session_id)),
+        schedule_row=info.schedule_row,
+        schedule=tuple((a.position, a.task, a.run, a.mode) for a in info.assignments),
+        skipped_steps=tuple(sorted(state.skipped)),
+        experimenter_actions=experimenter_actions(steps),
+    )
+
+
+def experimenter_actions(steps: Steps) -> tuple[str, ...]:
+    """The experimenter actions valid now, in ``EXPERIMENTER_ACTIONS`` order."""
+    state = steps.state
+    phase = steps.phase()
+    if phase == "done":
+        return ()
+    if phase == "waiting":
+        valid = {"start", "withdraw", "end"}
+    else:
+        valid = {"resume" if state.paused else "pause", "withdraw", "end"}
+        step = steps.current()
+        if step is not None and step.kind in ("trial", "questions"):
+            valid.add("skip")
+        try:
+            if state.active is not None or steps.redo_target():
+                valid.add("redo")
+        except SessionStateError:
+            pass
+    return tuple(a for a in EXPERIMENTER_ACTIONS if a in valid)
+
+
+__all__ = ["EXPERIMENTER_ACTIONS", "NEEDS_REASON", "experimenter_actions", "overview", "screen"]
