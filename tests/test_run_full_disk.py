@@ -15,9 +15,9 @@ from typing import Any
 
 import pytest
 
-import study.session
 from app.cli import dispatch
 from study.__main__ import COMMANDS
+from study.cli import run as run_cli
 from study.store import Store
 from tests.disk_full import cap
 
@@ -32,14 +32,14 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, dict[str, 
 
 def full_after(extra_pages: int, monkeypatch: pytest.MonkeyPatch) -> None:
     """Make the store the next command opens full once it grew by ``extra_pages`` pages."""
-    real = study.session.open_store
+    real = run_cli.open_store
 
     def open_capped(path: Any, protocol: Any, **kw: Any) -> Store:
         store = real(path, protocol, **kw)
         cap(store, extra_pages=extra_pages)
         return store
 
-    monkeypatch.setattr(study.session, "open_store", open_capped)
+    monkeypatch.setattr(run_cli, "open_store", open_capped)  # where the command opens it
 
 
 def done(db: Path) -> tuple[set[tuple], set[tuple]]:

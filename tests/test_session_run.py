@@ -11,8 +11,9 @@ import pytest
 from app.cli import dispatch
 from app.trial import OUTCOMES
 from study.__main__ import COMMANDS
+from study.cli import run as run_cli
 from study.protocol import load_protocol
-from study.session import open_store
+from study.session import headless, open_store
 from study.store import Store
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -117,8 +118,6 @@ def test_unexpected_failure_keeps_data_and_says_resume(
     monkeypatch: pytest.MonkeyPatch,
     short_protocol: Path,
 ) -> None:
-    import study.session.headless as headless
-
     def crash_mid_trial(session, **_: object):
         session.start()
         session.agree()
@@ -126,7 +125,7 @@ def test_unexpected_failure_keeps_data_and_says_resume(
         run.tick()
         raise RuntimeError("boom in the control loop")
 
-    monkeypatch.setattr(headless, "run_headless", crash_mid_trial)
+    monkeypatch.setattr(run_cli, "run_headless", crash_mid_trial)  # where the command calls it
     db = tmp_path / "study.db"
     code, summary, err = run(
         capsys, "--db", str(db), "--protocol", str(short_protocol), "--participant", "P01"

@@ -10,10 +10,10 @@ from typing import Any
 
 import pytest
 
-import study.session.headless
 from study.protocol import load_protocol
 from study.session import Session, open_store
 from study.simulated import DEFAULT_POPULATION_PATH
+from study.simulated import job as job_module
 from study.simulated.job import run_participant
 from study.simulated.runner import plan_jobs
 
@@ -30,7 +30,7 @@ def test_simulated_parameters_are_recorded_through_the_session(
 
     monkeypatch.setattr(Session, "record_event", spy)
     # the event is written before the session is driven; the session itself is not needed here
-    monkeypatch.setattr(study.session.headless, "run_headless", lambda session, **_: None)
+    monkeypatch.setattr(job_module, "run_headless", lambda session, **_: None)
     protocol = load_protocol(protocol_path)
     store = open_store(tmp_path / "sim.db", protocol)
     try:

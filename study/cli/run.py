@@ -22,6 +22,13 @@ from pathlib import Path
 from typing import Any
 
 from app.cli import non_negative_int
+from study.protocol import ProtocolError, load_protocol
+from study.schedule import ScheduleError
+from study.session import Session, SessionError, TrialSummary, open_store
+from study.session.answers import ScriptedAnswers
+from study.session.headless import report as make_report
+from study.session.headless import run_headless
+from study.store import StoreError
 
 DEFAULT_PROTOCOL = Path(__file__).resolve().parents[2] / "protocols" / "dragan2013.toml"
 
@@ -66,13 +73,6 @@ def _json_object(text: str) -> dict[str, Any]:
 
 
 def main(args: argparse.Namespace) -> int:
-    from study.protocol import ProtocolError, load_protocol
-    from study.schedule import ScheduleError
-    from study.session import Session, SessionError, TrialSummary, open_store
-    from study.session.answers import ScriptedAnswers
-    from study.session.headless import run_headless
-    from study.store import StoreError
-
     result: dict[str, Any] = {"participant": args.participant}
     session = None
     store = None
@@ -137,8 +137,6 @@ def main(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGTERM, previous)
         if session is not None:
             if "trials_completed" not in result:
-                from study.session.headless import report as make_report
-
                 result = {**make_report(session).as_dict(), **result}
                 result.setdefault("status", session.status)
             try:

@@ -14,6 +14,10 @@ from pathlib import Path
 
 from app.cli import port as port_number
 from app.cli import rate_hz
+from study.protocol import load_protocol
+from study.server.live import session_factory
+from study.server.server import StudyServer
+from study.session import open_store
 
 MAX_RENDER_HZ = 60.0
 
@@ -65,11 +69,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from study.protocol import load_protocol
-    from study.server.live import session_factory
-    from study.server.server import StudyServer
-    from study.session import open_store
-
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
     if args.port and args.port == args.experimenter_port:
         print(

@@ -33,6 +33,10 @@ from pathlib import Path
 from typing import Any
 
 from app.cli import non_negative_int, positive_int
+from study.protocol import ProtocolError
+from study.simulated import SimulationError
+from study.simulated.runner import simulate
+from study.store import StoreError
 
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_PROTOCOL = ROOT / "protocols" / "dragan2013.toml"
@@ -90,11 +94,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from study.protocol import ProtocolError
-    from study.simulated import SimulationError
-    from study.simulated.runner import simulate
-    from study.store import StoreError
-
     result: dict[str, Any]
     try:
         report = simulate(

@@ -26,6 +26,10 @@ from typing import Any
 
 from app.cli import non_negative_float, non_negative_int, positive_int
 from study.cli.simulate import DEFAULT_POPULATION, DEFAULT_PROTOCOL
+from study.protocol import ProtocolError
+from study.simulated import SimulationError
+from study.store import StoreError
+from study.sweep import Criteria, SweepError, make_grid, sweep
 from study.sweep.criteria import (
     DEFAULT_MAX_TIME_LOST_S,
     DEFAULT_MIN_HARD_COMPLETION,
@@ -36,6 +40,7 @@ from study.sweep.grid import (
     DEFAULT_AGGRESSIVE_THRESHOLD,
     DEFAULT_TIMID_ALPHA_MAX,
 )
+from study.sweep.report import table, write
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -77,12 +82,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from study.protocol import ProtocolError
-    from study.simulated import SimulationError
-    from study.store import StoreError
-    from study.sweep import Criteria, SweepError, make_grid, sweep
-    from study.sweep.report import table, write
-
     summary: dict[str, Any]
     try:
         grid = make_grid(

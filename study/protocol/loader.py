@@ -20,6 +20,9 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+import app
+from app.robot.errors import SceneError
+from app.robot.scene_spec import SceneSpec
 from app.trial.config import TrialConfig
 from study.protocol.components import build_check, component
 from study.protocol.errors import (
@@ -32,6 +35,7 @@ from study.protocol.fields import Table, join_key
 from study.protocol.model import INTENT_DISPLAYS, Control, Mode, StudyInfo, Task, Training
 from study.protocol.participant import check_blinding, read_questionnaire, read_texts
 from study.protocol.protocol import TRAINING_MODE, Protocol
+from study.schedule import Design
 
 SCHEMA = 1
 MAX_NESTING = 32
@@ -182,8 +186,6 @@ class _Loader:
         return cls(problem, file=self.path, key=key)
 
     def protocol(self) -> Protocol:
-        import app
-
         root = self.root
         root.only(*_TOP_LEVEL)
         schema = root.integer("schema")
@@ -251,8 +253,6 @@ class _Loader:
     def _check_sample_size(
         self, study: StudyInfo, tasks: tuple[Task, ...], modes: tuple[Mode, ...]
     ) -> None:
-        from study.schedule import Design
-
         cycle = Design(tasks=tuple(t.name for t in tasks), modes=tuple(m.name for m in modes))
         n = study.participants
         if n is not None and n % cycle.cycle:
@@ -299,9 +299,6 @@ class _Loader:
         return levels
 
     def _scenes(self, t: Table) -> dict[str, Any]:
-        from app.robot.errors import SceneError
-        from app.robot.scene_spec import SceneSpec
-
         scenes: dict[str, Any] = {}
         for name, sub in t.tables():
             where = sub.where()

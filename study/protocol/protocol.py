@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from app.trial.config import TrialConfig
 from study.protocol.blinding import blinded_words
 from study.protocol.errors import ConditionError
 from study.protocol.model import Control, Mode, StudyInfo, Task, Texts, Training
@@ -22,7 +23,6 @@ from study.protocol.questionnaire import Questionnaire
 
 if TYPE_CHECKING:
     from app.robot.scene_spec import SceneSpec
-    from app.trial.config import TrialConfig
 
 TRAINING_MODE = "none"
 """The ``mode`` recorded for unassisted training runs."""
@@ -140,8 +140,6 @@ class Protocol:
     # -- trial configurations -----------------------------------------------------------------
     def trial_config(self, task: str, mode: str) -> TrialConfig:
         """The :class:`app.trial.TrialConfig` of one condition: ``task`` done in ``mode``."""
-        from app.trial.config import TrialConfig
-
         t = self.task(task)
         m = self.mode(mode)
         return TrialConfig(
@@ -178,8 +176,6 @@ class Protocol:
 
     def training_config(self) -> TrialConfig:
         """The unassisted training run (arbitration ``None``, mode ``"none"``)."""
-        from app.trial.config import TrialConfig
-
         return TrialConfig(
             scene=self.scenes[self.training.scene],
             prediction=self.training.prediction,
