@@ -204,6 +204,7 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     # How the run ended (a neutral sentence), then three 7-point rows with anchors.
     page.get_by_text("Run finished").wait_for(timeout=30_000)
     assert "Time is up." in text_now()
+    assert "Trial 2 of" not in text_now()  # the run that finished was trial 1, not the next
     _shot(page, screenshots, "04b-outcome")
     page.get_by_role("button", name="Continue").click()
     page.get_by_text("Your answer: none yet").first.wait_for(timeout=30_000)

@@ -61,7 +61,7 @@ def show_screen(
         page.show_message(
             "Run finished",
             outcome,
-            progress=progress,
+            progress=None,  # the session already counts the next run: no number is right here
             button="Continue",
             on_button=handlers.seen_outcome,
         )
