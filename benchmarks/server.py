@@ -43,6 +43,7 @@ sys.path.insert(0, str(ROOT))
 from playwright.sync_api import sync_playwright  # noqa: E402
 
 from tests.browser.harness import FrameLog, decode_frame, launch, start_server  # noqa: E402
+from tests.browser.test_participant_flow import join  # noqa: E402
 
 
 def _pose_update(message: dict) -> bool:
@@ -191,8 +192,7 @@ def main() -> int:
             page.set_default_timeout(120_000)
             log = FrameLog().attach(page)
             page.goto(rs.url)
-            page.get_by_text("Connected").first.wait_for()
-            page.get_by_role("button", name="Start").wait_for()
+            join(page, code, then="Start")  # a participant tab always types the join code
             page.screenshot()  # waits for the first (slow, software WebGL) draw of the scene
             start_trial(live, page)
             rate = live.control_loop.rate_hz
