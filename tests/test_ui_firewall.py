@@ -7,13 +7,14 @@ import inspect
 import math
 
 import msgspec
+import pytest
 import viser
 from viser.infra import _infra
 from viser.infra._async_message_buffer import AsyncMessageBuffer
 from viser.infra._messages import Message
 
-from study.server import blinding
-from study.server.firewall import MAX_MESSAGE_BYTES, Firewall
+from study.server import blinding, firewall
+from study.server.firewall import BUDGET, MAX_MESSAGE_BYTES, Firewall
 
 
 def _raw(kind: str, **fields: object) -> bytes:
@@ -130,3 +131,87 @@ def test_the_console_may_send_long_text() -> None:
     long_reason = _raw("GuiUpdateMessage", uuid="a", updates={"value": "r" * 500})
     assert Firewall(allowed=None).screen(long_reason) is None
     assert Firewall().screen(long_reason) is not None
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.now = 1000.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+class _Socket:
+    """Stands in for a websocket connection from one address: each read is a frame that
+    arrived ``period`` seconds after the last (on ``clock``)."""
+
+    def __init__(self, address: str, frame: bytes | str, *, clock: _Clock, period: float) -> None:
+        self.remote_address = (address, 40000)
+        self.frame, self.clock, self.period = frame, clock, period
+        self.reads = 0
+
+    async def recv(self) -> bytes | str:
+        self.clock.now += self.period
+        self.reads += 1
+        return self.frame
+
+
+def test_a_backlog_after_a_stall_is_not_a_flood() -> None:
+    """A page at 180 messages a second whose server stalled 5 s has 900 queued messages, read
+    at once; it keeps its connection. A client that sends 5,000 at once does not."""
+    clock = _Clock()
+    fw = Firewall(rate_per_s=200.0, burst=400.0, clock=clock)
+
+    async def read(n_before: int, stall_s: float, backlog: int) -> None:
+        for _ in range(n_before):
+            clock.now += 1 / 180
+            fw.admit()
+        clock.now += stall_s
+        for _ in range(backlog):
+            fw.admit()
+
+    asyncio.run(read(500, 5.0, 900))
+    assert fw.closed_connections == 0
+    with pytest.raises(firewall.ConnectionFlood):
+        asyncio.run(read(10, 0.0, 5000))
+
+
+def test_the_server_wide_budget_drops_the_excess_and_closes_the_heaviest_address() -> None:
+    clock = _Clock()
+    fw = Firewall(budget_per_s=1000.0, budget_burst=2000.0, evict_after_s=2, clock=clock)
+    frame = _raw("NoSuchThing")
+    page = _Socket("10.0.0.3", frame, clock=clock, period=0.01)
+    flood = _Socket("10.0.0.2", frame, clock=clock, period=1 / 500)
+    read_page, read_flood = fw.screened_recv(page), fw.screened_recv(flood)
+
+    async def for_one_second(recv: object) -> int:
+        """How many messages got through in one second of reading."""
+        passed, end = 0, clock.now + 1.0
+        while clock.now < end:
+            await recv()  # type: ignore[operator]
+            passed += 1
+        return passed
+
+    async def attack() -> tuple[int, int]:
+        calm = await for_one_second(read_flood)  # 500 a second: within budget
+        assert fw.dropped[BUDGET] == 0
+        flood.period = 1 / 8000
+        over = await for_one_second(read_flood)
+        await read_page()
+        with pytest.raises(firewall.ConnectionFlood):
+            await for_one_second(read_flood)  # a second second over budget: closed
+        return calm, over
+
+    calm, over = asyncio.run(attack())
+    assert abs(calm - 500) <= 1 and fw.dropped[BUDGET] > 4000
+    assert 2000 < over < 3200  # the unspent burst, then the budget's rate
+    assert fw.closed_connections == 1
+    asyncio.run(read_page())  # the other address is still served
+
+
+def test_a_text_frame_is_refused_before_viser_reads_it() -> None:
+    fw = Firewall()
+    recv = fw.screened_recv(_Socket("10.0.0.2", "hello", clock=_Clock(), period=0.0))
+    with pytest.raises(firewall.ConnectionFlood) as closed:
+        asyncio.run(recv())
+    assert closed.value.code == 1003 and fw.dropped["text frame"] == 1

@@ -9,13 +9,27 @@ front of that:
   websocket server a message-size limit of ``max_bytes`` from the handshake on (a bigger
   message closes its connection before it is buffered), refuses a websocket whose ``Origin``
   is another site's (a page elsewhere in the browser cannot drive the study), refuses more than
-  ``max_connections_per_address`` / ``max_connections`` open websockets, and answers a request
-  for a file it cannot even name (a 5,000-character path) with 404 instead of 500;
+  ``max_connections_per_address`` / ``max_connections`` open websockets, refuses a repeated
+  ``Host``/``Origin``/``Upgrade`` header and a ``Host`` carrying userinfo or a path (403, never
+  500), and answers a request for a file it cannot even name (a 5,000-character path) with 404
+  instead of 500;
+* per frame, before viser sees it (:meth:`Firewall.screened_recv`): a text frame (viser speaks
+  binary) closes its connection with 1003; and a server-wide budget of ``budget_per_s``
+  messages a second (a token bucket shared by every connection, burst ``budget_burst``) drops
+  the excess before it is decoded -- many sockets each under its own rate must not starve the
+  control loop of the GIL. When the budget stays exhausted for ``evict_after_s`` seconds, the
+  connections of the address that sent most in the last second are closed (one address per
+  second; the connection caps bound how fast it can come back);
 * per message, :func:`install` wraps the decoder once per process; for a server with a
   firewall each incoming message is checked *before* it becomes a message object:
 
   1. rate: at most ``rate_per_s`` messages a second per connection (burst ``burst``); a
-     connection far over it, or with ``max_refused`` refused messages, is closed;
+     connection far over it, or with ``max_refused`` refused messages, is closed. The rate is
+     counted when viser reads a message, not when it arrived (the kernel buffers it without a
+     timestamp), so a backlog read at once after a stall of the event loop looks like a burst:
+     a connection the server has not read from for ``t`` seconds may spend ``rate_per_s * t``
+     (up to ``backlog_s`` seconds' worth) on top of its burst -- what an honest page could have
+     queued meanwhile. Its long-run rate stays bounded, and the server-wide budget bounds load;
   2. size: at most ``max_bytes`` (a pose is about 150 bytes);
   3. type: only the types in ``allowed`` (an explicit allow-list) pass;
   4. values: every number finite and bounded (a pose within ``max_position_m`` of the origin,
@@ -23,8 +37,9 @@ front of that:
 
 A refused message is replaced by a :class:`Dropped` message that no handler listens to, counted
 under a fixed reason (never a name the client chose), and logged as a one-line summary (never
-its payload) at most once per reason every ``log_every_s`` seconds. Servers without a firewall
-pass untouched.
+its payload) at most once per reason every ``log_every_s`` seconds. A connection closed for
+what it sent (:class:`ConnectionFlood`) closes with a policy code and no traceback in the log.
+Servers without a firewall pass untouched.
 """
 
 from __future__ import annotations
@@ -91,7 +106,16 @@ class RefusedMessage(ValueError):
 
 
 class ConnectionFlood(ConnectionError):
-    """A connection sent far more, or far worse, than a page does; viser closes it."""
+    """A connection sent far more, or far worse, than a page does; it is closed with ``code``
+    (1008 policy violation, or 1003 for data viser does not speak)."""
+
+    def __init__(self, why: str, *, code: int = 1008) -> None:
+        super().__init__(why)
+        self.code = code
+
+
+BUDGET = "over the server's message budget"
+REPEATED_HEADERS = ("Host", "Origin", "Upgrade")
 
 
 def _finite(value: Any, *, bound: float, what: str) -> None:
@@ -167,6 +191,11 @@ class Firewall:
         max_connections_per_address: int = 8,
         check_origin: bool = True,
         loopback_only: bool = False,
+        backlog_s: float = 10.0,
+        budget_per_s: float | None = 1000.0,
+        budget_burst: float = 2000.0,
+        evict_after_s: int = 2,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.allowed = None if allowed is None else frozenset(allowed) - SHARE_TYPES
         if allow_share and self.allowed is not None:
@@ -183,6 +212,11 @@ class Firewall:
         self.max_connections_per_address = max_connections_per_address
         self.check_origin = check_origin
         self.loopback_only = loopback_only
+        self.backlog_s = backlog_s
+        self.budget_per_s = budget_per_s
+        self.budget_burst = budget_burst
+        self.evict_after_s = evict_after_s
+        self._clock = clock  # of the rate limits (a test's own clock)
         self.passed = 0
         self.dropped: Counter[str] = Counter()
         self.closed_connections = 0
@@ -194,19 +228,27 @@ class Firewall:
         self._buckets: weakref.WeakKeyDictionary[asyncio.Task[Any], list[float]] = (
             weakref.WeakKeyDictionary()
         )
+        # the server-wide budget (touched only on the server's event loop)
+        self._budget = budget_burst
+        self._budget_t = self._clock()
+        self._window_t = self._budget_t
+        self._window_sent: Counter[str] = Counter()
+        self._window_dropped = 0
+        self._over_windows = 0
+        self._evict: str | None = None
 
     # -- at the door -----------------------------------------------------------------------------
     def process_request(self, inner: Callable[..., Any] | None) -> Callable[..., Any]:
         """Wrap viser's HTTP handler: origin and connection checks, and 404 for bad paths."""
 
         def handle(connection: Any, request: Any) -> Any:
+            repeated = [h for h in REPEATED_HEADERS if len(request.headers.get_all(h)) > 1]
+            if repeated:
+                return self._forbid(f"a repeated {repeated[0]} header")
             if request.headers.get("Upgrade", "").lower() == "websocket":
                 problem = self._door_problem(connection, request)
                 if problem is not None:
-                    self._note("connection refused", problem)
-                    with self._lock:
-                        self.refused_connections[problem.split(" (")[0]] += 1
-                    return Response(http.HTTPStatus.FORBIDDEN, "Forbidden", Headers(), b"")
+                    return self._forbid(problem)
             if inner is None:
                 return None
             try:
@@ -216,8 +258,16 @@ class Firewall:
 
         return handle
 
+    def _forbid(self, problem: str) -> Response:
+        self._note("connection refused", problem)
+        with self._lock:
+            self.refused_connections[problem.split(" (")[0]] += 1
+        return Response(http.HTTPStatus.FORBIDDEN, "Forbidden", Headers(), b"")
+
     def _door_problem(self, connection: Any, request: Any) -> str | None:
         host = request.headers.get("Host", "")
+        if any(ch in host for ch in "@/\\?#"):  # userinfo or a path: not a host name
+            return "a malformed Host header"
         if self.loopback_only and urlsplit(f"//{host}").hostname not in LOOPBACK_NAMES:
             return "a name other than this machine's (DNS rebinding)"
         if self.check_origin:
@@ -241,12 +291,14 @@ class Firewall:
         task = asyncio.current_task()
         if task is None:
             return
-        now = time.monotonic()
+        now = self._clock()
         bucket = self._buckets.get(task)
         if bucket is None:
             bucket = self._buckets[task] = [self.burst, now, 0.0]
         elapsed = now - bucket[1]
-        bucket[0] = min(self.burst, bucket[0] + elapsed * self.rate_per_s)
+        # credit for the time this connection went unread (a backlog), never clipped down
+        cap = self.burst + self.rate_per_s * min(elapsed, self.backlog_s)
+        bucket[0] = min(max(cap, bucket[0]), bucket[0] + elapsed * self.rate_per_s)
         bucket[2] = max(0.0, bucket[2] - elapsed)  # refusals are forgiven at one a second
         bucket[1] = now
         bucket[0] -= 1.0
@@ -261,11 +313,59 @@ class Firewall:
             if bucket[2] > self.max_refused:
                 self._closing(f"more than {self.max_refused} refused messages")
 
-    def _closing(self, why: str) -> None:
+    def _closing(self, why: str, *, code: int = 1008) -> None:
         with self._lock:
             self.closed_connections += 1
         self._note("connection closed", f"closed a connection that sent {why}")
-        raise ConnectionFlood(why)
+        raise ConnectionFlood(why, code=code)
+
+    # -- per frame, before viser ---------------------------------------------------------------
+    def screened_recv(self, connection: Any) -> Callable[..., Any]:
+        """``connection.recv`` behind the text-frame rule and the server-wide budget."""
+        recv = connection.recv
+        address = _remote_host(connection)
+
+        async def screened(*args: Any, **kwargs: Any) -> Any:
+            while True:
+                raw = await recv(*args, **kwargs)
+                if not isinstance(raw, bytes):
+                    self.refuse("text frame (viser speaks binary)")
+                    self._closing("a text frame", code=1003)
+                if self._within_budget(address):
+                    return raw
+
+        return screened
+
+    def _within_budget(self, address: str) -> bool:
+        """Take one message from the server-wide bucket; False (counted) when it is empty."""
+        if self.budget_per_s is None:
+            return True
+        now = self._clock()
+        if now - self._window_t >= 1.0:
+            self._next_window(now)
+        if address == self._evict:
+            self._closing("its share of a flood over the server's message budget")
+        self._window_sent[address] += 1
+        elapsed, self._budget_t = now - self._budget_t, now
+        self._budget = min(self.budget_burst, self._budget + elapsed * self.budget_per_s)
+        if self._budget >= 1.0:
+            self._budget -= 1.0
+            return True
+        self._window_dropped += 1
+        self.refuse(f"{BUDGET} ({self.budget_per_s:g} a second)")
+        return False
+
+    def _next_window(self, now: float) -> None:
+        """Close out a one-second window: after ``evict_after_s`` windows in a row with
+        drops, the address that sent most in the last one is closed on its next message."""
+        self._over_windows = self._over_windows + 1 if self._window_dropped else 0
+        self._evict = None
+        if self._over_windows >= self.evict_after_s and self._window_sent:
+            self._evict = self._window_sent.most_common(1)[0][0]
+            self._over_windows = 0
+        self._window_sent.clear()
+        self._window_dropped = 0
+        self._window_t = now
 
     def screen(self, raw: bytes) -> str | None:
         """``None`` when ``raw`` may be decoded, else the reason it is refused."""
@@ -323,6 +423,26 @@ class Firewall:
         return Dropped(reason=reason)
 
 
+class _OpenLinesOnceAMinute(logging.Filter):
+    """websockets logs "connection open" (INFO) for every socket: a flood of sockets would be a
+    flood of lines. Let one through a minute."""
+
+    def __init__(self, every_s: float = 60.0) -> None:
+        super().__init__()
+        self.every_s = every_s
+        self._last = -math.inf
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.msg != "connection open":
+            return True
+        now = time.monotonic()
+        if now - self._last < self.every_s:
+            return False
+        self._last = now
+        return True
+
+
+_OPEN_LINES = _OpenLinesOnceAMinute()
 _FIREWALLS: dict[int, Firewall] = {}
 _INSTALL_LOCK = threading.Lock()
 _ORIGINAL = vm.Message.deserialize.__func__  # type: ignore[attr-defined]
@@ -369,12 +489,21 @@ def hardened_serve(firewall: Firewall) -> Iterator[None]:
     original = ws_server.serve
 
     def serve(handler: Any, *args: Any, **kwargs: Any) -> Any:
+        async def guarded(connection: Any) -> None:
+            connection.recv = firewall.screened_recv(connection)
+            try:
+                await handler(connection)
+            except ConnectionFlood as exc:  # closed on purpose: no "handler failed" traceback
+                with contextlib.suppress(Exception):
+                    await connection.close(exc.code, "refused")
+
         kwargs["max_size"] = firewall.max_bytes
         kwargs["process_request"] = firewall.process_request(kwargs.get("process_request"))
-        return original(handler, *args, **kwargs)
+        return original(guarded, *args, **kwargs)
 
     with _INSTALL_LOCK:
         ws_server.serve = serve  # type: ignore[assignment,misc]
+        logging.getLogger("websockets.server").addFilter(_OPEN_LINES)  # once: filters are a set
     try:
         yield
     finally:
