@@ -15,6 +15,7 @@ from viser.infra._messages import Message
 
 from study.server import blinding, firewall
 from study.server.firewall import BUDGET, MAX_MESSAGE_BYTES, Firewall
+from tests.browser.harness import run_async
 
 
 def _raw(kind: str, **fields: object) -> bytes:
@@ -170,10 +171,10 @@ def test_a_backlog_after_a_stall_is_not_a_flood() -> None:
         for _ in range(backlog):
             fw.admit()
 
-    asyncio.run(read(500, 5.0, 900))
+    run_async(read(500, 5.0, 900))
     assert fw.closed_connections == 0
     with pytest.raises(firewall.ConnectionFlood):
-        asyncio.run(read(10, 0.0, 5000))
+        run_async(read(10, 0.0, 5000))
 
 
 def test_the_server_wide_budget_drops_the_excess_and_closes_the_heaviest_address() -> None:
@@ -202,16 +203,16 @@ def test_the_server_wide_budget_drops_the_excess_and_closes_the_heaviest_address
             await for_one_second(read_flood)  # a second second over budget: closed
         return calm, over
 
-    calm, over = asyncio.run(attack())
+    calm, over = run_async(attack())
     assert abs(calm - 500) <= 1 and fw.dropped[BUDGET] > 4000
     assert 2000 < over < 3200  # the unspent burst, then the budget's rate
     assert fw.closed_connections == 1
-    asyncio.run(read_page())  # the other address is still served
+    run_async(read_page())  # the other address is still served
 
 
 def test_a_text_frame_is_refused_before_viser_reads_it() -> None:
     fw = Firewall()
     recv = fw.screened_recv(_Socket("10.0.0.2", "hello", clock=_Clock(), period=0.0))
     with pytest.raises(firewall.ConnectionFlood) as closed:
-        asyncio.run(recv())
+        run_async(recv())
     assert closed.value.code == 1003 and fw.dropped["text frame"] == 1
