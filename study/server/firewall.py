@@ -65,6 +65,8 @@ from viser import _messages as vm
 from websockets.datastructures import Headers
 from websockets.http11 import Response
 
+from study.server.forwarded import Network, accepted_hosts, client_address
+
 LOGGER = logging.getLogger("study.server.firewall")
 
 PARTICIPANT_TYPES: frozenset[str] = frozenset(
@@ -195,6 +197,7 @@ class Firewall:
         budget_per_s: float | None = 1000.0,
         budget_burst: float = 2000.0,
         evict_after_s: int = 2,
+        trusted_proxies: tuple[Network, ...] = (),
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.allowed = None if allowed is None else frozenset(allowed) - SHARE_TYPES
@@ -216,6 +219,8 @@ class Firewall:
         self.budget_per_s = budget_per_s
         self.budget_burst = budget_burst
         self.evict_after_s = evict_after_s
+        self.trusted_proxies = trusted_proxies
+        """Peers whose forwarded client address counts (``study.server.forwarded``)."""
         self._clock = clock  # of the rate limits (a test's own clock)
         self.passed = 0
         self.dropped: Counter[str] = Counter()
@@ -272,17 +277,28 @@ class Firewall:
             return "a name other than this machine's (DNS rebinding)"
         if self.check_origin:
             origin = request.headers.get("Origin")
-            if origin is not None and urlsplit(origin).netloc.lower() != host.lower():
+            hosts = accepted_hosts(
+                _remote_host(connection), request.headers, trusted=self.trusted_proxies
+            )
+            if origin is not None and urlsplit(origin).netloc.lower() not in hosts:
                 return "another site's page (origin check)"
         server = self._server
         live = dict(server._websock_server._live_connections) if server is not None else {}
         if len(live) >= self.max_connections:
             return f"too many connections ({len(live)})"
-        address = _remote_host(connection)
-        same = sum(1 for c in live.values() if _remote_host(c) == address)
+        address = self.client_host(connection, request.headers)
+        same = sum(1 for c in live.values() if self.client_host(c) == address)
         if same >= self.max_connections_per_address:
             return f"too many connections from one address ({same})"
         return None
+
+    def client_host(self, connection: Any, headers: Any = None) -> str:
+        """The address limits and logs use for ``connection``: its peer's, or behind a trusted
+        proxy the client's (``study.server.forwarded``)."""
+        if headers is None:
+            request = getattr(connection, "request", None)
+            headers = getattr(request, "headers", None)
+        return client_address(_remote_host(connection), headers, trusted=self.trusted_proxies)
 
     # -- per message -----------------------------------------------------------------------------
     def admit(self) -> None:
@@ -323,7 +339,7 @@ class Firewall:
     def screened_recv(self, connection: Any) -> Callable[..., Any]:
         """``connection.recv`` behind the text-frame rule and the server-wide budget."""
         recv = connection.recv
-        address = _remote_host(connection)
+        address = self.client_host(connection)
 
         async def screened(*args: Any, **kwargs: Any) -> Any:
             while True:
