@@ -227,7 +227,8 @@ def status_markdown(detail: SessionDetail) -> str:
         f"**{s.participant}** (code `{s.code}`), state **{s.state}**"
         f"{' (paused)' if detail.paused else ''}; step {s.position}",
         f"Condition: **{detail.condition}**",
-        f"Session time {fmt_time(s.elapsed_s)}, trial time {fmt_time(detail.trial_elapsed_s)};"
+        f"Session time {fmt_time(s.elapsed_s)}, trial time"
+        f" {fmt_time(detail.trial_elapsed_s) if detail.trial_elapsed_s else '-'};"
         f" participant tab {'connected' if s.connected else 'not connected'}",
     ]
     if detail.recruitment:
@@ -250,6 +251,8 @@ class ExperimenterConsole:
         self.pending: str | None = None
         """The action waiting for its reason and confirmation."""
         self._results: dict[str, str] = {}
+        self._options: dict[str, str] = {}
+        """Each session code's entry in the session list."""
         """The last action's result line per session code."""
         self._progress_at = 0.0
         gui = server.gui
@@ -277,7 +280,10 @@ class ExperimenterConsole:
         with self._session_folder:
             self.status_md = gui.add_markdown("_Select a session._")
             self.action_buttons = {
-                a: gui.add_button(a.capitalize(), disabled=True) for a in EXPERIMENTER_ACTIONS
+                a: gui.add_button(
+                    a.capitalize(), disabled=True, color="red" if a in FINAL_ACTIONS else None
+                )
+                for a in EXPERIMENTER_ACTIONS
             }
             self.confirm_md = gui.add_markdown("", visible=False)
             self.reason = gui.add_text("Reason", initial_value="", visible=False)
@@ -316,8 +322,7 @@ class ExperimenterConsole:
 
         @self.session_select.on_update
         def _(_: object) -> None:
-            value = str(self.session_select.value)
-            self.select(None if value == "(none)" else value)
+            self.select(_code_of(str(self.session_select.value)))
 
         for action, button in self.action_buttons.items():
             button.on_click(lambda _e, a=action: self._clicked(a))
@@ -354,7 +359,7 @@ class ExperimenterConsole:
         self._progress_at = 0.0
         self.refresh()
         self.select(code)
-        self.session_select.value = code
+        self.session_select.value = self._option(code)
 
     def select(self, code: str | None) -> None:
         """Show ``code``'s session (``None``: none) and nothing of the one shown before."""
@@ -368,6 +373,9 @@ class ExperimenterConsole:
         self.schedule_md.content = ""
         self.status_md.content = "_Select a session._" if code is None else "_Loading..._"
         self.refresh()
+
+    def _option(self, code: str) -> str:
+        return self._options.get(code, code)
 
     def _clicked(self, action: str) -> None:
         if self.selected is None:
@@ -442,11 +450,12 @@ class ExperimenterConsole:
     def refresh(self) -> None:
         rows = self.console.summaries()
         _set(self.sessions_md, sessions_markdown(rows))
-        options = ("(none)", *(r.code for r in rows))
+        options = ("(none)", *(_option(r) for r in rows))
+        self._options = {r.code: _option(r) for r in rows}
         if tuple(self.session_select.options) != options:
             self.session_select.options = options
-            if self.selected in options:
-                self.session_select.value = self.selected
+            if self.selected in self._options:
+                self.session_select.value = self._options[self.selected]
         now = time.monotonic()
         if now - self._progress_at > 2.0:  # reads every session's trials: not at every refresh
             self._progress_at = now
@@ -518,6 +527,18 @@ class ExperimenterConsole:
             self._prob_goals = d.goal_names
         else:
             self.prob_plot.data = (d.t, *(d.probabilities[:, k] for k in range(len(d.goal_names))))
+
+
+def _option(row: SessionSummary) -> str:
+    """A session's entry in the session list: participant and code."""
+    return f"{row.participant} ({row.code})"
+
+
+def _code_of(option: str) -> str | None:
+    """The session code of a session-list entry (``None`` for "(none)")."""
+    if not option.endswith(")") or "(" not in option or option == "(none)":
+        return None
+    return option[option.rindex("(") + 1 : -1]
 
 
 def _set(handle: viser.GuiMarkdownHandle, content: str) -> None:

@@ -142,6 +142,8 @@ def session_detail(session: Session, facts: LiveFacts, plots: LivePlots) -> Sess
 def condition_line(o: Overview) -> str:
     """The current step's condition in one line ("attempt" only where a run is next or on)."""
     attempt = f", attempt {o.attempt}" if o.attempt is not None else ""
+    if o.phase == "done":
+        return f"none: the session is {o.status}"
     if o.task:
         where = "questions after" if o.step_kind == "questions" else o.training_or_task
         return (

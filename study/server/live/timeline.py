@@ -52,11 +52,11 @@ def timeline(
     outcomes = Counter(
         (t.outcome or t.status) for t in trials if t.status in ("completed", "running")
     )
-    parts = [f"{n} {what}" for what, n in sorted(outcomes.items())]
+    parts = [f"{what} {n}" for what, n in sorted(outcomes.items())]
     redone = sum(t.status in ("redone", "interrupted") for t in trials)
     if redone:
         parts.append(f"{redone} redone or interrupted")
-    parts += [f"{tally[k]} {k}" for k in ("pauses", "reloads", "redos", "skips", "faults")]
+    parts += [f"{k} {tally[k]}" for k in ("pauses", "reloads", "redos", "skips", "faults")]
     return rows, "runs: " + ", ".join(parts)
 
 
