@@ -88,7 +88,7 @@ def test_the_protocol_gives_a_completion_code_and_redirect(tmp_path: Path) -> No
     p = load_protocol(with_completion(short_protocol(tmp_path), code="C0DE1234", redirect_url=url))
     assert (p.texts.completion_code, p.texts.redirect_url) == ("C0DE1234", url)
     title, text, redirect = end_screen("completed", p.texts)
-    assert title == "Thank you"
+    assert title == "Done"
     assert "Your completion code is **C0DE1234**" in text and redirect == url
     assert CLOSE_TEXT not in text  # the page goes back by itself
     _, text, redirect = end_screen("withdrawn", p.texts)

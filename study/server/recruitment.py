@@ -5,7 +5,8 @@ convention is ``?PROLIFIC_PID=...&STUDY_ID=...&SESSION_ID=...``; other panels (S
 wrappers, a mailing list) use a generic ``pid``. The tab's own page reads them
 (:func:`link_script`: the server never sees the page's URL, only its websocket) and sends each,
 cut to ``MAX_ID + 1`` characters, as a value of one hidden text element: ``"<key>=<value>"``
-then ``"."`` when done (a GUI value of at most 64 characters, as the firewall allows).
+then ``"."`` when done (a GUI value of at most 64 characters, as the firewall allows). The
+element's values are never echoed (viser's ``sync_cb`` for it is cleared).
 
 Hostile ground: each value must be 1-``MAX_ID`` letters, digits, ``-`` or ``_``
 (:func:`parse_ids`; Prolific's IDs are 24 hexadecimal digits), else the link is refused with a
@@ -118,6 +119,10 @@ def read_link(page: ParticipantPage, *, timeout_s: float = LINK_WAIT_S) -> dict[
     values: dict[str, str] = {}
     done = threading.Event()
     box = page.client.gui.add_text("link", initial_value="", visible=False)
+    # viser queues every GUI value a tab sends back to "the other clients" of its handle (none
+    # for a tab's own element, but the message is still built): a recruitment ID holding a
+    # condition word would then trip the blinding guard. Nothing is to be echoed here.
+    box._impl.sync_cb = None
 
     async def on_value(_: object) -> None:  # on viser's loop: in arrival order
         text = str(box.value)

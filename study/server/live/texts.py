@@ -62,9 +62,9 @@ def end_screen(status: str, texts: Texts) -> tuple[str, str, str | None]:
             f"This page takes you back to the recruitment site in {REDIRECT_DELAY_S} seconds;"
             " press Continue to go now."
         )
-        return "Thank you", "\n\n".join(parts), texts.redirect_url
+        return "Done", "\n\n".join(parts), texts.redirect_url
     parts.append(CLOSE_TEXT)
-    return "Thank you", "\n\n".join(parts), None
+    return "Done", "\n\n".join(parts), None
 
 
 def outcome_sentence(run: TrialRun, *, target: str, session_finished: bool) -> str | None:
