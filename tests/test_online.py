@@ -12,6 +12,7 @@ from types import SimpleNamespace
 import pytest
 from websockets.datastructures import Headers
 
+from study.export import tidy_tables
 from study.protocol import BlindingError, ProtocolValueError, load_protocol
 from study.server.firewall import Firewall
 from study.server.forwarded import accepted_hosts, client_address, trusted_networks
@@ -76,6 +77,10 @@ def test_the_open_link_is_off_by_default_counts_places_and_survives_a_restart(
         link.claim(b)
     enrol = next(e for e in store.events(participant="L0001") if e.kind == "enrol")
     assert enrol.detail["recruitment"] == {"PROLIFIC_PID": PID}
+    Session.enrol(store, protocol, "P01").close()  # enrolled in the console
+    sessions = tidy_tables(store)["sessions"].set_index("participant")
+    assert sessions.loc["L0001", ["source", "prolific_pid"]].tolist() == ["link", PID]
+    assert sessions.loc["P01", "source"] == "console" and sessions["pid"].isna().all()
     again = OpenLink(store, enabled=True, cap=2)  # a restarted server
     assert again.participant_for(a) == "L0001" and again.used() == 1
     assert again.claim(b) == "L0002"
