@@ -271,9 +271,17 @@ class StudyServer:
         return self.link()
 
     # -- participant tabs ----------------------------------------------------------------------
+    def _address(self, client_id: int) -> str:
+        """The address a participant tab connected from ("unknown" if viser hides it): behind a
+        trusted proxy, the client's address the proxy forwarded."""
+        connection = self.participant._websock_server._live_connections.get(client_id)
+        if connection is None:
+            return "unknown"
+        return self.firewall.client_host(connection)
+
     def _participant_connected(self, client: viser.ClientHandle) -> None:
         page = ParticipantPage(client, title=PAGE_TITLE, words=self.guard.words)
-        page.address = _address(self.participant, client.client_id)
+        page.address = self._address(client.client_id)
         frame_task(client.camera, look_at=(0.45, 0.0, 0.15))
         with self._lock:
             # viser runs connect and disconnect callbacks in a pool, in no fixed order: a tab
@@ -473,13 +481,6 @@ class StudyServer:
         with contextlib.suppress(Exception):  # the tab keeps its code for a reload
             page.client.local_storage.set_item(REMEMBERED_CODE_KEY, live.code)
         return True
-
-
-def _address(server: viser.ViserServer, client_id: int) -> str:
-    """The network address a participant tab connected from ("unknown" if viser hides it)."""
-    connection = server._websock_server._live_connections.get(client_id)
-    remote = getattr(connection, "remote_address", None)
-    return str(remote[0]) if isinstance(remote, tuple) and remote else "unknown"
 
 
 def _check_page_is_blind(words: tuple[str, ...]) -> None:
