@@ -12,6 +12,7 @@ and the Origin check accepted the public host name nginx forwards.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import shutil
 import socket
 import subprocess
@@ -180,10 +181,8 @@ class DelayRelay:
         except OSError:
             pass
         queue.put_nowait((time.monotonic() + self.delay_s, b""))
-        try:
+        with contextlib.suppress(OSError):
             await sender
-        except OSError:
-            pass
 
 
 def test_a_participant_behind_the_tls_proxy_at_150_ms(
