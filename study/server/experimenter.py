@@ -21,6 +21,7 @@ The console reads the server through :class:`Console` (implemented by
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -255,6 +256,8 @@ class ExperimenterConsole:
         """Each session code's entry in the session list."""
         """The last action's result line per session code."""
         self._progress_at = 0.0
+        self._lock = threading.RLock()
+        """One refresh or selection change at a time (the paced thread against clicks)."""
         gui = server.gui
         gui.configure_theme(control_width="large", show_share_button=False)
         gui.main_panel.dock_left()
@@ -363,6 +366,10 @@ class ExperimenterConsole:
 
     def select(self, code: str | None) -> None:
         """Show ``code``'s session (``None``: none) and nothing of the one shown before."""
+        with self._lock:
+            self._select(code)
+
+    def _select(self, code: str | None) -> None:
         if code == self.selected:
             return
         self.selected = code
@@ -448,6 +455,10 @@ class ExperimenterConsole:
             LOGGER.exception("console refresh failed")
 
     def refresh(self) -> None:
+        with self._lock:
+            self._refresh()
+
+    def _refresh(self) -> None:
         rows = self.console.summaries()
         _set(self.sessions_md, sessions_markdown(rows))
         options = ("(none)", *(_option(r) for r in rows))

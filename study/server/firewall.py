@@ -9,9 +9,11 @@ front of that:
   websocket server a message-size limit of ``max_bytes`` from the handshake on (a bigger
   message closes its connection before it is buffered), refuses a websocket whose ``Origin``
   is another site's (a page elsewhere in the browser cannot drive the study), refuses more than
-  ``max_connections_per_address`` / ``max_connections`` open websockets, refuses a repeated
-  ``Host``/``Origin``/``Upgrade`` header and a ``Host`` carrying userinfo or a path (403, never
-  500), and answers a request for a file it cannot even name (a 5,000-character path) with 404
+  ``max_connections_per_address`` / ``max_connections`` open websockets (an address being,
+  behind a trusted reverse proxy, the client's it forwards: ``trusted_proxies``,
+  :mod:`study.server.forwarded`, which also gives the host names the origin check accepts),
+  refuses a repeated ``Host``/``Origin``/``Upgrade`` header and a ``Host`` carrying userinfo
+  or a path (403, never 500), and answers a request for a file it cannot even name (a 5,000-character path) with 404
   instead of 500;
 * per frame, before viser sees it (:meth:`Firewall.screened_recv`): a text frame (viser speaks
   binary) closes its connection with 1003; and a server-wide budget of ``budget_per_s``
