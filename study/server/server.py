@@ -71,6 +71,9 @@ REJOIN_WAIT_S = 45.0
 the websocket's ping interval plus timeout, 20 + 20 s)."""
 """Where a tab keeps its join code (the browser's local storage), so a reload rejoins at once."""
 JOIN_THROTTLED = "Too many tries. Please wait a minute, then ask the experimenter for the code."
+LINK_QUIET_S = 2.0
+"""How long a link tab waits for its session's old tab to let go (a reload) before it is told
+that the study is open in another tab."""
 
 
 class StudyServer:
@@ -371,10 +374,11 @@ class StudyServer:
                         return
                     code = self.enrol(participant)
             live = self._sessions[code]
-        deadline = time.monotonic() + REJOIN_WAIT_S
+        start = time.monotonic()
+        deadline = start + REJOIN_WAIT_S
         told = False
         while not self._bind(page, live):
-            if not told:
+            if not told and time.monotonic() - start > LINK_QUIET_S:
                 told = True
                 live.note_refused_join(page)
                 page.show_message("Already open", LINK_IN_USE_TEXT)

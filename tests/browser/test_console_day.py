@@ -144,6 +144,7 @@ def test_a_day_of_two_sessions_from_the_console(
     _shot(console, screenshots, "console-02-redo")
 
     # the second participant: nothing of P01 shows, and End is final and asks first
+    assert wait_until(lambda: srv.console.alpha_plot.data[0].size > 1)  # P01's last run
     code2 = _enrol(console, "P02")
     assert wait_until(lambda: f"P02 (code {code2})" in body_text(console))
     assert console.get_by_role("combobox").first.input_value() == f"P02 ({code2})"
@@ -151,6 +152,7 @@ def test_a_day_of_two_sessions_from_the_console(
     assert "participant sneezed" not in body and "Redo needs" not in body
     assert "P01 (code" not in body and "Control error" not in body
     assert srv.session(code2).plots.arrays()[0].size == 0
+    assert srv.console.alpha_plot.data[0].size == 0 and srv.console.prob_plot is None
     _wait_enabled(console, {"Start", "Withdraw", "End"})
     console.get_by_role("button", name="End", exact=True).click()
     console.get_by_text("cannot be continued").wait_for()
