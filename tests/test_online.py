@@ -12,6 +12,7 @@ from types import SimpleNamespace
 import pytest
 from websockets.datastructures import Headers
 
+from study.cli.serve import public_url
 from study.export import tidy_tables
 from study.protocol import BlindingError, ProtocolValueError, load_protocol
 from study.server.firewall import Firewall
@@ -160,6 +161,13 @@ def test_the_origin_check_accepts_the_public_host_only_from_the_proxy() -> None:
     assert fw._door_problem(conn, request("https://study.example.org")) is None
     assert "origin" in str(fw._door_problem(conn, request("https://evil.example.org")))
     assert fw.client_host(conn, Headers([("X-Forwarded-For", "10.0.0.5")])) == "10.0.0.5"
+
+
+def test_the_public_url_is_an_http_address_of_a_host() -> None:
+    assert public_url("https://study.example.org/") == "https://study.example.org"
+    for bad in ("study.example.org", "ftp://x.org", "https://x.org/?a=1", "https://"):
+        with pytest.raises(ValueError, match="not an http"):
+            public_url(bad)
 
 
 def test_serve_refuses_a_trusted_proxy_that_is_not_an_address(tmp_path: Path) -> None:

@@ -24,17 +24,25 @@ from tests.browser.test_participant_flow import AGREE, _connect, _shot, join, te
 
 pytestmark = pytest.mark.browser
 
-TIME_LIMIT_S = 10.0
+TIME_LIMIT_S = 25.0
+"""Long enough for the console's Pause to land mid-run on a busy machine."""
+PRACTICE_S = 5.0
 ACTIONS = ("Start", "Pause", "Resume", "Redo", "Skip", "Withdraw", "End")
 
 
 @pytest.fixture
 def study(tmp_path: Path) -> Any:
-    rs = start_server(tmp_path, time_limit_s=TIME_LIMIT_S, training_runs=1)
+    rs = start_server(tmp_path, time_limit_s=TIME_LIMIT_S, training_runs=1, edit=_short_practice)
     try:
         yield rs
     finally:
         rs.stop()
+
+
+def _short_practice(path: Path) -> Path:
+    text = path.read_text()
+    path.write_text(text.replace("[training]\n", f"[training]\ntime_limit_s = {PRACTICE_S:g}\n", 1))
+    return path
 
 
 def _enabled(console: Any) -> set[str]:
@@ -118,7 +126,7 @@ def test_a_day_of_two_sessions_from_the_console(
     _shot(console, screenshots, "console-01-paused")
     console.get_by_role("button", name="Resume", exact=True).click()
     assert wait_until(lambda: "resumed" in _timeline(console))
-    assert wait_until(lambda: "Run finished" in page.locator("body").inner_text(), timeout=20)
+    assert wait_until(lambda: "Run finished" in body_text(page), timeout=3 * TIME_LIMIT_S)
     first_task = next(t for t in store.trials(participant="P01") if t.phase == "task")
     assert wait_until(
         lambda: re.search(rf"run 2: {first_task.task} .*-> timeout", _timeline(console))
@@ -165,5 +173,15 @@ def test_a_day_of_two_sessions_from_the_console(
     _wait_enabled(console, set())
     assert wait_until(lambda: "ended: no-show: did not arrive" in _timeline(console))
     console.get_by_text(re.compile(r"withdrawn or ended 1")).wait_for()
+
+    # the open link, from the console: places first, then on
+    console.get_by_text("Open link", exact=True).click()
+    places = text_input(console, "Places")
+    places.fill("3")
+    places.press("Enter")
+    console.get_by_text("Open link on").click()
+    assert wait_until(lambda: srv.link().enabled and srv.link().cap == 3)
+    console.get_by_text("0 of 3 places taken").wait_for()
+    assert "PROLIFIC_PID={{%PROLIFIC_PID%}}" in body_text(console)
     assert "Condition: none: the session is ended" in body_text(console)
     _shot(console, screenshots, "console-03-ended")
