@@ -47,7 +47,12 @@ from study.server.join import JoinThrottle, new_join_code, normalize_code
 from study.server.live import LiveSession, SessionFactory
 from study.server.live.progress import study_progress
 from study.server.live.screens import show_end
-from study.server.live.texts import LINK_CLOSED_TEXT, LINK_IN_USE_TEXT, LINK_INVALID_TEXT
+from study.server.live.texts import (
+    LINK_CLOSED_TEXT,
+    LINK_FAILED_TEXT,
+    LINK_IN_USE_TEXT,
+    LINK_INVALID_TEXT,
+)
 from study.server.open_link import LinkClosed, OpenLink
 from study.server.page_script import page_script
 from study.server.participant import ParticipantPage
@@ -344,38 +349,23 @@ class StudyServer:
     def _link_join(self, page: ParticipantPage, recruitment: Recruitment) -> None:
         """Bind a link tab to its recruitment ID's session: the one it had (reopened after a
         restart; its end screen if it finished), or a new one while the link has places. While
-        another tab holds the session this one is told so, and takes over only once that tab
-        has let go (within ``REJOIN_WAIT_S``, or when the participant asks again)."""
-        live = None
-        with self._lock:
-            participant = self.open_link.participant_for(recruitment)
-            if participant is None:
-                try:
-                    participant = self.open_link.claim(recruitment)
-                except LinkClosed as exc:
-                    LOGGER.info("open link refused a new participant: %s", exc)
-                    page.show_message("Not open at the moment", LINK_CLOSED_TEXT)
-                    return
-                code = self.enrol(participant, recruitment=recruitment)
-                self.open_link.taken(participant, recruitment)
-            else:
-                code = next(
-                    (
-                        c
-                        for c, s in self._sessions.items()
-                        if s.participant == participant and not s.closed
-                    ),
-                    None,
-                )
-                if code is None:
-                    record = self.factory.store.session(participant)
-                    if record.status in FINAL_STATUSES:
-                        show_end(page, record.status, self.factory.protocol.texts)
-                        return
-                    code = self.enrol(participant)
-            live = self._sessions[code]
+        another tab holds the session this one waits, is told so after ``LINK_QUIET_S``, and
+        takes over only once that tab has let go (within ``REJOIN_WAIT_S``; later, a reload
+        asks again). A new session starts by itself: no experimenter is there to start it."""
+        try:
+            live, ended = self._link_session(recruitment)
+        except LinkClosed as exc:
+            LOGGER.info("open link refused a new participant: %s", exc)
+            page.show_message("Not open at the moment", LINK_CLOSED_TEXT)
+            return
+        except Exception:  # the store refused, the session is held elsewhere: say so, go on
+            LOGGER.exception("open link: no session for a tab from %s", page.address)
+            page.show_message("Please try again", LINK_FAILED_TEXT)
+            return
+        if live is None:
+            show_end(page, ended, self.factory.protocol.texts)
+            return
         start = time.monotonic()
-        deadline = start + REJOIN_WAIT_S
         told = False
         while not self._bind(page, live):
             if not told and time.monotonic() - start > LINK_QUIET_S:
@@ -384,7 +374,7 @@ class StudyServer:
                 page.show_message("Already open", LINK_IN_USE_TEXT)
             with self._lock:
                 gone = page.client.client_id not in self._pages
-            if gone or time.monotonic() > deadline or live.closed:
+            if gone or live.closed or time.monotonic() - start > REJOIN_WAIT_S:
                 return
             time.sleep(0.25)
         if live.session.phase() == "waiting":
@@ -392,6 +382,25 @@ class StudyServer:
                 live.act("start")
             except Exception as exc:
                 LOGGER.warning("link session %s could not start: %s", live.code, exc)
+
+    def _link_session(self, recruitment: Recruitment) -> tuple[LiveSession | None, str]:
+        """The live session of ``recruitment`` (enrolled now, or reopened), or ``(None,
+        status)`` when its session is over; :class:`LinkClosed` for a new ID while the link
+        is off or full. One ID at a time (the server's lock), so an ID gets one session."""
+        with self._lock:
+            participant = self.open_link.participant_for(recruitment)
+            if participant is None:
+                participant = self.open_link.claim(recruitment)
+                code = self.enrol(participant, recruitment=recruitment)
+                self.open_link.taken(participant, recruitment)
+                return self._sessions[code], ""
+            for live in self._sessions.values():
+                if live.participant == participant and not live.closed:
+                    return live, ""
+            status = self.factory.store.session(participant).status
+            if status in FINAL_STATUSES:
+                return None, status
+            return self._sessions[self.enrol(participant)], ""
 
     def _participant_disconnected(self, client: viser.ClientHandle) -> None:
         with self._lock:
@@ -497,6 +506,7 @@ def _check_page_is_blind(words: tuple[str, ...]) -> None:
         JOIN_FAILED,
         JOIN_THROTTLED,
         LINK_CLOSED_TEXT,
+        LINK_FAILED_TEXT,
         LINK_INVALID_TEXT,
         LINK_IN_USE_TEXT,
     ]

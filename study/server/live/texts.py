@@ -39,6 +39,10 @@ LINK_CLOSED_TEXT = (
     " Please close this page and, if you came from a recruitment site, return the study there."
     " Thank you for your interest."
 )
+LINK_FAILED_TEXT = (
+    "The study could not open your session just now. Please reload this page in a minute;"
+    " nothing you did is lost."
+)
 LINK_IN_USE_TEXT = (
     "The study is already open in another tab or window. Please go on there and close this"
     " one. If you closed the other one, this page goes on by itself in a moment."
@@ -79,6 +83,7 @@ __all__ = [
     "CLOSE_TEXT",
     "ENDED_BY_EXPERIMENTER",
     "LINK_CLOSED_TEXT",
+    "LINK_FAILED_TEXT",
     "LINK_INVALID_TEXT",
     "LINK_IN_USE_TEXT",
     "MISSED_GRASP",
