@@ -19,6 +19,8 @@ from typing import Any
 import pytest
 from playwright.sync_api import expect
 
+from study.server.live import session_factory
+from study.server.server import StudyServer
 from tests.browser.harness import RunningServer, start_server, wait_until
 from tests.browser.test_participant_flow import AGREE, _connect, _shot, join, text_input
 
@@ -185,3 +187,29 @@ def test_a_day_of_two_sessions_from_the_console(
     assert "PROLIFIC_PID={{%PROLIFIC_PID%}}" in body_text(console)
     assert "Condition: none: the session is ended" in body_text(console)
     _shot(console, screenshots, "console-03-ended")
+
+    # the server goes down; a new one on the same store offers P01's session for reopening
+    srv.stop()
+    again = StudyServer(
+        session_factory(store, study.protocol),
+        condition_words=study.protocol.condition_words,
+        host="127.0.0.1",
+        port=0,
+        experimenter_port=0,
+    )
+    try:
+        fresh = context.new_page()
+        fresh.set_viewport_size({"width": 1366, "height": 1400})
+        _connect(fresh, f"http://127.0.0.1:{again.experimenter_port}")
+        reopen = fresh.get_by_role("button", name="Reopen session")
+        expect(reopen).to_be_enabled()
+        fresh.get_by_role("combobox").nth(1).click()  # the "Interrupted" list
+        fresh.get_by_role("option", name="P01").click()
+        reopen.click()
+        fresh.get_by_text(re.compile(r"Reopened P01: join code")).wait_for()
+        assert "session reopened" in _timeline(fresh)
+        assert wait_until(lambda: "run 2: " in _timeline(fresh))  # the earlier runs are there
+        _wait_enabled(fresh, {"Start", "Withdraw", "End"})
+        expect(reopen).to_be_disabled()  # nothing else left to reopen
+    finally:
+        again.stop()
