@@ -69,10 +69,13 @@ def run_text(t: TrialRecord) -> str:
     attempt = f", attempt {t.attempt}" if t.attempt > 1 else ""
     if t.status == "running":
         end = "running"
-    elif t.status == "completed":
-        end = f"**{t.outcome}**"
     else:
-        end = f"{t.status}" + (f" ({t.note})" if t.note else "")
+        done = t.outcome not in (None, "aborted")
+        end = f"**{t.outcome}**" if done else ""
+        if t.status != "completed":
+            note = t.note or ""
+            why = note if note.startswith(t.status) else t.status + (f" ({note})" if note else "")
+            end += (", then " if done else "") + why
     took = "" if t.duration_s is None else f" in {t.duration_s:.1f} s"
     return f"run {t.trial_number}: {cond}{attempt} -> {end}{took}"
 
