@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import threading
 import time
 from collections.abc import Iterable
@@ -120,6 +121,7 @@ class StudyServer:
         self._pages: dict[int, ParticipantPage] = {}
         self._page_session: dict[int, str] = {}
         self._link_pages: set[int] = set()
+        self._link_logged: dict[str, float] = {}
         """Tabs that came with a recruitment ID: they get no join-code screen."""
         self.public_url = public_url
         self.open_link = OpenLink(factory.store, enabled=open_link > 0, cap=open_link)
@@ -309,7 +311,7 @@ class StudyServer:
         try:
             recruitment = parse_ids(values)
         except LinkError as exc:
-            LOGGER.info("tab from %s: link refused: %s", page.address, exc)
+            self._note_link("invalid", f"link refused (last from {page.address}): {exc}")
             with self._lock:
                 self._link_pages.add(page.client.client_id)
             page.show_message("This link does not work", LINK_INVALID_TEXT)
@@ -355,7 +357,7 @@ class StudyServer:
         try:
             live, ended = self._link_session(recruitment)
         except LinkClosed as exc:
-            LOGGER.info("open link refused a new participant: %s", exc)
+            self._note_link("closed", f"open link refused a new participant: {exc}")
             page.show_message("Not open at the moment", LINK_CLOSED_TEXT)
             return
         except Exception:  # the store refused, the session is held elsewhere: say so, go on
@@ -382,6 +384,15 @@ class StudyServer:
                 live.act("start")
             except Exception as exc:
                 LOGGER.warning("link session %s could not start: %s", live.code, exc)
+
+    def _note_link(self, key: str, text: str) -> None:
+        """Log a refused link at most once a minute per kind (any tab can cause one)."""
+        now = time.monotonic()
+        with self._lock:
+            if now - self._link_logged.get(key, -math.inf) < 60.0:
+                return
+            self._link_logged[key] = now
+        LOGGER.info("%s", text)
 
     def _link_session(self, recruitment: Recruitment) -> tuple[LiveSession | None, str]:
         """The live session of ``recruitment`` (enrolled now, or reopened), or ``(None,
