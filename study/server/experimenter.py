@@ -176,6 +176,10 @@ def trials_markdown(detail: SessionDetail) -> str:
     return "\n".join(lines)
 
 
+EMPTY_PLOT = (np.array([0.0, 1.0]), np.full(2, np.nan), np.full(2, np.nan))
+"""A plot with nothing drawn (uPlot given no points at all keeps a broken x axis after the
+first real data arrive)."""
+
 TIMELINE_ROWS = 40
 """Timeline entries shown (the newest); the store keeps them all."""
 
@@ -295,7 +299,7 @@ class ExperimenterConsole:
             self.action_status = gui.add_markdown("")
             self.timeline_md = gui.add_markdown("")
             self.alpha_plot = gui.add_uplot(
-                (np.zeros(0), np.zeros(0), np.zeros(0)),
+                EMPTY_PLOT,
                 (
                     uplot.Series(label="t (s)"),
                     uplot.Series(label="alpha", stroke="#d9480f", width=2),
@@ -308,6 +312,8 @@ class ExperimenterConsole:
                 },
                 height=200,
             )
+            self.plotted = False
+            """Whether the plots show a run (of the selected session)."""
             self.prob_plot: viser.GuiUplotHandle | None = None
             self._prob_goals: tuple[str, ...] = ()
             with gui.add_folder("Schedule and attempts", expand_by_default=False):
@@ -501,7 +507,8 @@ class ExperimenterConsole:
         _set(self.link_md, link_markdown(link))
 
     def _clear_plots(self) -> None:
-        self.alpha_plot.data = (np.zeros(0), np.zeros(0), np.zeros(0))
+        self.plotted = False
+        self.alpha_plot.data = EMPTY_PLOT
         if self.prob_plot is not None:
             self.prob_plot.remove()
             self.prob_plot = None
@@ -509,9 +516,10 @@ class ExperimenterConsole:
 
     def _update_plots(self, d: SessionDetail) -> None:
         if len(d.t) < 2:
-            if len(self.alpha_plot.data[0]):
+            if self.plotted:
                 self._clear_plots()  # this session has no run to plot (yet, or any more)
             return
+        self.plotted = True
         self.alpha_plot.data = (d.t, d.alpha, d.confidence)
         if d.goal_names != self._prob_goals or self.prob_plot is None:
             if self.prob_plot is not None:

@@ -12,11 +12,14 @@ then leaves only nothing to do. Screenshots of the console are read by the devel
 
 from __future__ import annotations
 
+import io
 import re
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
+from PIL import Image
 from playwright.sync_api import expect
 
 from study.server.live import session_factory
@@ -71,6 +74,17 @@ def _timeline(console: Any) -> str:
 
 def body_text(page: Any) -> str:
     return page.locator("body").inner_text()
+
+
+CONFIDENCE_RGB = (0x19, 0x71, 0xC2)
+
+
+def _drawn(console: Any) -> bool:
+    """Whether the arbitration plot shows its confidence line (pixels of its colour)."""
+    png = console.locator(".uplot").first.screenshot()
+    rgb = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=int)
+    near = np.abs(rgb - np.array(CONFIDENCE_RGB)).sum(axis=2) < 40
+    return int(near.sum()) > 50
 
 
 def _progress(console: Any) -> str:
@@ -154,7 +168,9 @@ def test_a_day_of_two_sessions_from_the_console(
     _shot(console, screenshots, "console-02-redo")
 
     # the second participant: nothing of P01 shows, and End is final and asks first
-    assert wait_until(lambda: srv.console.alpha_plot.data[0].size > 1)  # P01's last run
+    assert wait_until(lambda: srv.console.plotted)  # P01's last run
+    assert srv.console.alpha_plot.data[0].size > 100
+    assert wait_until(lambda: _drawn(console), timeout=20, interval=1.0)  # and it is drawn
     code2 = _enrol(console, "P02")
     assert wait_until(lambda: f"P02 (code {code2})" in body_text(console))
     assert console.get_by_role("combobox").first.input_value() == f"P02 ({code2})"
@@ -162,7 +178,8 @@ def test_a_day_of_two_sessions_from_the_console(
     assert "participant sneezed" not in body and "Redo needs" not in body
     assert "P01 (code" not in body and "Control error" not in body
     assert srv.session(code2).plots.arrays()[0].size == 0
-    assert srv.console.alpha_plot.data[0].size == 0 and srv.console.prob_plot is None
+    assert not srv.console.plotted and srv.console.prob_plot is None
+    assert np.isnan(srv.console.alpha_plot.data[1]).all()
     _wait_enabled(console, {"Start", "Withdraw", "End"})
     console.get_by_role("button", name="End", exact=True).click()
     console.get_by_text("cannot be continued").wait_for()

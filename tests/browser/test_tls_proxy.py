@@ -133,6 +133,7 @@ class DelayRelay:
         self.target, self.delay_s, self.source = target, delay_s, source
         self.port = 0
         self._loop = asyncio.new_event_loop()
+        self._server: asyncio.Server | None = None
         self._ready = threading.Event()
         self._thread = threading.Thread(target=self._run, name="delay-relay", daemon=True)
 
@@ -141,8 +142,21 @@ class DelayRelay:
         assert self._ready.wait(10)
 
     def stop(self) -> None:
+        """Close the listener, cancel every relayed connection, stop the loop."""
+        done = asyncio.run_coroutine_threadsafe(self._shutdown(), self._loop)
+        with contextlib.suppress(Exception):
+            done.result(timeout=10)
         self._loop.call_soon_threadsafe(self._loop.stop)
         self._thread.join(timeout=10)
+        self._loop.close()
+
+    async def _shutdown(self) -> None:
+        if self._server is not None:
+            self._server.close()
+        tasks = [t for t in asyncio.all_tasks() if t is not asyncio.current_task()]
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
 
     def _run(self) -> None:
         asyncio.set_event_loop(self._loop)

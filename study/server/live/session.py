@@ -63,7 +63,6 @@ class LiveSession:
         self.ever_attached = False
         """A tab has held this session (a kiosk then asks for the code after a drop)."""
         self.on_closed: Callable[[], None] | None = None
-        self.opened_at = time.monotonic()
         self.recruitment: tuple[tuple[str, str], ...] = ()
         """The recruitment IDs the participant came with (open enrolment), for the console."""
         self._started_at: datetime | None = None
