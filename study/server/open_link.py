@@ -58,6 +58,11 @@ class OpenLink:
         with self._lock:
             self.enabled, self.cap = bool(enabled), cap
 
+    def in_use(self) -> bool:
+        """On, or it enrolled someone (who may come back to their session or end screen)."""
+        with self._lock:
+            return self.enabled or bool(self._by_key)
+
     def participant_for(self, recruitment: Recruitment) -> str | None:
         """The participant a recruitment ID enrolled before, if any."""
         with self._lock:

@@ -8,7 +8,8 @@
   participant at a time) does a tab bind to the one open session without a code. A session is
   bound to one tab at a time; when that tab goes away (reload, lost connection) its running
   trial pauses and the session waits for its code again.
-* Open enrolment (online studies, off by default): a tab whose URL carries a recruitment ID
+* Open enrolment (online studies, off by default): once it is on (or has enrolled anyone), a
+  new tab first says what its URL carries, and a tab whose URL carries a recruitment ID
   (``?PROLIFIC_PID=...`` or ``?pid=...``, :mod:`study.server.recruitment`) gets a session
   without a code while the link is on and has places (:mod:`study.server.open_link`); the
   session starts at once. One session per recruitment ID: a reload with the same ID rejoins
@@ -303,7 +304,12 @@ class StudyServer:
 
     def _greet(self, page: ParticipantPage) -> None:
         """A new tab: with a recruitment ID in its URL, the open link's way in; else the join
-        code (a kept one first)."""
+        code (a kept one first). While the open link is off and has never enrolled anyone, no
+        tab is asked for its URL: the join screen comes at once, as in a lab study."""
+        if not self.open_link.in_use():
+            self._offer(page)
+            self._rejoin(page)
+            return
         try:
             values = read_link(page)
         except Exception:  # the tab went away
