@@ -34,8 +34,10 @@ ID_PARAMS = ("PROLIFIC_PID", "pid")
 """The parameters that name the participant (the first present is their recruitment ID)."""
 MAX_ID = 40
 ID_PATTERN = re.compile(rf"[A-Za-z0-9_-]{{1,{MAX_ID}}}", re.ASCII)
-LINK_WAIT_S = 3.0
-"""How long the server waits for a new tab to say what its URL carries."""
+LINK_WAIT_S = 15.0
+"""How long the server waits for a new tab to say what its URL carries (a browser answers
+within a round trip once its page runs; a loaded machine or phone can take seconds, and a tab
+that has not answered by then is offered the join code)."""
 
 
 class LinkError(ValueError):
