@@ -58,8 +58,7 @@ def test_participant_socket_carries_nothing_of_the_console(tmp_path: Path) -> No
     try:
         code = srv.enrol("P01")
         srv.act(code, "start")
-        srv.console.selected = code
-        srv.console.refresh()
+        srv.console.select(code)
         assert "easy" in srv.console.schedule_md.content  # the console does show conditions
 
         async def run() -> list[str]:
