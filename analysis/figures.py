@@ -264,6 +264,14 @@ FORM_STYLES = {
 }
 
 
+def _error_bars(value: pd.Series, low: pd.Series, high: pd.Series) -> np.ndarray:
+    """matplotlib's ``yerr`` (below, above) for an interval around ``value``: never negative,
+    even where the interval's end equals the value up to rounding (power 0 or 1)."""
+    below = np.asarray(value, float) - np.asarray(low, float)
+    above = np.asarray(high, float) - np.asarray(value, float)
+    return np.clip(np.nan_to_num(np.vstack([below, above])), 0.0, None)
+
+
 def power_figure(table: pd.DataFrame, *, target: float = 0.8) -> Figure:
     """Power against N per test (``analysis.power.COLUMNS``), error bars = Wilson 95% CI."""
     hyps = list(dict.fromkeys(table["hypothesis"]))
@@ -279,7 +287,7 @@ def power_figure(table: pd.DataFrame, *, target: float = 0.8) -> Figure:
                 ax.errorbar(
                     g["n"],
                     g["power"],
-                    yerr=[g["power"] - g["ci_low"], g["ci_high"] - g["power"]],
+                    yerr=_error_bars(g["power"], g["ci_low"], g["ci_high"]),
                     color=colours[i % 10],
                     linestyle=FORM_STYLES.get(str(form), ("-", ""))[0],
                     marker="o",
