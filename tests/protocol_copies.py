@@ -36,3 +36,14 @@ def short_protocol(
     path = Path(directory) / "short.toml"
     path.write_text(text, encoding="utf-8")
     return path
+
+
+def ratings_only(source: Path = PAPER_PROTOCOL) -> str:
+    """The text of ``source`` asking only its rating-scale items (after training, after each
+    run and after each task): the questions asked once per participant (demographics, the
+    attention check, the closing comment and the data-retention question) are not asked. For
+    tests of the session's state machine, whose step numbers are the paper's."""
+    text = source.read_text(encoding="utf-8")
+    text, n = re.subn(r"(?m)^(before_training|between_tasks|closing) = \[.*\]\n", "", text)
+    assert n == 3, "the protocol's once-asked questionnaire lists moved: update this helper"
+    return text

@@ -46,7 +46,8 @@ from study.protocol.questionnaire import (
 
 _ITEM_ID = re.compile(r"^[a-z][a-z0-9_]{0,31}$")
 MAX_OPTIONS = 20
-MAX_TEXT_LENGTH = 10_000
+MAX_TEXT_LENGTH = 2000
+"""Longest free-text answer a protocol may allow (the page sends it in one message)."""
 DEFAULT_TEXT_LENGTH = 1000
 _KEYS = {
     "likert": ("type", "prompt", "scale"),
