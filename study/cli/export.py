@@ -63,6 +63,8 @@ def main(args: argparse.Namespace) -> int:
                     "record it, or leave them)",
                     file=sys.stderr,
                 )
+            for participant, why in metadata["excluded_participants"].items():
+                print(f"note: {participant} left out: {why}", file=sys.stderr)
         book = codebook(tables, protocol=protocol)
         written = write_export(
             args.out,
@@ -82,6 +84,7 @@ def main(args: argparse.Namespace) -> int:
                 "rows": metadata["rows"],
                 "files": len(written),
                 "protocol": metadata["protocol_file"],
+                "excluded_participants": len(metadata["excluded_participants"]),
             }
         )
     )

@@ -41,7 +41,9 @@ def show_screen(
     handlers: PageHandlers,
 ) -> None:
     """Build ``screen`` on ``page`` (see module docstring)."""
-    progress: str | None = screen.progress.text if screen.progress.of else None
+    progress: str | None = (
+        screen.progress.text if screen.progress.of and screen.progress.trial else None
+    )  # none before the first run (the questions about the participant)
     title, text = screen.title, screen.text
     if progress is not None and (progress in title or progress in text):
         progress = None  # said once is enough
