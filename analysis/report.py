@@ -135,10 +135,17 @@ def _assumes(analysis: str) -> str:
     return f"Assumes: {ASSUMES[analysis]}."
 
 
+def _ci(lo: float, hi: float, digits: int = 2) -> str:
+    """``[lo, hi]``, or "–" when either end is not defined (never an empty ``[, ]``)."""
+    if pd.isna(lo) or pd.isna(hi):
+        return "–"
+    return f"[{fmt(lo, digits)}, {fmt(hi, digits)}]"
+
+
 def _with_ci(value: float, lo: float, hi: float, digits: int = 2) -> str:
     if pd.isna(value):
         return ""
-    ci = f" [{fmt(lo, digits)}, {fmt(hi, digits)}]" if pd.notna(lo) else ""
+    ci = f" {_ci(lo, hi, digits)}" if pd.notna(lo) and pd.notna(hi) else ""
     return f"{fmt(value, digits)}{ci}"
 
 
@@ -400,7 +407,7 @@ def _sections(
                             ],
                             "p": est["p"].map(fmt_p),
                             "95% CI": [
-                                f"[{fmt(a, 3)}, {fmt(b, 3)}]"
+                                _ci(a, b, 3)
                                 for a, b in zip(est["ci_low"], est["ci_high"], strict=True)
                             ],
                         }
@@ -453,12 +460,10 @@ def _sections(
                     "p (Bonferroni)": c["p_bonf"].map(fmt_p),
                     "mean diff (s)": c["mean_diff"].map(fmt),
                     "95% CI (unadjusted)": [
-                        f"[{fmt(a)}, {fmt(b)}]"
-                        for a, b in zip(c["ci_low"], c["ci_high"], strict=True)
+                        _ci(a, b) for a, b in zip(c["ci_low"], c["ci_high"], strict=True)
                     ],
                     "Bonferroni CI": [
-                        f"[{fmt(a)}, {fmt(b)}]"
-                        for a, b in zip(c["ci_low_bonf"], c["ci_high_bonf"], strict=True)
+                        _ci(a, b) for a, b in zip(c["ci_low_bonf"], c["ci_high_bonf"], strict=True)
                     ],
                     "d_z": c["d_z"].map(fmt),
                     "form": c["analysis"].map(
@@ -523,9 +528,7 @@ def _sections(
                 "versus": c["versus"],
                 "r": [f"r({fmt(d, 0)}) = {fmt(r)}" for d, r in zip(c["df"], c["r"], strict=True)],
                 "p": c["p"].map(fmt_p),
-                "95% CI": [
-                    f"[{fmt(a)}, {fmt(b)}]" for a, b in zip(c["ci_low"], c["ci_high"], strict=True)
-                ],
+                "95% CI": [_ci(a, b) for a, b in zip(c["ci_low"], c["ci_high"], strict=True)],
             }
         )
         if res.paper_comparable["preference"]:
@@ -550,8 +553,7 @@ def _sections(
                             ],
                             "p": rc["p"].map(fmt_p),
                             "95% CI": [
-                                f"[{fmt(a)}, {fmt(b)}]"
-                                for a, b in zip(rc["ci_low"], rc["ci_high"], strict=True)
+                                _ci(a, b) for a, b in zip(rc["ci_low"], rc["ci_high"], strict=True)
                             ],
                             "pairs": rc["n"],
                             "participants": rc["n_subjects"],
@@ -796,7 +798,8 @@ def results_document(
         doc["timing_summary"] = res.timing.summary.to_dict(orient="records")
     if success is not None and not success[0].empty:
         doc["success_summary"] = success[0].to_dict(orient="records")
-        doc["success_comparisons"] = success[1].to_dict(orient="records")
+        if not success[1].empty:
+            doc["success_comparisons"] = success[1].to_dict(orient="records")
     return _jsonable(doc)
 
 

@@ -196,9 +196,13 @@ def _between(
 
     def page(sub: Table) -> tuple[int, tuple[Item, ...]]:
         sub.only("after_task", "items")
-        k = sub.integer("after_task", minimum=1, maximum=max(n_tasks - 1, 1))
+        k = sub.integer("after_task", minimum=1)
         if k >= n_tasks:
-            raise sub.value_error("after_task", "after the last task, use closing")
+            raise sub.value_error(
+                "after_task",
+                f"{k} is not between two of the {n_tasks} tasks (1..{n_tasks - 1}); after the"
+                " last task, use closing",
+            )
         asked = _asked(sub, "items", items)
         if not asked:
             raise sub.value_error("items", "must not be empty")

@@ -140,7 +140,7 @@ class ParticipantActions:
                         questionnaire=step.questionnaire or "",
                         item=item_id,
                         kind=item.kind,
-                        value=None if value is None else str(value),
+                        value=_as_text(value),
                         number=float(value)
                         if isinstance(item, NumberItem) and value is not None
                         else None,
@@ -186,6 +186,14 @@ class ParticipantActions:
         run.end(summary)
         self.state.active = None
         return True
+
+
+def _as_text(value: Answer) -> str | None:
+    """An answer as stored in ``answers.value``: text as given, a number without a spurious
+    ``.0`` (``7.5``, ``12``)."""
+    if value is None or isinstance(value, str):
+        return value
+    return str(int(value)) if float(value).is_integer() else repr(float(value))
 
 
 def goal_info(trial: Any, config: TrialConfig) -> tuple[list[str], list[list[float]], str]:
