@@ -150,8 +150,9 @@ def _with_ci(value: float, lo: float, hi: float, digits: int = 2) -> str:
 
 
 def _df(v: float) -> str:
-    """Integer df as integers, Satterthwaite df to one decimal."""
-    return fmt(v, 0) if float(v).is_integer() else fmt(v, 1)
+    """Integer df as integers (within rounding: a boundary fit's n - p), Satterthwaite df to
+    one decimal."""
+    return fmt(float(round(v)), 0) if abs(v - round(v)) < 1e-9 * max(1.0, abs(v)) else fmt(v, 1)
 
 
 def _stat_text(stat: str, df1: float, df2: float, value: float, p: float) -> str:
@@ -385,7 +386,7 @@ def _sections(
                             for a, b in zip(m.table["df1"], m.table["df2"], strict=True)
                         ]
                     ),
-                    f"Same fixed effects and covariates; REML (statsmodels MixedLM): participant "
+                    f"Same fixed effects and covariates; REML (residual variance profiled, as lme4): participant "
                     f"variance {fmt(m.var_subject, 3)}, residual variance {fmt(m.var_resid, 3)} "
                     f"(ICC {fmt(m.icc, 2)}); type III Wald F on {m.df_method} df; partial η² from "
                     f"F and df. {_assumes('timing_mixed')}",

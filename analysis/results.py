@@ -432,7 +432,8 @@ FORM_PAIR_COLUMNS = [
 def form_pairs(statistics: pd.DataFrame) -> pd.DataFrame:
     """Each paper-form test beside its reviewer-form counterpart (same effect); p are the
     Bonferroni-adjusted ones where the test has them. ``paper_form_smaller_p``: the paper's form
-    gives the smaller p (the direction in which its independence assumption errs)."""
+    gives the smaller p (the direction in which its independence assumption errs); p equal to
+    rounding (a mixed model on its boundary is the paper's OLS) is not smaller."""
     rows = []
     for paper, reviewer in PAIRS.items():
         a = statistics[statistics["analysis"] == paper]
@@ -458,7 +459,7 @@ def form_pairs(statistics: pd.DataFrame) -> pd.DataFrame:
                     "reviewer_df2": q["df2"],
                     "reviewer_statistic": q["statistic"],
                     "reviewer_p": pb,
-                    "paper_form_smaller_p": bool(pa < pb)
+                    "paper_form_smaller_p": bool(pa < pb and not np.isclose(pa, pb, rtol=1e-9))
                     if pd.notna(pa) and pd.notna(pb)
                     else None,
                 }
