@@ -163,7 +163,7 @@ def timing_preference_figure(
     fig = _new(9.0 if with_pref else 5.5, 3.4)
     axes = fig.subplots(1, 2 if with_pref else 1, squeeze=False)[0]
     tasks = _tasks(summary)
-    present = [m for m in modes if m in set(summary["mode"])]
+    present = _modes_present(summary, modes)
     _bars(axes[0], summary, "mean", "se", tasks, present, "mode", "task", mode_colors(present))
     axes[0].set(ylabel=time_label, title="(a) Time per task and mode")
     top = axes[0].get_ylim()[1]
@@ -186,6 +186,12 @@ def timing_preference_figure(
     return fig
 
 
+def _modes_present(summary: pd.DataFrame, modes: Sequence[str]) -> list[str]:
+    """The modes in ``summary``: ``modes``' order first, then any others as found."""
+    found = list(dict.fromkeys(summary["mode"]))
+    return [m for m in modes if m in found] + [m for m in found if m not in modes]
+
+
 def _tasks(summary: pd.DataFrame) -> list[str]:
     found = set(summary["task"])
     return [t for t in TASK_ORDER if t in found] or sorted(found)
@@ -200,8 +206,7 @@ def ratings_figure(
     fig = _new(3.6 * len(items) + 0.6, 3.4)
     axes = fig.subplots(1, len(items), squeeze=False)[0]
     tasks = _tasks(summary)
-    present = [m for m in modes if m in set(summary["mode"])]
-    present += [m for m in dict.fromkeys(summary["mode"]) if m not in present]
+    present = _modes_present(summary, modes)
     colors = mode_colors(present)
     for ax, item in zip(axes, items, strict=True):
         sub = summary[summary["item"] == item]

@@ -101,8 +101,9 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
         "participant": ("participant id", ""),
         "session_id": ("the participant's session in the store", ""),
         "questionnaire": (
-            "when the item was asked",
-            "before_training | between_tasks | closing",
+            "when the item was asked; recorded: a retention answer the experimenter recorded"
+            " after the session stopped (python -m study retention)",
+            "before_training | between_tasks | closing | recorded",
         ),
         "item": ("questionnaire item id (the protocol's [questionnaire.items.<id>])", ""),
         "kind": ("the item's kind", "choice | attention | retention | number | text"),

@@ -7,7 +7,11 @@ of every export and analysis a participant who did not agree: one who chose anot
 agreement is not there yet). A protocol without a retention item keeps everyone.
 
 The store itself keeps what was recorded (``Store.discard_participant`` is for data that can
-be made again); this module decides what leaves it.
+be made again); this module decides what leaves it. A participant who stopped before the
+question (withdrew, or was ended) may still be asked, in person: :func:`record_retention`
+(``python -m study retention``) records their answer afterwards, marked as recorded by the
+experimenter (``questionnaire = "recorded"`` in the answers table and a ``retention_recorded``
+event).
 """
 
 from __future__ import annotations
@@ -15,9 +19,22 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+from study.store import StoreError
+
 if TYPE_CHECKING:
     from study.protocol import Protocol
     from study.store import Store
+
+RECORDED = "recorded"
+"""The ``questionnaire`` of a retention answer the experimenter recorded after the session."""
+RECORDED_STEP = -1
+"""Its ``step``: outside the session's plan."""
+FINAL = ("withdrawn", "ended", "completed")
+
+
+class RetentionError(StoreError):
+    """A retention answer cannot be recorded (no such question, session still running, already
+    answered); the message says what to do."""
 
 
 @dataclass(frozen=True)
@@ -55,4 +72,46 @@ def retention_decisions(store: Store, protocol: Protocol | None) -> RetentionDec
     )
 
 
-__all__ = ["RetentionDecisions", "retention_decisions"]
+def record_retention(store: Store, protocol: Protocol, participant: str, *, keep: bool) -> str:
+    """Record ``participant``'s answer to the retention question, asked by the experimenter
+    after their session stopped (module docstring); returns the option recorded. Raises
+    :class:`RetentionError` when the protocol asks none, the session is not over (the page
+    asks it at the end), or an answer is already recorded."""
+    item = protocol.questionnaire.retention
+    if item is None:
+        raise RetentionError(
+            f"protocol {protocol.id!r} asks no data-retention question: every participant's "
+            "data are kept"
+        )
+    session = store.session(participant)
+    if session.status not in FINAL:
+        raise RetentionError(
+            f"{participant}'s session is {session.status}; the page asks the retention question "
+            "at its end -- record an answer only after a session stopped"
+        )
+    given = [a for a in store.answers(participant=participant) if a.item == item.id]
+    if given:
+        raise RetentionError(
+            f"{participant} already answered the retention question ({given[-1].value!r})"
+        )
+    option = item.keep if keep else next(o for o in item.options if o != item.keep)
+    with store.transaction() as tx:
+        tx.add_answer(
+            session_id=session.session_id,
+            participant=participant,
+            step=RECORDED_STEP,
+            questionnaire=RECORDED,
+            item=item.id,
+            kind=item.kind,
+            value=option,
+        )
+        tx.event(
+            session.session_id,
+            participant,
+            "retention_recorded",
+            {"item": item.id, "keep": keep, "by": "experimenter"},
+        )
+    return option
+
+
+__all__ = ["RetentionDecisions", "RetentionError", "record_retention", "retention_decisions"]
