@@ -61,7 +61,7 @@ class StudyTables:
         p = self.participants
         if p.empty or "included" not in p.columns:
             return {}
-        out = p[~_as_bool(p["included"])]
+        out = p[~as_bool(p["included"])]
         return dict(
             zip(out["participant"].astype(str), out["excluded_because"].astype(str), strict=True)
         )
@@ -83,7 +83,7 @@ def _json_list(value: Any) -> Any:
     return value
 
 
-def _as_bool(s: pd.Series) -> pd.Series:
+def as_bool(s: pd.Series) -> pd.Series:
     if pd.api.types.is_bool_dtype(s):
         return s
     mapping = {"true": True, "false": False, "1": True, "0": False, "1.0": True, "0.0": False}
@@ -101,7 +101,7 @@ def normalise_trials(trials: pd.DataFrame) -> pd.DataFrame:
         if c in t.columns:
             t[c] = t[c].map(_json_list)
     if "success" in t.columns:
-        t["success"] = _as_bool(t["success"])
+        t["success"] = as_bool(t["success"])
     for c in (
         "duration_s",
         *COVARIATES,

@@ -22,7 +22,7 @@ from typing import Any
 import pandas as pd
 
 from analysis.descriptives import knocks_per_trial
-from analysis.load import StudyTables
+from analysis.load import StudyTables, as_bool
 from analysis.render import Section, Table
 
 COLUMNS = (
@@ -84,68 +84,75 @@ def _event_counts(events: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame.from_dict(rows, orient="index", columns=cols)
 
 
-def data_quality(tables: StudyTables) -> pd.DataFrame:
-    """One row per participant (module docstring), excluded participants last."""
+COUNTS = [c for c in COLUMNS[2:-2]]
+"""The columns that count something (blank for a participant left out)."""
+
+
+def _run_counts(tables: StudyTables) -> pd.DataFrame:
+    """Per participant: task runs completed and failed; attempts redone, skipped,
+    interrupted; knocks in any attempt."""
     t = tables.trials
-    t = (
-        t.assign(knocks=t["trial_id"].map(knocks_per_trial(t, tables.samples)).fillna(0))
-        if ("trial_id" in t.columns)
-        else t.assign(knocks=0)
-    )
-    task = t[t["phase"] == "task"]
-    done = task[task["status"] == "completed"]
-    ok = done["success"].astype(bool) if "success" in done.columns else done["outcome"] == "success"
-    by = t.groupby("participant")
-    out = pd.DataFrame(
+    knocks = t["trial_id"].map(knocks_per_trial(t, tables.samples)) if "trial_id" in t else 0
+    t = t.assign(knocks=pd.Series(knocks, index=t.index).fillna(0))
+    done = t[(t["phase"] == "task") & (t["status"] == "completed")]
+    ok = as_bool(done["success"]) if "success" in done else done["outcome"].eq("success")
+
+    def per(rows: pd.DataFrame) -> pd.Series:
+        return rows.groupby("participant").size()
+
+    return pd.DataFrame(
         {
-            "task runs": done.groupby("participant").size(),
-            "failed": done[~ok].groupby("participant").size(),
-            "redone": t[t["status"] == "redone"].groupby("participant").size(),
-            "skipped": t[t["status"] == "skipped"].groupby("participant").size(),
-            "interrupted": t[t["status"] == "interrupted"].groupby("participant").size(),
-            "knocks": by["knocks"].sum(),
+            "task runs": per(done),
+            "failed": per(done[~ok]),
+            **{s: per(t[t["status"] == s]) for s in ("redone", "skipped", "interrupted")},
+            "knocks": t.groupby("participant")["knocks"].sum(),
         }
     )
-    out = out.join(_event_counts(tables.events), how="outer")
-    p = tables.participants
-    if not p.empty and "participant" in p.columns:
-        p = p.assign(participant=p["participant"].astype(str)).set_index("participant")
-        out = out.reindex(list(dict.fromkeys([*out.index, *p.index])))
-        out["status"] = p["status"] if "status" in p.columns else ""
-        if {"attention_checks", "attention_failures"} <= set(p.columns):
-            out["attention checks failed"] = [
-                f"{_int(p.at[i, 'attention_failures'])} of {_int(p.at[i, 'attention_checks'])}"
-                if i in p.index and pd.notna(p.at[i, "attention_checks"])
-                else ""
-                for i in out.index
-            ]
-        included = (
-            p["included"].astype(str).str.lower().isin(["true", "1"]) if "included" in p else None
-        )
-        out["data"] = [
-            "included"
-            if included is None or i not in p.index or included[i]
-            else f"left out: {p.at[i, 'excluded_because']}"
-            for i in out.index
+
+
+def _from_participants(p: pd.DataFrame, index: pd.Index) -> pd.DataFrame:
+    """Status, attention checks failed and whether the data are included, from the export's
+    participants table (all blank without one)."""
+    out = pd.DataFrame(index=index, columns=["status", "attention checks failed", "data"])
+    out[:] = ""
+    out["data"] = "included"
+    if p.empty or "participant" not in p.columns:
+        return out
+    p = p.assign(participant=p["participant"].astype(str)).set_index("participant")
+    p = p.reindex(index)
+    if "status" in p:
+        out["status"] = p["status"].fillna("")
+    if {"attention_checks", "attention_failures"} <= set(p.columns):
+        asked = pd.to_numeric(p["attention_checks"], errors="coerce")
+        failed = pd.to_numeric(p["attention_failures"], errors="coerce").fillna(0)
+        out["attention checks failed"] = [
+            f"{int(f)} of {int(a)}" if pd.notna(a) else ""
+            for f, a in zip(failed, asked, strict=True)
         ]
-    for c in COLUMNS[1:]:
+    if "included" in p:
+        kept = as_bool(p["included"].fillna(True))
+        why = p.get("excluded_because", "")
+        out.loc[~kept, "data"] = "left out: " + pd.Series(why, index=index)[~kept].astype(str)
+    return out
+
+
+def data_quality(tables: StudyTables) -> pd.DataFrame:
+    """One row per participant (module docstring), those left out last."""
+    out = _run_counts(tables).join(_event_counts(tables.events), how="outer")
+    p = tables.participants
+    listed = p["participant"].astype(str) if "participant" in p.columns else []
+    index = pd.Index(list(dict.fromkeys([*out.index, *listed])), name="participant")
+    out = out.reindex(index)
+    for c in COUNTS:
         if c not in out.columns:
-            out[c] = "" if c in ("status", "attention checks failed", "data") else 0
-    counts = [c for c in COLUMNS[2:-2] if c != "attention checks failed"]
-    excluded = out["data"].astype(str).str.startswith("left out")
-    out[counts] = out[counts].astype("Float64").fillna(0).astype("Int64").astype(object)
-    out.loc[excluded, counts] = ""
-    out = out.rename_axis("participant").reset_index()
-    out["_x"] = excluded.to_numpy()
-    return (
-        out.sort_values(["_x", "participant"])
-        .drop(columns="_x")[list(COLUMNS)]
-        .reset_index(drop=True)
-    )
-
-
-def _int(v: Any) -> int:
-    return 0 if v is None or pd.isna(v) else int(v)
+            out[c] = 0
+    out[COUNTS] = out[COUNTS].astype("Float64").fillna(0).astype("Int64").astype(object)
+    out = out.join(_from_participants(p, index))
+    left_out = out["data"].str.startswith("left out")
+    out.loc[left_out, COUNTS] = ""
+    out = out.assign(_left_out=left_out).reset_index()
+    out = out.sort_values(["_left_out", "participant"], kind="stable")
+    return out[list(COLUMNS)].reset_index(drop=True)
 
 
 def quality_section(tables: StudyTables) -> Section:

@@ -321,9 +321,12 @@ def _sections(
     out: list[Section] = []
     data = _data_section(res, tables, successful_only=successful_only)
     out.append(data)
-    out.append(descriptive_section(tables, modes=modes))
-    fig8 = [figures[k] for k in ("fig8_ratings", "fig8") if k in figures]
-    ratings = ratings_section(tables, modes=modes, figures=fig8)
+    descriptives = descriptive_section(tables, modes=modes)
+    descriptives.figures += [figures[k] for k in ("fig8",) if k in figures]
+    out.append(descriptives)
+    ratings = ratings_section(
+        tables, modes=modes, figures=[figures[k] for k in ("fig8_ratings",) if k in figures]
+    )
     if ratings is not None:
         out.append(ratings)
     out.append(quality_section(tables))
