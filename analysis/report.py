@@ -282,6 +282,14 @@ def _data_section(res: StudyResults, tables: StudyTables, *, successful_only: bo
         who = f"{enrolled} participant(s) enrolled, {enrolled - len(excluded)} included"
     if excluded:
         who += "; left out: " + "; ".join(f"{p} ({why})" for p, why in excluded.items())
+    p = tables.participants
+    if not p.empty and "status" in p.columns:
+        under_way = p.loc[p["status"].isin(["enrolled", "running"]), "participant"]
+        if len(under_way):
+            who += (
+                f"; session still under way: {', '.join(map(str, under_way))} (their data as they"
+                " stand; a retention question, if the protocol asks one, comes at the end)"
+            )
     data.paragraphs.append(who + ".")
     if not cells.empty:
         n_part = cells["participant"].nunique()

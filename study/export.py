@@ -6,9 +6,10 @@ tables"); ``python -m study export`` writes them as CSV and Parquet with a codeb
 (``study.codebook`` describes every column). The store is opened read-only and never written.
 
 Data retention is honoured here (``study.retention``): when the protocol asks the end-of-study
-retention question, a participant who did not agree to keep their data -- declined, or never
-answered (withdrew, ended early, still running) -- has no row in any table but
-``participants``, which says why (``included`` false, ``excluded_because``).
+retention question, a participant who did not agree to keep their data -- declined, or whose
+session is over without an answer (withdrew, ended early) -- has no row in any table but
+``participants``, which says why (``included`` false, ``excluded_because``). A session still
+under way is exported as it stands (``metadata.json``: ``retention_pending``).
 
 The questionnaire layout comes from the protocol the store was run with: the text the store
 keeps (``study.protocol.protocol_from_store``), else a matching protocol file, else it is
@@ -52,7 +53,7 @@ from study.protocol import (
     load_protocol,
     protocol_from_store,
 )
-from study.retention import retention_decisions
+from study.retention import UNDER_WAY, retention_decisions
 from study.store import Store, now_iso
 
 if TYPE_CHECKING:
@@ -601,6 +602,15 @@ def excluded_participants(tables: Mapping[str, pd.DataFrame]) -> dict[str, str]:
     return dict(zip(out["participant"], out["excluded_because"].astype(str), strict=True))
 
 
+def retention_pending(tables: Mapping[str, pd.DataFrame]) -> list[str]:
+    """Included participants whose session has not reached the retention question yet."""
+    p = tables.get("participants")
+    if p is None or p.empty:
+        return []
+    under_way = p["included"].astype(bool) & p["status"].isin(UNDER_WAY) & p["retention"].isna()
+    return [str(x) for x in p.loc[under_way, "participant"]]
+
+
 def export_metadata(
     store: Store, tables: Mapping[str, pd.DataFrame], *, protocol: Protocol | None
 ) -> dict[str, Any]:
@@ -608,7 +618,8 @@ def export_metadata(
     version, content hash, whether the store keeps its text) and software produced them, how
     many rows each table has, ``orphaned_trials``: trials left running by a process that
     died, exported as interrupted (resuming their sessions records that in the store), and
-    ``excluded_participants``: who was left out and why (data retention).
+    ``excluded_participants``: who was left out and why (data retention), and
+    ``retention_pending``: who was exported while their session is still under way.
     ``write_export`` adds ``formats``, the table file formats it wrote."""
     return {
         "store": str(store.path),
@@ -623,4 +634,5 @@ def export_metadata(
         "rows": {name: len(df) for name, df in tables.items()},
         "orphaned_trials": store.orphaned_trials(),
         "excluded_participants": excluded_participants(tables),
+        "retention_pending": retention_pending(tables),
     }

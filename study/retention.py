@@ -3,8 +3,10 @@
 A consent that says finished runs are "kept only if you agree" is honoured by asking at the
 end (a ``retention`` item, ``study.protocol.questionnaire.RetentionItem``) and by keeping out
 of every export and analysis a participant who did not agree: one who chose another option
-(declined), and one who never answered (withdrew, was ended early, or is still running: the
-agreement is not there yet). A protocol without a retention item keeps everyone.
+(declined), and one whose session is over without an answer (withdrew, or was ended early). A
+session still under way (enrolled, running) has not reached the question: its data are
+exported as they stand, listed as pending (``RetentionDecisions.pending``), and an export made
+after it ends decides. A protocol without a retention item keeps everyone.
 
 The store itself keeps what was recorded (``Store.discard_participant`` is for data that can
 be made again); this module decides what leaves it. A participant who stopped before the
@@ -30,6 +32,8 @@ RECORDED = "recorded"
 RECORDED_STEP = -1
 """Its ``step``: outside the session's plan."""
 FINAL = ("withdrawn", "ended", "completed")
+UNDER_WAY = ("enrolled", "running")
+"""Session statuses that have not reached the end-of-study question yet."""
 
 
 class RetentionError(StoreError):
@@ -40,10 +44,12 @@ class RetentionError(StoreError):
 @dataclass(frozen=True)
 class RetentionDecisions:
     """``kept``: participants whose data may be used; ``excluded``: everyone else, with why;
-    ``answers``: each participant's retention answer as given (``None``: none)."""
+    ``pending``: kept participants whose session has not reached the question yet (their
+    status); ``answers``: each participant's retention answer as given (``None``: none)."""
 
     kept: frozenset[str]
     excluded: dict[str, str] = field(default_factory=dict)
+    pending: dict[str, str] = field(default_factory=dict)
     answers: dict[str, str | None] = field(default_factory=dict)
 
 
@@ -59,8 +65,11 @@ def retention_decisions(store: Store, protocol: Protocol | None) -> RetentionDec
             given[a.participant] = a.value
     status = {s.participant: s.status for s in store.sessions()}
     excluded: dict[str, str] = {}
+    pending: dict[str, str] = {}
     for p in everyone:
-        if p not in given:
+        if p not in given and status.get(p) in UNDER_WAY:
+            pending[p] = status[p]
+        elif p not in given:
             excluded[p] = (
                 f"did not answer the data-retention question (session {status.get(p, '?')})"
             )
@@ -68,7 +77,10 @@ def retention_decisions(store: Store, protocol: Protocol | None) -> RetentionDec
             excluded[p] = f"declined data retention (answered {given[p]!r})"
     kept = frozenset(p for p in everyone if p not in excluded)
     return RetentionDecisions(
-        kept=kept, excluded=excluded, answers={p: given.get(p) for p in everyone}
+        kept=kept,
+        excluded=excluded,
+        pending=pending,
+        answers={p: given.get(p) for p in everyone},
     )
 
 

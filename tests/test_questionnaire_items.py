@@ -34,7 +34,7 @@ from study.session.headless import run_headless
 from study.simulated import load_population
 from study.simulated.participant import SimulatedParticipant
 from tests.protocol_copies import PAPER_PROTOCOL
-from tests.test_session import enrol, to_step, valid_answers
+from tests.test_session import enrol, finish_run, to_step, valid_answers
 from tests.test_simulated_participant import lived, screen
 
 TEXT = PAPER_PROTOCOL.read_text(encoding="utf-8")
@@ -231,28 +231,36 @@ def test_a_declined_or_missing_retention_answer_leaves_the_participant_out(
     to_step(session, "ready")
     session.withdraw(reason="had to leave")
     session.close()
+    session = enrol(store, shipped, "P04")
+    to_step(session, "ready")
+    finish_run(session)  # still under way: not asked yet
+    session.close()
     tables = tidy_tables(store)
     p = tables["participants"].set_index("participant")
-    assert list(p["included"]) == [True, False, False]
+    assert list(p["included"]) == [True, False, False, True]
+    assert p.loc["P04", "status"] == "running" and pd_isna(p.loc["P04", "retention"])
     assert p.loc["P02", "excluded_because"].startswith("declined data retention")
     assert "did not answer" in p.loc["P03", "excluded_because"]
     assert "withdrawn" in p.loc["P03", "excluded_because"]
     assert p.loc["P01", "age_band"] in shipped.questionnaire.item("age_band").options
     assert p.loc["P01", "attention_checks"] == 1 and p.loc["P01", "attention_failures"] == 0
     assert pd_isna(p.loc["P02", "age_band"])  # nothing of theirs but the reason
-    for name in ("trials", "ratings", "answers"):
-        assert set(tables[name]["participant"]) == {"P01"}, name
-    assert set(tables["events"]["participant"].dropna()) == {"P01"}
+    for name in ("trials", "answers"):
+        assert set(tables[name]["participant"]) == {"P01", "P04"}, name
+    assert set(tables["ratings"]["participant"]) == {"P01"}  # P04 has rated nothing yet
+    assert set(tables["events"]["participant"].dropna()) == {"P01", "P04"}
     trial_ids = set(tables["trials"]["trial_id"])
     assert set(tables["samples"]["trial_id"]) <= trial_ids
     meta = export_metadata(store, tables, protocol=shipped)
     assert set(meta["excluded_participants"]) == {"P02", "P03"}
+    assert meta["retention_pending"] == ["P04"]
     store.close()
     analysed = from_store(tmp_path / "s.db")
-    assert set(analysed.trials["participant"]) == {"P01"}
+    assert set(analysed.trials["participant"]) == {"P01", "P04"}
     assert any("P02" in n and "declined" in n for n in analysed.notes)
     data = _data_section(analyse(analysed, predictors={}), analysed, successful_only=False)
-    assert data.paragraphs[0].startswith("3 participant(s) enrolled, 1 included; left out: P02")
+    assert data.paragraphs[0].startswith("4 participant(s) enrolled, 2 included; left out: P02")
+    assert "session still under way: P04" in data.paragraphs[0]
 
 
 def pd_isna(value: Any) -> bool:

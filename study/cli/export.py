@@ -65,6 +65,13 @@ def main(args: argparse.Namespace) -> int:
                 )
             for participant, why in metadata["excluded_participants"].items():
                 print(f"note: {participant} left out: {why}", file=sys.stderr)
+            if metadata["retention_pending"]:
+                print(
+                    f"note: {', '.join(metadata['retention_pending'])}: session still under way,"
+                    " exported as it stands; whether their data may be kept is asked at its end"
+                    " (export again then)",
+                    file=sys.stderr,
+                )
         book = codebook(tables, protocol=protocol)
         written = write_export(
             args.out,

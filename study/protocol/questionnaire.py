@@ -275,12 +275,13 @@ class Questionnaire:
 
     @property
     def attention_checks(self) -> tuple[AttentionItem, ...]:
-        return tuple(i for i in self.items.values() if isinstance(i, AttentionItem))
+        """The attention checks asked (an item defined but asked nowhere is not one)."""
+        return tuple(i for i in self.once_items if isinstance(i, AttentionItem))
 
     @property
     def retention(self) -> RetentionItem | None:
-        """The data-retention question, if the protocol asks one."""
-        found = [i for i in self.items.values() if isinstance(i, RetentionItem)]
+        """The data-retention question, if the protocol asks one (at the end, ``closing``)."""
+        found = [i for i in self.closing if isinstance(i, RetentionItem)]
         return found[0] if found else None
 
     def check_answer(self, item_id: str, value: object) -> Answer:
