@@ -149,38 +149,73 @@ def _bars(
 
 def timing_preference_figure(
     summary: pd.DataFrame,
-    preferences: pd.DataFrame | None,
+    preference: pd.DataFrame | None = None,
     *,
     modes: Sequence[str] = ("timid", "aggressive"),
+    reference: str | None = None,
+    time_label: str = "time to complete (s)",
 ) -> Figure:
-    """Fig. 8: (a) mean time per task and mode +- SE; (b) preference for aggressive +- SE
-    (left out when there are no preferences)."""
-    fig = _new(9.0 if preferences is not None else 5.5, 3.4)
-    axes = fig.subplots(1, 2 if preferences is not None else 1, squeeze=False)[0]
-    tasks = [t for t in TASK_ORDER if t in set(summary["task"])] or list(
-        dict.fromkeys(summary["task"])
-    )
-    present = [m for m in modes if m in set(summary["mode"])]
+    """Fig. 8: (a) mean time per task and mode +- SE (``summary``: task, mode, mean, se);
+    (b) the preference per task, re-centred on ``reference`` +- SE (``preference``: task,
+    mean, se; left out when ``None`` or empty). No error bar where the SE is not defined
+    (one participant)."""
+    with_pref = preference is not None and not preference.empty
+    fig = _new(9.0 if with_pref else 5.5, 3.4)
+    axes = fig.subplots(1, 2 if with_pref else 1, squeeze=False)[0]
+    tasks = _tasks(summary)
+    present = _modes_present(summary, modes)
     _bars(axes[0], summary, "mean", "se", tasks, present, "mode", "task", mode_colors(present))
-    axes[0].set(ylabel="time to complete (s)", title="(a) Time per task and mode")
+    axes[0].set(ylabel=time_label, title="(a) Time per task and mode")
     top = axes[0].get_ylim()[1]
     axes[0].set_ylim(0, top * 1.18)  # head-room: the legend sits above the bars, not on them
     axes[0].legend(frameon=False, loc="upper left", ncols=len(present))
-    if preferences is not None:
+    if with_pref:
         ax2 = axes[1]
-        g = preferences.groupby("task")["preference_aggressive"]
-        pref = pd.DataFrame({"mean": g.mean(), "se": g.std() / np.sqrt(g.count())})
-        pref = pref.reindex(tasks)
+        pref = preference.set_index("task").reindex(tasks)  # type: ignore[union-attr]
         ax2.bar(
             np.arange(len(tasks)), pref["mean"], 0.6, yerr=pref["se"], capsize=3, color="#8172b2"
         )
         ax2.axhline(0, color="k", lw=0.8)
         ax2.set_xticks(np.arange(len(tasks)), [TASK_LABELS.get(t, t) for t in tasks])
+        other = next((m for m in present if m != reference), "other")
         ax2.set(
             ylim=(-3.2, 3.2),
-            ylabel="← timid   preference   aggressive →",
+            ylabel=f"← {other}   preference   {reference or 'second'} →",
             title="(b) Preference per task",
         )
+    return fig
+
+
+def _modes_present(summary: pd.DataFrame, modes: Sequence[str]) -> list[str]:
+    """The modes in ``summary``: ``modes``' order first, then any others as found."""
+    found = list(dict.fromkeys(summary["mode"]))
+    return [m for m in modes if m in found] + [m for m in found if m not in modes]
+
+
+def _tasks(summary: pd.DataFrame) -> list[str]:
+    found = set(summary["task"])
+    return [t for t in TASK_ORDER if t in found] or sorted(found)
+
+
+def ratings_figure(
+    summary: pd.DataFrame, *, modes: Sequence[str] = ("timid", "aggressive"), points: int = 7
+) -> Figure:
+    """Fig. 8 (ratings): one panel per rated item, mean rating per task and mode +- SE
+    (``summary``: item, task, mode, mean, se; ``analysis.ratings.rating_summary``)."""
+    items = list(dict.fromkeys(summary["item"]))
+    fig = _new(3.6 * len(items) + 0.6, 3.4)
+    axes = fig.subplots(1, len(items), squeeze=False)[0]
+    tasks = _tasks(summary)
+    present = _modes_present(summary, modes)
+    colors = mode_colors(present)
+    for ax, item in zip(axes, items, strict=True):
+        sub = summary[summary["item"] == item]
+        _bars(ax, sub, "mean", "se", tasks, present, "mode", "task", colors)
+        ax.set(ylim=(0, points + 1.4), yticks=range(1, points + 1), title=item)
+        ax.tick_params(axis="x", labelsize=7)
+        ax.grid(axis="y", alpha=0.3)
+    axes[0].set_ylabel(f"rating (1..{points})")
+    axes[0].legend(frameon=False, loc="upper left", ncols=len(present), fontsize=8)
     return fig
 
 
@@ -264,6 +299,14 @@ FORM_STYLES = {
 }
 
 
+def _error_bars(value: pd.Series, low: pd.Series, high: pd.Series) -> np.ndarray:
+    """matplotlib's ``yerr`` (below, above) for an interval around ``value``: never negative,
+    even where the interval's end equals the value up to rounding (power 0 or 1)."""
+    below = np.asarray(value, float) - np.asarray(low, float)
+    above = np.asarray(high, float) - np.asarray(value, float)
+    return np.clip(np.nan_to_num(np.vstack([below, above])), 0.0, None)
+
+
 def power_figure(table: pd.DataFrame, *, target: float = 0.8) -> Figure:
     """Power against N per test (``analysis.power.COLUMNS``), error bars = Wilson 95% CI."""
     hyps = list(dict.fromkeys(table["hypothesis"]))
@@ -279,7 +322,7 @@ def power_figure(table: pd.DataFrame, *, target: float = 0.8) -> Figure:
                 ax.errorbar(
                     g["n"],
                     g["power"],
-                    yerr=[g["power"] - g["ci_low"], g["ci_high"] - g["power"]],
+                    yerr=_error_bars(g["power"], g["ci_low"], g["ci_high"]),
                     color=colours[i % 10],
                     linestyle=FORM_STYLES.get(str(form), ("-", ""))[0],
                     marker="o",

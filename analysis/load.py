@@ -1,13 +1,15 @@
 """Tidy study tables from a SQLite store, an export directory, or DataFrames in memory.
 
 The tables and their columns are the team contract's (``study.export.tidy_tables``): trials,
-samples, ratings, events. Loading normalises types (participant ids as text, JSON columns as
+samples, ratings, answers, participants, events (answers and participants are optional: older
+exports have none). Loading normalises types (participant ids as text, JSON columns as
 Python lists, ``success`` as bool) and checks the columns the analyses need, so every later
 step can trust them. ``task_cells`` then gives one row per participant, task and mode.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,7 +22,7 @@ from analysis.design import require_columns
 from analysis.errors import SchemaError, SourceError
 from study.store import Store
 
-TABLES = ("trials", "samples", "ratings", "events")
+TABLES = ("trials", "samples", "ratings", "answers", "participants", "events")
 TRIAL_COLUMNS = (
     "participant",
     "phase",
@@ -47,6 +49,22 @@ class StudyTables:
     source: str
     protocol_hash: str | None = None
     notes: tuple[str, ...] = field(default_factory=tuple)
+    answers: pd.DataFrame = field(default_factory=pd.DataFrame)
+    """Answers to the items other than ratings (demographics, attention checks, comments)."""
+    participants: pd.DataFrame = field(default_factory=pd.DataFrame)
+    """One row per enrolled participant: ``included``, ``excluded_because`` (data retention),
+    attention checks (empty for data without the table)."""
+
+    @property
+    def excluded(self) -> dict[str, str]:
+        """``{participant: why}`` for everyone whose data were left out (data retention)."""
+        p = self.participants
+        if p.empty or "included" not in p.columns:
+            return {}
+        out = p[~as_bool(p["included"])]
+        return dict(
+            zip(out["participant"].astype(str), out["excluded_because"].astype(str), strict=True)
+        )
 
 
 def _json_list(value: Any) -> Any:
@@ -65,7 +83,7 @@ def _json_list(value: Any) -> Any:
     return value
 
 
-def _as_bool(s: pd.Series) -> pd.Series:
+def as_bool(s: pd.Series) -> pd.Series:
     if pd.api.types.is_bool_dtype(s):
         return s
     mapping = {"true": True, "false": False, "1": True, "0": False, "1.0": True, "0.0": False}
@@ -83,7 +101,7 @@ def normalise_trials(trials: pd.DataFrame) -> pd.DataFrame:
         if c in t.columns:
             t[c] = t[c].map(_json_list)
     if "success" in t.columns:
-        t["success"] = _as_bool(t["success"])
+        t["success"] = as_bool(t["success"])
     for c in (
         "duration_s",
         *COVARIATES,
@@ -111,19 +129,29 @@ def from_frames(
     ratings: pd.DataFrame | None = None,
     events: pd.DataFrame | None = None,
     *,
+    answers: pd.DataFrame | None = None,
+    participants: pd.DataFrame | None = None,
     source: str = "in-memory tables",
     protocol_hash: str | None = None,
 ) -> StudyTables:
     """Wrap tables already in memory (e.g. ``study.export.tidy_tables(...)``'s result)."""
     empty = pd.DataFrame()
-    return StudyTables(
+    tables = StudyTables(
         trials=normalise_trials(trials),
         samples=normalise_samples(samples if samples is not None else empty),
         ratings=ratings if ratings is not None else empty,
         events=events if events is not None else empty,
+        answers=answers if answers is not None else empty,
+        participants=participants if participants is not None else empty,
         source=source,
         protocol_hash=protocol_hash,
     )
+    excluded = tables.excluded
+    if not excluded:
+        return tables
+    why = "; ".join(f"{p}: {w}" for p, w in excluded.items())
+    note = f"{len(excluded)} participant(s) left out: their data may not be kept or used ({why})"
+    return dataclasses.replace(tables, notes=(*tables.notes, note))
 
 
 def from_store(path: str | Path) -> StudyTables:
@@ -147,6 +175,8 @@ def from_store(path: str | Path) -> StudyTables:
         tables.get("samples"),
         tables.get("ratings"),
         tables.get("events"),
+        answers=tables.get("answers"),
+        participants=tables.get("participants"),
         source=str(p),
         protocol_hash=_store_protocol_hash(p),
     )
@@ -260,6 +290,8 @@ def from_export(directory: str | Path) -> StudyTables:
         tables["samples"],
         tables["ratings"],
         tables["events"],
+        answers=tables["answers"],
+        participants=tables["participants"],
         source=str(d),
         protocol_hash=_export_protocol_hash(d),
     )

@@ -2,9 +2,11 @@
 
 Model: ``y_ij = x_ij' b + u_i + e_ij`` with ``u_i ~ N(0, s_u^2)``, ``e_ij ~ N(0, s_e^2)``, i.e.
 ``V = s_e^2 I + s_u^2 Z Z'``; factors in sum-to-zero coding with all interactions, covariates
-centred. The variance components are estimated by REML with statsmodels' ``MixedLM`` (polished on the
-same likelihood when statsmodels stops short of its optimum); the fixed
-effects are then the GLS estimate ``b = C X'V^-1 y``, ``C = (X'V^-1 X)^-1``.
+centred. The variance components are estimated by REML as lme4 does: the residual variance is
+profiled out exactly and the profiled likelihood maximised over ``gamma = s_u^2 / s_e^2 >= 0``,
+with the boundary ``gamma = 0`` compared as a candidate of its own (there the fit is OLS
+exactly, on ``n - p`` df); the fixed effects are then the GLS estimate ``b = C X'V^-1 y``,
+``C = (X'V^-1 X)^-1``.
 
 Each effect with hypothesis matrix ``L`` (``q`` rows) is tested with the Wald F
 ``F = b'L'(L C L')^-1 L b / q`` on Satterthwaite's denominator df (the method of SAS PROC MIXED
@@ -24,7 +26,6 @@ number of rows.
 from __future__ import annotations
 
 import itertools
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -38,7 +39,7 @@ from analysis.errors import DesignError
 
 DF_METHOD = "Satterthwaite"
 METHOD = (
-    "linear mixed model, random intercept per subject (REML, statsmodels MixedLM); "
+    "linear mixed model, random intercept per subject (REML, residual variance profiled); "
     "type III Wald F, Satterthwaite df"
 )
 COLUMNS = ["effect", "df1", "df2", "F", "p", "np2", "method"]
@@ -133,6 +134,20 @@ def _theta_covariance(stats: _Stats, theta: np.ndarray) -> np.ndarray:
     return np.linalg.inv(info)
 
 
+def _boundary_derivatives(
+    stats: _Stats, theta: np.ndarray, cov: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, dC/d theta)`` on the boundary ``s_u^2 = 0``, exactly: only ``s_e^2`` is free, its
+    REML information is ``(n - p) / (2 s_e^4)`` and ``C = s_e^2 (X'X)^-1`` gives
+    ``dC/ds_e^2 = C / s_e^2``; every Satterthwaite df is then ``n - p``, OLS's residual df."""
+    se2 = float(theta[1])
+    a = np.zeros((2, 2))
+    a[1, 1] = 2.0 * se2**2 / (stats.n - cov.shape[0])
+    dcov = np.zeros((2, *cov.shape))
+    dcov[1] = cov / se2
+    return a, dcov
+
+
 def _cov_gradient(stats: _Stats, theta: np.ndarray) -> np.ndarray:
     """``dC/d theta_k`` by central differences, shape ``(2, p, p)``."""
     h = _steps(theta)
@@ -185,43 +200,60 @@ def _design(
     return np.column_stack(cols), spans, levels
 
 
-def _fit_variances(
-    x: np.ndarray, y: np.ndarray, groups: np.ndarray, stats: _Stats
-) -> tuple[np.ndarray, list[str]]:
-    """REML ``(s_u^2, s_e^2)``: statsmodels MixedLM's fit, then polished by maximising the same
-    REML likelihood (:meth:`_Stats.gls`) over ``s_u^2 >= 0`` with L-BFGS-B, so that a fit
-    statsmodels leaves short of its optimum (it warns; common on the boundary) is completed."""
-    from statsmodels.regression.mixed_linear_model import MixedLM
+BOUNDARY_TOL = 1e-9
+"""An interior optimum must beat the boundary's REML log-likelihood by more than this (a gain
+at rounding level is no evidence of subject variance)."""
+GAMMA_GRID = np.concatenate([[0.0], np.logspace(-8, 4, 49)])
+"""Variance ratios ``gamma = s_u^2 / s_e^2`` searched first (0 is the boundary)."""
 
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        fit = MixedLM(y, x, groups=groups, exog_re=np.ones((len(y), 1))).fit(reml=True)
-    start = np.array([max(float(np.asarray(fit.cov_re)[0, 0]), 0.0), float(fit.scale)])
-    scale = max(float(start.sum()), 1e-300)
 
-    def objective(v: np.ndarray) -> float:
-        return -stats.gls(v * scale)[2]
+def profiled_reml(stats: _Stats, gamma: float) -> tuple[float, np.ndarray]:
+    """The REML log-likelihood with ``s_e^2`` profiled out, and ``theta = (s_u^2, s_e^2)``, at
+    ``gamma = s_u^2 / s_e^2``: ``s_e^2 = r'V_g^-1 r / (n - p)`` with ``V_g = I + gamma Z Z'``,
+    exactly (at ``gamma = 0``: the OLS residual variance ``RSS / (n - p)``)."""
+    _, b, _ = stats.gls(np.array([gamma, 1.0]))
+    su2, se2 = float(gamma), 1.0
+    c = su2 / (se2 + stats.n_i * su2)
+    xwy = stats.xty - stats.sx.T @ (c * stats.sy)
+    rwr = stats.yty - float(c @ stats.sy**2) - float(b @ xwy)
+    se2 = max(rwr, 0.0) / (stats.n - len(b))
+    if se2 <= 0:
+        return -np.inf, np.array([0.0, 0.0])
+    theta = np.array([gamma * se2, se2])
+    return stats.gls(theta)[2], theta
 
-    best = optimize.minimize(
-        objective,
-        start / scale,
-        method="L-BFGS-B",
-        bounds=[(0.0, None), (1e-10, None)],
-        options={"ftol": 1e-15, "gtol": 1e-12},
-    )
-    theta = best.x * scale if best.fun <= objective(start / scale) else start
-    notes = []
-    if not fit.converged or any("converge" in str(w.message).lower() for w in caught):
-        moved = float(np.abs(theta - start).max() / scale)
-        notes.append(
-            "statsmodels MixedLM did not converge; the REML optimum was completed by "
-            f"direct optimisation of the same likelihood (variances moved by "
-            f"{moved:.1%} of their sum)"
+
+def _fit_variances(stats: _Stats) -> tuple[np.ndarray, list[str]]:
+    """REML ``(s_u^2, s_e^2)``, the way lme4 fits it: ``s_e^2`` profiled out exactly
+    (:func:`profiled_reml`) and the profiled likelihood maximised over ``gamma >= 0`` -- a
+    grid over ``0`` and ``1e-8..1e4``, then Brent's method on ``log gamma`` around the best
+    interior point. The boundary ``gamma = 0`` is one candidate of its own, compared by its
+    profiled likelihood: when it wins, the fit is OLS exactly (``s_e^2 = RSS / (n - p)``), not
+    an optimiser's approach to it."""
+    grid = [(profiled_reml(stats, g)[0], g) for g in GAMMA_GRID]
+    best_ll, best_g = max(grid, key=lambda t: t[0])
+    candidates = [(grid[0][0], 0.0), (best_ll, best_g)]
+    k = int(np.argmax([ll for ll, _ in grid]))
+    if k > 0:  # refine between the grid neighbours of the best interior point
+        lo = np.log(GAMMA_GRID[max(k - 1, 1)])
+        hi = np.log(GAMMA_GRID[min(k + 1, len(GAMMA_GRID) - 1)])
+        found = optimize.minimize_scalar(
+            lambda u: -profiled_reml(stats, float(np.exp(u)))[0],
+            bounds=(lo, hi),
+            method="bounded",
+            options={"xatol": 1e-10},
         )
-    if theta[0] <= 1e-8 * theta[1]:
+        g = float(np.exp(found.x))
+        candidates.append((profiled_reml(stats, g)[0], g))
+    ll, gamma = max(candidates, key=lambda t: t[0])
+    if ll - candidates[0][0] <= BOUNDARY_TOL:  # no real gain inside: the exact OLS answer
+        gamma = 0.0
+    _, theta = profiled_reml(stats, gamma)
+    notes = []
+    if gamma == 0.0:
         notes.append(
             "the subject variance is estimated at zero (REML boundary): the tests "
-            "reduce to ordinary least squares"
+            "reduce to ordinary least squares on N - p df"
         )
     return theta, notes
 
@@ -270,10 +302,12 @@ def mixed_anova(
             "drop terms"
         )
     stats = _Stats.of(x, y, groups)
-    theta, fit_notes = _fit_variances(x, y, groups, stats)
+    theta, fit_notes = _fit_variances(stats)
     cov, b, _ = stats.gls(theta)
-    a = _theta_covariance(stats, theta)
-    dcov = _cov_gradient(stats, theta)
+    if theta[0] == 0.0:
+        a, dcov = _boundary_derivatives(stats, theta, cov)
+    else:
+        a, dcov = _theta_covariance(stats, theta), _cov_gradient(stats, theta)
     rows = []
     for name, sl in spans:
         lmat = np.eye(p)[sl]

@@ -119,12 +119,30 @@ def success_comparisons(
     return pd.DataFrame(rows)
 
 
-def success_section(tables: StudyTables, *, modes: Sequence[str] | None = None) -> Section | None:
-    """The report's section on task success (``None`` without completed task trials)."""
+def success_section(
+    tables: StudyTables, *, modes: Sequence[str] | None = None, tests: bool = True
+) -> Section | None:
+    """The report's section on task success (``None`` without completed task trials);
+    without ``tests`` (too few participants) the shares only, without intervals or tests."""
     summary = success_summary(tables.trials, modes=modes)
     if summary.empty:
         return None
     sec = Section("Task success by condition")
+    if not tests:
+        sec.paragraphs.append(
+            "Share of completed task trials that ended with the target lifted (outcome "
+            "success). Too few participants for intervals or tests (see the data section)."
+        )
+        shown = pd.DataFrame(
+            {
+                "task": summary["task"],
+                "mode": summary["mode"],
+                "trials": summary["trials"],
+                "success": [f"{r.successes}/{r.trials}" for r in summary.itertuples()],
+            }
+        )
+        sec.tables.append(Table("Success by task and mode", shown))
+        return sec
     sec.paragraphs.append(
         "Share of completed task trials that ended with the target lifted (outcome success), "
         "with its Wilson 95% interval; then every pair of modes within a task on the same "

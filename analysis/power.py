@@ -329,13 +329,17 @@ BOTH_PLANNED = "both planned comparisons"
 def wilson(
     k: np.ndarray | int, n: int, *, z: float = 1.959963984540054
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Wilson score interval of a binomial proportion ``k / n``."""
+    """Wilson score interval of a binomial proportion ``k / n``: exactly 0 below ``k = 0`` and
+    1 above ``k = n`` (the formula leaves rounding residue there, e.g. 2.2e-19), and always
+    around ``k / n``."""
     k = np.asarray(k, dtype=float)
     phat = k / n
     den = 1 + z * z / n
     centre = (phat + z * z / (2 * n)) / den
     half = z * np.sqrt(phat * (1 - phat) / n + z * z / (4 * n * n)) / den
-    return centre - half, centre + half
+    lo = np.where(k <= 0, 0.0, np.clip(centre - half, 0.0, phat))
+    hi = np.where(k >= n, 1.0, np.clip(centre + half, phat, 1.0))
+    return lo, hi
 
 
 @dataclass(frozen=True)

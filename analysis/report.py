@@ -27,6 +27,7 @@ import pandas as pd
 from analysis import figures as figs
 from analysis.contact_summary import contact_section
 from analysis.decoy_share import decoy_section
+from analysis.descriptives import descriptive_section
 from analysis.errors import AnalysisError
 from analysis.load import StudyTables
 from analysis.outcomes import success_comparisons, success_section, success_summary
@@ -41,6 +42,8 @@ from analysis.prediction_eval import (
     trial_trajectories,
 )
 from analysis.protocol_info import DEFAULT_PROTOCOL, ProtocolInfo, load_protocol_info
+from analysis.quality import quality_section
+from analysis.ratings import preference_summary, rating_summary, ratings_section
 from analysis.render import (
     TITLE,
     Section,
@@ -132,16 +135,24 @@ def _assumes(analysis: str) -> str:
     return f"Assumes: {ASSUMES[analysis]}."
 
 
+def _ci(lo: float, hi: float, digits: int = 2) -> str:
+    """``[lo, hi]``, or "–" when either end is not defined (never an empty ``[, ]``)."""
+    if pd.isna(lo) or pd.isna(hi):
+        return "–"
+    return f"[{fmt(lo, digits)}, {fmt(hi, digits)}]"
+
+
 def _with_ci(value: float, lo: float, hi: float, digits: int = 2) -> str:
     if pd.isna(value):
         return ""
-    ci = f" [{fmt(lo, digits)}, {fmt(hi, digits)}]" if pd.notna(lo) else ""
+    ci = f" {_ci(lo, hi, digits)}" if pd.notna(lo) and pd.notna(hi) else ""
     return f"{fmt(value, digits)}{ci}"
 
 
 def _df(v: float) -> str:
-    """Integer df as integers, Satterthwaite df to one decimal."""
-    return fmt(v, 0) if float(v).is_integer() else fmt(v, 1)
+    """Integer df as integers (within rounding: a boundary fit's n - p), Satterthwaite df to
+    one decimal."""
+    return fmt(float(round(v)), 0) if abs(v - round(v)) < 1e-9 * max(1.0, abs(v)) else fmt(v, 1)
 
 
 def _stat_text(stat: str, df1: float, df2: float, value: float, p: float) -> str:
@@ -258,29 +269,82 @@ def _no_paper_values(res: StudyResults, what: str = "design") -> str:
     return f"This design{ours} differs from {PAPER_DESIGN}, so the paper's values are not shown."
 
 
-def _sections(
-    res: StudyResults,
-    figures: Mapping[str, figs.SavedFigure],
-    trials: pd.DataFrame | None = None,
-    choices: Sequence[PredictorChoice] = (),
-) -> list[Section]:
-    s = res.statistics
-    out: list[Section] = []
-    cells = res.cells
+def _data_section(res: StudyResults, tables: StudyTables, *, successful_only: bool) -> Section:
+    """Who and what the report covers: participants included and left out (and why), runs,
+    and which runs the analysed durations include."""
     data = Section("Data")
+    trials, cells = tables.trials, res.cells
+    excluded = tables.excluded
+    enrolled = len(tables.participants) if not tables.participants.empty else None
+    with_runs = trials["participant"].nunique() if not trials.empty else 0
+    who = f"{with_runs} participant(s) with data"
+    if enrolled is not None:
+        who = f"{enrolled} participant(s) enrolled, {enrolled - len(excluded)} included"
+    if excluded:
+        who += "; left out: " + "; ".join(f"{p} ({why})" for p, why in excluded.items())
+    p = tables.participants
+    if not p.empty and "status" in p.columns:
+        under_way = p.loc[p["status"].isin(["enrolled", "running"]), "participant"]
+        if len(under_way):
+            who += (
+                f"; session still under way: {', '.join(map(str, under_way))} (their data as they"
+                " stand; a retention question, if the protocol asks one, comes at the end)"
+            )
+    data.paragraphs.append(who + ".")
     if not cells.empty:
         n_part = cells["participant"].nunique()
         paper = " (paper: about 28 s)" if res.paper_design else ""
-        data.paragraphs.append(
-            f"{n_part} participant(s), {len(cells)} completed task trials "
-            f"({_per_participant(cells)}). Mean time per task "
-            f"{cells['duration_s'].mean():.1f} s{paper}."
+        which = (
+            "successful task runs only (--successful-only)"
+            if successful_only
+            else "all completed task runs, a failed run counting the time until it ended"
         )
-    if trials is not None and not trials.empty:
+        ok = cells[cells["success"].astype(bool)] if "success" in cells.columns else cells
+        data.paragraphs.append(
+            f"{n_part} participant(s), {len(cells)} analysed task runs "
+            f"({_per_participant(cells)}). Mean time per task over the analysed runs, {which}: "
+            f"{cells['duration_s'].mean():.1f} s{paper}; over the successful runs alone: "
+            + (f"{ok['duration_s'].mean():.1f} s ({len(ok)} runs)." if len(ok) else "none.")
+        )
+    if not trials.empty:
         cols = [c for c in ("phase", "status", "outcome") if c in trials.columns]
         counts = trials.groupby(cols, dropna=False).size().reset_index(name="trials")
         data.tables.append(Table("Trial attempts by phase, status and outcome", counts))
+    return data
+
+
+def _sections(
+    res: StudyResults,
+    figures: Mapping[str, figs.SavedFigure],
+    tables: StudyTables,
+    choices: Sequence[PredictorChoice] = (),
+    *,
+    modes: Sequence[str] | None = None,
+    successful_only: bool = False,
+    extra: Sequence[Section] = (),
+) -> list[Section]:
+    """Every section, in order: the data first (who, descriptives, ratings, data quality),
+    then Fig. 7, ``extra`` (success, contacts, the decoy), and the tests where n allows."""
+    s = res.statistics
+    out: list[Section] = []
+    data = _data_section(res, tables, successful_only=successful_only)
     out.append(data)
+    descriptives = descriptive_section(tables, modes=modes)
+    descriptives.figures += [figures[k] for k in ("fig8",) if k in figures]
+    out.append(descriptives)
+    ratings = ratings_section(
+        tables, modes=modes, figures=[figures[k] for k in ("fig8_ratings",) if k in figures]
+    )
+    if ratings is not None:
+        out.append(ratings)
+    out.append(quality_section(tables))
+    if not res.inferential:
+        out.append(
+            Section(
+                "Statistical tests: not computed",
+                paragraphs=[res.why_no_tests[0].upper() + res.why_no_tests[1:] + "."],
+            )
+        )
     if "fig7" in figures:
         out.append(
             Section(
@@ -292,6 +356,7 @@ def _sections(
                 figures=[figures["fig7"]],
             )
         )
+    out += extra
     pairs = _form_pairs_section(res)
     if pairs is not None:
         out.append(pairs)
@@ -332,7 +397,7 @@ def _sections(
                             for a, b in zip(m.table["df1"], m.table["df2"], strict=True)
                         ]
                     ),
-                    f"Same fixed effects and covariates; REML (statsmodels MixedLM): participant "
+                    f"Same fixed effects and covariates; REML (residual variance profiled, as lme4): participant "
                     f"variance {fmt(m.var_subject, 3)}, residual variance {fmt(m.var_resid, 3)} "
                     f"(ICC {fmt(m.icc, 2)}); type III Wald F on {m.df_method} df; partial η² from "
                     f"F and df. {_assumes('timing_mixed')}",
@@ -354,7 +419,7 @@ def _sections(
                             ],
                             "p": est["p"].map(fmt_p),
                             "95% CI": [
-                                f"[{fmt(a, 3)}, {fmt(b, 3)}]"
+                                _ci(a, b, 3)
                                 for a, b in zip(est["ci_low"], est["ci_high"], strict=True)
                             ],
                         }
@@ -407,12 +472,10 @@ def _sections(
                     "p (Bonferroni)": c["p_bonf"].map(fmt_p),
                     "mean diff (s)": c["mean_diff"].map(fmt),
                     "95% CI (unadjusted)": [
-                        f"[{fmt(a)}, {fmt(b)}]"
-                        for a, b in zip(c["ci_low"], c["ci_high"], strict=True)
+                        _ci(a, b) for a, b in zip(c["ci_low"], c["ci_high"], strict=True)
                     ],
                     "Bonferroni CI": [
-                        f"[{fmt(a)}, {fmt(b)}]"
-                        for a, b in zip(c["ci_low_bonf"], c["ci_high_bonf"], strict=True)
+                        _ci(a, b) for a, b in zip(c["ci_low_bonf"], c["ci_high_bonf"], strict=True)
                     ],
                     "d_z": c["d_z"].map(fmt),
                     "form": c["analysis"].map(
@@ -445,7 +508,12 @@ def _sections(
         summ = t.summary.copy()
         sec.tables.append(
             Table(
-                "Time per task and mode (s)",
+                "Time per task and mode (s), "
+                + (
+                    "successful runs only"
+                    if successful_only
+                    else "all completed runs (failed runs until they ended)"
+                ),
                 pd.DataFrame(
                     {
                         "task": summ["task"],
@@ -457,7 +525,6 @@ def _sections(
                 ),
             )
         )
-        sec.figures += [f for k, f in figures.items() if k == "fig8"]
         out.append(sec)
     if res.correlations is not None:
         sec = Section("Preferences")
@@ -473,9 +540,7 @@ def _sections(
                 "versus": c["versus"],
                 "r": [f"r({fmt(d, 0)}) = {fmt(r)}" for d, r in zip(c["df"], c["r"], strict=True)],
                 "p": c["p"].map(fmt_p),
-                "95% CI": [
-                    f"[{fmt(a)}, {fmt(b)}]" for a, b in zip(c["ci_low"], c["ci_high"], strict=True)
-                ],
+                "95% CI": [_ci(a, b) for a, b in zip(c["ci_low"], c["ci_high"], strict=True)],
             }
         )
         if res.paper_comparable["preference"]:
@@ -500,8 +565,7 @@ def _sections(
                             ],
                             "p": rc["p"].map(fmt_p),
                             "95% CI": [
-                                f"[{fmt(a)}, {fmt(b)}]"
-                                for a, b in zip(rc["ci_low"], rc["ci_high"], strict=True)
+                                _ci(a, b) for a, b in zip(rc["ci_low"], rc["ci_high"], strict=True)
                             ],
                             "pairs": rc["n"],
                             "participants": rc["n_subjects"],
@@ -599,12 +663,28 @@ def _example_trial(res: StudyResults) -> Any:
     return res.cells[res.cells["trial_id"] == tid].iloc[0]
 
 
+def _mode_order(res: StudyResults, proto: ProtocolInfo | None) -> tuple[str, ...]:
+    if proto is not None and proto.factors.get("mode"):
+        return tuple(proto.factors["mode"])
+    if res.timing is not None:
+        return tuple(res.timing.levels["mode"])
+    return ("timid", "aggressive")
+
+
+def _points(tables: StudyTables) -> int:
+    """The rating scale's length: the largest answer seen, at least 7."""
+    values = pd.to_numeric(tables.ratings.get("value", pd.Series(dtype=float)), errors="coerce")
+    return max(7, int(values.max())) if values.notna().any() else 7
+
+
 def _figures(
     res: StudyResults,
     tables: StudyTables,
     proto: ProtocolInfo | None,
     out: Path,
     predictors: Mapping[str, Mapping[str, Any]],
+    *,
+    successful_only: bool = False,
 ) -> dict[str, figs.SavedFigure]:
     made: dict[str, figs.SavedFigure] = {}
     if proto is not None and proto.arbitrations:
@@ -614,13 +694,31 @@ def _figures(
             "fig7_arbitration",
             "Fig. 7: arbitration α(c) of each mode",
         )
-    modes = res.timing.levels["mode"] if res.timing is not None else ("timid", "aggressive")
-    if res.timing is not None:
+    modes = list(_mode_order(res, proto))
+    if not res.cells.empty:
+        g = res.cells.groupby(["task", "mode"])["duration_s"]
+        time = (g.mean().rename("mean").to_frame().join(g.sem().rename("se"))).reset_index()
+        pref, reference = preference_summary(tables)
+        runs = "successful runs" if successful_only else "all completed runs"
         made["fig8"] = figs.save(
-            figs.timing_preference_figure(res.timing.summary, res.preferences, modes=modes),
+            figs.timing_preference_figure(
+                time,
+                pref,
+                modes=modes,
+                reference=reference,
+                time_label=f"time to complete (s), {runs}",
+            ),
             out,
             "fig8_time_preference",
-            "Fig. 8: time and preference per task (mean ± SE)",
+            f"Fig. 8: time ({runs}) and preference per task (mean ± SE; no bar without an SE)",
+        )
+    ratings = rating_summary(tables.ratings, modes=modes)
+    if not ratings.empty:
+        made["fig8_ratings"] = figs.save(
+            figs.ratings_figure(ratings, modes=modes, points=_points(tables)),
+            out,
+            "fig8_ratings",
+            "Fig. 8: ratings per task and mode after each run (mean ± SE)",
         )
     row = _example_trial(res)
     if row is not None and res.evals is not None:
@@ -712,7 +810,8 @@ def results_document(
         doc["timing_summary"] = res.timing.summary.to_dict(orient="records")
     if success is not None and not success[0].empty:
         doc["success_summary"] = success[0].to_dict(orient="records")
-        doc["success_comparisons"] = success[1].to_dict(orient="records")
+        if not success[1].empty:
+            doc["success_comparisons"] = success[1].to_dict(orient="records")
     return _jsonable(doc)
 
 
@@ -760,7 +859,9 @@ def write_report(
         levels=proto.factors if proto is not None else None,
     )
     res.notes = proto_notes + res.notes
-    figures = _figures(res, tables, proto, out / "figures", predictors)
+    figures = _figures(
+        res, tables, proto, out / "figures", predictors, successful_only=successful_only
+    )
     meta = {
         "title": TITLE,
         "source": tables.source,
@@ -786,18 +887,25 @@ def write_report(
             "the protocol file's hash differs from the one recorded with the "
             "data: pass the protocol the study ran with (--protocol)",
         )
-    sections = _sections(res, figures, tables.trials, choices)
     modes = proto.factors.get("mode") if proto is not None else None
     extra = [
         s
         for s in (
             decoy_section(tables),
-            success_section(tables, modes=modes),
+            success_section(tables, modes=modes, tests=res.inferential),
             contact_section(tables),
         )
         if s is not None
     ]
-    sections[min(2, len(sections)) : min(2, len(sections))] = extra
+    sections = _sections(
+        res,
+        figures,
+        tables,
+        choices,
+        modes=modes,
+        successful_only=successful_only,
+        extra=extra,
+    )
     html_path, md_path, json_path = out / "report.html", out / "report.md", out / "results.json"
     html_path.write_text(render_html(sections, meta), encoding="utf-8")
     md_path.write_text(render_markdown(sections, meta), encoding="utf-8")
@@ -808,7 +916,9 @@ def write_report(
                 meta,
                 success=(
                     success_summary(tables.trials, modes=modes),
-                    success_comparisons(tables.trials, modes=modes),
+                    success_comparisons(tables.trials, modes=modes)
+                    if res.inferential
+                    else pd.DataFrame(),
                 ),
             ),
             indent=1,

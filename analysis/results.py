@@ -2,6 +2,11 @@
 
 ``analyse(tables)`` runs timing (section 5.1), preferences and prediction (5.2); a section
 whose data are missing is skipped with a note saying why, so one gap never hides the rest.
+No test runs on fewer than ``MIN_PARTICIPANTS`` participants with completed task runs
+(``StudyResults.inferential`` is then False and a note says why): with one participant the
+paper's forms would treat one person's runs as independent people, and with two every
+participant-level test has a single error df. The descriptive parts (the prediction replay's
+success rates) are still computed.
 ``statistics`` has one row per test: analysis, effect, test, df1, df2, statistic, p, p_bonf,
 effect_size (+ its name), ci_low, ci_high, and the paper's value where it reports one; then
 ``form`` ("as in the paper", or "reviewer" for the analyses a reviewer would ask for beside
@@ -148,6 +153,8 @@ class StudyResults:
     notes: list[str] = field(default_factory=list)
     paper_design: bool = True  # difficulty x correctness x mode, the paper's two levels each
     paper_predictors: bool = True  # amnesic and memory-based with eq. 9's squared velocity
+    inferential: bool = True  # enough participants for tests (MIN_PARTICIPANTS)
+    why_no_tests: str = ""
 
     @property
     def paper_comparable(self) -> dict[str, bool]:
@@ -425,7 +432,8 @@ FORM_PAIR_COLUMNS = [
 def form_pairs(statistics: pd.DataFrame) -> pd.DataFrame:
     """Each paper-form test beside its reviewer-form counterpart (same effect); p are the
     Bonferroni-adjusted ones where the test has them. ``paper_form_smaller_p``: the paper's form
-    gives the smaller p (the direction in which its independence assumption errs)."""
+    gives the smaller p (the direction in which its independence assumption errs); p equal to
+    rounding (a mixed model on its boundary is the paper's OLS) is not smaller."""
     rows = []
     for paper, reviewer in PAIRS.items():
         a = statistics[statistics["analysis"] == paper]
@@ -451,12 +459,28 @@ def form_pairs(statistics: pd.DataFrame) -> pd.DataFrame:
                     "reviewer_df2": q["df2"],
                     "reviewer_statistic": q["statistic"],
                     "reviewer_p": pb,
-                    "paper_form_smaller_p": bool(pa < pb)
+                    "paper_form_smaller_p": bool(pa < pb and not np.isclose(pa, pb, rtol=1e-9))
                     if pd.notna(pa) and pd.notna(pb)
                     else None,
                 }
             )
     return pd.DataFrame(rows, columns=FORM_PAIR_COLUMNS)
+
+
+MIN_PARTICIPANTS = 3
+"""Fewest participants with completed task runs on which any test is computed."""
+
+
+def too_few_participants(n: int) -> str:
+    """Why no test is computed for ``n`` participants (``""`` when there are enough)."""
+    if n >= MIN_PARTICIPANTS:
+        return ""
+    return (
+        f"no tests, p-values or confidence intervals: {n} participant(s) with completed task "
+        f"runs, and the report computes none below {MIN_PARTICIPANTS} (with one participant a "
+        "test would count one person's runs as independent people; with two, every "
+        "participant-level test has a single error df); the descriptives above stand"
+    )
 
 
 def analyse(
@@ -475,9 +499,17 @@ def analyse(
         cells=cells, notes=[*tables.notes, *notes], paper_predictors=is_paper_predictors(predictors)
     )
     if cells.empty:
+        res.inferential, res.why_no_tests = False, "no completed task runs: nothing to test"
         res.notes.append("no completed task trials: nothing to analyse")
         return res
     res.paper_design = is_paper_design(cells, levels)
+    res.why_no_tests = too_few_participants(int(cells["participant"].nunique()))
+    res.inferential = not res.why_no_tests
+    if not res.inferential:
+        res.notes.append(res.why_no_tests)
+        _prediction(res, tables, cells, predictors, levels, tests=False)
+        res.statistics = statistics_table(res)
+        return res
     try:
         res.timing = timing_analysis(cells, levels=levels)
         res.notes += [f"timing: {n}" for n in res.timing.notes]
@@ -496,38 +528,51 @@ def analyse(
             )
         except AnalysisError as e:
             res.notes.append(f"repeated-measures correlations skipped: {e}")
-    if tables.samples is None or tables.samples.empty:
-        res.notes.append("prediction analysis skipped: the study has no samples")
-    else:
-        try:
-            res.evals, pnotes = evaluate_predictions(cells, tables.samples, predictors=predictors)
-            res.notes += [f"prediction: {n}" for n in pnotes]
-            summ = res.evals.groupby(["predictor", "mode"], sort=False)
-            res.prediction_summary = summ.agg(
-                success_rate=("success_rate", "mean"),
-                success_se=("success_rate", lambda s: s.std() / np.sqrt(len(s))),
-                time_to_correct_s=("time_to_correct_s", "mean"),
-                never_lasting=("time_to_correct_s", lambda s: int(s.isna().sum())),
-                n=("success_rate", "size"),
-            ).reset_index()
-            res.prediction = prediction_anova(res.evals, levels=levels)
-        except AnalysisError as e:
-            res.notes.append(f"prediction analysis skipped: {e}")
-        if res.evals is not None and res.prediction is not None:
-            try:
-                res.prediction_rm = prediction_rm_anova(res.evals, levels=levels)
-                res.notes += [
-                    f"prediction (repeated measures): {n}" for n in res.prediction_rm.notes
-                ]
-            except AnalysisError as e:
-                res.notes.append(f"prediction repeated-measures model skipped: {e}")
+    _prediction(res, tables, cells, predictors, levels, tests=True)
     res.statistics = statistics_table(res)
     return res
+
+
+def _prediction(
+    res: StudyResults,
+    tables: StudyTables,
+    cells: pd.DataFrame,
+    predictors: Mapping[str, Mapping[str, Any]],
+    levels: Mapping[str, Sequence[str]] | None,
+    *,
+    tests: bool,
+) -> None:
+    """The prediction replay and its summary; with ``tests`` also its ANOVAs."""
+    if tables.samples is None or tables.samples.empty:
+        res.notes.append("prediction analysis skipped: the study has no samples")
+        return
+    try:
+        res.evals, pnotes = evaluate_predictions(cells, tables.samples, predictors=predictors)
+        res.notes += [f"prediction: {n}" for n in pnotes]
+        summ = res.evals.groupby(["predictor", "mode"], sort=False)
+        res.prediction_summary = summ.agg(
+            success_rate=("success_rate", "mean"),
+            success_se=("success_rate", lambda s: s.std() / np.sqrt(len(s))),
+            time_to_correct_s=("time_to_correct_s", "mean"),
+            never_lasting=("time_to_correct_s", lambda s: int(s.isna().sum())),
+            n=("success_rate", "size"),
+        ).reset_index()
+        if tests:
+            res.prediction = prediction_anova(res.evals, levels=levels)
+    except AnalysisError as e:
+        res.notes.append(f"prediction analysis skipped: {e}")
+    if tests and res.evals is not None and res.prediction is not None:
+        try:
+            res.prediction_rm = prediction_rm_anova(res.evals, levels=levels)
+            res.notes += [f"prediction (repeated measures): {n}" for n in res.prediction_rm.notes]
+        except AnalysisError as e:
+            res.notes.append(f"prediction repeated-measures model skipped: {e}")
 
 
 __all__ = [
     "ASSUMES",
     "FORMS",
+    "MIN_PARTICIPANTS",
     "STAT_COLUMNS",
     "StudyResults",
     "analyse",

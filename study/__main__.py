@@ -16,6 +16,10 @@ COMMANDS = {
     "simulate": ("study.cli.simulate", "Run simulated participants through the whole study."),
     "sweep": ("study.cli.sweep", "Calibrate the arbitration modes by the paper's criteria."),
     "export": ("study.cli.export", "Export a store to tidy CSV + Parquet files with a codebook."),
+    "retention": (
+        "study.cli.retention",
+        "Record a data-retention answer given in person after a session stopped.",
+    ),
 }
 
 if __name__ == "__main__":

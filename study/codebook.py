@@ -1,8 +1,9 @@
 """The codebook: one row per column of every tidy table, saying what it holds.
 
 ``codebook(tables, protocol=None)`` describes exactly the columns present (dynamic ones too:
-``prob_<k>``, one column per Likert item, ``preference_<mode>``); with the protocol, Likert
-columns carry their prompt and anchors. ``write_codebook`` writes ``codebook.csv`` and
+``prob_<k>``, one column per Likert item, ``preference_<mode>``, one ``participants`` column per
+item asked once); with the protocol, item columns carry their prompt and anchors, options,
+range or length. ``write_codebook`` writes ``codebook.csv`` and
 ``codebook.md``.
 """
 
@@ -17,6 +18,7 @@ from typing import TYPE_CHECKING
 import pandas as pd
 
 from app.trial.samples import SAMPLE_DOCS
+from study.protocol.questionnaire import ChoiceItem, NumberItem, TextItem
 
 if TYPE_CHECKING:
     from study.protocol import Protocol
@@ -83,7 +85,10 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
     "ratings": {
         "participant": ("participant id", ""),
         "session_id": ("the participant's session in the store", ""),
-        "phase": ("training (rating of the unassisted robot) or task", "training | task"),
+        "phase": (
+            "training (rating of the unassisted robot), task, or session (an item asked once)",
+            "training | task | session",
+        ),
         "task": ("task type the rating is about (empty after training)", ""),
         "mode": ("mode of the rated run; empty for a preference between runs", ""),
         "run": ("which run of the task was rated; empty for a preference", "first | second"),
@@ -91,6 +96,45 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
         "value": ("the answer, 1..points (1 = the first anchor)", "1..points"),
         "answered_at": ("time of the answer, ISO 8601 UTC", ""),
         "trial_id": ("the rated trial attempt, if the rating is about one", ""),
+    },
+    "answers": {
+        "participant": ("participant id", ""),
+        "session_id": ("the participant's session in the store", ""),
+        "questionnaire": (
+            "when the item was asked; recorded: a retention answer the experimenter recorded"
+            " after the session stopped (python -m study retention)",
+            "before_training | between_tasks | closing | recorded",
+        ),
+        "item": ("questionnaire item id (the protocol's [questionnaire.items.<id>])", ""),
+        "kind": ("the item's kind", "choice | attention | retention | number | text"),
+        "value": (
+            "the answer as given: the option's text, the number as typed and read, or the free"
+            " text (trimmed); empty: an optional item left empty",
+            "",
+        ),
+        "number": ("the answer of a number item, in the item's unit", ""),
+        "option": ("a choice's 1-based position among the item's options", "1.."),
+        "correct": ("an attention check answered with its correct option", "true | false"),
+        "answered_at": ("time of the answer, ISO 8601 UTC", ""),
+    },
+    "participants": {
+        "participant": ("participant id (pseudonymous)", ""),
+        "session_id": ("the participant's session in the store", ""),
+        "schedule_row": ("design row of the counterbalanced schedule (study.schedule)", ">= 0"),
+        "status": (
+            "how the session stands",
+            "enrolled | running | completed | withdrawn | ended",
+        ),
+        "enrolled_at": ("enrolment time, ISO 8601 UTC", ""),
+        "included": (
+            "the participant's data are in the other tables: they agreed to keeping them (or"
+            " the protocol asks no data-retention question)",
+            "true | false",
+        ),
+        "excluded_because": ("why an excluded participant's data are left out", ""),
+        "retention": ("the answer to the data-retention question, as given", ""),
+        "attention_checks": ("attention-check items answered", "0.."),
+        "attention_failures": ("attention checks answered with another option", "0.."),
     },
     "events": {
         "participant": ("participant id (empty for store-wide events)", ""),
@@ -150,6 +194,8 @@ def _describe(
         )
     if table == "trials":
         return _likert(column, protocol, columns)
+    if table == "participants":
+        return _once_item(column, protocol)
     raise CodebookError(f"no codebook entry for column {column!r} of table {table!r}")
 
 
@@ -186,6 +232,24 @@ def _likert(column: str, protocol: Protocol | None, columns: list[str]) -> tuple
     return text, "; ".join(f"{i} = {a}" for i, a in enumerate(item.scale.anchors, 1))
 
 
+def _once_item(column: str, protocol: Protocol | None) -> tuple[str, str]:
+    """A ``participants`` column holding the answer to an item asked once."""
+    if protocol is None:
+        return f"answer to the questionnaire item {column!r}", ""
+    items = protocol.questionnaire.items
+    item = items.get(column) or items.get(column.removeprefix("item_"))
+    if item is None:
+        raise CodebookError(f"no codebook entry for column {column!r} of table 'participants'")
+    text = f'answer to "{item.prompt}"'
+    if isinstance(item, ChoiceItem):
+        return text, " | ".join(item.options)
+    if isinstance(item, NumberItem):
+        return text + (f" ({item.unit})" if item.unit else ""), item.range_text()
+    if isinstance(item, TextItem):
+        return text + " (free text; empty: left empty)", f"at most {item.max_length} characters"
+    return text, ""
+
+
 def codebook(
     tables: Mapping[str, pd.DataFrame], *, protocol: Protocol | None = None
 ) -> pd.DataFrame:
@@ -208,8 +272,8 @@ def write_codebook(book: pd.DataFrame, out: str | os.PathLike[str]) -> list[Path
         "# Codebook",
         "",
         "Tidy long-format tables exported by `python -m study export`; one row per trial"
-        " attempt (trials), control tick (samples), answer (ratings), event (events) or"
-        " participant's session (sessions).",
+        " attempt (trials), control tick (samples), rating (ratings), other answer (answers),"
+        " participant (participants), event (events) or participant's session (sessions).",
         "",
     ]
     for table, group in book.groupby("table", sort=False):

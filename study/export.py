@@ -1,8 +1,15 @@
-"""Tidy long-format tables from a study store: trials, samples, ratings, events, sessions.
+"""Tidy long-format tables from a study store: trials, samples, ratings, answers,
+participants, events, sessions.
 
 ``tidy_tables(store_or_path)`` is the one place that defines them (the team contract's "Tidy
 tables"); ``python -m study export`` writes them as CSV and Parquet with a codebook
 (``study.codebook`` describes every column). The store is opened read-only and never written.
+
+Data retention is honoured here (``study.retention``): when the protocol asks the end-of-study
+retention question, a participant who did not agree to keep their data -- declined, or whose
+session is over without an answer (withdrew, ended early) -- has no row in any table but
+``participants``, which says why (``included`` false, ``excluded_because``). A session still
+under way is exported as it stands (``metadata.json``: ``retention_pending``).
 
 The questionnaire layout comes from the protocol the store was run with: the text the store
 keeps (``study.protocol.protocol_from_store``), else a matching protocol file, else it is
@@ -38,13 +45,21 @@ from app.trial.contacts import contact_totals
 from app.trial.events import TrialEvent, decode_events
 from app.trial.samples import SAMPLE_COLUMNS
 from study.codebook import write_codebook
-from study.protocol import TRAINING_MODE, ProtocolError, load_protocol, protocol_from_store
+from study.protocol import (
+    TRAINING_MODE,
+    AttentionItem,
+    ChoiceItem,
+    ProtocolError,
+    load_protocol,
+    protocol_from_store,
+)
+from study.retention import UNDER_WAY, retention_decisions
 from study.store import Store, now_iso
 
 if TYPE_CHECKING:
     from study.protocol import Protocol
 
-TABLE_NAMES = ("trials", "samples", "ratings", "events", "sessions")
+TABLE_NAMES = ("trials", "samples", "ratings", "answers", "participants", "events", "sessions")
 DEFAULT_POINTS = 7
 
 TRIAL_COLUMNS = (
@@ -91,6 +106,32 @@ RATING_COLUMNS = (
     "answered_at",
     "trial_id",
 )
+ANSWER_COLUMNS = (
+    "participant",
+    "session_id",
+    "questionnaire",
+    "item",
+    "kind",
+    "value",
+    "number",
+    "option",
+    "correct",
+    "answered_at",
+)
+PARTICIPANT_COLUMNS = (
+    "participant",
+    "session_id",
+    "schedule_row",
+    "status",
+    "enrolled_at",
+    "included",
+    "excluded_because",
+    "retention",
+    "attention_checks",
+    "attention_failures",
+)
+"""Fixed leading columns of ``participants``; one column per item asked once per participant
+(demographics, the comment: its answer) follows."""
 EVENT_COLUMNS = ("participant", "session_id", "at", "kind", "detail")
 RECRUITMENT_COLUMNS: dict[str, str] = {
     "PROLIFIC_PID": "prolific_pid",
@@ -122,7 +163,8 @@ def tidy_tables(
     protocol: Protocol | None = None,
     search: Sequence[Path] | None = None,
 ) -> dict[str, pd.DataFrame]:
-    """The tidy tables of a store: ``{"trials", "samples", "ratings", "events", "sessions"}``.
+    """The tidy tables of a store: ``{"trials", "samples", "ratings", "answers",
+    "participants", "events", "sessions"}`` (module docstring: who is left out).
 
     ``protocol`` (optional; must be the one the store was run with) names the questionnaire's
     items and scales; without it ``resolve_protocol(store, search=search)`` picks one.
@@ -186,10 +228,18 @@ class _Exporter:
                 " to use the one the store keeps"
             )
         self.protocol = protocol
-        self.raw_trials = store.frame("trials").sort_values("trial_id", kind="stable")
-        self.raw_ratings = store.frame("ratings").sort_values("rating_id", kind="stable")
-        self.participants = store.frame("participants")
-        self.assignments = store.frame("assignments")
+        self.retention = retention_decisions(store, protocol)
+        keep = self.retention.kept
+
+        def kept(df: pd.DataFrame) -> pd.DataFrame:
+            return df[df["participant"].isin(keep)]
+
+        self.raw_trials = kept(store.frame("trials")).sort_values("trial_id", kind="stable")
+        self.raw_ratings = kept(store.frame("ratings")).sort_values("rating_id", kind="stable")
+        self.raw_answers = kept(store.frame("answers")).sort_values("answer_id", kind="stable")
+        self.all_participants = store.frame("participants")
+        self.participants = kept(self.all_participants)
+        self.assignments = kept(store.frame("assignments"))
 
     # -- questionnaire layout ---------------------------------------------------------------
     def _items(self) -> tuple[list[str], list[str], float, str | None]:
@@ -213,10 +263,13 @@ class _Exporter:
 
     def tables(self) -> dict[str, pd.DataFrame]:
         samples = self.samples()
+        answers = self.answers()
         return {
             "trials": self.trials(samples),
             "samples": samples,
             "ratings": self.ratings(),
+            "answers": answers,
+            "participants": self.participant_table(answers),
             "events": self.events(),
             "sessions": self.sessions(),
         }
@@ -322,6 +375,7 @@ class _Exporter:
     # -- samples -----------------------------------------------------------------------------
     def samples(self) -> pd.DataFrame:
         s = self.store.samples()
+        s = s[s["trial_id"].isin(self.raw_trials["trial_id"])]
         t = self.raw_trials.set_index("trial_id")
         names = {tid: json.loads(g) for tid, g in t["goal_names"].items()}
         n_goals = max((len(v) for v in names.values()), default=0)
@@ -346,10 +400,12 @@ class _Exporter:
     # -- sessions ----------------------------------------------------------------------------
     def sessions(self) -> pd.DataFrame:
         """One row per participant's session: status, times, and how they came (``source``:
-        ``console`` or ``link``, with the recruitment IDs an open link carried)."""
+        ``console`` or ``link``, with the recruitment IDs an open link carried). Like
+        ``participants`` it lists every session, data retention aside: it holds no study data,
+        and a panel's payment needs the recruitment ID of everyone who took part."""
         events = self.store.frame("events")
         rows = []
-        rows_by = self.participants.set_index("participant")
+        rows_by = self.all_participants.set_index("participant")
         for s in self.store.sessions():
             mine = events[events["session_id"] == s.session_id]
             started = mine.loc[mine["kind"] == "start", "at"]
@@ -377,8 +433,65 @@ class _Exporter:
         r = self.raw_ratings[list(RATING_COLUMNS)].reset_index(drop=True)
         return _typed(r, ints=("session_id", "value", "trial_id"), bools=())
 
+    def answers(self) -> pd.DataFrame:
+        """One row per answer to a non-Likert item; ``option`` is a choice's 1-based position
+        among its options, ``correct`` whether an attention check was passed."""
+        a = self.raw_answers.copy()
+        items = self.protocol.questionnaire.items if self.protocol is not None else {}
+
+        def option(item: str, value: Any) -> Any:
+            spec = items.get(item)
+            if isinstance(spec, ChoiceItem) and value in spec.options:
+                return spec.code(value)
+            return pd.NA
+
+        def correct(item: str, value: Any) -> Any:
+            spec = items.get(item)
+            return spec.passed(value) if isinstance(spec, AttentionItem) else pd.NA
+
+        a["option"] = [option(i, v) for i, v in zip(a["item"], a["value"], strict=True)]
+        a["correct"] = [correct(i, v) for i, v in zip(a["item"], a["value"], strict=True)]
+        out = a[list(ANSWER_COLUMNS)].reset_index(drop=True)
+        return _typed(out, ints=("session_id", "option"), bools=("correct",), floats=("number",))
+
+    def participant_table(self, answers: pd.DataFrame) -> pd.DataFrame:
+        """One row per enrolled participant: session, whether their data are included and
+        why not, the retention answer, attention checks, and each item asked once."""
+        sessions = self.store.frame("sessions").set_index("participant")
+        p = self.all_participants.sort_values("participant", kind="stable").copy()
+        p["session_id"] = p["participant"].map(sessions["session_id"])
+        p["status"] = p["participant"].map(sessions["status"])
+        p["included"] = p["participant"].isin(self.retention.kept)
+        p["excluded_because"] = p["participant"].map(self.retention.excluded).astype("string")
+        p["retention"] = p["participant"].map(self.retention.answers).astype("string")
+        checks = answers[answers["kind"] == "attention"]
+        p["attention_checks"] = p["participant"].map(checks.groupby("participant").size())
+        failed = checks[checks["correct"].eq(False).fillna(False)]
+        p["attention_failures"] = p["participant"].map(failed.groupby("participant").size())
+        for c in ("attention_checks", "attention_failures"):
+            p[c] = p[c].where(~p["included"], p[c].fillna(0))
+        extra = []
+        q = self.protocol.questionnaire if self.protocol is not None else None
+        once = [i.id for i in q.once_items if i.kind not in ("attention", "retention")] if q else []
+        for item in once:
+            column = participant_item_column(item)
+            rows = answers[answers["item"] == item]
+            by = rows.set_index("participant")
+            if (rows["kind"] == "number").any():
+                p[column] = p["participant"].map(by["number"]).astype(float)
+            else:
+                p[column] = p["participant"].map(by["value"]).astype("string")
+            extra.append(column)
+        out = p[[*PARTICIPANT_COLUMNS, *extra]].reset_index(drop=True)
+        return _typed(
+            out,
+            ints=("session_id", "schedule_row", "attention_checks", "attention_failures"),
+            bools=("included",),
+        )
+
     def events(self) -> pd.DataFrame:
         e = self.store.frame("events").sort_values("event_id", kind="stable")
+        e = e[e["participant"].isna() | e["participant"].isin(self.retention.kept)]
         return _typed(e[list(EVENT_COLUMNS)].reset_index(drop=True), ints=("session_id",), bools=())
 
 
@@ -404,11 +517,25 @@ def _goal_name(names: list[str], index: Any) -> Any:
     return names[k]
 
 
-def _typed(df: pd.DataFrame, *, ints: tuple[str, ...], bools: tuple[str, ...]) -> pd.DataFrame:
+def participant_item_column(item: str) -> str:
+    """The ``participants`` column of an item asked once (``item_<id>`` if the id is one of
+    the table's fixed column names)."""
+    return f"item_{item}" if item in PARTICIPANT_COLUMNS else item
+
+
+def _typed(
+    df: pd.DataFrame,
+    *,
+    ints: tuple[str, ...],
+    bools: tuple[str, ...],
+    floats: tuple[str, ...] = (),
+) -> pd.DataFrame:
     """Nullable integer / boolean columns, text columns as pandas strings."""
     df = df.copy()
     for c in df.columns:
-        if c in ints:
+        if c in floats:
+            df[c] = pd.to_numeric(df[c], errors="raise").astype(float)
+        elif c in ints:
             df[c] = pd.array(pd.to_numeric(df[c], errors="raise"), dtype="Int64")
         elif c in bools:
             df[c] = df[c].astype("boolean")
@@ -516,13 +643,33 @@ def write_export(
     return written
 
 
+def excluded_participants(tables: Mapping[str, pd.DataFrame]) -> dict[str, str]:
+    """``{participant: why}`` for everyone left out of the tables (``participants``)."""
+    p = tables.get("participants")
+    if p is None or p.empty:
+        return {}
+    out = p[~p["included"].astype(bool)]
+    return dict(zip(out["participant"], out["excluded_because"].astype(str), strict=True))
+
+
+def retention_pending(tables: Mapping[str, pd.DataFrame]) -> list[str]:
+    """Included participants whose session has not reached the retention question yet."""
+    p = tables.get("participants")
+    if p is None or p.empty:
+        return []
+    under_way = p["included"].astype(bool) & p["status"].isin(UNDER_WAY) & p["retention"].isna()
+    return [str(x) for x in p.loc[under_way, "participant"]]
+
+
 def export_metadata(
     store: Store, tables: Mapping[str, pd.DataFrame], *, protocol: Protocol | None
 ) -> dict[str, Any]:
     """Provenance written beside the tables as ``metadata.json``: which store, protocol (id,
     version, content hash, whether the store keeps its text) and software produced them, how
-    many rows each table has, and ``orphaned_trials``: trials left running by a process that
-    died, exported as interrupted (resuming their sessions records that in the store).
+    many rows each table has, ``orphaned_trials``: trials left running by a process that
+    died, exported as interrupted (resuming their sessions records that in the store), and
+    ``excluded_participants``: who was left out and why (data retention), and
+    ``retention_pending``: who was exported while their session is still under way.
     ``write_export`` adds ``formats``, the table file formats it wrote."""
     return {
         "store": str(store.path),
@@ -536,4 +683,6 @@ def export_metadata(
         "exported_at": now_iso(),
         "rows": {name: len(df) for name, df in tables.items()},
         "orphaned_trials": store.orphaned_trials(),
+        "excluded_participants": excluded_participants(tables),
+        "retention_pending": retention_pending(tables),
     }

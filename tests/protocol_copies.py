@@ -22,12 +22,16 @@ def short_protocol(
     time_limit_s: float = 20,
     training_runs: int | None = None,
     source: Path = PAPER_PROTOCOL,
+    asked_once: bool = False,
 ) -> Path:
     """Write a copy of the protocol ``source`` (protocols/dragan2013.toml by default) into
     ``directory`` whose trials (all of them: the [control] limit and any task's or training's
     own) time out after ``time_limit_s`` and, if given, with ``training_runs`` practice runs;
-    return its path."""
+    return its path. The questions asked once per participant (demographics, attention check,
+    comment, data retention) are left out unless ``asked_once``: tests of them ask for them."""
     text = source.read_text(encoding="utf-8")
+    if not asked_once:
+        text = _without_asked_once(text)
     text, n = re.subn(r"(?m)^time_limit_s = \S+", f"time_limit_s = {time_limit_s:g}", text)
     assert n >= 1, "the protocol's [control] time_limit_s moved: update tests/protocol_copies.py"
     if training_runs is not None:
@@ -49,3 +53,17 @@ def with_completion(path: Path, *, code: str = "", redirect_url: str = "") -> Pa
     assert n == 1, "the protocol's [debrief] table moved: update tests/protocol_copies.py"
     path.write_text(text, encoding="utf-8")
     return path
+
+
+def ratings_only(source: Path = PAPER_PROTOCOL) -> str:
+    """The text of ``source`` asking only its rating-scale items (after training, after each
+    run and after each task): the questions asked once per participant (demographics, the
+    attention check, the closing comment and the data-retention question) are not asked. For
+    tests of the session's state machine, whose step numbers are the paper's."""
+    return _without_asked_once(source.read_text(encoding="utf-8"))
+
+
+def _without_asked_once(text: str) -> str:
+    text, n = re.subn(r"(?m)^(before_training|between_tasks|closing) = \[.*\]\n", "", text)
+    assert n in (0, 3), "the protocol's once-asked questionnaire lists moved: update this helper"
+    return text

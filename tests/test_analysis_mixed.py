@@ -20,7 +20,7 @@ from scipy import stats
 from statsmodels.regression.mixed_linear_model import MixedLM
 
 from analysis.errors import DesignError
-from analysis.mixed import mixed_anova, satterthwaite_df
+from analysis.mixed import _fit_variances, _Stats, mixed_anova, profiled_reml, satterthwaite_df
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -189,9 +189,8 @@ def test_cli_mixed_option(tmp_path: Path) -> None:
     assert bad.returncode == 2 and "--mixed" in bad.stderr
 
 
-def test_zero_subject_variance_reduces_to_ordinary_least_squares() -> None:
-    """Subject means removed: REML puts s_u^2 on its boundary; the F test is then OLS's on
-    N - p df (statsmodels stops short of this optimum; the polish completes it)."""
+def _boundary_data() -> pd.DataFrame:
+    """Subject means removed: REML puts s_u^2 on its boundary."""
     rng = np.random.default_rng(1)
     d = pd.DataFrame(
         [
@@ -202,10 +201,68 @@ def test_zero_subject_variance_reduces_to_ordinary_least_squares() -> None:
         ]
     )
     d["y"] -= d.groupby("sub")["y"].transform("mean")
+    return d
+
+
+def test_zero_subject_variance_is_lme4s_answer_exactly() -> None:
+    """At the boundary lme4 (which profiles the residual variance out) returns the OLS residual
+    variance RSS / (n - p), and lmerTest's Satterthwaite df are then the integer n - p: the fit
+    must land on that answer, not stop 2e-6 short of it (df 34.0000025 before the fix)."""
+    d = _boundary_data()
     res = mixed_anova(d, dv="y", subject="sub", factors=["a"])
-    row = res.table.iloc[0]
     ols = smf.ols("y ~ C(a, Sum)", data=d).fit()
+    n, p = len(d), 2
     assert res.var_subject == 0.0
-    assert row["df2"] == pytest.approx(len(d) - 2, rel=1e-4)
-    assert row["F"] == pytest.approx(ols.fvalue, rel=1e-6)
+    assert res.var_resid == pytest.approx(ols.ssr / (n - p), rel=1e-9, abs=0)
+    row = res.table.iloc[0]
+    assert row["df2"] == pytest.approx(n - p, rel=0, abs=1e-9)
+    assert row["F"] == pytest.approx(ols.fvalue, rel=1e-9, abs=0)
+    assert row["p"] == pytest.approx(ols.f_pvalue, rel=1e-9, abs=0)
+    est = res.estimates.iloc[0]
+    assert est["df"] == pytest.approx(n - p, rel=0, abs=1e-9)
+    assert abs(est["t"]) == pytest.approx(np.sqrt(ols.fvalue), rel=1e-9, abs=0)
     assert any("boundary" in n for n in res.notes)
+
+
+DYESTUFF2 = [
+    [7.298, 3.846, 2.434, 9.566, 7.990],
+    [5.220, 6.556, 0.608, 11.788, -0.892],
+    [0.110, 10.386, 13.434, 5.510, 8.166],
+    [2.212, 4.852, 7.092, 9.288, 4.980],
+    [0.282, 9.014, 4.458, 9.446, 7.198],
+    [1.722, 4.782, 8.106, 0.758, 3.758],
+]
+"""Box & Tiao's simulated yields, lme4's data set ``Dyestuff2`` (6 batches x 5): lme4's own
+example of a boundary fit."""
+
+
+def test_dyestuff2_matches_lme4s_published_fit() -> None:
+    """``lmer(Yield ~ 1 + (1 | Batch), Dyestuff2)`` prints: Batch variance 0.00, residual
+    variance 13.81 (SD 3.716), intercept 5.6656 (SE 0.6784), REML criterion 161.8; the
+    residual variance is exactly the sample variance of the 30 yields."""
+    y = np.array(DYESTUFF2).ravel()
+    stats = _Stats.of(np.ones((len(y), 1)), y, np.repeat(np.arange(6), 5))
+    theta, notes = _fit_variances(stats)
+    assert theta[0] == 0.0 and any("boundary" in n for n in notes)
+    assert theta[1] == pytest.approx(np.var(y, ddof=1), rel=1e-12)
+    assert round(float(theta[1]), 2) == 13.81 and round(float(np.sqrt(theta[1])), 3) == 3.716
+    cov, b, ll = stats.gls(theta)
+    assert round(float(b[0]), 4) == 5.6656 and round(float(np.sqrt(cov[0, 0])), 4) == 0.6784
+    assert round(-2 * ll, 1) == 161.8
+    assert profiled_reml(stats, 1e-6)[0] < ll  # the boundary really is the maximum
+
+
+def test_interior_fit_profiles_the_residual_variance() -> None:
+    """Away from the boundary the residual variance is the profiled one, r'V^-1 r / (n - p),
+    at the fitted ratio, and the REML likelihood is maximal there."""
+    d = _balanced(seed=3)
+    x = np.column_stack([np.ones(len(d)), (d["b"] == "b2").to_numpy(float)])
+    groups = np.unique(d["sub"], return_inverse=True)[1]
+    stats = _Stats.of(x, d["y"].to_numpy(), groups)
+    theta, _ = _fit_variances(stats)
+    gamma = theta[0] / theta[1]
+    assert gamma > 0.1
+    ll, again = profiled_reml(stats, gamma)
+    assert again == pytest.approx(theta, rel=1e-12)
+    for step in (0.99, 1.01):
+        assert profiled_reml(stats, gamma * step)[0] < ll

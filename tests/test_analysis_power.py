@@ -193,3 +193,24 @@ def test_cli_writes_table_json_and_figure(tmp_path: Path) -> None:
         timeout=300,
     )
     assert bad.returncode == 2 and "at least 100" in bad.stderr
+
+
+def test_power_zero_and_one_are_drawn(tmp_path: Path) -> None:
+    """A huge effect in the hypothesised direction (power 1) and against it (power 0): the
+    Wilson ends are exactly 0 and 1, and the figure draws (it raised "'yerr' must not contain
+    negative values" on the 2.2e-19 the formula leaves at k = 0)."""
+    from analysis.figures import power_figure, save
+
+    for effect, power in ((-40.0, 1.0), (40.0, 0.0)):  # aggressive faster is the hypothesis
+        res = bootstrap_power(_normal_pilot(effect, n=200), ns=(4, 8), b=100, seed=2)
+        row = res.table[res.table.test.str.startswith("Hard&Right")].set_index("n").loc[8]
+        assert row["power"] == power
+        ref = proportion_confint(int(power * 100), 100, alpha=0.05, method="wilson")
+        assert (row["ci_low"], row["ci_high"]) == pytest.approx(ref, abs=1e-12)
+        assert (row["ci_low"] if power == 0 else row["ci_high"]) == power  # exactly
+        t = res.table
+        assert ((t["ci_low"] <= t["power"]) & (t["power"] <= t["ci_high"])).all()
+        saved = save(power_figure(res.table), tmp_path, f"power_{effect:+.0f}", "power")
+        assert saved.png.stat().st_size > 10_000
+    lo, hi = wilson(np.array([0, 100]), 100)
+    assert lo[0] == 0.0 and hi[1] == 1.0

@@ -46,9 +46,9 @@ def test_report_writes_html_markdown_json_and_figures(export_dir: Path, tmp_path
     run = _report("--export-dir", str(export_dir), "--out", str(out))
     assert run.returncode == 0, run.stderr
     html = (out / "report.html").read_text()
-    assert html.count("<svg") == 3  # Fig. 7, 8, 9 inline
+    assert html.count("<svg") == 4  # Fig. 7, 8 (time and preference; ratings), 9 inline
     assert not re.search(r"<(img|script|link)\b", html)  # self-contained
-    for fig in ("fig7_arbitration", "fig8_time_preference", "fig9_prediction"):
+    for fig in ("fig7_arbitration", "fig8_time_preference", "fig8_ratings", "fig9_prediction"):
         assert (out / "figures" / f"{fig}.png").stat().st_size > 10_000
         assert (out / "figures" / f"{fig}.svg").read_text().lstrip().startswith("<?xml")
     md = (out / "report.md").read_text()

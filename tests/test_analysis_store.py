@@ -74,13 +74,15 @@ def test_report_from_a_one_participant_store(store: Path, tmp_path: Path) -> Non
     assert run.returncode == 0, run.stderr
     doc = json.loads((tmp_path / "results.json").read_text())
     assert doc["participants"] == 1
-    # one participant cannot carry a repeated-measures analysis: skipped with the reason
-    assert any("timing analysis skipped" in n and "at least two" in n for n in doc["notes"])
-    # 16 replays cannot fit the 16 cells of the four-factor model: said, not crashed
-    assert any("prediction analysis skipped" in n and "16 parameters" in n for n in doc["notes"])
+    # one participant carries no test: none is run, and the report says why
+    assert any(
+        "no tests, p-values or confidence intervals: 1 participant" in n for n in doc["notes"]
+    )
+    assert doc["statistics"] == []
     html = (tmp_path / "report.html").read_text()
-    assert html.count("<svg") == 2  # Fig. 7 from the protocol, Fig. 9 from the replays
-    assert "Success rate and time to a lasting correct prediction" in html
+    assert html.count("<svg") == 4  # Fig. 7 (protocol), Fig. 8 (time, ratings), Fig. 9 (replays)
+    assert "Success rate and time to a lasting correct prediction" in html  # descriptive
+    assert "Statistical tests: not computed" in html and "Data quality per participant" in html
 
 
 @pytest.mark.parametrize("fmt", ["csv", "parquet"])

@@ -13,6 +13,7 @@ import pytest
 from study.codebook import CodebookError, codebook
 from study.export import ExportError, tidy_tables
 from study.protocol import load_protocol
+from study.retention import RetentionError, record_retention
 from study.schedule import Design
 from study.session.plan import run_label
 from study.store import SAMPLE_COLUMNS, Store
@@ -44,7 +45,8 @@ def sample_row(trial_id: int, tick: int, predicted: int, probs: list[float]) -> 
 
 
 def build_store(path: Path, protocol) -> dict:
-    """P01: training, one task done twice (a redo first), ratings, preference; P02 withdrew."""
+    """P01: training, one task done twice (a redo first), ratings, preference, agrees to keep
+    the data; P02 withdrew, and agreed in person that their run is kept."""
     design = Design.from_protocol(protocol)
     store = Store.open(
         path,
@@ -203,6 +205,18 @@ def build_store(path: Path, protocol) -> dict:
             tx.set_trial_status(tid, "interrupted", note="withdrew")
             tx.update_session(sid2, status="withdrawn")
             tx.event(sid2, "P02", "withdraw", {"reason": "felt unwell"})
+        with store.transaction() as tx:
+            keep = protocol.questionnaire.retention
+            tx.add_answer(
+                session_id=sid,
+                participant="P01",
+                step=step + 1,
+                questionnaire="closing",
+                item=keep.id,
+                kind=keep.kind,
+                value=keep.keep,
+            )
+        record_retention(store, protocol, "P02", keep=True)
         ids.update(
             task=task, first_mode=trials[0].mode, second_mode=trials[1].mode, run_ids=run_ids
         )
@@ -219,7 +233,10 @@ def store_path(tmp_path_factory, protocol):
 def test_trials_table_columns_and_covariates(store_path, protocol) -> None:
     path, info = store_path
     tables = tidy_tables(path)
-    assert set(tables) == {"sessions", "trials", "samples", "ratings", "events"}
+    assert set(tables) == {
+        "trials", "samples", "ratings", "answers", "participants", "events", "sessions"
+    }
+    assert tables["participants"]["included"].all()
     trials = tables["trials"]
     contract = [
         "participant",
@@ -365,7 +382,15 @@ def test_export_cli_writes_csv_parquet_and_codebook(store_path, tmp_path) -> Non
     )
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout.strip().splitlines()[-1])
-    assert summary["rows"] == {"trials": 7, "samples": 9, "ratings": 10, "events": 2, "sessions": 2}
+    assert summary["rows"] == {
+        "trials": 7,
+        "samples": 9,
+        "ratings": 10,
+        "answers": 2,
+        "participants": 2,
+        "events": 3,  # consent, withdraw, the retention answer P02 gave in person
+        "sessions": 2,
+    }
     tables = tidy_tables(path)
     for name, df in tables.items():
         parquet = pd.read_parquet(out / f"{name}.parquet")
@@ -409,3 +434,26 @@ def test_empty_store_exports_empty_tables_with_columns(tmp_path, protocol) -> No
     assert all(len(df) == 0 for df in tables.values())
     assert "preference_aggressive" in tables["trials"].columns
     assert "trial_id" in tables["samples"].columns
+
+
+def test_a_retention_answer_is_recorded_once_and_only_after_the_session(
+    store_path, protocol, tmp_path
+) -> None:
+    path, _ = store_path
+    answers = {a.participant: a for a in Store.open_readonly(path).answers()}
+    recorded = answers["P02"]
+    assert (recorded.questionnaire, recorded.step) == ("recorded", -1)
+    assert recorded.value == protocol.questionnaire.retention.keep
+    with Store.open(path, protocol_id=protocol.id, protocol_hash=protocol.content_hash) as store:
+        with pytest.raises(RetentionError, match="already answered"):
+            record_retention(store, protocol, "P02", keep=False)
+        events = [e for e in store.events(participant="P02") if e.kind == "retention_recorded"]
+        assert events[0].detail == {"item": "keep_data", "keep": True, "by": "experimenter"}
+    db = tmp_path / "running.db"
+    build_store(db, protocol)
+    with Store.open(db, protocol_id=protocol.id, protocol_hash=protocol.content_hash) as store:
+        with store.transaction() as tx:
+            tx.update_session(store.session("P01").session_id, status="running")
+            tx.cur.execute("DELETE FROM answers WHERE participant = 'P01'")
+        with pytest.raises(RetentionError, match="asks the retention question at its end"):
+            record_retention(store, protocol, "P01", keep=True)

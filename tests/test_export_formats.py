@@ -17,7 +17,7 @@ from study.protocol import load_protocol
 from study.session import open_store
 from tests.test_export import PAPER, build_store
 
-TABLES = ("trials", "samples", "ratings", "events")
+TABLES = ("trials", "samples", "ratings", "answers", "participants", "events")
 
 
 @pytest.fixture(scope="module")

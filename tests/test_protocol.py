@@ -13,6 +13,7 @@ from study.protocol import (
     TRAINING_MODE,
     AnswerError,
     ConditionError,
+    LikertItem,
     load_protocol,
     parse_protocol,
 )
@@ -115,8 +116,8 @@ def test_every_participant_facing_text_is_blinded(paper) -> None:
     texts = [paper.consent_text, paper.debrief_text, paper.texts.consent_agree]
     texts += list(paper.texts.instructions.values())
     for item in paper.questionnaire.items.values():
-        texts += [item.prompt, *item.scale.anchors]
-    assert len(texts) > 30
+        texts += [*item.texts(), *(item.scale.anchors if isinstance(item, LikertItem) else ())]
+    assert len(texts) > 60
     for text in texts:
         assert not [w for w in BLINDED if w in text.lower()], text
 
@@ -128,7 +129,8 @@ def test_questionnaire_matches_the_paper(paper) -> None:
     assert [i.id for i in q.after_training] == ["helpful", "matched", "teammate"]
     assert [i.id for i in q.after_task] == ["preference"]
     for item in q.items.values():
-        assert item.scale.points == 7 and len(set(item.scale.anchors)) == 7
+        if isinstance(item, LikertItem):
+            assert item.scale.points == 7 and len(set(item.scale.anchors)) == 7
     pref = q.item("preference").scale.anchors
     assert pref[0] == "Strongly preferred the first run"
     assert pref[-1] == "Strongly preferred the second run"

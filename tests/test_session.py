@@ -17,7 +17,16 @@ import numpy as np
 import pytest
 
 from app.trial import TickRecord
-from study.protocol import Protocol, load_protocol, parse_protocol
+from study.protocol import (
+    AttentionItem,
+    ChoiceItem,
+    LikertItem,
+    NumberItem,
+    Protocol,
+    RetentionItem,
+    load_protocol,
+    parse_protocol,
+)
 from study.session import Session, open_store
 from study.session.answers import ScriptedAnswers
 from study.session.errors import (
@@ -38,6 +47,7 @@ from study.store import (
     StoreError,
     UnknownParticipantError,
 )
+from tests.protocol_copies import ratings_only
 
 ROOT = Path(__file__).resolve().parents[1]
 PROTOCOL_PATH = ROOT / "protocols" / "dragan2013.toml"
@@ -108,6 +118,13 @@ def stub_factory(config: Any, input_source: Any, seed: int) -> StubTrial:
 
 @pytest.fixture(scope="module")
 def protocol() -> Protocol:
+    """The paper's protocol asking its rating-scale items only (the state machine's steps are
+    the paper's); ``shipped`` is the file as shipped, with the questions asked once."""
+    return parse_protocol(ratings_only(), path=PROTOCOL_PATH)
+
+
+@pytest.fixture(scope="module")
+def shipped() -> Protocol:
     return load_protocol(PROTOCOL_PATH)
 
 
@@ -127,6 +144,27 @@ def finish_run(session: Session) -> None:
     assert run.run_to_end() is not None
 
 
+def valid_answers(items: Any, *, likert: int = 4) -> dict[str, object]:
+    """An acceptable answer to each item: ``likert`` on a rating scale, the correct or the
+    keep option of an attention or retention item, the first option of a choice, a number's
+    minimum, a short text."""
+    out: dict[str, object] = {}
+    for item in items:
+        if isinstance(item, LikertItem):
+            out[item.id] = likert
+        elif isinstance(item, AttentionItem):
+            out[item.id] = item.correct
+        elif isinstance(item, RetentionItem):
+            out[item.id] = item.keep
+        elif isinstance(item, ChoiceItem):
+            out[item.id] = item.options[0]
+        elif isinstance(item, NumberItem):
+            out[item.id] = item.minimum
+        else:
+            out[item.id] = "fine"
+    return out
+
+
 def to_step(session: Session, phase: str, *, questionnaire: str | None = None) -> None:
     """Act as a participant until the screen shows ``phase`` (and ``questionnaire``)."""
     for _ in range(200):
@@ -142,7 +180,7 @@ def to_step(session: Session, phase: str, *, questionnaire: str | None = None) -
         elif screen.phase == "ready":
             finish_run(session)
         elif screen.phase == "questions":
-            session.answer({i.id: 4 for i in screen.items})
+            session.answer(valid_answers(screen.items))
         elif screen.phase == "debrief":
             session.finish()
         else:
@@ -151,9 +189,10 @@ def to_step(session: Session, phase: str, *, questionnaire: str | None = None) -
 
 
 def test_whole_session_in_order_with_every_transition_logged(
-    store: Store, protocol: Protocol
+    tmp_path: Path, shipped: Protocol
 ) -> None:
-    session = enrol(store, protocol, demographics={"age": 30})
+    store = open_store(tmp_path / "shipped.db", shipped)
+    session = enrol(store, shipped, demographics={"age": 30})
     seen: list[tuple[str, str | None, str | None]] = []
     session.add_listener(lambda s: seen.append((s.phase, s.questionnaire, s.progress.text)))
     assert session.screen().phase == "waiting"
@@ -183,24 +222,40 @@ def test_whole_session_in_order_with_every_transition_logged(
     kinds = [e.kind for e in store.events(participant="P01")]
     assert kinds[:3] == ["enrol", "start", "consent"]
     assert kinds.count("trial_start") == kinds.count("trial_end") == 11
-    assert kinds.count("answer") == 13 and kinds[-1] == "finish"
+    assert kinds.count("answer") == 16 and kinds[-1] == "finish"
     assert store.session("P01").status == "completed"
     # progress and screen order as the participant saw them
     assert ("ready", None, "Trial 3 of 11") in seen
     assert ("questions", "after_training", "Trial 3 of 11") in seen
+    moments = [q for p, q, _ in seen if p == "questions"]
+    assert moments[0] == "before_training" and moments[-1] == "closing"
+    assert (
+        moments.index("between_tasks") == 1 + 1 + 2 * 3
+    )  # after the second task (2 runs + preference each)
     assert seen[-1][0] == "done"
     assert store.demographics("P01") == {"age": 30}
+    answers = {a.item: a for a in store.answers(participant="P01")}
+    assert list(answers) == [i.id for i in shipped.questionnaire.once_items]
+    assert answers["keep_data"].value == shipped.questionnaire.retention.keep
+    assert answers["attention"].kind == "attention" and answers["attention"].value == "Somewhat"
+    assert answers["comment"].value is None  # optional, left empty
+    assert 0 <= answers["game_hours"].number <= 100
+    assert all(
+        a.questionnaire in ("before_training", "between_tasks", "closing") for a in answers.values()
+    )
     session.close()
+    store.close()
 
 
-def test_screens_never_name_a_condition(store: Store, protocol: Protocol) -> None:
-    session = enrol(store, protocol)
-    words = protocol.condition_words
+def test_screens_never_name_a_condition(tmp_path: Path, shipped: Protocol) -> None:
+    store = open_store(tmp_path / "shipped.db", shipped)
+    session = enrol(store, shipped)
+    words = shipped.condition_words
     screens = [session.screen()]
     session.add_listener(screens.append)
     run_headless(session, answerer=ScriptedAnswers(seed=2))
-    # start, consent, 11 trial starts and ends, 13 answer pages, finish
-    assert len(screens) == 1 + 38
+    # start, consent, 11 trial starts and ends, 16 answer pages, finish
+    assert len(screens) == 1 + 41
     for screen in screens:
         text = json.dumps(dataclasses.asdict(screen)).lower()
         for word in words:
@@ -208,6 +263,7 @@ def test_screens_never_name_a_condition(store: Store, protocol: Protocol) -> Non
     overview = session.overview()
     assert overview.status == "completed" and overview.schedule[0][3] in ("timid", "aggressive")
     session.close()
+    store.close()
 
 
 def test_invalid_actions_raise_and_leave_state_untouched(store: Store, protocol: Protocol) -> None:

@@ -20,7 +20,7 @@ from study.session.answers import ScriptedAnswers
 from study.session.errors import SessionError
 from study.session.headless import run_headless
 from study.store import TABLES, Store, StoreError
-from tests.test_session import stub_factory
+from tests.test_session import stub_factory, valid_answers
 
 ROOT = Path(__file__).resolve().parents[1]
 PROTOCOL = load_protocol(ROOT / "protocols" / "dragan2013.toml")
@@ -49,7 +49,7 @@ def act(session: Session, action: str) -> Session:
             session.active_run.tick()
     elif action == "answer":
         items = session.screen().items
-        session.answer({i.id: 3 for i in items[:2]} or {"helpful": 3})
+        session.answer(dict(list(valid_answers(items, likert=3).items())[:2]) or {"helpful": 3})
     elif action == "answer_bad":
         session.answer({"helpful": 9})
     elif action == "answer_unknown":

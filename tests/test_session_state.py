@@ -8,15 +8,16 @@ from pathlib import Path
 
 import pytest
 
-from study.protocol import Protocol, load_protocol
+from study.protocol import Protocol, parse_protocol
 from study.session import EXPERIMENTER_ACTIONS, Session, SessionStateError, open_store
 from study.store import Store
+from tests.protocol_copies import ratings_only
 from tests.test_session import PROTOCOL_PATH, enrol, finish_run, to_step
 
 
 @pytest.fixture(scope="module")
 def protocol() -> Protocol:
-    return load_protocol(PROTOCOL_PATH)
+    return parse_protocol(ratings_only(), path=PROTOCOL_PATH)
 
 
 @pytest.fixture

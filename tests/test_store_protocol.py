@@ -115,9 +115,10 @@ def test_tampered_stored_text_is_reported(study: tuple[Path, Path, str]) -> None
 
 
 def make_schema_1(db: Path) -> None:
-    """Turn a store into what the schema-1 platform wrote (no protocols table)."""
+    """Turn a store into what the schema-1 platform wrote (no protocols or answers table)."""
     conn = sqlite3.connect(db)
     conn.execute("DROP TABLE protocols")
+    conn.execute("DROP TABLE answers")  # added by schema 3
     conn.execute("ALTER TABLE samples DROP COLUMN motion_agreement")  # columns added after schema 1
     conn.execute("ALTER TABLE samples DROP COLUMN rationality")
     conn.execute("UPDATE schema_version SET version = 1")

@@ -63,6 +63,15 @@ def main(args: argparse.Namespace) -> int:
                     "record it, or leave them)",
                     file=sys.stderr,
                 )
+            for participant, why in metadata["excluded_participants"].items():
+                print(f"note: {participant} left out: {why}", file=sys.stderr)
+            if metadata["retention_pending"]:
+                print(
+                    f"note: {', '.join(metadata['retention_pending'])}: session still under way,"
+                    " exported as it stands; whether their data may be kept is asked at its end"
+                    " (export again then)",
+                    file=sys.stderr,
+                )
         book = codebook(tables, protocol=protocol)
         written = write_export(
             args.out,
@@ -82,6 +91,7 @@ def main(args: argparse.Namespace) -> int:
                 "rows": metadata["rows"],
                 "files": len(written),
                 "protocol": metadata["protocol_file"],
+                "excluded_participants": len(metadata["excluded_participants"]),
             }
         )
     )

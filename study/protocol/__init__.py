@@ -29,30 +29,49 @@ from study.protocol.loader import (
 )
 from study.protocol.model import Control, Mode, StudyInfo, Task, Texts, Training
 from study.protocol.protocol import TRAINING_MODE, Protocol
-from study.protocol.questionnaire import PHASES, LikertItem, Questionnaire, Scale
+from study.protocol.questionnaire import (
+    PHASES,
+    Answer,
+    AttentionItem,
+    ChoiceItem,
+    Item,
+    LikertItem,
+    NumberItem,
+    Questionnaire,
+    RetentionItem,
+    Scale,
+    TextItem,
+)
 from study.protocol.stored import StoredProtocolError, protocol_from_store
 
 __all__ = [
     "PHASES",
     "TRAINING_MODE",
+    "Answer",
     "AnswerError",
+    "AttentionItem",
     "BlindingError",
+    "ChoiceItem",
     "ConditionError",
     "Control",
+    "Item",
     "LikertItem",
     "MissingKeyError",
     "Mode",
+    "NumberItem",
     "Protocol",
     "ProtocolError",
     "ProtocolSyntaxError",
     "ProtocolTypeError",
     "ProtocolValueError",
     "Questionnaire",
+    "RetentionItem",
     "Scale",
     "ScaleMismatchError",
     "StoredProtocolError",
     "StudyInfo",
     "Task",
+    "TextItem",
     "Texts",
     "Training",
     "UndefinedReferenceError",

@@ -32,8 +32,9 @@ from study.protocol.errors import (
     UndefinedReferenceError,
 )
 from study.protocol.fields import Table, join_key
+from study.protocol.items import read_questionnaire
 from study.protocol.model import INTENT_DISPLAYS, Control, Mode, StudyInfo, Task, Training
-from study.protocol.participant import check_blinding, read_questionnaire, read_texts
+from study.protocol.participant import check_blinding, read_texts
 from study.protocol.protocol import TRAINING_MODE, Protocol
 from study.schedule import Design
 
@@ -209,7 +210,9 @@ class _Loader:
         modes = self._modes(root.table("modes"), mode_levels)
         training = self._training(root.table("training"), scenes, control)
         self._check_sample_size(study, tasks, modes)
-        questionnaire = read_questionnaire(root.table("questionnaire"), n_modes=len(modes))
+        questionnaire = read_questionnaire(
+            root.table("questionnaire"), n_modes=len(modes), n_tasks=len(tasks)
+        )
         self._build_checks(tasks, scenes, prediction, confidence, policy, modes, training, control)
         texts = read_texts(root, questionnaire=questionnaire)
         root.close(allowed=", ".join(_TOP_LEVEL))

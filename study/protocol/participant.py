@@ -13,76 +13,23 @@ import string
 from types import MappingProxyType
 
 from study.protocol.blinding import find_words
-from study.protocol.errors import BlindingError, ScaleMismatchError, UndefinedReferenceError
-from study.protocol.fields import Table, join_key
+from study.protocol.errors import BlindingError
+from study.protocol.fields import Table
 from study.protocol.model import Texts
 from study.protocol.protocol import Protocol
-from study.protocol.questionnaire import PHASES, LikertItem, Questionnaire, Scale
+from study.protocol.questionnaire import ChoiceItem, Item, LikertItem, NumberItem, Questionnaire
 
 INSTRUCTIONS_REQUIRED = ("welcome", "training", "task", "rating")
-INSTRUCTIONS_OPTIONAL = ("preference", "pause")  # preference: required if after_task is asked
+INSTRUCTIONS_OPTIONAL = ("preference", "pause", "before_training", "between_tasks", "closing")
+"""``preference`` is required if after_task items are asked; each questionnaire moment asked
+once per participant (``before_training``, ``between_tasks``, ``closing``) needs its own
+introduction when it has items."""
 PLACEHOLDERS = {"training": {"target"}, "task": {"target"}}
-_ITEM_ID = re.compile(r"^[a-z][a-z0-9_]{0,31}$")
 _COMPLETION_CODE = re.compile(r"[A-Za-z0-9_-]{1,64}", re.ASCII)
 _URL = re.compile(r"https?://[^\s\\\"'<>`]{1,2000}", re.ASCII)
 REDIRECT_PLACEHOLDERS = ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID", "pid")
 """What ``debrief.redirect_url`` may contain in braces: the participant's browser fills each in
 from its own link (``study.server.recruitment``)."""
-
-
-def read_questionnaire(t: Table, *, n_modes: int) -> Questionnaire:
-    """``[questionnaire]``: points, scales (one anchor per point), items, when each is asked."""
-    t.only("points", "scales", "items", *PHASES)
-    points = t.integer("points", minimum=2, maximum=11)
-    scales: dict[str, Scale] = {}
-    for name, sub in t.table("scales").tables():
-        sub.only("anchors")
-        anchors = sub.strings("anchors", unique=True)
-        if len(anchors) != points:
-            raise ScaleMismatchError(
-                f"{len(anchors)} anchors for a {points}-point questionnaire"
-                f" (questionnaire.points = {points}); give one anchor per point",
-                file=t.file,
-                key=sub.where("anchors"),
-            )
-        scales[name] = Scale(name=name, anchors=anchors)
-    items: dict[str, LikertItem] = {}
-    items_table = t.table("items")
-    for item_id, sub in items_table.tables():
-        if not _ITEM_ID.match(item_id):
-            raise items_table.value_error(
-                item_id, "item ids name data columns: lower-case letters, digits and '_'"
-            )
-        sub.only("prompt", "scale")
-        scale_name = sub.string("scale")
-        if scale_name not in scales:
-            raise UndefinedReferenceError(
-                f"scale {scale_name!r} is not defined in questionnaire.scales"
-                f" ({', '.join(scales) or 'none'})",
-                file=t.file,
-                key=sub.where("scale"),
-            )
-        items[item_id] = LikertItem(
-            id=item_id, prompt=sub.string("prompt"), scale=scales[scale_name]
-        )
-    asked: dict[str, tuple[LikertItem, ...]] = {}
-    for phase in PHASES:
-        ids = t.strings(phase, [], nonempty=False)
-        for i, item_id in enumerate(ids):
-            if item_id not in items:
-                raise UndefinedReferenceError(
-                    f"item {item_id!r} is not defined in questionnaire.items",
-                    file=t.file,
-                    key=join_key(t.where(phase), i),
-                )
-        asked[phase] = tuple(items[i] for i in ids)
-    if asked["after_task"] and n_modes != 2:
-        raise t.value_error(
-            "after_task",
-            f"a preference between a task's two runs needs exactly 2 modes, this protocol has"
-            f" {n_modes}; leave after_task empty",
-        )
-    return Questionnaire(points=points, items=MappingProxyType(items), **asked)
 
 
 def read_texts(root: Table, *, questionnaire: Questionnaire) -> Texts:
@@ -95,9 +42,13 @@ def read_texts(root: Table, *, questionnaire: Questionnaire) -> Texts:
     t.only(*INSTRUCTIONS_REQUIRED, *INSTRUCTIONS_OPTIONAL)
     instructions: dict[str, str] = {}
     for phase in INSTRUCTIONS_REQUIRED + INSTRUCTIONS_OPTIONAL:
-        required = phase in INSTRUCTIONS_REQUIRED or (
-            phase == "preference" and bool(questionnaire.after_task)
-        )
+        asks = {
+            "preference": questionnaire.after_task,
+            "before_training": questionnaire.before_training,
+            "between_tasks": questionnaire.between_tasks,
+            "closing": questionnaire.closing,
+        }
+        required = phase in INSTRUCTIONS_REQUIRED or bool(asks.get(phase))
         if required or phase in t:
             instructions[phase] = _placeholders_checked(t, phase)
     return Texts(
@@ -165,8 +116,9 @@ def participant_texts(p: Protocol) -> list[tuple[str, str]]:
     texts += [(f"instructions.{k}", v) for k, v in p.texts.instructions.items()]
     scales = {}
     for item in p.questionnaire.items.values():
-        texts.append((f"questionnaire.items.{item.id}.prompt", item.prompt))
-        scales[item.scale.name] = item.scale
+        texts += item_texts(item)
+        if isinstance(item, LikertItem):
+            scales[item.scale.name] = item.scale
     for scale in scales.values():
         texts += [
             (f"questionnaire.scales.{scale.name}.anchors[{i}]", a)
@@ -177,6 +129,17 @@ def participant_texts(p: Protocol) -> list[tuple[str, str]]:
     for task in p.tasks:
         texts.append((f"scenes.{task.scene}.target", p.describe_trial(task.name)))
     texts.append((f"scenes.{p.training.scene}.target", p.describe_training()))
+    return texts
+
+
+def item_texts(item: Item) -> list[tuple[str, str]]:
+    """(key path, text) of everything a participant reads of one item (its scale aside)."""
+    key = f"questionnaire.items.{item.id}"
+    texts = [(f"{key}.prompt", item.prompt)]
+    if isinstance(item, ChoiceItem):
+        texts += [(f"{key}.options[{i}]", o) for i, o in enumerate(item.options)]
+    if isinstance(item, NumberItem) and item.unit:
+        texts.append((f"{key}.unit", item.unit))
     return texts
 
 

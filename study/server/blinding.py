@@ -16,7 +16,10 @@ viser has no public hook on outgoing messages, so the guard wraps two private on
    process; a push on the event loop of a guarded server is checked by that server's
    :class:`BlindingGuard`, which walks every string in the message (values, dict keys, tuple
    items). A message containing a forbidden word (case-insensitive substring, so "bright"
-   counts as well as "right") is dropped and logged.
+   counts as well as "right") is dropped and logged. viser's echo of what a tab typed, queued
+   on that tab's own connection (which never sends it back), is dropped unread and unlogged
+   (:func:`is_own_echo`): a participant's free-text answer is data, may hold any word, and
+   must not fill the log as a false leak.
 2. Wire: viser mutates the props of already-queued messages in place (a markdown's content
    update also rewrites its creation message), so the queue check alone can be bypassed.
    ``Message.as_serializable_dict``, which viser's sender calls for every message on the
@@ -126,6 +129,9 @@ class BlindingGuard:
         self.violations: list[Violation] = []
         """The first ``MAX_KEPT`` violations (``blocked`` counts them all)."""
         self.blocked = 0
+        self.echoes = 0
+        """Echoes of a tab's own typing dropped unread (:func:`is_own_echo`): never sent,
+        never logged (a participant's text stays out of the server log)."""
         self.checked = 0
         self.serialized = 0
         self.redacted = 0
@@ -202,8 +208,25 @@ _ORIGINAL_PUSH = AsyncMessageBuffer.push
 _ORIGINAL_SERIALIZE = _WireMessage.as_serializable_dict
 
 
+def is_own_echo(buffer: AsyncMessageBuffer, message: Any) -> bool:
+    """``message`` is viser's echo of a value a tab typed, queued on that same tab's own
+    connection, which skips it: a per-client buffer (not persistent) is read by one client
+    only, the one ``excluded_self_client`` names. It will never be sent to anyone."""
+    return (
+        not buffer.persistent_messages
+        and getattr(message, "excluded_self_client", None) is not None
+        and type(message).__name__ == "GuiUpdateMessage"
+    )
+
+
 def _guarded_push(self: AsyncMessageBuffer, message: Any) -> None:
     guard = _GUARDS.get(id(self.event_loop))
+    if guard is not None and is_own_echo(self, message):
+        # What a participant typed is data, not a leak: a free-text answer may well hold a
+        # condition word, and viser would only hold this copy of it in the buffer unsent.
+        with guard._lock:
+            guard.echoes += 1
+        return
     if guard is not None and not guard.allow(message):
         return
     _ORIGINAL_PUSH(self, message)

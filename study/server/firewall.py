@@ -96,6 +96,10 @@ MAX_MESSAGE_BYTES = 16 * 1024
 MAX_POSITION_M = 10.0
 MAX_STRING = 64
 """Longest string a page sends: a join code, an answer, a key state, a node name."""
+MAX_GUI_TEXT = 8000
+"""Longest value of a GUI field: a free-text answer (``study.protocol.items.MAX_TEXT_LENGTH``,
+2,000 characters at most) with room for a participant to see a count over the limit before
+shortening it. The message limit (``MAX_MESSAGE_BYTES``) still bounds it in bytes."""
 
 
 @dataclass(eq=False)
@@ -158,7 +162,7 @@ def check_values(kind: str, body: dict[str, Any], *, max_position_m: float) -> N
             raise RefusedMessage("GUI update changes something other than its value")
         value = updates["value"]
         if isinstance(value, str):
-            _string(value, what="GUI value")
+            _string(value, what="GUI value", limit=MAX_GUI_TEXT)
         elif not isinstance(value, bool):
             _finite(value, bound=1e9, what="GUI value")
     elif kind == "LocalStorageGetItemResponseMessage":

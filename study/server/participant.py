@@ -27,7 +27,8 @@ import numpy as np
 import viser
 from viser import _messages as viser_messages
 
-from study.protocol import LikertItem
+from study.protocol import Item, LikertItem
+from study.server.answer_fields import add_answer_field
 from study.server.blinding import check_text
 from study.server.firewall import MAX_POSITION_M
 from study.server.page_script import ARROW_KEYCODES, MAX_KEY_MESSAGE, STEERING_CODES, page_script
@@ -290,19 +291,41 @@ class ParticipantPage:
         self,
         heading: str,
         intro: str,
-        items: Sequence[LikertItem],
+        items: Sequence[Item],
         *,
         progress: str | None,
-        on_submit: Callable[[dict[str, int]], None],
+        on_submit: Callable[[dict[str, object]], None],
     ) -> int:
-        """Likert items as 1..7 button rows with their anchors; Continue needs every answer."""
+        """Likert items as 1..7 button rows with their anchors, every other kind as its field
+        (:mod:`study.server.answer_fields`); Continue needs every required answer, valid."""
         with self._lock:
             screen = self._new_screen("questions:" + heading)
             self._header(progress)
             self._md(f"**{heading}**\n\n{intro}")
-            answers: dict[str, int] = {}
+            answers: dict[str, object] = {}
+            invalid: set[str] = set()
             submit = None
+
+            def complete() -> bool:
+                return not invalid and all(i.id in answers or i.optional for i in items)
+
+            def report(item_id: str, value: object, valid: bool) -> None:
+                answers.pop(item_id, None)
+                invalid.discard(item_id)
+                if value is not None:
+                    answers[item_id] = value
+                if not valid:
+                    invalid.add(item_id)
+                if submit is not None:
+                    submit.disabled = not complete()
+
             for item in items:
+                if not isinstance(item, LikertItem):
+                    self._md(f"**{item.prompt}**")
+                    add_answer_field(
+                        self, item, current=lambda: self._current(screen), report=report
+                    )
+                    continue
                 self._md(f"**{item.prompt}**\n\n{item.anchor_text()}")
                 plain = tuple(str(k) for k in range(1, item.points + 1))
                 group = self.client.gui.add_button_group(" ", plain)
@@ -319,25 +342,23 @@ class ParticipantPage:
                     except InputRejected as exc:
                         self.reject(str(exc))
                         return
-                    answers[item.id] = answer
                     marked = [f"[{o}]" if int(o) == answer else o for o in plain]
                     group.options = tuple(marked)  # the chosen button reads [k]
                     chosen.content = f"Your answer: **{answer}** ({item.anchors[answer - 1]})"
-                    if submit is not None and len(answers) == len(items):
-                        submit.disabled = False
+                    report(item.id, answer, True)
 
                 group.on_click(on_click)
-            submit = self._button("Continue", disabled=True)
+            submit = self._button("Continue", disabled=not complete())
 
             @submit.on_click
             def _(_: object) -> None:
                 if not self._current(screen):
                     return
-                if len(answers) != len(items):
+                if not complete():
                     self.reject("not every item has an answer")
                     return
                 submit.disabled = True
-                on_submit(dict(answers))
+                on_submit({i.id: answers.get(i.id) for i in items})
 
             return screen
 

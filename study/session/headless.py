@@ -10,7 +10,7 @@ trial with an input source from ``input_factory`` and tick it to its end as fast
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -25,7 +25,7 @@ from study.session.trial_run import TrialRun, TrialSummary
 class Answerer(Protocol):
     def observe(self, summary: TrialSummary | None, *, time_limit_s: float) -> None: ...
 
-    def answer(self, screen: Screen) -> dict[str, int]: ...
+    def answer(self, screen: Screen) -> Mapping[str, object]: ...
 
 
 InputFactory = Callable[[TrialConfig, int], Any]

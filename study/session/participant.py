@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from app.trial import TrialConfig
-from study.protocol import AnswerError
+from study.protocol import Answer, AnswerError, LikertItem, NumberItem
 from study.session.errors import InvalidAnswerError, UnknownItemError
 from study.session.ledger import Ledger
 from study.session.sample_writer import SampleWriter
@@ -95,18 +95,20 @@ class ParticipantActions:
 
     def answer(self, answers: Mapping[str, object]) -> None:
         """Record answers to pending items (all or some); ``UnknownItemError`` for an item not
-        pending here, ``InvalidAnswerError`` for a value off its scale (nothing recorded)."""
+        pending here, ``InvalidAnswerError`` for a value the item refuses (nothing recorded).
+        Likert answers go to ``ratings``, every other kind to ``answers``."""
         step = self.steps.require_phase("questions", action="answer")
         pending = {i.id: i for i in self.steps.pending_items(step)}
         if not answers:
             raise InvalidAnswerError(f"no answers given; pending items: {', '.join(pending)}")
-        values: dict[str, int] = {}
+        values: dict[str, Answer] = {}
         for item_id, value in answers.items():
             if item_id not in pending:
                 asked = {i.id for i in step.items}
                 why = "was already answered" if item_id in asked else "is not asked here"
                 raise UnknownItemError(
-                    f"item {item_id!r} {why}; pending items: {', '.join(pending) or 'none'}"
+                    f"item {str(item_id)[:40]!r} {why}; pending items:"
+                    f" {', '.join(pending) or 'none'}"
                 )
             try:
                 values[item_id] = pending[item_id].check(value)
@@ -116,18 +118,33 @@ class ParticipantActions:
         info = self.ledger.info
         with self.ledger.tx() as tx:
             for item_id, value in values.items():
-                tx.add_rating(
-                    session_id=info.session_id,
-                    participant=info.participant,
-                    step=step.index,
-                    phase=step.phase,
-                    task=step.task,
-                    mode=step.mode,
-                    run=step.run,
-                    trial_id=trial_id,
-                    item=item_id,
-                    value=value,
-                )
+                item = pending[item_id]
+                if isinstance(item, LikertItem):
+                    tx.add_rating(
+                        session_id=info.session_id,
+                        participant=info.participant,
+                        step=step.index,
+                        phase=step.phase,
+                        task=step.task,
+                        mode=step.mode,
+                        run=step.run,
+                        trial_id=trial_id,
+                        item=item_id,
+                        value=int(value),  # type: ignore[arg-type]
+                    )
+                else:
+                    tx.add_answer(
+                        session_id=info.session_id,
+                        participant=info.participant,
+                        step=step.index,
+                        questionnaire=step.questionnaire or "",
+                        item=item_id,
+                        kind=item.kind,
+                        value=_as_text(value),
+                        number=float(value)
+                        if isinstance(item, NumberItem) and value is not None
+                        else None,
+                    )
             detail = {"step": step.index, "items": sorted(values), "trial_id": trial_id}
             self.ledger.event(tx, "answer", detail)
             if len(values) == len(pending):
@@ -169,6 +186,14 @@ class ParticipantActions:
         run.end(summary)
         self.state.active = None
         return True
+
+
+def _as_text(value: Answer) -> str | None:
+    """An answer as stored in ``answers.value``: text as given, a number without a spurious
+    ``.0`` (``7.5``, ``12``)."""
+    if value is None or isinstance(value, str):
+        return value
+    return str(int(value)) if float(value).is_integer() else repr(float(value))
 
 
 def goal_info(trial: Any, config: TrialConfig) -> tuple[list[str], list[list[float]], str]:

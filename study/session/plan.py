@@ -1,10 +1,12 @@
 """The session plan: the flat list of steps one participant goes through.
 
-    consent -> training run 1..R -> after-training items (baseline)
-            -> for each task in schedule order:
+    consent -> before-training items (e.g. demographics)
+            -> training run 1..R -> after-training items (baseline)
+            -> for each task k in schedule order:
                    run (first mode) -> after-run items -> run (second mode) -> after-run items
                    -> after-task item (preference: first run vs second run)
-            -> debrief
+                   -> the between-tasks page after task k, if the protocol has one
+            -> closing items (comment, data retention) -> debrief
 
 A session's ``cursor`` is the index of its current step (``len(steps)`` = finished), so the
 store can say exactly where an interrupted session resumes. Built from the protocol and the
@@ -17,7 +19,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
-from study.protocol import TRAINING_MODE, LikertItem, Protocol
+from study.protocol import TRAINING_MODE, Item, Protocol
 from study.store import AssignmentRecord
 
 StepKind = Literal["consent", "trial", "questions", "debrief"]
@@ -33,7 +35,8 @@ def run_label(run: int) -> str:
 class Step:
     """One step of the plan.
 
-    ``phase`` is ``"training"`` or ``"task"`` (consent and debrief use ``"session"``);
+    ``phase`` is ``"training"`` or ``"task"`` (consent, debrief and the questions asked once
+    per participant use ``"session"``);
     ``trial_number`` counts trial steps 1..n (progress "trial 3 of 11"); ``position`` counts task
     trials 1..8; ``questionnaire`` is the protocol's questionnaire phase for question steps;
     ``rates_step`` is the trial step an after-run question step is about; ``task_steps`` the trial
@@ -50,7 +53,7 @@ class Step:
     trial_number: int | None = None
     task_number: int | None = None
     questionnaire: str | None = None
-    items: tuple[LikertItem, ...] = ()
+    items: tuple[Item, ...] = ()
     rates_step: int | None = None
     task_steps: tuple[int, ...] = ()
 
@@ -85,6 +88,9 @@ def build_plan(protocol: Protocol, assignments: Sequence[AssignmentRecord]) -> P
         return step
 
     add("consent", "session")
+    if q.before_training:
+        add("questions", "session", questionnaire="before_training", items=q.before_training)
+    between = dict(q.between_tasks)
     trial_number = 0
     training = protocol.training.runs
     for _ in range(training):
@@ -143,5 +149,9 @@ def build_plan(protocol: Protocol, assignments: Sequence[AssignmentRecord]) -> P
                 items=tuple(q.after_task),
                 task_steps=tuple(runs),
             )
+        if task_number in between:
+            add("questions", "session", questionnaire="between_tasks", items=between[task_number])
+    if q.closing:
+        add("questions", "session", questionnaire="closing", items=q.closing)
     add("debrief", "session")
     return Plan(steps=tuple(steps), n_trials=trial_number, n_tasks=task_number)

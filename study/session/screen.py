@@ -3,8 +3,9 @@
 ``Screen`` is small, typed and blind: its text comes from the protocol's participant-facing
 texts (checked on load never to name a condition) and its fields carry no task, mode or
 correctness name, so a UI can send it to the participant's browser as is. Its items are the
-protocol's own ``LikertItem`` (an id, a prompt, a scale): none of them names a condition either. ``Overview`` is for
-the experimenter only (127.0.0.1) and carries the full condition.
+protocol's own items (``study.protocol.questionnaire``: an id, a prompt, a scale or options):
+none of them names a condition either. ``Overview`` is for the experimenter only (127.0.0.1)
+and carries the full condition.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from study.protocol import LikertItem
+from study.protocol import Item
 
 Phase = Literal["waiting", "consent", "ready", "running", "questions", "debrief", "done"]
 """``waiting``: before the experimenter starts (or continues) the session in this process;
@@ -39,15 +40,15 @@ class Screen:
     ``revision`` grows with every change of the session (a UI may re-render when it changes);
     ``actions`` are the participant actions valid now (``agree``, ``start_trial``, ``answer``,
     ``finish``); ``paused`` overlays any phase; ``questionnaire`` says which set of items is
-    shown (``after_training``, ``after_run`` or ``after_task``, the preference between the two
-    runs just done).
+    shown (``before_training``, ``after_training``, ``after_run``, ``after_task`` -- the
+    preference between the two runs just done --, ``between_tasks`` or ``closing``).
     """
 
     phase: Phase
     title: str
     text: str
     progress: Progress
-    items: tuple[LikertItem, ...] = ()
+    items: tuple[Item, ...] = ()
     actions: tuple[str, ...] = ()
     paused: bool = False
     questionnaire: str | None = None

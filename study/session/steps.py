@@ -7,7 +7,7 @@ Read-only: it never writes (``Ledger`` does). Called with the session lock held.
 from __future__ import annotations
 
 from app.trial import TrialConfig
-from study.protocol import LikertItem, Protocol
+from study.protocol import Item, Protocol
 from study.session.errors import SessionStateError
 from study.session.ledger import Ledger
 from study.session.plan import Plan, Step
@@ -65,9 +65,11 @@ class Steps:
             return self.protocol.training_config()
         return self.protocol.trial_config(step.task or "", step.mode or "")
 
-    def pending_items(self, step: Step) -> list[LikertItem]:
+    def pending_items(self, step: Step) -> list[Item]:
+        """The step's items not yet answered (ratings and other answers alike)."""
         ratings = self.store.ratings(session_id=self.session_id)
-        answered = {r.item for r in ratings if r.step == step.index}
+        answers = self.store.answers(session_id=self.session_id)
+        answered = {r.item for r in [*ratings, *answers] if r.step == step.index}
         return [i for i in step.items if i.id not in answered]
 
     def rated_trial(self, step: Step) -> int | None:

@@ -6,7 +6,7 @@ Called with the session lock held; they read (``Steps``, the store), never write
 
 from __future__ import annotations
 
-from study.protocol import LikertItem
+from study.protocol import Item
 from study.session.errors import SessionStateError
 from study.session.ledger import SessionInfo
 from study.session.screen import Overview, Progress, Screen
@@ -27,6 +27,15 @@ NEEDS_REASON: frozenset[str] = frozenset({"redo", "skip", "withdraw", "end"})
 """The experimenter actions that take a ``reason`` for the record."""
 
 
+INTRODUCTIONS = {
+    "after_task": "preference",
+    "before_training": "before_training",
+    "between_tasks": "between_tasks",
+    "closing": "closing",
+}
+"""The instructions text introducing each questionnaire moment (``rating`` for the others)."""
+
+
 def screen(steps: Steps, *, revision: int) -> Screen:
     """What the participant should see now (no condition names anywhere)."""
     state, protocol = steps.state, steps.protocol
@@ -34,7 +43,7 @@ def screen(steps: Steps, *, revision: int) -> Screen:
     texts = protocol.texts
     step = steps.current()
     progress = Progress(steps.trial_progress(), steps.plan.n_trials)
-    items: tuple[LikertItem, ...] = ()
+    items: tuple[Item, ...] = ()
     actions = PARTICIPANT_ACTIONS.get(phase, ())
     if phase == "waiting":
         title, text = "Welcome", texts.instructions["welcome"]
@@ -48,7 +57,7 @@ def screen(steps: Steps, *, revision: int) -> Screen:
             title = progress.text
             text = protocol.describe_trial(step.task or "")
     elif phase == "questions" and step is not None:
-        key = "preference" if step.questionnaire == "after_task" else "rating"
+        key = INTRODUCTIONS.get(step.questionnaire or "", "rating")
         title = "Questions"
         text = texts.instructions.get(key, texts.instructions["rating"])
         items = tuple(steps.pending_items(step))

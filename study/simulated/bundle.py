@@ -11,7 +11,7 @@ transaction: a participant is either entirely in the store or not at all, whatev
 the client (Ctrl-C, a kill) or to the worker (lost mid-participant: nothing of it reached the
 store, the scheduler simply runs it again).
 
-Merging renumbers the scratch store's row ids (sessions, trials, ratings, events) after the
+Merging renumbers the scratch store's row ids (sessions, trials, ratings, answers, events) after the
 study store's own, keeps every other value as the worker wrote it (wall-clock stamps included),
 and leaves out the lease (the worker's process is gone).
 """
@@ -104,6 +104,7 @@ def _copy(cur: sqlite3.Cursor) -> None:
         ("trials", "trial_id", None),
         ("samples", "trial_id, tick", None),
         ("ratings", "rating_id", "rating_id"),
+        ("answers", "answer_id", "answer_id"),
     ):
         cols, source = shifted(table, drop=drop)
         cur.execute(

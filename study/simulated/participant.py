@@ -11,7 +11,10 @@ participant sees - the screen (which set of items is asked, their scales) and it
 Runs finished before the ``after_training`` questionnaire are the practice runs: they set the
 participant's references (``QuestionnaireModel.observe_training``) and are what the baseline
 items rate. ``after_run`` items rate the last run; ``after_task`` asks the preference between the
-last two runs (1 = the first run).
+last two runs (1 = the first run). Items asked once (demographics, attention checks, a comment,
+the data-retention question) get ``study.session.answers.profile_answer``'s seeded answers from
+a stream of their own, so adding them to a protocol leaves every rating as it was; a Likert item
+among them rates every run so far.
 """
 
 from __future__ import annotations
@@ -20,6 +23,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from study.protocol import Answer, LikertItem
+from study.protocol.questionnaire import ONCE_PHASES
+from study.session.answers import profile_answer
 from study.simulated.errors import SimulationRunError
 from study.simulated.experience import RunExperience
 from study.simulated.interface import InterfaceUser
@@ -32,6 +38,10 @@ if TYPE_CHECKING:
     from study.session.trial_run import TrialSummary
 
 
+ATTENTION_LAPSE = 0.05
+"""Chance that a simulated participant fails an attention check (answers another option)."""
+
+
 class SimulatedParticipant:
     """Input factory + answerer for ``run_headless`` (see module docstring)."""
 
@@ -40,6 +50,7 @@ class SimulatedParticipant:
         self.questionnaire = QuestionnaireModel(
             params.questionnaire, rng=participant_rng(params.index, seed=params.seed, stream=1)
         )
+        self.profile_rng = participant_rng(params.index, seed=params.seed, stream=3)
         self.runs: list[RunExperience] = []
         self.training_runs: list[RunExperience] = []
         self._trained = False
@@ -63,10 +74,12 @@ class SimulatedParticipant:
             return
         self.runs.append(user.experience(duration_s=summary.duration_s, success=summary.success))
 
-    def answer(self, screen: Screen) -> dict[str, int]:
+    def answer(self, screen: Screen) -> dict[str, Answer]:
         """Answers to every item on a questionnaire screen."""
         if not screen.items:
             raise SimulationRunError(f"answer: screen {screen.title!r} asks no items")
+        if screen.questionnaire in ONCE_PHASES:
+            return self._answer_once(screen)
         if screen.questionnaire == "after_training":
             self._finish_training(keep_last=0)
             return self._rate(screen, self.training_runs or self.runs[-1:])
@@ -85,10 +98,22 @@ class SimulatedParticipant:
             }
         return self._rate(screen, self.runs[-1])
 
-    def _rate(self, screen: Screen, runs: RunExperience | list[RunExperience]) -> dict[str, int]:
-        out: dict[str, int] = {}
+    def _rate(self, screen: Screen, runs: RunExperience | list[RunExperience]) -> dict[str, Answer]:
+        out: dict[str, Answer] = {}
         for item in screen.items:
-            out.update(self.questionnaire.rate([item.id], runs, points=item.points))
+            if isinstance(item, LikertItem):
+                out.update(self.questionnaire.rate([item.id], runs, points=item.points))
+        return out
+
+    def _answer_once(self, screen: Screen) -> dict[str, Answer]:
+        out: dict[str, Answer] = {}
+        for item in screen.items:
+            if not isinstance(item, LikertItem):
+                out[item.id] = profile_answer(item, self.profile_rng, lapse=ATTENTION_LAPSE)
+            elif self.runs:
+                out.update(self.questionnaire.rate([item.id], self.runs, points=item.points))
+            else:  # nothing lived yet to rate: the neutral answer
+                out[item.id] = round(item.scale.midpoint)
         return out
 
     def _finish_training(self, *, keep_last: int) -> None:

@@ -4,7 +4,8 @@
 ``study.session.open_store(path, protocol)``), ``Store.open_readonly(path)`` for export and
 analysis. Tables: protocols (the full text of the study's protocol), participants, demographics
 (apart from trial data), sessions, assignments (the schedule), leases, trials, samples (one row
-per control tick, columns from ``app.trial.samples``), ratings, events. The record classes are
+per control tick, columns from ``app.trial.samples``), ratings, answers (the other
+questionnaire items), events. The record classes are
 what ``Store``'s readers return.
 """
 
@@ -26,6 +27,7 @@ from study.store.errors import (
 from study.store.opening import changed_sections
 from study.store.orphans import ORPHAN_NOTE
 from study.store.records import (
+    AnswerRecord,
     AssignmentRecord,
     EventRecord,
     Lease,
@@ -45,6 +47,7 @@ __all__ = [
     "SAMPLE_COLUMNS",
     "SCHEMA_VERSION",
     "TABLES",
+    "AnswerRecord",
     "AssignmentRecord",
     "DuplicateParticipantError",
     "EventRecord",

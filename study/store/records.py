@@ -100,6 +100,24 @@ class RatingRecord:
 
 
 @dataclass(frozen=True, slots=True)
+class AnswerRecord:
+    """An answer to a non-Likert item (``study.protocol.questionnaire``): ``value`` is the
+    option or text as given (``None``: an optional item left empty); ``number`` the value of a
+    number item."""
+
+    answer_id: int
+    session_id: int
+    participant: str
+    step: int
+    questionnaire: str
+    item: str
+    kind: str
+    value: str | None
+    number: float | None
+    answered_at: str
+
+
+@dataclass(frozen=True, slots=True)
 class EventRecord:
     event_id: int
     session_id: int | None

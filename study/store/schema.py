@@ -13,11 +13,14 @@ from __future__ import annotations
 
 from app.trial import samples as layout
 
-SCHEMA_VERSION = 2
-"""Version 2 added the ``protocols`` table; a version-1 file is read as it is (no stored
-protocol text) and upgraded when opened read-write (``MIGRATIONS``)."""
+SCHEMA_VERSION = 3
+"""Version 2 added the ``protocols`` table, version 3 the ``answers`` table (questionnaire
+answers other than ratings: choices, numbers, free text, attention checks, the data-retention
+answer). An older file is read as it is (no stored protocol text, no answers) and upgraded when
+opened read-write (``MIGRATIONS``). Older software refuses a version-3 file rather than export
+it without its answers, which may exclude participants who declined to have their data kept."""
 
-READABLE_VERSIONS = (1, 2)
+READABLE_VERSIONS = (1, 2, 3)
 
 PROTOCOLS_DDL = """
 CREATE TABLE protocols (
@@ -28,7 +31,36 @@ CREATE TABLE protocols (
     recorded_at TEXT NOT NULL
 )"""
 
-MIGRATIONS: dict[int, tuple[str, ...]] = {1: (PROTOCOLS_DDL,)}
+ANSWERS_DDL = """
+CREATE TABLE answers (
+    answer_id INTEGER PRIMARY KEY,
+    session_id INTEGER NOT NULL REFERENCES sessions(session_id),
+    participant TEXT NOT NULL REFERENCES participants(participant),
+    step INTEGER NOT NULL,
+    questionnaire TEXT NOT NULL,
+    item TEXT NOT NULL,
+    kind TEXT NOT NULL,
+    value TEXT,
+    number REAL,
+    answered_at TEXT NOT NULL,
+    UNIQUE (session_id, step, item)
+)"""
+ANSWER_COLUMNS = (
+    "answer_id",
+    "session_id",
+    "participant",
+    "step",
+    "questionnaire",
+    "item",
+    "kind",
+    "value",
+    "number",
+    "answered_at",
+)
+"""One row per answer to a non-Likert item: ``value`` is the option or text as given (NULL:
+an optional item left empty), ``number`` the value of a number item."""
+
+MIGRATIONS: dict[int, tuple[str, ...]] = {1: (PROTOCOLS_DDL,), 2: (ANSWERS_DDL,)}
 """``{from_version: statements}`` that bring a file to ``from_version + 1``."""
 
 SAMPLE_KEY = ("trial_id", "tick")
@@ -150,6 +182,7 @@ CREATE TABLE ratings (
     answered_at TEXT NOT NULL,
     UNIQUE (session_id, step, item)
 );
+{ANSWERS_DDL};
 CREATE TABLE events (
     event_id INTEGER PRIMARY KEY,
     session_id INTEGER REFERENCES sessions(session_id),
@@ -173,5 +206,6 @@ TABLES = (
     "trials",
     "samples",
     "ratings",
+    "answers",
     "events",
 )

@@ -45,6 +45,7 @@ from study.store.errors import (
 )
 from study.store.orphans import ORPHAN_NOTE, STALE_AFTER_S, Orphan, orphaned_trials
 from study.store.records import (
+    AnswerRecord,
     AssignmentRecord,
     EventRecord,
     Lease,
@@ -54,7 +55,7 @@ from study.store.records import (
     StoreMeta,
     TrialRecord,
 )
-from study.store.schema import SAMPLE_COLUMNS, TABLES
+from study.store.schema import ANSWER_COLUMNS, SAMPLE_COLUMNS, TABLES
 from study.store.transaction import Transaction
 from study.store.values import now_iso, unknown_participant
 
@@ -316,7 +317,7 @@ class Store:
     def discard_participant(
         self, participant: str, *, stale_after_s: float = STALE_AFTER_S
     ) -> dict[str, int]:
-        """Delete everything stored for ``participant`` (samples, trials, ratings, events,
+        """Delete everything stored for ``participant`` (samples, trials, ratings, answers, events,
         schedule, session, demographics, enrolment) in one transaction; returns rows deleted
         per table.
 
@@ -335,7 +336,7 @@ class Store:
                 ).rowcount
             }
             for table in (
-                "ratings", "events", "trials", "leases", "assignments", "sessions",
+                "ratings", "answers", "events", "trials", "leases", "assignments", "sessions",
                 "demographics", "participants",
             ):  # fmt: skip
                 deleted[table] = tx.cur.execute(
@@ -452,6 +453,17 @@ class Store:
         )
         return [RatingRecord(*r) for r in self._query(sql + " ORDER BY rating_id", params)]
 
+    def answers(
+        self, *, participant: str | None = None, session_id: int | None = None
+    ) -> list[AnswerRecord]:
+        """Answers to the non-Likert items (an older store read-only has none)."""
+        if "answers" not in self._tables():
+            return []
+        sql, params = _where(
+            "SELECT * FROM answers", participant=participant, session_id=session_id
+        )
+        return [AnswerRecord(*r) for r in self._query(sql + " ORDER BY answer_id", params)]
+
     def events(
         self, *, participant: str | None = None, session_id: int | None = None
     ) -> list[EventRecord]:
@@ -470,6 +482,8 @@ class Store:
             return pd.DataFrame(
                 columns=["content_hash", "protocol_id", "protocol_version", "text", "recorded_at"]
             )
+        if table == "answers" and "answers" not in self._tables():
+            return pd.DataFrame(columns=list(ANSWER_COLUMNS))
         with self._snapshot() as conn:
             df = pd.read_sql_query(f"SELECT * FROM {table}", conn)
             orphans = orphaned_trials(conn) if table == "trials" and not raw else {}

@@ -229,3 +229,22 @@ class Transaction:
                 now_iso(),
             ),
         )
+
+    def add_answer(
+        self,
+        *,
+        session_id: int,
+        participant: str,
+        step: int,
+        questionnaire: str,
+        item: str,
+        kind: str,
+        value: str | None,
+        number: float | None = None,
+    ) -> None:
+        """One answer to a non-Likert item (``AnswerRecord``)."""
+        self.cur.execute(
+            "INSERT INTO answers (session_id, participant, step, questionnaire, item, kind, "
+            "value, number, answered_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+            (session_id, participant, step, questionnaire, item, kind, value, number, now_iso()),
+        )

@@ -164,10 +164,17 @@ def short_protocol(
     time_limit_s: float = 6.0,
     training_runs: int = 1,
     source: Path = PAPER_PROTOCOL,
+    asked_once: bool = False,
 ) -> Any:
     """A copy of the protocol ``source`` (the paper's by default) with short trials and
     ``training_runs`` practice runs, so a test walks through every kind of screen quickly."""
-    return copy(directory, time_limit_s=time_limit_s, training_runs=training_runs, source=source)
+    return copy(
+        directory,
+        time_limit_s=time_limit_s,
+        training_runs=training_runs,
+        source=source,
+        asked_once=asked_once,
+    )
 
 
 @dataclass

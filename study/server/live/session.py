@@ -228,7 +228,7 @@ class LiveSession:
 
         self._participant("start_trial", start)
 
-    def answer(self, answers: Mapping[str, int]) -> None:
+    def answer(self, answers: Mapping[str, object]) -> None:
         self._participant("answer", lambda: self.session.answer(answers))
 
     def finish(self) -> None:
