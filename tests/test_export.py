@@ -234,7 +234,13 @@ def test_trials_table_columns_and_covariates(store_path, protocol) -> None:
     path, info = store_path
     tables = tidy_tables(path)
     assert set(tables) == {
-        "trials", "samples", "ratings", "answers", "participants", "events", "sessions"
+        "trials",
+        "samples",
+        "ratings",
+        "answers",
+        "participants",
+        "events",
+        "sessions",
     }
     assert tables["participants"]["included"].all()
     trials = tables["trials"]
