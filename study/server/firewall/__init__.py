@@ -6,7 +6,10 @@ them ``ShareUrlRequest``, which opens a public tunnel. A :class:`Firewall` stand
 that, in parts:
 
 * ``rules``: what one message may carry (types, sizes, values);
-* ``limits``: how much one connection, and all of them together, may send;
+* ``limits``: how much one connection may send;
+* ``shares``: fair shares of the server's time for connections that hold no session (messages
+  and new connections, per address);
+* ``slots``: who holds the port's connection slots, timeouts, and who gets one next;
 * ``notes``: log lines a client can cause, rate-limited;
 * ``policy``: the :class:`Firewall` itself -- the door checks at the handshake, and the limits
   and rules applied to every frame and message;
@@ -14,7 +17,7 @@ that, in parts:
 """
 
 from study.server.firewall.hooks import hardened_serve, install, remote_host, uninstall
-from study.server.firewall.policy import BUDGET, Firewall
+from study.server.firewall.policy import REJOIN_COOKIE, Firewall
 from study.server.firewall.rules import (
     LOOPBACK_NAMES,
     MAX_MESSAGE_BYTES,
@@ -29,12 +32,12 @@ from study.server.firewall.rules import (
 )
 
 __all__ = [
-    "BUDGET",
     "LOOPBACK_NAMES",
     "MAX_MESSAGE_BYTES",
     "MAX_POSITION_M",
     "MAX_STRING",
     "PARTICIPANT_TYPES",
+    "REJOIN_COOKIE",
     "SHARE_TYPES",
     "ConnectionFlood",
     "Dropped",

@@ -1,8 +1,10 @@
 """Where a :class:`~study.server.firewall.Firewall` hooks into viser and websockets.
 
 * :func:`hardened_serve` (around the ``ViserServer`` constructor, which starts serving before
-  it returns) gives the websocket server the firewall's size limit and door checks and puts
-  :meth:`Firewall.screened_recv` in front of every connection's reads;
+  it returns) gives the websocket server the firewall's size limit, its accept gate (a socket
+  refused there is reset before its request is read), its door checks, no ``Server`` header
+  (no version strings), and puts :meth:`Firewall.screened_recv` in front of every
+  connection's reads;
 * :func:`install` wraps viser's message decoder once per process: for a server with a firewall
   each incoming message is admitted and screened *before* it becomes a message object (a
   refused one becomes a :class:`~study.server.firewall.rules.Dropped` that nothing handles).
@@ -21,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 import viser
 import websockets.asyncio.server as ws_server
 from viser import _messages as vm
+from websockets.asyncio.server import ServerConnection
 
 from study.server.firewall.notes import OpenLinesOnceAMinute
 from study.server.firewall.rules import ConnectionFlood
@@ -51,7 +54,7 @@ def _guarded_deserialize(cls: type[vm.Message], message: bytes) -> vm.Message:
         decoded = _ORIGINAL(cls, message)
     except Exception as exc:  # a field of the wrong shape for its type
         return firewall.refuse(f"undecodable message ({type(exc).__name__})")
-    firewall.passed += 1
+    firewall.admitted()
     return decoded
 
 
@@ -71,7 +74,9 @@ def install(server: viser.ViserServer, firewall: Firewall) -> Firewall:
 def uninstall(server: viser.ViserServer) -> None:
     loop = server._websock_server._background_event_loop
     with _INSTALL_LOCK:
-        _FIREWALLS.pop(id(loop), None)
+        firewall = _FIREWALLS.pop(id(loop), None)
+    if firewall is not None:
+        firewall.detach()
 
 
 @contextlib.contextmanager
@@ -91,6 +96,8 @@ def hardened_serve(firewall: Firewall) -> Iterator[None]:
 
         kwargs["max_size"] = firewall.max_bytes
         kwargs["process_request"] = firewall.process_request(kwargs.get("process_request"))
+        kwargs["server_header"] = None
+        kwargs["create_connection"] = gated_connection(firewall)
         return original(guarded, *args, **kwargs)
 
     with _INSTALL_LOCK:
@@ -101,6 +108,39 @@ def hardened_serve(firewall: Firewall) -> Iterator[None]:
     finally:
         with _INSTALL_LOCK:
             ws_server.serve = original  # type: ignore[misc]
+
+
+def gated_connection(firewall: Firewall) -> type[ServerConnection]:
+    """A websockets connection class that asks ``firewall.accepts(peer)`` before anything is
+    read (a refused socket is reset; nothing else runs for it) and frees its slot when gone."""
+
+    class GatedConnection(ServerConnection):
+        refused = False
+
+        def connection_made(self, transport: asyncio.BaseTransport) -> None:
+            peer = transport.get_extra_info("peername")
+            address = str(peer[0]) if isinstance(peer, tuple) and peer else "unknown"
+            if not firewall.accepts(address):
+                self.refused = True
+                transport.abort()
+                return
+            super().connection_made(transport)
+
+        def data_received(self, data: bytes) -> None:
+            if not self.refused:
+                super().data_received(data)
+
+        def eof_received(self) -> None:
+            if not self.refused:
+                super().eof_received()
+
+        def connection_lost(self, exc: Exception | None) -> None:
+            if self.refused:
+                return
+            firewall.connection_lost(self)
+            super().connection_lost(exc)
+
+    return GatedConnection
 
 
 def remote_host(connection: Any) -> str:

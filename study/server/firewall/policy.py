@@ -1,30 +1,38 @@
 """``Firewall``: the rules for one viser server's port, and what they refused.
 
-* At the door (``process_request``, installed by ``hooks.hardened_serve``): a message-size
-  limit of ``max_bytes`` from the handshake on; a websocket whose ``Origin`` is another site's
-  is refused; so are more than ``max_connections_per_address`` / ``max_connections`` open
-  websockets, a repeated ``Host``/``Origin``/``Upgrade`` header and a ``Host`` carrying userinfo
-  or a path (403, never 500); a request for a file that cannot even be named gets 404.
+* Before a request is read (``accepts``): new connections per address (``shares.AcceptGate``);
+  over it, the socket is reset at once.
+* At the door (``process_request``, for a websocket handshake): a message-size limit of
+  ``max_bytes`` from the handshake on; refused with 403 (never 500): another site's ``Origin``,
+  a repeated ``Host``/``Origin``/``Upgrade`` header, a ``Host`` carrying userinfo or a path, a
+  client that does not speak this server's viser version, and no slot left
+  (``slots.Slots``: per address and in all, shared fairly, with room kept for tabs that present
+  a session's rejoin token). A request for a file that cannot even be named gets 404.
 * Per frame, before viser (``screened_recv``): a text frame closes its connection with 1003;
-  the server-wide :class:`~study.server.firewall.limits.MessageBudget` drops the excess before
-  it is decoded and closes the connections of the address it names for eviction.
+  an unbound connection waits for its address's share (``shares.FairShares``); a bound tab
+  never waits.
 * Per message (``admit`` and ``screen``, called by the decoder hook): the per-connection
   :class:`~study.server.firewall.limits.ConnectionRate`, then ``rules.screen``.
+* Every second, slots that never sent a message, or sat idle on the join screen too long, are
+  closed.
 
 A refused message is counted under a fixed reason (never a name the client chose) and logged
-as a one-line summary at most once per reason every ``log_every_s`` seconds. A connection
-closed for what it sent (:class:`ConnectionFlood`) closes with a policy code and no traceback.
+as a one-line summary at most once per reason every ``log_every_s`` seconds; one refused from a
+bound tab is reported to ``on_bound_drop`` (the session records it). A connection closed for
+what it sent (:class:`ConnectionFlood`) closes with a policy code and no traceback.
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import http
 import threading
 import time
 import weakref
 from collections import Counter
 from collections.abc import Callable, Iterable
+from http.cookies import CookieError, SimpleCookie
 from typing import Any
 from urllib.parse import urlsplit
 
@@ -34,7 +42,7 @@ from websockets.http11 import Response
 
 from study.server.firewall import rules
 from study.server.firewall.hooks import remote_host
-from study.server.firewall.limits import ConnectionRate, MessageBudget
+from study.server.firewall.limits import ConnectionRate
 from study.server.firewall.notes import LOGGER, Notes
 from study.server.firewall.rules import (
     LOOPBACK_NAMES,
@@ -45,13 +53,18 @@ from study.server.firewall.rules import (
     ConnectionFlood,
     Dropped,
 )
+from study.server.firewall.shares import AcceptGate, FairShares
+from study.server.firewall.slots import Slot, Slots
 
-BUDGET = "over the server's message budget"
 REPEATED_HEADERS = ("Host", "Origin", "Upgrade")
+REJOIN_COOKIE = "study-rejoin"
+"""The cookie a bound tab keeps its session's rejoin token in (sent with its next handshake)."""
+SWEEP_EVERY_S = 1.0
 
 
 class Firewall:
-    """The rules for one viser server's incoming messages, and what they refused."""
+    """The rules for one viser server's incoming connections and messages, and what they
+    refused."""
 
     def __init__(
         self,
@@ -62,17 +75,21 @@ class Firewall:
         max_position_m: float = MAX_POSITION_M,
         log_every_s: float = 60.0,
         on_drop: Callable[[str], None] | None = None,
+        on_bound_drop: Callable[[int, str], None] | None = None,
         rate_per_s: float = 200.0,
         burst: float = 400.0,
         max_refused: int = 200,
         max_connections: int = 64,
         max_connections_per_address: int = 8,
+        greet_timeout_s: float = 15.0,
+        idle_timeout_s: float = 600.0,
         check_origin: bool = True,
         loopback_only: bool = False,
         backlog_s: float = 10.0,
-        budget_per_s: float | None = 1000.0,
-        budget_burst: float = 2000.0,
-        evict_after_s: int = 2,
+        shares_per_s: float | None = 400.0,
+        accept_per_s: float | None = 1.0,
+        accept_burst: float = 12.0,
+        accept_total_per_s: float = 40.0,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.allowed = None if allowed is None else frozenset(allowed) - SHARE_TYPES
@@ -82,22 +99,28 @@ class Firewall:
         self.max_bytes = max_bytes
         self.max_position_m = max_position_m
         self.on_drop = on_drop
+        self.on_bound_drop = on_bound_drop
         self.rate_per_s = rate_per_s
         self.burst = burst
         self.max_refused = max_refused
-        self.max_connections = max_connections
-        self.max_connections_per_address = max_connections_per_address
         self.check_origin = check_origin
         self.loopback_only = loopback_only
         self.backlog_s = backlog_s
-        self._clock = clock  # of the rate limits (a test's own clock)
-        self.budget = (
-            None
-            if budget_per_s is None
-            else MessageBudget(
-                per_s=budget_per_s, burst=budget_burst, evict_after_s=evict_after_s, now=clock()
-            )
+        self._clock = clock  # of the rate limits and slots (a test's own clock)
+        self.slots = Slots(
+            max_total=max_connections,
+            max_per_address=max_connections_per_address,
+            greet_timeout_s=greet_timeout_s,
+            idle_timeout_s=idle_timeout_s,
         )
+        self.shares = None if shares_per_s is None else FairShares(per_s=shares_per_s)
+        self.gate = (
+            None
+            if accept_per_s is None
+            else AcceptGate(per_s=accept_per_s, burst=accept_burst, total_per_s=accept_total_per_s)
+        )
+        self.rejoin_token: Callable[[str], str | None] = lambda _value: None
+        """Set by the server: the session token a rejoin cookie's value proves, else ``None``."""
         self.notes = Notes(every_s=log_every_s)
         self.passed = 0
         self.dropped: Counter[str] = Counter()
@@ -105,18 +128,76 @@ class Firewall:
         self.refused_connections: Counter[str] = Counter()
         self._lock = threading.Lock()
         self._server: viser.ViserServer | None = None
-        # per connection (its message-reading task)
-        self._rates: weakref.WeakKeyDictionary[asyncio.Task[Any], ConnectionRate] = (
+        self._sweeper: asyncio.Task[None] | None = None
+        # the slot of each connection's message-reading task
+        self._task_slots: weakref.WeakKeyDictionary[asyncio.Task[Any], Slot] = (
             weakref.WeakKeyDictionary()
         )
 
-    def attach(self, server: viser.ViserServer) -> None:
-        """The server whose connections the door counts (``hooks.install`` calls this)."""
-        self._server = server
+    @property
+    def max_connections(self) -> int:
+        return self.slots.max_total
 
-    # -- at the door -----------------------------------------------------------------------------
+    @property
+    def max_connections_per_address(self) -> int:
+        return self.slots.max_per_address
+
+    # -- addresses ---------------------------------------------------------------------------
+    def client_host(self, connection: Any, headers: Any = None) -> str:
+        """The address limits and logs use for ``connection`` (the one place that says)."""
+        return remote_host(connection)
+
+    # -- lifetime ----------------------------------------------------------------------------
+    def attach(self, server: viser.ViserServer) -> None:
+        """Watch ``server``'s connections (``hooks.install`` calls this): start the sweeper."""
+        self._server = server
+        loop = server._websock_server._background_event_loop
+        if loop is not None:
+            asyncio.run_coroutine_threadsafe(self._start_sweeper(), loop).result(timeout=5)
+
+    def detach(self) -> None:
+        server, self._server = self._server, None
+        loop = None if server is None else server._websock_server._background_event_loop
+        sweeper = self._sweeper
+        if loop is not None and sweeper is not None and not loop.is_closed():
+            with contextlib.suppress(RuntimeError):
+                loop.call_soon_threadsafe(sweeper.cancel)
+
+    async def _start_sweeper(self) -> None:
+        self._sweeper = asyncio.get_running_loop().create_task(self._sweep())
+
+    async def _sweep(self) -> None:
+        while True:
+            await asyncio.sleep(SWEEP_EVERY_S)
+            for slot in self.slots.overdue(self._clock()):
+                why = "no first message" if not slot.greeted else "idle on the join screen"
+                self.notes.note("timed out", f"closed a connection: {why}")
+                self._close(slot, 1001)
+
+    @staticmethod
+    def _close(slot: Slot, code: int) -> None:
+        connection = slot.connection
+        if connection is not None and hasattr(connection, "close"):
+            asyncio.get_running_loop().create_task(connection.close(code, ""))
+
+    # -- before the request ------------------------------------------------------------------
+    def accepts(self, peer: str) -> bool:
+        """A new TCP connection from ``peer``: False to reset it before reading anything."""
+        gate = self.gate
+        if gate is None or gate.allow(peer, self._clock()):
+            return True
+        self.notes.note("accept gate", f"reset new connections from {peer}: too many too fast")
+        with self._lock:
+            self.refused_connections["too many new connections from one address"] += 1
+        return False
+
+    def connection_lost(self, connection: Any) -> None:
+        """A connection is gone (its slot is free)."""
+        self.slots.remove(connection)
+
+    # -- at the door -------------------------------------------------------------------------
     def process_request(self, inner: Callable[..., Any] | None) -> Callable[..., Any]:
-        """Wrap viser's HTTP handler: origin and connection checks, and 404 for bad paths."""
+        """Wrap viser's HTTP handler: origin and slot checks, and 404 for bad paths."""
 
         def handle(connection: Any, request: Any) -> Any:
             repeated = [h for h in REPEATED_HEADERS if len(request.headers.get_all(h)) > 1]
@@ -142,48 +223,115 @@ class Firewall:
         return Response(http.HTTPStatus.FORBIDDEN, "Forbidden", Headers(), b"")
 
     def _door_problem(self, connection: Any, request: Any) -> str | None:
-        host = request.headers.get("Host", "")
+        headers = request.headers
+        host = headers.get("Host", "")
         if any(ch in host for ch in "@/\\?#"):  # userinfo or a path: not a host name
             return "a malformed Host header"
         if self.loopback_only and urlsplit(f"//{host}").hostname not in LOOPBACK_NAMES:
             return "a name other than this machine's (DNS rebinding)"
         if self.check_origin:
-            origin = request.headers.get("Origin")
+            origin = headers.get("Origin")
             if origin is not None and urlsplit(origin).netloc.lower() != host.lower():
                 return "another site's page (origin check)"
-        server = self._server
-        live = dict(server._websock_server._live_connections) if server is not None else {}
-        if len(live) >= self.max_connections:
-            return f"too many connections ({len(live)})"
-        address = remote_host(connection)
-        same = sum(1 for c in live.values() if remote_host(c) == address)
-        if same >= self.max_connections_per_address:
-            return f"too many connections from one address ({same})"
+        offered = {
+            p.strip() for v in headers.get_all("Sec-WebSocket-Protocol") for p in v.split(",")
+        }
+        if f"viser-v{viser.__version__}" not in offered:
+            return "a client that does not speak this server's version"
+        token = self.rejoin_token(_cookie(headers, REJOIN_COOKIE))
+        address = self.client_host(connection, headers)
+        evict, problem = self.slots.admit(connection, address, now=self._clock(), token=token)
+        if problem is not None:
+            return problem
+        if evict is not None:
+            self.notes.note(
+                "evicted", f"closed an unbound connection of {evict.address} for a newcomer"
+            )
+            self._close(evict, 1013)
         return None
 
-    # -- per message -----------------------------------------------------------------------------
+    # -- sessions ----------------------------------------------------------------------------
+    def bind(self, client_id: int, bound: bool = True) -> None:
+        """The tab ``client_id`` now holds a session (``bound``) or no longer does: a bound tab
+        is never slowed, and what the rules refuse from it is reported to ``on_bound_drop``."""
+        server = self._server
+        if server is None:
+            return
+        connection = server._websock_server._live_connections.get(client_id)
+        slot = self.slots.get(connection) if connection is not None else None
+        if slot is not None:
+            slot.bound, slot.client_id = bound, client_id
+
+    def token_of(self, client_id: int) -> str | None:
+        """The rejoin token tab ``client_id`` presented at the door (``None``: none, or none
+        that an open session issued)."""
+        server = self._server
+        if server is None:
+            return None
+        connection = server._websock_server._live_connections.get(client_id)
+        slot = self.slots.get(connection) if connection is not None else None
+        return None if slot is None else slot.token
+
+    # -- per frame, before viser -------------------------------------------------------------
+    def screened_recv(self, connection: Any) -> Callable[..., Any]:
+        """``connection.recv`` behind the text-frame rule and the fair shares."""
+        recv = connection.recv
+        fallback = Slot(address=self.client_host(connection), opened=self._clock())
+
+        async def screened(*args: Any, **kwargs: Any) -> Any:
+            slot = self.slots.get(connection) or fallback
+            task = asyncio.current_task()
+            if task is not None:
+                self._task_slots[task] = slot
+            raw = await recv(*args, **kwargs)
+            slot.last_seen = now = self._clock()
+            if not isinstance(raw, bytes):
+                self.refuse("text frame (viser speaks binary)")
+                self._closing("a text frame", code=1003)
+            if not slot.bound and self.shares is not None:
+                wait = self.shares.delay(slot.address, now)
+                if wait > 0.0:
+                    await asyncio.sleep(wait)
+            return raw
+
+        return screened
+
+    # -- per message -------------------------------------------------------------------------
+    def _slot(self) -> Slot | None:
+        """The slot of the connection whose message is being handled (``None`` off the loop)."""
+        try:
+            task = asyncio.current_task()
+        except RuntimeError:
+            return None
+        return None if task is None else self._task_slots.get(task)
+
     def admit(self) -> None:
         """Count one message of the current connection; raise :class:`ConnectionFlood` to
         close a connection far over its rate or with too many refused messages."""
-        task = asyncio.current_task()
-        if task is None:
+        slot = self._slot()
+        if slot is None:
             return
         now = self._clock()
-        rate = self._rates.get(task)
-        if rate is None:
-            rate = self._rates[task] = ConnectionRate(self.burst, now)
-        within = rate.spend(
+        if slot.rate is None:
+            slot.rate = ConnectionRate(self.burst, now)
+        within = slot.rate.spend(
             now, rate_per_s=self.rate_per_s, burst=self.burst, backlog_s=self.backlog_s
         )
         if not within:  # twice the burst over the rate: not a page
             self._closing(f"more than {self.rate_per_s:g} messages a second")
 
+    def admitted(self) -> None:
+        """The current connection's message passed every rule (its slot is greeted)."""
+        self.passed += 1
+        slot = self._slot()
+        if slot is not None:
+            slot.greeted = True
+
     def count_refusal(self) -> None:
-        task = asyncio.current_task()
-        rate = self._rates.get(task) if task is not None else None
-        if rate is not None:
-            rate.refused += 1
-            if rate.refused > self.max_refused:
+        slot = self._slot()
+        if slot is not None and slot.rate is not None:
+            slot.rate.refused += 1
+            if slot.rate.refused > self.max_refused:
                 self._closing(f"more than {self.max_refused} refused messages")
 
     def _closing(self, why: str, *, code: int = 1008) -> None:
@@ -191,36 +339,6 @@ class Firewall:
             self.closed_connections += 1
         self.notes.note("connection closed", f"closed a connection that sent {why}")
         raise ConnectionFlood(why, code=code)
-
-    # -- per frame, before viser ---------------------------------------------------------------
-    def screened_recv(self, connection: Any) -> Callable[..., Any]:
-        """``connection.recv`` behind the text-frame rule and the server-wide budget."""
-        recv = connection.recv
-        address = remote_host(connection)
-
-        async def screened(*args: Any, **kwargs: Any) -> Any:
-            while True:
-                raw = await recv(*args, **kwargs)
-                if not isinstance(raw, bytes):
-                    self.refuse("text frame (viser speaks binary)")
-                    self._closing("a text frame", code=1003)
-                if self._within_budget(address):
-                    return raw
-
-        return screened
-
-    def _within_budget(self, address: str) -> bool:
-        """Take one message from the server-wide budget; False (counted) when it is empty."""
-        budget = self.budget
-        if budget is None:
-            return True
-        now = self._clock()
-        if budget.take(address, now):
-            return True
-        if address == budget.evict:
-            self._closing("its share of a flood over the server's message budget")
-        self.refuse(f"{BUDGET} ({budget.per_s:g} a second)")
-        return False
 
     def screen(self, raw: bytes) -> str | None:
         """``None`` when ``raw`` may be decoded, else the reason it is refused."""
@@ -240,8 +358,29 @@ class Firewall:
         if self.notes.due(key):
             LOGGER.warning("refused an incoming message: %s (%d refused so far)", reason, count)
         if self.on_drop is not None:
-            try:
-                self.on_drop(reason)
-            except Exception:
-                LOGGER.exception("firewall on_drop callback failed")
+            self._report(self.on_drop, reason)
+        slot = self._slot()
+        if self.on_bound_drop is not None and slot is not None and slot.bound:
+            self._report(self.on_bound_drop, slot.client_id, reason)
         return Dropped(reason=reason)
+
+    def _report(self, callback: Callable[..., None], *args: Any) -> None:
+        try:
+            callback(*args)
+        except Exception:
+            self.notes.note("drop callback", "a firewall drop callback failed")
+
+
+def _cookie(headers: Any, name: str) -> str:
+    """The value of cookie ``name`` in a request's ``Cookie`` headers ("" if none or unreadable)."""
+    for value in headers.get_all("Cookie")[:4]:
+        if len(value) > 4096:
+            continue
+        jar: SimpleCookie = SimpleCookie()
+        try:
+            jar.load(value)
+        except CookieError:
+            continue
+        if name in jar:
+            return jar[name].value
+    return ""
