@@ -255,7 +255,7 @@ def test_slots_time_out_without_a_first_message_or_idle_on_the_join_screen() -> 
     assert slots.timed_out == 2
 
 
-def test_the_accept_gate_resets_a_reconnect_storm_but_lets_a_quiet_address_in() -> None:
+def test_the_accept_gate_turns_a_reconnect_storm_away_but_lets_a_quiet_address_in() -> None:
     gate = AcceptGate(per_s=1.0, burst=12.0, total_per_s=40.0)
     t = 0.0
     storm = 0

@@ -37,7 +37,7 @@ from tests.test_ui_malformed import AGREE, RawClient
 def roomy() -> Firewall:
     """The participant port's rules with a wider accept gate: these tests open many sockets
     from 127.0.0.1 one after another (the gate has its own tests)."""
-    return Firewall(accept_burst=500.0, accept_total_per_s=500.0)
+    return Firewall(new_tabs_per_s=None, accept_burst=500.0, accept_total_per_s=500.0)
 
 
 @pytest.fixture

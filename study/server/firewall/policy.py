@@ -1,13 +1,15 @@
 """``Firewall``: the rules for one viser server's port, and what they refused.
 
-* Before a request is read (``accepts``): new connections per address (``shares.AcceptGate``);
-  over it, the socket is reset at once.
+* Before a request is read (``accepts``): new TCP connections per address
+  (``shares.AcceptGate``, generous: a page load needs two); over it, the socket is reset.
 * At the door (``process_request``, for a websocket handshake): a message-size limit of
   ``max_bytes`` from the handshake on; refused with 403 (never 500): another site's ``Origin``,
   a repeated ``Host``/``Origin``/``Upgrade`` header, a ``Host`` carrying userinfo or a path, a
-  client that does not speak this server's viser version, and no slot left
-  (``slots.Slots``: per address and in all, shared fairly, with room kept for tabs that present
-  a session's rejoin token). A request for a file that cannot even be named gets 404.
+  client that does not speak this server's viser version, a new tab (no rejoin token) over its
+  address's rate of new tabs (a second ``AcceptGate``, strict: each tab costs the server about
+  10 ms of work), and no slot left (``slots.Slots``: per address and in all, shared fairly, with
+  room kept for tabs that present a session's rejoin token). A request for a file that cannot
+  even be named gets 404.
 * Per frame, before viser (``screened_recv``): a text frame closes its connection with 1003;
   an unbound connection waits for its address's share (``shares.FairShares``); a bound tab
   never waits.
@@ -90,6 +92,9 @@ class Firewall:
         accept_per_s: float | None = 1.0,
         accept_burst: float = 12.0,
         accept_total_per_s: float = 40.0,
+        new_tabs_per_s: float | None = 0.2,
+        new_tabs_burst: float = 6.0,
+        new_tabs_total_per_s: float = 2.0,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.allowed = None if allowed is None else frozenset(allowed) - SHARE_TYPES
@@ -118,6 +123,13 @@ class Firewall:
             None
             if accept_per_s is None
             else AcceptGate(per_s=accept_per_s, burst=accept_burst, total_per_s=accept_total_per_s)
+        )
+        self.tab_gate = (
+            None
+            if new_tabs_per_s is None
+            else AcceptGate(
+                per_s=new_tabs_per_s, burst=new_tabs_burst, total_per_s=new_tabs_total_per_s
+            )
         )
         self.rejoin_token: Callable[[str], str | None] = lambda _value: None
         """Set by the server: the session token a rejoin cookie's value proves, else ``None``."""
@@ -240,7 +252,10 @@ class Firewall:
             return "a client that does not speak this server's version"
         token = self.rejoin_token(_cookie(headers, REJOIN_COOKIE))
         address = self.client_host(connection, headers)
-        evict, problem = self.slots.admit(connection, address, now=self._clock(), token=token)
+        now = self._clock()
+        if token is None and self.tab_gate is not None and not self.tab_gate.allow(address, now):
+            return "too many new tabs from one address"
+        evict, problem = self.slots.admit(connection, address, now=now, token=token)
         if problem is not None:
             return problem
         if evict is not None:

@@ -7,11 +7,10 @@ A bound tab (a session's) is never slowed or dropped by anything here. Everythin
   share its part); a message over its address's share is not dropped but read later
   (``delay``): the connection waits, its frames stay in the kernel's buffer and its sender
   blocks, so a flood costs the server nothing and a join code typed behind it still arrives.
-* :class:`AcceptGate`: new TCP connections per address, ``per_s`` a second with a burst of
-  ``burst`` (a page load needs two or three); over it, the connection is reset before its
-  request is read. When all addresses together exceed ``total_per_s``, only an address that has
-  been quiet (at least half its burst left) gets in: a reconnect storm from a few addresses
-  cannot keep a new tab out.
+* :class:`AcceptGate`: new connections (or new tabs) per address, ``per_s`` a second with a
+  burst of ``burst``. When all addresses together exceed ``total_per_s``, only an address that
+  has been quiet (at least half its burst left) gets in: a reconnect storm from a few
+  addresses cannot keep a new tab out.
 """
 
 from __future__ import annotations
@@ -67,7 +66,7 @@ class AcceptGate:
     """New connections per address (used on the server's event loop only)."""
 
     def __init__(
-        self, *, per_s: float = 1.0, burst: float = 12.0, total_per_s: float = 40.0
+        self, *, per_s: float = 5.0, burst: float = 30.0, total_per_s: float = 200.0
     ) -> None:
         self.per_s = per_s
         self.burst = burst
