@@ -62,6 +62,7 @@ class Console(Protocol):
     def summaries(self) -> list[SessionSummary]: ...
     def detail(self, code: str) -> SessionDetail | None: ...
     def act(self, code: str, action: str, *, reason: str = "") -> str: ...
+    def health(self) -> str: ...
 
 
 def _fmt_time(seconds: float) -> str:
@@ -121,6 +122,7 @@ class ExperimenterConsole:
             self.participant_id = gui.add_text("Participant ID", initial_value="")
             self.enrol_button = gui.add_button("Enrol and open session")
             self.enrol_status = gui.add_markdown("")
+            self.health_md = gui.add_markdown("")
         self._session_folder = gui.add_folder("Selected session")
         with self._session_folder:
             self.status_md = gui.add_markdown("_Select a session._")
@@ -198,6 +200,9 @@ class ExperimenterConsole:
         content = sessions_markdown(rows)
         if self.sessions_md.content != content:
             self.sessions_md.content = content
+        health = self.console.health()
+        if self.health_md.content != health:
+            self.health_md.content = health
         options = ("(none)", *(r.code for r in rows))
         if tuple(self.session_select.options) != options:
             self.session_select.options = options

@@ -11,11 +11,21 @@ lock held (``benchmarks/README.md``).
   generation (``gc.freeze``), after one full collection: later collections walk only what
   was made since (sessions, trials, connections). :func:`thaw_heap` undoes it when the server
   stops (counted, so nested servers in one process -- tests -- are fine).
+* :func:`set_priority` sets the scheduling priority (nice value) of the calling thread, which
+  threads started from it later inherit (Linux keeps one per thread): ``serve`` calls it before
+  the servers start, so the control loops, the sample writers and the websocket threads all run
+  ahead of browsers and other work on the machine. A whole process, not just the control
+  threads: a control thread waiting for the interpreter lock held by a thread the kernel has
+  set aside behind other programs would wait for that program. Below 0 needs the right to
+  raise priority (root, ``CAP_SYS_NICE`` or an ``RLIMIT_NICE`` allowance); without it nothing
+  changes and ``None`` says so.
 """
 
 from __future__ import annotations
 
 import gc
+import os
+import sys
 import threading
 
 _frozen = 0
@@ -39,3 +49,14 @@ def thaw_heap() -> None:
         _frozen = max(0, _frozen - 1)
         if _frozen == 0:
             gc.unfreeze()
+
+
+def set_priority(nice: int) -> int | None:
+    """Set the calling thread's nice value (threads it starts later inherit it); returns the
+    value now in effect, or ``None`` when the change was not allowed."""
+    who = threading.get_native_id() if sys.platform.startswith("linux") else 0
+    try:
+        os.setpriority(os.PRIO_PROCESS, who, nice)
+        return os.getpriority(os.PRIO_PROCESS, who)
+    except (OSError, AttributeError):  # not permitted, or no such call on this platform
+        return None

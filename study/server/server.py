@@ -25,11 +25,12 @@ import logging
 import threading
 import time
 from collections.abc import Iterable
+from pathlib import Path
 
 import viser
 
 from study.protocol.blinding import find_words
-from study.server import blinding, firewall, realtime
+from study.server import blinding, firewall, logs, realtime
 from study.server.experimenter import ExperimenterConsole, SessionDetail, SessionSummary
 from study.server.firewall import LOOPBACK_NAMES, REJOIN_COOKIE
 from study.server.join import JoinThrottle, new_join_code, new_token, normalize_code
@@ -79,9 +80,12 @@ class StudyServer:
         allow_share: bool = False,
         throttle: JoinThrottle | None = None,
         port_firewall: firewall.Firewall | None = None,
+        log_path: Path | None = None,
     ) -> None:
         """``port_firewall``: the participant port's rules (a default ``Firewall`` if not
-        given; tests and benchmarks pass one with other limits)."""
+        given; tests and benchmarks pass one with other limits); ``log_path``: the server's
+        log file (``study.server.logs``), whose disk use the console shows."""
+        self.log_path = log_path
         self.factory = factory
         self.render_hz = render_hz
         self.kiosk = kiosk
@@ -197,6 +201,22 @@ class StudyServer:
         with self._lock:
             live = self._sessions.get(code)
         return None if live is None else live.detail()
+
+    def health(self) -> str:
+        """One line for the console: the participant port's tabs and refusals, the log's size."""
+        fw = self.firewall
+        with self._lock:
+            tabs, bound = len(self._pages), len(self._page_session)
+        refused = sum(fw.refused_connections.values()) + fw.slots.evicted + fw.slots.timed_out
+        line = (
+            f"Participant port: {tabs} tab(s), {bound} in a session; {refused} connection(s)"
+            f" refused or closed, {sum(fw.dropped.values())} message(s) refused"
+        )
+        if self.log_path is not None:
+            used = logs.disk_use(self.log_path) / 2**20
+            cap = (logs.BACKUPS + 1) * logs.MAX_BYTES / 2**20
+            line += f". Log: {used:.1f} of at most {cap:.0f} MB (`{self.log_path}`)"
+        return line
 
     def act(self, code: str, action: str, *, reason: str = "") -> str:
         if action not in EXPERIMENTER_ACTIONS:
