@@ -1,5 +1,5 @@
 """``python -m study COMMAND``: the study server, trials and videos, schedules, headless sessions,
-simulation, sweeps and export."""
+simulation, sweeps, export and salvage."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ COMMANDS = {
     "simulate": ("study.cli.simulate", "Run simulated participants through the whole study."),
     "sweep": ("study.cli.sweep", "Calibrate the arbitration modes by the paper's criteria."),
     "export": ("study.cli.export", "Export a store to tidy CSV + Parquet files with a codebook."),
+    "salvage": ("study.cli.salvage", "Copy what is readable of a damaged store into a new one."),
 }
 
 if __name__ == "__main__":

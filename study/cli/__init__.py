@@ -9,4 +9,5 @@
     simulate   simulated participants through the whole study
     sweep      the arbitration modes calibrated by the paper's criteria (study.sweep)
     export     tidy CSV + Parquet tables, codebook and metadata from a store (study.export)
+    salvage    what is readable of a damaged store, copied into a new store (study.store.salvage)
 """

@@ -47,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     formats = ("csv", "parquet") if args.format == "both" else (args.format,)
     try:
-        with Store.open_readonly(args.db) as store:
+        with Store.open_readonly(args.db, verify=True) as store:  # a damaged file: said so
             if args.protocol:
                 protocol, source = load_protocol(args.protocol), f"file {args.protocol}"
             else:
