@@ -69,6 +69,35 @@ def test_bad_values_sizes_and_types_are_refused_with_a_short_reason() -> None:
     assert reason is not None and "bytes" in reason and len(reason) < 100
 
 
+def test_poses_far_away_zero_quaternions_and_degenerate_cameras_are_refused() -> None:
+    """Each component within bounds, but 17 m from the origin; a zero rotation; a camera that
+    looks at its own position (viser cannot turn it, and the tab used to get no join screen)."""
+    fw = Firewall()
+    assert "handle position" in (fw.screen(_pose([10.0, 10.0, 10.0])) or "")
+    assert "farther than 3" in (fw.screen(_pose([2.9, 2.9, 2.9])) or "")
+    assert fw.screen(_pose([1.8, 1.8, 1.8])) is not None  # 3.1 m
+    assert fw.screen(_pose([1.0, 1.0, 1.0])) is None
+    zero = _raw(
+        "TransformControlsUpdateMessage", name="/handle", wxyz=[0.0] * 4, position=[0.5, 0, 0.3]
+    )
+    assert "unit quaternion" in (fw.screen(zero) or "")
+    camera = {
+        "wxyz": [1.0, 0.0, 0.0, 0.0],
+        "position": [0.4, 0.0, 0.1],
+        "look_at": [0.4, 0.0, 0.1],
+        "up_direction": [0.0, 0.0, 1.0],
+        "fov": 1.0,
+        "near": 0.01,
+        "far": 1000.0,
+        "image_height": 720,
+        "image_width": 1100,
+    }
+    assert "own position" in (fw.screen(_raw("ViewerCameraMessage", **camera)) or "")
+    camera["wxyz"] = [0.0, 0.0, 0.0, 0.0]
+    camera["position"] = [-1.0, 0.0, 1.0]
+    assert "unit quaternion" in (fw.screen(_raw("ViewerCameraMessage", **camera)) or "")
+
+
 def test_share_links_only_when_the_experimenter_asks() -> None:
     assert Firewall(allowed=None).screen(_raw("ShareUrlRequest")) is not None
     assert Firewall(allowed=None, allow_share=True).screen(_raw("ShareUrlRequest")) is None

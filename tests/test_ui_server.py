@@ -167,7 +167,8 @@ def test_serve_refuses_a_port_in_use_instead_of_moving(tmp_path: Path) -> None:
             cwd=PAPER_PROTOCOL.parents[1], capture_output=True, text=True, timeout=60,
         )  # fmt: skip
     assert proc.returncode == 2
-    assert f"port {port} (participant view) is in use" in proc.stderr and "--port" in proc.stderr
+    assert f"participant view on 0.0.0.0:{port}: the port is in use" in proc.stderr
+    assert "--port" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "study.db").exists()
 
 

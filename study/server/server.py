@@ -230,7 +230,10 @@ class StudyServer:
     def _participant_connected(self, client: viser.ClientHandle) -> None:
         page = ParticipantPage(client, title=PAGE_TITLE, words=self.guard.words)
         page.address = self._client_address(client.client_id)
-        frame_task(client.camera, look_at=(0.45, 0.0, 0.15))
+        try:
+            frame_task(client.camera, look_at=(0.45, 0.0, 0.15))
+        except Exception:  # a camera state viser cannot turn (the firewall refuses degenerate ones)
+            LOGGER.warning("could not frame the task view for a new tab", exc_info=True)
         with self._lock:
             # viser runs connect and disconnect callbacks in a pool, in no fixed order: a tab
             # that left before we got here must not be registered (it would hold a session)

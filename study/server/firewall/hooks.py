@@ -25,13 +25,13 @@ import websockets.asyncio.server as ws_server
 from viser import _messages as vm
 from websockets.asyncio.server import ServerConnection
 
-from study.server.firewall.notes import OpenLinesOnceAMinute
+from study.server.firewall.notes import OncePerMinute
 from study.server.firewall.rules import ConnectionFlood
 
 if TYPE_CHECKING:
     from study.server.firewall.policy import Firewall
 
-_OPEN_LINES = OpenLinesOnceAMinute()
+_WEBSOCKETS_LINES = OncePerMinute()
 _FIREWALLS: dict[int, Firewall] = {}
 _INSTALL_LOCK = threading.Lock()
 _ORIGINAL = vm.Message.deserialize.__func__  # type: ignore[attr-defined]
@@ -102,7 +102,7 @@ def hardened_serve(firewall: Firewall) -> Iterator[None]:
 
     with _INSTALL_LOCK:
         ws_server.serve = serve  # type: ignore[assignment,misc]
-        logging.getLogger("websockets.server").addFilter(_OPEN_LINES)  # once: filters are a set
+        logging.getLogger("websockets.server").addFilter(_WEBSOCKETS_LINES)  # a set: once
     try:
         yield
     finally:

@@ -2,8 +2,8 @@
 
 A hostile client chooses how often it breaks a rule; the log must not grow with it.
 :class:`Notes` lets one line per key through every ``every_s`` seconds (escaped, cut to 300
-characters); :class:`OpenLinesOnceAMinute` does the same for websockets' "connection open"
-line, which its own logger writes for every socket.
+characters); :class:`OncePerMinute` does the same, without tracebacks, for every line
+websockets' own logger writes per connection.
 """
 
 from __future__ import annotations
@@ -41,20 +41,23 @@ class Notes:
             self.logger.warning("%s", text.encode("unicode_escape").decode("ascii")[:300])
 
 
-class OpenLinesOnceAMinute(logging.Filter):
-    """websockets logs "connection open" (INFO) for every socket: a flood of sockets would be a
-    flood of lines. Let one through a minute."""
+class OncePerMinute(logging.Filter):
+    """For a library's logger that writes a line per connection (websockets: "connection
+    open", "connection rejected (403 Forbidden)", "opening handshake failed" with a
+    traceback, ...): one record of each kind a minute, never with a traceback."""
 
     def __init__(self, every_s: float = 60.0) -> None:
         super().__init__()
         self.every_s = every_s
-        self._last = -math.inf
+        self._last: dict[str, float] = {}
+        self._lock = threading.Lock()
 
     def filter(self, record: logging.LogRecord) -> bool:
-        if record.msg != "connection open":
-            return True
+        kind = str(record.msg)[:100]
         now = time.monotonic()
-        if now - self._last < self.every_s:
-            return False
-        self._last = now
+        with self._lock:
+            if now - self._last.get(kind, -math.inf) < self.every_s:
+                return False
+            self._last[kind] = now
+        record.exc_info, record.exc_text, record.stack_info = None, None, None
         return True

@@ -3,8 +3,9 @@
 ``screen(raw, ...)`` looks at one undecoded websocket message and returns why it is refused
 (``None`` when it may be decoded): at most ``max_bytes``; msgpack with a string ``type``; a
 type in the allow-list (share-link types only when the experimenter asked for them); every
-number finite and bounded (a pose within ``max_position_m`` of the origin, a unit-ish
-quaternion), strings and containers short, GUI updates carrying only ``value``. Reasons are
+number finite and bounded (a pose within ``max_position_m`` of the origin, a quaternion of
+about unit length, a camera that does not look at its own position), strings and containers
+short, GUI updates carrying only ``value``. Reasons are
 fixed texts plus the type name, never the payload.
 """
 
@@ -39,7 +40,8 @@ to point at 127.0.0.1 (DNS rebinding) passes the origin check, but not this one.
 MAX_MESSAGE_BYTES = 16 * 1024
 """Largest message a participant's browser sends in normal use is well under 1 KiB."""
 
-MAX_POSITION_M = 10.0
+MAX_POSITION_M = 3.0
+"""Farthest a handle pose may lie from the robot's base (every scene lies within 2 m)."""
 MAX_STRING = 64
 """Longest string a page sends: a join code, an answer, a key state, a node name."""
 
@@ -78,6 +80,24 @@ def _vector(value: Any, *, n: int, bound: float, what: str) -> None:
         _finite(x, bound=bound, what=what)
 
 
+def _norm(value: Any) -> float:
+    return math.sqrt(sum(float(x) * float(x) for x in value))
+
+
+def _within(value: Any, *, bound: float, what: str) -> None:
+    """A 3-vector no farther than ``bound`` from the origin."""
+    _vector(value, n=3, bound=bound, what=what)
+    if _norm(value) > bound:
+        raise RefusedMessage(f"{what} is farther than {bound:g} from the origin")
+
+
+def _rotation(value: Any, *, what: str) -> None:
+    """A quaternion that is one (near unit length), not zero."""
+    _vector(value, n=4, bound=2.0, what=what)
+    if not 0.5 <= _norm(value) <= 1.5:
+        raise RefusedMessage(f"{what} is not a unit quaternion")
+
+
 def _string(value: Any, *, what: str, limit: int = MAX_STRING) -> None:
     if not isinstance(value, str) or len(value) > limit:
         raise RefusedMessage(f"{what} is not a string of at most {limit} characters")
@@ -88,8 +108,8 @@ def check_values(kind: str, body: dict[str, Any], *, max_position_m: float) -> N
     if kind == "TransformControlsUpdateMessage":
         _string(body.get("name"), what="handle name")
         _string(body.get("owner", ""), what="handle owner")
-        _vector(body.get("position"), n=3, bound=max_position_m, what="handle position")
-        _vector(body.get("wxyz"), n=4, bound=2.0, what="handle orientation")
+        _within(body.get("position"), bound=max_position_m, what="handle position")
+        _rotation(body.get("wxyz"), what="handle orientation")
     elif kind in ("TransformControlsDragStartMessage", "TransformControlsDragEndMessage"):
         _string(body.get("name"), what="handle name")
         _string(body.get("owner", ""), what="handle owner")
@@ -109,9 +129,12 @@ def check_values(kind: str, body: dict[str, Any], *, max_position_m: float) -> N
             if body.get(key) is not None:
                 _string(body.get(key), what=f"storage {key}", limit=64)
     elif kind == "ViewerCameraMessage":
-        for key in ("wxyz", "position", "look_at", "up_direction"):
-            n = 4 if key == "wxyz" else 3
-            _vector(body.get(key), n=n, bound=1e4, what=f"camera {key}")
+        for key in ("position", "look_at", "up_direction"):
+            _vector(body.get(key), n=3, bound=1e4, what=f"camera {key}")
+        _rotation(body.get("wxyz"), what="camera orientation")
+        gap = [float(a) - float(b) for a, b in zip(body["position"], body["look_at"], strict=True)]
+        if _norm(gap) < 1e-6 or _norm(body["up_direction"]) < 1e-6:
+            raise RefusedMessage("camera looks at its own position or has no up direction")
         for key in ("fov", "near", "far"):
             _finite(body.get(key), bound=1e6, what=f"camera {key}")
         for key in ("image_height", "image_width"):
