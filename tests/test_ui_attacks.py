@@ -291,3 +291,39 @@ def test_no_version_string_reaches_the_participant_port(study: RunningServer) ->
     assert b"200" in head.split(b"\r\n")[0]
     assert b"Server:" not in head and b"websockets" not in head and b"Python" not in head
     assert status == 403  # another version is refused at the door, never with viser's reason
+
+
+def test_held_keys_are_a_state_resent_and_let_go_when_it_stops(study: RunningServer) -> None:
+    """The page resends its key state every 250 ms while a key is held: resent, the key stays
+    held; when the state stops arriving (a stalled connection) the key is let go within about
+    a second, recorded, and pressed again by the next state that holds it. A message the
+    firewall refuses from the bound tab is an ``input_dropped`` event."""
+    srv = study.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+    live = srv.session(code)
+
+    async def scenario() -> None:
+        async with RawClient(srv.participant_port) as client:
+            honest = Honest(client, live)
+            await honest.start(code)
+            source = live.participant_input
+            for _ in range(8):  # two seconds of resends: held throughout
+                await honest.keys("w")
+                stalled = time.monotonic()  # (the last state sent)
+                await asyncio.sleep(0.25)
+                assert source.keyboard.held == frozenset("w")
+            assert await until(lambda: not source.keyboard.moving, timeout=3.0)
+            assert 0.9 < time.monotonic() - stalled < 2.0
+            await honest.keys("w")
+            assert await until(lambda: source.keyboard.held == frozenset("w"), timeout=2.0)
+            await honest.keys("")
+            await client.pose((10.0, 10.0, 10.0), owner=honest.owner)  # refused by the firewall
+            assert await until(
+                lambda: "input_dropped" in [e.kind for e in study.store.events()], timeout=5.0
+            )
+
+    run_async(scenario())
+    events = {e.kind: e for e in study.store.events()}
+    assert events["keys_expired"].detail == {"keys": "w"}
+    assert "handle position" in str(events["input_dropped"].detail)

@@ -14,7 +14,14 @@ from pathlib import Path
 import pytest
 
 from study.protocol.blinding import find_words
-from study.server.join import ALPHABET, CODE_LENGTH, JoinThrottle, new_join_code, normalize_code
+from study.server.join import (
+    ALPHABET,
+    CODE_LENGTH,
+    JoinThrottle,
+    new_join_code,
+    new_token,
+    normalize_code,
+)
 from study.server.participant import DECLINE
 from tests.browser.harness import iter_strings, run_async, start_server, wait_until
 from tests.protocol_copies import PAPER_PROTOCOL
@@ -96,6 +103,29 @@ def test_the_join_throttle_counts_per_tab_and_per_address() -> None:
     assert throttle.allow(client=2, address="10.0.0.9")
     assert not throttle.allow(client=3, address="10.0.0.9")  # ... until the address is spent
     assert throttle.allow(client=4, address="10.0.0.10")
+
+
+def test_a_spent_server_budget_still_lets_a_new_address_try() -> None:
+    """Guessers from six addresses spend the server-wide budget; an address that has not been
+    trying gets its first tries anyway, so the guessers keep nobody else out."""
+    throttle = JoinThrottle(per_client=5, per_address=20, per_server=60, fresh_tries=3)
+    for k in range(6):
+        for client in range(4 * k, 4 * k + 4):
+            while throttle.allow(client=client, address=f"10.0.0.{k}"):
+                pass
+    assert throttle.saturated()
+    assert not throttle.allow(client=99, address="10.0.0.1")  # a guesser's address: no
+    assert [throttle.allow(client=100, address="10.0.0.50") for _ in range(4)] == [True] * 3 + [
+        False
+    ]
+
+
+def test_join_codes_and_rejoin_tokens_never_carry_a_blinded_word() -> None:
+    words = ("hard", "easy", "right", "wrong", "timid", "aggressive")
+    for _ in range(2000):
+        for text in (new_join_code(avoid=words), new_token(avoid=words)):
+            assert not any(w in text.lower() for w in words)
+    assert len(new_token()) == 20 and set(new_token()) <= set(ALPHABET)
 
 
 def test_several_sessions_ask_for_the_code_and_a_wrong_code_is_refused(tmp_path: Path) -> None:
