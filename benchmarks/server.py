@@ -31,7 +31,8 @@ each reports, per session, the worst 0.25-s window of its control loop (ticks a 
 many windows fell under 95, the sample-commit gaps, the garbage collector's longest pauses in
 the window, whether the session ever paused, and the load average before and after.
 ``--code DIR`` runs the same measurement against another checkout (``git archive main``),
-side by side.
+side by side; ``--priority N`` gives the server the nice value ``serve --priority`` would
+(``serve``'s default is -10; the benchmark's is none).
 
 Usage: ``.venv/bin/python benchmarks/server.py [--seconds 10] [--no-browser]
 [--scenario storm|tabs] [--code DIR]``. Last line: one JSON object.
@@ -215,38 +216,28 @@ def loop_windows(loop, t0: float, t1: float, *, width: float = 0.25) -> dict:
     }
 
 
-def apply_nice(policy: str, lives: list) -> None:
-    """EXPERIMENT: ``process:N`` every thread of this process at nice N; ``control:N`` the
-    control loops and sample writers only; ``others:N`` every thread but those."""
-    where, value = policy.split(":")
-    control = {live.control_loop._thread.native_id for live in lives}
-    control |= {live.session._writer._thread.native_id for live in lives}
-    for tid in map(int, os.listdir("/proc/self/task")):
-        chosen = (
-            where == "process"
-            or (where == "control" and tid in control)
-            or (where == "others" and tid not in control)
-        )
-        if chosen:
-            os.setpriority(os.PRIO_PROCESS, tid, int(value))
-
-
 def port_scenario(args: argparse.Namespace) -> dict:
-    """``--scenario storm`` or ``tabs`` (see module docstring)."""
+    """``--scenario storm`` or ``tabs`` (see module docstring). The browser starts first, then
+    (with ``--priority``) this thread takes the server's priority as ``serve`` does, and then
+    the server starts, so its threads inherit the priority and Chromium keeps its own."""
     n_tabs = 1 if args.scenario == "storm" else 4
-    tmp = tempfile.mkdtemp(prefix="bench-port-")
-    rs = start_server(tmp, time_limit_s=600.0, training_runs=1)
-    srv = rs.server
     pauses = GcPauses()
     result: dict = {"scenario": args.scenario, "code": args.code or str(ROOT)}
-    try:
-        lives = []
-        for k in range(n_tabs):
-            code = srv.enrol(f"B0{k + 1}")
-            srv.act(code, "start")
-            lives.append(srv.session(code))
-        with sync_playwright() as p:
-            browser = launch(p)
+    with sync_playwright() as p:
+        browser = launch(p)
+        if args.priority is not None:
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), args.priority)
+        result["priority"] = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+        rs = start_server(
+            tempfile.mkdtemp(prefix="bench-port-"), time_limit_s=600.0, training_runs=1
+        )
+        srv = rs.server
+        try:
+            lives = []
+            for k in range(n_tabs):
+                code = srv.enrol(f"B0{k + 1}")
+                srv.act(code, "start")
+                lives.append(srv.session(code))
             pages = []
             for live in lives:
                 live.session.agree()
@@ -264,25 +255,12 @@ def port_scenario(args: argparse.Namespace) -> dict:
             for f in feeders:
                 f.start()
             pages[0].wait_for_timeout(3000)  # the first draws of the scenes
-            if args.nice:
-                apply_nice(args.nice, lives)
             attacker = None
             if args.scenario == "storm" and args.attack != "none":
+                port, seconds = str(srv.participant_port), str(args.seconds + 2)
+                argv = ["tests.attacker", args.attack, "--port", port, "--seconds", seconds]
                 attacker = subprocess.Popen(
-                    [
-                        sys.executable,
-                        "-m",
-                        "tests.attacker",
-                        args.attack,
-                        "--port",
-                        str(srv.participant_port),
-                        "--addresses",
-                        "8",
-                        "--tasks",
-                        "32",
-                        "--seconds",
-                        str(args.seconds + 2),
-                    ],
+                    [sys.executable, "-m", *argv, "--addresses", "8", "--tasks", "32"],
                     cwd=ROOT,
                     stdout=subprocess.PIPE,
                     text=True,
@@ -306,9 +284,9 @@ def port_scenario(args: argparse.Namespace) -> dict:
                 for live in lives
             ]
             result["gc_worst_ms"] = pauses.worst(t0, t1)
+        finally:
+            rs.stop()
             browser.close()
-    finally:
-        rs.stop()
     worst = min(s["worst_hz"] for s in result["sessions"])
     gap = max(s["batch_gap_ms"]["max"] for s in result["sessions"])
     print(
@@ -326,7 +304,12 @@ def main() -> int:
     )
     parser.add_argument("--scenario", choices=("storm", "tabs"), help="the port's promise")
     parser.add_argument("--code", help="another checkout to measure (e.g. main's)")
-    parser.add_argument("--nice", help="EXPERIMENT: process:N, control:N or others:N")
+    parser.add_argument(
+        "--priority",
+        type=int,
+        default=None,
+        help="the server's nice value, set as `serve --priority` does (default: unchanged)",
+    )
     parser.add_argument(
         "--attack", default="storm", help="storm scenario: the attack (tests/attacker.py kinds)"
     )

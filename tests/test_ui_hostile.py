@@ -257,6 +257,14 @@ def test_the_ready_screen_shows_the_next_trials_start_never_the_last_end(tmp_pat
                 view_render(view, xpos, xmat, **kw)
 
             type(live.scene_view).render = spy  # type: ignore[method-assign]
+
+            def starts() -> int:
+                return sum(
+                    m.get("type") == "GuiButtonMessage" and m["props"]["label"] == "Start"
+                    for m in c.messages
+                )
+
+            shown = starts()  # the first run's Start button is among the messages already
             try:
                 await c.button("Continue")  # the practice run timed out: its outcome
                 await c.click("Continue")
@@ -268,7 +276,7 @@ def test_the_ready_screen_shows_the_next_trials_start_never_the_last_end(tmp_pat
                     await c.send("GuiUpdateMessage", uuid=g["uuid"], updates={"value": "4"})
                 await asyncio.sleep(0.3)
                 await c.click("Continue")
-                await c.button("Start")
+                await c.wait_for(lambda _m: starts() > shown)  # the next run's ready screen
                 await asyncio.sleep(1.5)  # many render-loop periods on the ready screen
             finally:
                 type(live.scene_view).render = view_render  # type: ignore[method-assign]
