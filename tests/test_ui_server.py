@@ -227,3 +227,18 @@ def test_a_participant_can_decline_consent_after_one_more_question(tmp_path: Pat
         assert any("declined consent" in r for r in reasons)
     finally:
         rs.stop()
+
+
+def test_the_console_shows_the_ports_refusals_and_the_logs_disk_use(tmp_path: Path) -> None:
+    log = tmp_path / "serve.log"
+    log.write_bytes(b"x" * 3 * 2**20)
+    rs = start_server(tmp_path, server_kw={"log_path": log})
+    try:
+        rs.server.firewall.refused_connections["too many new tabs from one address"] += 5
+        line = rs.server.health()
+        assert "0 tab(s)" in line and "5 connection(s) refused or closed" in line
+        assert "Log: 3.0 of at most 50 MB" in line and str(log) in line
+        rs.server.console.refresh()
+        assert rs.server.console.health_md.content == line
+    finally:
+        rs.stop()
