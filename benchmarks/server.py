@@ -227,6 +227,9 @@ def port_scenario(args: argparse.Namespace) -> dict:
         browser = launch(p)
         if args.priority is not None:
             os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), args.priority)
+        if args.switch_ms is not None:
+            sys.setswitchinterval(args.switch_ms / 1000)
+        result["switch_ms"] = round(sys.getswitchinterval() * 1000, 3)
         result["priority"] = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
         rs = start_server(
             tempfile.mkdtemp(prefix="bench-port-"), time_limit_s=600.0, training_runs=1
@@ -309,6 +312,12 @@ def main() -> int:
         type=int,
         default=None,
         help="the server's nice value, set as `serve --priority` does (default: unchanged)",
+    )
+    parser.add_argument(
+        "--switch-ms",
+        type=float,
+        default=None,
+        help="the interpreter's thread switch interval, ms (Python's default is 5)",
     )
     parser.add_argument(
         "--attack", default="storm", help="storm scenario: the attack (tests/attacker.py kinds)"
