@@ -125,7 +125,7 @@ async def until(predicate: Any, *, timeout: float = 10.0) -> bool:
     return bool(predicate())
 
 
-def under_attack(rs: RunningServer, kind: str, *, seconds: float = 6.0, **options: float) -> Any:
+def under_attack(rs: RunningServer, kind: str, *, seconds: float = 5.0, **options: float) -> Any:
     """An honest session while ``kind`` runs: its inputs land, before, during and after it;
     the control loop keeps at least 75 % of the rate it had just before the attack (the
     machine's other load is the same then; ``benchmarks/server.py`` holds the strict

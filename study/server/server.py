@@ -121,7 +121,8 @@ class StudyServer:
             max_bytes=8 * 2**20,
             rate_per_s=2000.0,
             loopback_only=experimenter_host in LOOPBACK_NAMES,
-            shares_per_s=None,
+            shares_per_s=None,  # the experimenter's own tabs: no shares, never idle-closed
+            idle_timeout_s=None,
         )
         with firewall.hardened_serve(self.experimenter_firewall):
             self.experimenter = viser.ViserServer(

@@ -84,7 +84,7 @@ class Firewall:
         max_connections: int = 64,
         max_connections_per_address: int = 8,
         greet_timeout_s: float = 15.0,
-        idle_timeout_s: float = 600.0,
+        idle_timeout_s: float | None = 600.0,
         check_origin: bool = True,
         loopback_only: bool = False,
         backlog_s: float = 10.0,

@@ -16,7 +16,7 @@ Slots are shared, never hoarded:
   taken;
 * a waiting slot is closed after ``greet_timeout_s`` (a page sends its camera within a second
   or two), an open one after ``idle_timeout_s`` without a message (the tab reconnects by itself
-  and shows the join screen again).
+  and shows the join screen again; ``None`` for the console, whose tab may watch for hours).
 """
 
 from __future__ import annotations
@@ -62,7 +62,7 @@ class Slots:
         max_per_address: int = 8,
         reserved_per_token: int = 2,
         greet_timeout_s: float = 15.0,
-        idle_timeout_s: float = 600.0,
+        idle_timeout_s: float | None = 600.0,
     ) -> None:
         self.max_total = max_total
         self.max_per_address = max_per_address
@@ -74,7 +74,7 @@ class Slots:
         self.timed_out = 0
 
     def __len__(self) -> int:
-        return sum(1 for s in self._slots.values() if not s.closing)
+        return sum(1 for s in list(self._slots.values()) if not s.closing)
 
     def __iter__(self) -> Any:
         return iter(list(self._slots.values()))
@@ -132,8 +132,9 @@ class Slots:
         for slot in self._slots.values():
             if slot.closing or slot.bound:
                 continue
+            idle = self.idle_timeout_s
             if (not slot.greeted and now - slot.opened > self.greet_timeout_s) or (
-                slot.greeted and now - slot.last_seen > self.idle_timeout_s
+                slot.greeted and idle is not None and now - slot.last_seen > idle
             ):
                 slot.closing = True
                 due.append(slot)
