@@ -3,14 +3,36 @@
 Each subcommand lives in its own module exposing ``add_arguments(parser)`` and
 ``main(args) -> int``; modules are imported only when their command runs, so ``--help`` stays
 fast and one broken command never hides the others.
+
+Every error a command line can cause is one line on stderr and exit code 2: argparse's own
+(a bad value names the flag; no usage block), and each command's typed errors. An exception
+no command expected is one line too (exit 1; ``STUDY_TRACEBACK=1`` shows where it came from),
+running out of memory is said as such, and Ctrl-C exits 130 without a traceback. The argument
+types below give every number a range and every path a kind (a file to read, a file or a
+folder to write).
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import math
+import os
+import re
 import sys
+import traceback
 from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+
+MAX_SEED = 2**63 - 1
+"""Largest seed a store keeps (SQLite integers are 64-bit)."""
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse, with each error on one line (``prog: error: ... (see --help)``), exit 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
 def dispatch(
@@ -21,7 +43,7 @@ def dispatch(
     ``commands`` maps a command name to ``(module path, one-line help)``.
     """
     # the description is the package's module docstring: shown without its reST backticks
-    parser = argparse.ArgumentParser(prog=prog, description=description.replace("``", ""))
+    parser = OneLineParser(prog=prog, description=description.replace("``", ""))
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     args_list = list(sys.argv[1:] if argv is None else argv)
     chosen = next((a for a in args_list if not a.startswith("-")), None)
@@ -31,7 +53,103 @@ def dispatch(
             importlib.import_module(module_path).add_arguments(p)
     args = parser.parse_args(args_list)
     module = importlib.import_module(commands[args.command][0])
-    return int(module.main(args) or 0)
+    try:
+        return int(module.main(args) or 0)
+    except KeyboardInterrupt:
+        print(f"{prog} {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except MemoryError:
+        print(
+            f"{prog} {args.command}: error: out of memory (the input asks for too much)",
+            file=sys.stderr,
+        )
+        return 2
+    except Exception as exc:  # a command's own errors are handled by it; this is a bug
+        if os.environ.get("STUDY_TRACEBACK"):
+            traceback.print_exc()
+        text = " ".join(str(exc).split())[:300]
+        print(
+            f"{prog} {args.command}: unexpected error: {type(exc).__name__}: {text}"
+            " (a bug; STUDY_TRACEBACK=1 shows where)",
+            file=sys.stderr,
+        )
+        return 1
+
+
+def int_range(lo: int, hi: int, *, what: str = "a whole number") -> Callable[[str], int]:
+    """argparse type factory: an integer in [lo, hi]."""
+
+    def parse(text: str) -> int:
+        value = _parse(text, int, what)
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"must be {lo}..{hi}, got {text}")
+        return value
+
+    parse.__name__ = "int"
+    return parse
+
+
+def float_range(lo: float, hi: float, *, above: bool = False) -> Callable[[str], float]:
+    """argparse type factory: a finite number in [lo, hi] (``above``: in (lo, hi])."""
+
+    def parse(text: str) -> float:
+        value = _parse(text, float, "a number")
+        low_ok = value > lo if above else value >= lo
+        if not (math.isfinite(value) and low_ok and value <= hi):
+            bracket = "(" if above else "["
+            raise argparse.ArgumentTypeError(f"must be in {bracket}{lo:g}, {hi:g}], got {text}")
+        return value
+
+    parse.__name__ = "number"
+    return parse
+
+
+def seed(text: str) -> int:
+    """argparse type: a seed, 0..2**63-1."""
+    value = _parse(text, int, "a whole number")
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(f"must be a whole number 0..{MAX_SEED}, got {text}")
+    return value
+
+
+def output_file(text: str) -> Path:
+    """argparse type: a file to write: not a folder, in a folder that exists and is writable."""
+    path = Path(text)
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a folder; name a file to write")
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise argparse.ArgumentTypeError(f"the folder {folder} does not exist")
+    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise argparse.ArgumentTypeError(f"{text} cannot be written (permission denied)")
+    return path
+
+
+def output_dir(text: str) -> Path:
+    """argparse type: a folder to write into (created if missing): not an existing file, under
+    a writable folder."""
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a file, not a folder; name a folder")
+    existing = next((p for p in (path, *path.parents) if p.exists()), Path("."))
+    if not existing.is_dir() or not os.access(existing, os.W_OK):
+        raise argparse.ArgumentTypeError(f"{text} cannot be written under {existing}")
+    return path
+
+
+_SCHEDULER = re.compile(
+    r"^((tcp|tls|ucx|ws|wss)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9][A-Za-z0-9.-]*):\d{1,5}$"
+)
+
+
+def scheduler_address(text: str) -> str:
+    """argparse type: a Dask scheduler's address, ``[tcp://]HOST:PORT``."""
+    match = _SCHEDULER.match(text)
+    if match is None or not 0 < int(text.rsplit(":", 1)[1]) <= 65535:
+        raise argparse.ArgumentTypeError(
+            f"must be a scheduler address such as tcp://10.0.0.5:8786, got {text!r}"
+        )
+    return text
 
 
 def non_negative_int(text: str) -> int:

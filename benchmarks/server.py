@@ -19,16 +19,34 @@ One headless Chromium (Debian's) is connected to the participant view of a runni
 ``--no-browser`` skips the browser (and the single-session figures that need it) and measures
 the four sessions alone, which separates the server's own load from Chromium's software WebGL.
 
-Usage: ``.venv/bin/python benchmarks/server.py [--seconds 10] [--no-browser]``. Last line: one
-JSON object.
+``--scenario storm`` and ``--scenario tabs`` measure the participant port's promise instead:
+the control loop holds >= 95 Hz in every 0.25-s window and sample commits stay <= 250 ms apart
+
+* ``storm``: one session with a Chromium tab attached, while another process runs a
+  reconnect storm (``tests/attacker.py storm``: 32 tasks from 8 loopback addresses opening a
+  websocket, sending a camera message and closing, in a loop);
+* ``tabs``: four sessions, each with its own Chromium tab attached (one browser, four pages);
+
+each reports, per session, the worst 0.25-s window of its control loop (ticks a second), how
+many windows fell under 95, the sample-commit gaps, the garbage collector's longest pauses in
+the window, whether the session ever paused, and the load average before and after.
+``--code DIR`` runs the same measurement against another checkout (``git archive main``),
+side by side; ``--priority N`` gives the server the nice value ``serve --priority`` would
+(``serve``'s default is -10; the benchmark's is none).
+
+Usage: ``.venv/bin/python benchmarks/server.py [--seconds 10] [--no-browser]
+[--scenario storm|tabs] [--code DIR]``. Last line: one JSON object.
 """
 
 from __future__ import annotations
 
 import argparse
+import gc
 import itertools
 import json
+import os
 import random
+import subprocess
 import sys
 import tempfile
 import threading
@@ -39,6 +57,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+if "--code" in sys.argv:  # measure another checkout with this script (side by side with main)
+    sys.path.insert(0, str(Path(sys.argv[sys.argv.index("--code") + 1]).resolve()))
 
 from playwright.sync_api import sync_playwright  # noqa: E402
 
@@ -162,13 +182,150 @@ def four_sessions(srv, running: list, *, seconds: float, wait) -> dict:
     }
 
 
+class GcPauses:
+    """The garbage collector's pauses (start time, seconds, generation) in this process."""
+
+    def __init__(self) -> None:
+        self.pauses: list[tuple[float, float, int]] = []
+        self._start = 0.0
+        gc.callbacks.append(self._callback)
+
+    def _callback(self, phase: str, info: dict) -> None:
+        if phase == "start":
+            self._start = time.monotonic()
+        else:
+            now = time.monotonic()
+            self.pauses.append((self._start, now - self._start, int(info["generation"])))
+
+    def worst(self, t0: float, t1: float, n: int = 3) -> list[list[float]]:
+        """The ``n`` longest pauses that started in [t0, t1]: [ms, generation]."""
+        inside = sorted((p for p in self.pauses if t0 <= p[0] <= t1), key=lambda p: -p[1])
+        return [[round(d * 1e3, 1), g] for _, d, g in inside[:n]]
+
+
+def loop_windows(loop, t0: float, t1: float, *, width: float = 0.25) -> dict:
+    """Ticks a second of ``loop`` in consecutive ``width``-s windows of [t0, t1]: the worst
+    window and how many fell under 95."""
+    stamps = np.array([t for t in loop._stamps if t0 <= t <= t1])
+    edges = np.arange(t0, t1 - width + 1e-9, width)
+    rates = np.array([((stamps >= e) & (stamps < e + width)).sum() for e in edges]) / width
+    return {
+        "worst_hz": float(rates.min()),
+        "under_95": int((rates < 95).sum()),
+        "windows": len(rates),
+    }
+
+
+def port_scenario(args: argparse.Namespace) -> dict:
+    """``--scenario storm`` or ``tabs`` (see module docstring). The browser starts first, then
+    (with ``--priority``) this thread takes the server's priority as ``serve`` does, and then
+    the server starts, so its threads inherit the priority and Chromium keeps its own."""
+    n_tabs = 1 if args.scenario == "storm" else 4
+    pauses = GcPauses()
+    result: dict = {"scenario": args.scenario, "code": args.code or str(ROOT)}
+    with sync_playwright() as p:
+        browser = launch(p)
+        if args.priority is not None:
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), args.priority)
+        if args.switch_ms is not None:
+            sys.setswitchinterval(args.switch_ms / 1000)
+        result["switch_ms"] = round(sys.getswitchinterval() * 1000, 3)
+        result["priority"] = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+        rs = start_server(
+            tempfile.mkdtemp(prefix="bench-port-"), time_limit_s=600.0, training_runs=1
+        )
+        srv = rs.server
+        try:
+            lives = []
+            for k in range(n_tabs):
+                code = srv.enrol(f"B0{k + 1}")
+                srv.act(code, "start")
+                lives.append(srv.session(code))
+            pages = []
+            for live in lives:
+                live.session.agree()
+                page = browser.new_page(viewport={"width": 1000, "height": 700})
+                page.set_default_timeout(120_000)
+                page.goto(rs.url)
+                join(page, live.code, then="Start")
+                start_trial(live, page)
+                pages.append(page)
+            stop = threading.Event()
+            feeders = [
+                threading.Thread(target=feed_gizmo, args=(live, stop), daemon=True)
+                for live in lives
+            ]
+            for f in feeders:
+                f.start()
+            pages[0].wait_for_timeout(3000)  # the first draws of the scenes
+            attacker = None
+            if args.scenario == "storm" and args.attack != "none":
+                port, seconds = str(srv.participant_port), str(args.seconds + 2)
+                argv = ["tests.attacker", args.attack, "--port", port, "--seconds", seconds]
+                attacker = subprocess.Popen(
+                    [sys.executable, "-m", *argv, "--addresses", "8", "--tasks", "32"],
+                    cwd=ROOT,
+                    stdout=subprocess.PIPE,
+                    text=True,
+                )
+                pages[0].wait_for_timeout(1500)
+            result["load_before"] = [round(x, 2) for x in os.getloadavg()]
+            t0 = time.monotonic()
+            pages[0].wait_for_timeout(args.seconds * 1000)
+            t1 = time.monotonic()
+            result["load_after"] = [round(x, 2) for x in os.getloadavg()]
+            stop.set()
+            if attacker is not None:
+                out, _ = attacker.communicate(timeout=60)
+                result["attacker"] = json.loads(out.strip().splitlines()[-1])
+            result["sessions"] = [
+                {
+                    **loop_windows(live.control_loop, t0, t1),
+                    "batch_gap_ms": batch_gaps([live], t0, t1),
+                    "paused": bool(live.session.paused),
+                }
+                for live in lives
+            ]
+            result["gc_worst_ms"] = pauses.worst(t0, t1)
+        finally:
+            rs.stop()
+            browser.close()
+    worst = min(s["worst_hz"] for s in result["sessions"])
+    gap = max(s["batch_gap_ms"]["max"] for s in result["sessions"])
+    print(
+        f"{args.scenario}: worst 0.25-s window {worst:.0f} Hz, largest commit gap {gap:.0f} ms,"
+        f" load {result['load_before']} -> {result['load_after']}"
+    )
+    return result
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=10.0, help="measurement window")
     parser.add_argument(
         "--no-browser", action="store_true", help="four sessions without a browser only"
     )
+    parser.add_argument("--scenario", choices=("storm", "tabs"), help="the port's promise")
+    parser.add_argument("--code", help="another checkout to measure (e.g. main's)")
+    parser.add_argument(
+        "--priority",
+        type=int,
+        default=None,
+        help="the server's nice value, set as `serve --priority` does (default: unchanged)",
+    )
+    parser.add_argument(
+        "--switch-ms",
+        type=float,
+        default=None,
+        help="the interpreter's thread switch interval, ms (Python's default is 5)",
+    )
+    parser.add_argument(
+        "--attack", default="storm", help="storm scenario: the attack (tests/attacker.py kinds)"
+    )
     args = parser.parse_args()
+    if args.scenario is not None:
+        print(json.dumps(port_scenario(args)))
+        return 0
 
     tmp = tempfile.mkdtemp(prefix="bench-server-")
     rs = start_server(tmp, time_limit_s=600.0, training_runs=1)

@@ -1,5 +1,5 @@
 """``python -m study COMMAND``: the study server, trials and videos, schedules, headless sessions,
-simulation, sweeps and export."""
+simulation, sweeps, export and salvage."""
 
 from __future__ import annotations
 
@@ -20,6 +20,7 @@ COMMANDS = {
         "study.cli.retention",
         "Record a data-retention answer given in person after a session stopped.",
     ),
+    "salvage": ("study.cli.salvage", "Copy what is readable of a damaged store into a new one."),
 }
 
 if __name__ == "__main__":

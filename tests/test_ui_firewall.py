@@ -14,7 +14,9 @@ from viser.infra._async_message_buffer import AsyncMessageBuffer
 from viser.infra._messages import Message
 
 from study.server import blinding, firewall
-from study.server.firewall import BUDGET, MAX_MESSAGE_BYTES, Firewall
+from study.server.firewall import MAX_MESSAGE_BYTES, Firewall
+from study.server.firewall.shares import AcceptGate, FairShares
+from study.server.firewall.slots import Slots
 from tests.browser.harness import run_async
 
 
@@ -65,6 +67,35 @@ def test_bad_values_sizes_and_types_are_refused_with_a_short_reason() -> None:
     big = _pose([0.5, 0.0, 0.3], owner="x" * MAX_MESSAGE_BYTES)
     reason = fw.screen(big)
     assert reason is not None and "bytes" in reason and len(reason) < 100
+
+
+def test_poses_far_away_zero_quaternions_and_degenerate_cameras_are_refused() -> None:
+    """Each component within bounds, but 17 m from the origin; a zero rotation; a camera that
+    looks at its own position (viser cannot turn it, and the tab used to get no join screen)."""
+    fw = Firewall()
+    assert "handle position" in (fw.screen(_pose([10.0, 10.0, 10.0])) or "")
+    assert "farther than 3" in (fw.screen(_pose([2.9, 2.9, 2.9])) or "")
+    assert fw.screen(_pose([1.8, 1.8, 1.8])) is not None  # 3.1 m
+    assert fw.screen(_pose([1.0, 1.0, 1.0])) is None
+    zero = _raw(
+        "TransformControlsUpdateMessage", name="/handle", wxyz=[0.0] * 4, position=[0.5, 0, 0.3]
+    )
+    assert "unit quaternion" in (fw.screen(zero) or "")
+    camera = {
+        "wxyz": [1.0, 0.0, 0.0, 0.0],
+        "position": [0.4, 0.0, 0.1],
+        "look_at": [0.4, 0.0, 0.1],
+        "up_direction": [0.0, 0.0, 1.0],
+        "fov": 1.0,
+        "near": 0.01,
+        "far": 1000.0,
+        "image_height": 720,
+        "image_width": 1100,
+    }
+    assert "own position" in (fw.screen(_raw("ViewerCameraMessage", **camera)) or "")
+    camera["wxyz"] = [0.0, 0.0, 0.0, 0.0]
+    camera["position"] = [-1.0, 0.0, 1.0]
+    assert "unit quaternion" in (fw.screen(_raw("ViewerCameraMessage", **camera)) or "")
 
 
 def test_share_links_only_when_the_experimenter_asks() -> None:
@@ -164,6 +195,7 @@ def test_a_backlog_after_a_stall_is_not_a_flood() -> None:
     fw = Firewall(rate_per_s=200.0, burst=400.0, clock=clock)
 
     async def read(n_before: int, stall_s: float, backlog: int) -> None:
+        await fw.screened_recv(_Socket("10.0.0.2", b"x", clock=clock, period=0.0))()
         for _ in range(n_before):
             clock.now += 1 / 180
             fw.admit()
@@ -177,37 +209,91 @@ def test_a_backlog_after_a_stall_is_not_a_flood() -> None:
         run_async(read(10, 0.0, 5000))
 
 
-def test_the_server_wide_budget_drops_the_excess_and_closes_the_heaviest_address() -> None:
+def test_unbound_addresses_share_the_budget_and_a_flood_waits_instead_of_dropping() -> None:
+    """Two addresses without a session: one floods, one sends what a join screen sends. The
+    quiet one never waits; the flood gets the rest of the budget, later, and loses nothing."""
+    shares = FairShares(per_s=400.0)
+    t, quiet_waits, flood_sent, flood_wait = 0.0, [], 0, 0.0
+    while t < 5.0:
+        if abs(t * 20 - round(t * 20)) < 1e-9:  # 20 messages a second
+            quiet_waits.append(shares.delay("10.0.0.3", t))
+        wait = shares.delay("10.0.0.2", t)  # a message as soon as the last was read
+        flood_sent += 1
+        flood_wait += wait
+        t = round(t + max(wait, 1e-3), 9)
+    assert max(quiet_waits) == 0.0
+    assert 180 * 5 < flood_sent < 420 * 5  # its share (half, or all the quiet one leaves)
+    assert shares.delayed >= flood_sent - 400  # the rest waited, none dropped
+
+
+def test_a_bound_tab_never_waits_for_a_share() -> None:
     clock = _Clock()
-    fw = Firewall(budget_per_s=1000.0, budget_burst=2000.0, evict_after_s=2, clock=clock)
-    frame = _raw("NoSuchThing")
-    page = _Socket("10.0.0.3", frame, clock=clock, period=0.01)
-    flood = _Socket("10.0.0.2", frame, clock=clock, period=1 / 500)
-    read_page, read_flood = fw.screened_recv(page), fw.screened_recv(flood)
+    fw = Firewall(shares_per_s=10.0, clock=clock)
+    tab = _Socket("10.0.0.2", b"x", clock=clock, period=1 / 100)
+    other = _Socket("10.0.0.2", b"x", clock=clock, period=1 / 100)
+    fw.slots.admit(tab, "10.0.0.2", now=clock())
+    fw.slots.admit(other, "10.0.0.2", now=clock())
+    fw.slots.get(tab).bound = True
+    read_tab, read_other = fw.screened_recv(tab), fw.screened_recv(other)
 
-    async def for_one_second(recv: object) -> int:
-        """How many messages got through in one second of reading."""
-        passed, end = 0, clock.now + 1.0
-        while clock.now < end:
+    async def read(recv: object, n: int) -> float:
+        start = asyncio.get_running_loop().time()
+        for _ in range(n):
             await recv()  # type: ignore[operator]
-            passed += 1
-        return passed
+        return asyncio.get_running_loop().time() - start
 
-    async def attack() -> tuple[int, int]:
-        calm = await for_one_second(read_flood)  # 500 a second: within budget
-        assert fw.dropped[BUDGET] == 0
-        flood.period = 1 / 8000
-        over = await for_one_second(read_flood)
-        await read_page()
-        with pytest.raises(firewall.ConnectionFlood):
-            await for_one_second(read_flood)  # a second second over budget: closed
-        return calm, over
+    assert run_async(read(read_tab, 200)) < 0.5  # 200 messages at once, no wait
+    assert run_async(read(read_other, 30)) > 1.0  # 10 a second, burst 10: waits
 
-    calm, over = run_async(attack())
-    assert abs(calm - 500) <= 1 and fw.dropped[BUDGET] > 4000
-    assert 2000 < over < 3200  # the unspent burst, then the budget's rate
-    assert fw.closed_connections == 1
-    run_async(read_page())  # the other address is still served
+
+def test_slots_are_shared_fairly_and_a_reserved_tab_always_gets_one() -> None:
+    """Idle sockets from two addresses fill the port; a tab from a third address still gets in
+    (the heaviest address's oldest idle socket makes room), bound tabs are never taken, and a
+    tab that presents a rejoin token gets in even when nothing can be taken."""
+    slots = Slots(max_total=8, max_per_address=8, greet_timeout_s=15.0, idle_timeout_s=600.0)
+    holders = [object() for _ in range(8)]
+    for k, conn in enumerate(holders):
+        evict, problem = slots.admit(conn, "10.0.0.2" if k < 6 else "10.0.0.3", now=float(k))
+        assert evict is None and problem is None
+    newcomer = object()
+    evict, problem = slots.admit(newcomer, "10.0.0.9", now=10.0)
+    assert problem is None and evict is slots.get(holders[0])  # 10.0.0.2's oldest
+    for conn in [*holders, newcomer]:
+        if (slot := slots.get(conn)) is not None and not slot.closing:
+            slot.bound = True  # every remaining socket now holds a session
+    evict, problem = slots.admit(object(), "10.0.0.8", now=11.0)
+    assert evict is None and problem is not None and "too many connections" in problem
+    evict, problem = slots.admit(object(), "10.0.0.8", now=12.0, token="T" * 20)
+    assert evict is None and problem is None
+    slots.remove(holders[0])
+
+
+def test_slots_time_out_without_a_first_message_or_idle_on_the_join_screen() -> None:
+    slots = Slots(greet_timeout_s=15.0, idle_timeout_s=600.0)
+    mute, waiting, bound = object(), object(), object()
+    slots.admit(mute, "10.0.0.2", now=0.0)
+    slots.admit(waiting, "10.0.0.3", now=0.0)
+    slots.admit(bound, "10.0.0.4", now=0.0)
+    slots.get(waiting).greeted = True
+    slots.get(bound).greeted = slots.get(bound).bound = True
+    assert slots.overdue(10.0) == []
+    assert slots.overdue(16.0) == [slots.get(mute)]
+    slots.get(waiting).last_seen = 300.0
+    assert slots.overdue(899.0) == []
+    assert slots.overdue(901.0) == [slots.get(waiting)]  # bound tabs never time out
+    assert slots.timed_out == 2
+
+
+def test_the_accept_gate_turns_a_reconnect_storm_away_but_lets_a_quiet_address_in() -> None:
+    gate = AcceptGate(per_s=1.0, burst=12.0, total_per_s=40.0)
+    t = 0.0
+    storm = 0
+    for k in range(4000):  # 8 addresses reconnecting 400 times a second for 10 s
+        t = k / 400
+        storm += gate.allow(f"10.0.0.{k % 8}", t)
+    assert storm <= 8 * (12 + 10 * 1.0) + 1
+    assert gate.allow("10.0.0.99", t)  # a quiet address: a reload still gets in
+    assert sum(gate.allow("10.0.0.99", t) for _ in range(20)) == 11  # its own burst, no more
 
 
 def test_a_text_frame_is_refused_before_viser_reads_it() -> None:

@@ -26,6 +26,7 @@ import pytest
 import viser
 import websockets
 
+from study.server.firewall import Firewall
 from study.server.join import ALPHABET, CODE_LENGTH
 from study.server.server import JOIN_FAILED, JOIN_THROTTLED
 from tests import disk_full
@@ -33,9 +34,17 @@ from tests.browser.harness import RunningServer, run_async, start_server, wait_u
 from tests.test_ui_malformed import AGREE, RawClient
 
 
+def roomy() -> Firewall:
+    """The participant port's rules with a wider accept gate: these tests open many sockets
+    from 127.0.0.1 one after another (the gate has its own tests)."""
+    return Firewall(new_tabs_per_s=None, accept_burst=500.0, accept_total_per_s=500.0)
+
+
 @pytest.fixture
 def study(tmp_path: Path) -> Any:
-    rs = start_server(tmp_path, time_limit_s=30.0, training_runs=1)
+    rs = start_server(
+        tmp_path, time_limit_s=30.0, training_runs=1, server_kw={"port_firewall": roomy()}
+    )
     try:
         yield rs
     finally:
@@ -248,6 +257,14 @@ def test_the_ready_screen_shows_the_next_trials_start_never_the_last_end(tmp_pat
                 view_render(view, xpos, xmat, **kw)
 
             type(live.scene_view).render = spy  # type: ignore[method-assign]
+
+            def starts() -> int:
+                return sum(
+                    m.get("type") == "GuiButtonMessage" and m["props"]["label"] == "Start"
+                    for m in c.messages
+                )
+
+            shown = starts()  # the first run's Start button is among the messages already
             try:
                 await c.button("Continue")  # the practice run timed out: its outcome
                 await c.click("Continue")
@@ -259,7 +276,7 @@ def test_the_ready_screen_shows_the_next_trials_start_never_the_last_end(tmp_pat
                     await c.send("GuiUpdateMessage", uuid=g["uuid"], updates={"value": "4"})
                 await asyncio.sleep(0.3)
                 await c.click("Continue")
-                await c.button("Start")
+                await c.wait_for(lambda _m: starts() > shown)  # the next run's ready screen
                 await asyncio.sleep(1.5)  # many render-loop periods on the ready screen
             finally:
                 type(live.scene_view).render = view_render  # type: ignore[method-assign]
@@ -482,7 +499,7 @@ def test_tabs_that_leave_at_once_leave_nothing_behind_and_never_hold_a_session(
     """viser runs connect and disconnect callbacks in a pool, in no fixed order; a tab that
     connects and drops at once must not stay registered (on a kiosk it would take the next
     session for good)."""
-    rs = start_server(tmp_path, server_kw={"kiosk": True})
+    rs = start_server(tmp_path, server_kw={"kiosk": True, "port_firewall": roomy()})
     srv = rs.server
     sub = [f"viser-v{viser.__version__}"]
     camera = msgspec.msgpack.encode(
@@ -584,8 +601,9 @@ def test_many_sockets_under_their_own_rate_cannot_slow_the_control_loop(
     study: RunningServer,
 ) -> None:
     """56 sockets from 7 addresses, each under the per-connection rate (about 10,000 messages a
-    second in all, from another process): the server-wide budget drops the excess before it is
-    decoded, so the 100 Hz control loop keeps its rate."""
+    second in all, from another process): none of them holds a session, so they share the
+    unbound budget and wait for it (their frames stay in the kernel), and the 100 Hz control
+    loop keeps its rate."""
     srv, code, live = _started(study)
     seconds = 6.0
 
@@ -608,7 +626,7 @@ def test_many_sockets_under_their_own_rate_cannot_slow_the_control_loop(
     rate = run_async(session_under_flood())
     print(f"control loop under the flood: {rate:.1f} ticks/s")
     assert rate >= 0.9 * live.control_loop.rate_hz
-    assert srv.firewall.dropped["over the server's message budget"] > 0
+    assert srv.firewall.shares is not None and srv.firewall.shares.delayed > 1000
 
 
 def test_a_text_frame_closes_its_connection_without_a_traceback(

@@ -14,7 +14,14 @@ from pathlib import Path
 import pytest
 
 from study.protocol.blinding import find_words
-from study.server.join import ALPHABET, CODE_LENGTH, JoinThrottle, new_join_code, normalize_code
+from study.server.join import (
+    ALPHABET,
+    CODE_LENGTH,
+    JoinThrottle,
+    new_join_code,
+    new_token,
+    normalize_code,
+)
 from study.server.participant import DECLINE
 from tests.browser.harness import iter_strings, run_async, start_server, wait_until
 from tests.protocol_copies import PAPER_PROTOCOL
@@ -97,6 +104,29 @@ def test_the_join_throttle_counts_per_tab_and_per_address() -> None:
     assert throttle.allow(client=4, address="10.0.0.10")
 
 
+def test_a_spent_server_budget_still_lets_a_new_address_try() -> None:
+    """Guessers from six addresses spend the server-wide budget; an address that has not been
+    trying gets its first tries anyway, so the guessers keep nobody else out."""
+    throttle = JoinThrottle(per_client=5, per_address=20, per_server=60, fresh_tries=3)
+    for k in range(6):
+        for client in range(4 * k, 4 * k + 4):
+            while throttle.allow(client=client, address=f"10.0.0.{k}"):
+                pass
+    assert throttle.saturated()
+    assert not throttle.allow(client=99, address="10.0.0.1")  # a guesser's address: no
+    assert [throttle.allow(client=100, address="10.0.0.50") for _ in range(4)] == [True] * 3 + [
+        False
+    ]
+
+
+def test_join_codes_and_rejoin_tokens_never_carry_a_blinded_word() -> None:
+    words = ("hard", "easy", "right", "wrong", "timid", "aggressive")
+    for _ in range(2000):
+        for text in (new_join_code(avoid=words), new_token(avoid=words)):
+            assert not any(w in text.lower() for w in words)
+    assert len(new_token()) == 20 and set(new_token()) <= set(ALPHABET)
+
+
 def test_several_sessions_ask_for_the_code_and_a_wrong_code_is_refused(tmp_path: Path) -> None:
     rs = start_server(tmp_path)
     srv = rs.server
@@ -166,7 +196,8 @@ def test_serve_refuses_a_port_in_use_instead_of_moving(tmp_path: Path) -> None:
             cwd=PAPER_PROTOCOL.parents[1], capture_output=True, text=True, timeout=60,
         )  # fmt: skip
     assert proc.returncode == 2
-    assert f"port {port} (participant view) is in use" in proc.stderr and "--port" in proc.stderr
+    assert f"participant view on 0.0.0.0:{port}: the port is in use" in proc.stderr
+    assert "--port" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "study.db").exists()
 
 
@@ -193,5 +224,20 @@ def test_a_participant_can_decline_consent_after_one_more_question(tmp_path: Pat
         run_async(run())
         reasons = [str(e.detail) for e in rs.store.events() if e.kind == "withdraw"]
         assert any("declined consent" in r for r in reasons)
+    finally:
+        rs.stop()
+
+
+def test_the_console_shows_the_ports_refusals_and_the_logs_disk_use(tmp_path: Path) -> None:
+    log = tmp_path / "serve.log"
+    log.write_bytes(b"x" * 3 * 2**20)
+    rs = start_server(tmp_path, server_kw={"log_path": log})
+    try:
+        rs.server.firewall.refused_connections["too many new tabs from one address"] += 5
+        line = rs.server.health()
+        assert "0 tab(s)" in line and "5 connection(s) refused or closed" in line
+        assert "Log: 3.0 of at most 50 MB" in line and str(log) in line
+        rs.server.console.refresh()
+        assert rs.server.console.health_md.content == line
     finally:
         rs.stop()

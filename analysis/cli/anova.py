@@ -23,6 +23,7 @@ from analysis.cli import fail, friendly, note
 from analysis.errors import SourceError
 from analysis.mixed import mixed_anova
 from analysis.rm_anova import rm_anova
+from app.files import InputFileError, check_input_file
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -71,11 +72,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--format", choices=["csv", "json"], default="csv")
 
 
+MAX_CSV_BYTES = 256 * 2**20
+"""Largest CSV read (a study's per-tick samples of 64 participants are about 100 MB)."""
+
+
 def read_csv(path: str) -> pd.DataFrame:
+    """A CSV file with a header row; only a regular file of at most ``MAX_CSV_BYTES``."""
+    try:
+        check_input_file(path, max_bytes=MAX_CSV_BYTES, what="CSV file")
+    except InputFileError as e:
+        if not e.path.exists():  # the commands' own wording for a missing file
+            raise FileNotFoundError(2, "No such file", str(path)) from None
+        raise SourceError(str(e)) from None
     try:
         return pd.read_csv(path)
-    except FileNotFoundError:
-        raise
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
         raise SourceError(
             f"{path} is not a readable CSV file ({e}); pass a comma-separated "

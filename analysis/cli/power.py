@@ -20,26 +20,42 @@ from analysis.figures import power_figure, save
 from analysis.load import load_tables, task_cells
 from analysis.power import bootstrap_power, pilot_cells
 from analysis.report import _jsonable
+from app.cli import float_range, int_range, output_dir
+
+MAX_N = 10_000
+MAX_B = 100_000
+MAX_WORK = 1_000_000
+"""Largest N x B: each resampled participant takes about 640 bytes of design matrices
+((B, 8 N, p) floats), 0.64 GB at the limit."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     src = parser.add_mutually_exclusive_group(required=True)
     src.add_argument("--db", help="the pilot's (or simulated population's) SQLite store")
     src.add_argument("--export-dir", help="a folder written by `python -m study export`")
-    parser.add_argument("--out", required=True, help="output folder (created if needed)")
+    parser.add_argument(
+        "--out", type=output_dir, required=True, help="output folder (created if needed)"
+    )
     parser.add_argument(
         "--n",
-        type=int,
+        type=int_range(2, MAX_N),
         nargs="+",
         default=[8, 12, 16, 24, 32],
         metavar="N",
-        help="numbers of participants to evaluate (default 8 12 16 24 32)",
+        help=f"numbers of participants to evaluate, 2..{MAX_N} (default 8 12 16 24 32)",
     )
     parser.add_argument(
-        "--b", type=int, default=1000, help="resampled studies per N (default 1000)"
+        "--b",
+        type=int_range(1, MAX_B),
+        default=1000,
+        help=f"resampled studies per N, 1..{MAX_B} (default 1000)",
     )
-    parser.add_argument("--alpha", type=float, default=0.05, help="significance level")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the resampling")
+    parser.add_argument(
+        "--alpha", type=float_range(0.0, 0.5, above=True), default=0.05, help="significance level"
+    )
+    parser.add_argument(
+        "--seed", type=int_range(0, 2**32 - 1), default=0, help="seed of the resampling"
+    )
     parser.add_argument(
         "--successful-only",
         action="store_true",
@@ -50,6 +66,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 @friendly
 def main(args: argparse.Namespace) -> int:
 
+    work = max(args.n) * args.b
+    if work > MAX_WORK:
+        return fail(
+            f"--n {max(args.n)} x --b {args.b} = {work:,} resampled participants per N; at most"
+            f" {MAX_WORK:,} (lower --b: 1000 gives power to about +-0.03, or lower --n)"
+        )
     start = time.perf_counter()
     tables = load_tables(db=args.db, export_dir=args.export_dir)
     cells, notes = task_cells(tables.trials, successful_only=args.successful_only)

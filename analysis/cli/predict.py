@@ -20,6 +20,7 @@ from analysis.cli.anova import read_csv
 from analysis.design import numeric_column, require_columns
 from analysis.errors import DataError, SchemaError
 from analysis.prediction_eval import make_predictor, replay
+from app.cli import float_range
 
 COSTS = {"length": "length", "squared_velocity": "squared_velocity", "sqvel": "squared_velocity"}
 """``--cost`` values: the protocol format's names, plus the short ``sqvel``."""
@@ -43,16 +44,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--temperature",
-        type=float,
+        type=float_range(0.0, 1e3, above=True),
         default=0.05,
         help="amnesic softmin temperature (distance units)",
     )
     parser.add_argument(
-        "--rationality", type=float, default=1.0, help="memory-based rationality b in exp(-b C)"
+        "--rationality",
+        type=float_range(0.0, 1e6, above=True),
+        default=1.0,
+        help="memory-based rationality b in exp(-b C)",
     )
     parser.add_argument(
         "--distance-threshold",
-        type=float,
+        type=float_range(0.0, 1e3, above=True),
         default=None,
         metavar="D",
         help="report the distance hinge max(0, 1 - d/D) as confidence",

@@ -13,13 +13,16 @@ from analysis.cli import fail, friendly, note
 from analysis.load import load_tables
 from analysis.protocol_info import DEFAULT_PROTOCOL, ROOT
 from analysis.report import write_report
+from app.cli import output_dir
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     src = parser.add_mutually_exclusive_group(required=True)
     src.add_argument("--db", help="the study's SQLite store")
     src.add_argument("--export-dir", help="a folder written by `python -m study export`")
-    parser.add_argument("--out", required=True, help="output folder (created if needed)")
+    parser.add_argument(
+        "--out", type=output_dir, required=True, help="output folder (created if needed)"
+    )
     parser.add_argument(
         "--protocol",
         default=None,

@@ -1,8 +1,11 @@
 """A scene as plain, validated data: table, objects, target, start configuration, reach region.
 
 ``SceneSpec.from_dict(d, where="scenes.easy")`` reads one ``[scenes.*]`` table of a protocol;
-every error names the key path and says what to change. Geometry that needs the arm (grasp
-poses, goal configurations by IK, reachability) is checked later by ``build_scene``.
+every error names the key path and says what to change. Every number is finite and within a
+range a tabletop scene can have, the start configuration within the Panda's joint limits
+(:data:`JOINT_LIMITS`), every object on the table and apart from the others. Geometry that
+needs the arm model (grasp poses, goal configurations by IK, reachability) is checked by
+``build_scene``, which the commands run for every scene before a session starts.
 """
 
 from __future__ import annotations
@@ -21,6 +24,19 @@ SHAPES = {
 }  # shape -> number of size entries (radius, half-height) / half-extents
 _NAME = re.compile(r"^[a-z][a-z0-9_-]{0,31}$")
 ARM_DOF = 7
+JOINT_LIMITS: tuple[tuple[float, float], ...] = (
+    (-2.8973, 2.8973),
+    (-1.7628, 1.7628),
+    (-2.8973, 2.8973),
+    (-3.0718, -0.0698),
+    (-2.8973, 2.8973),
+    (-0.0175, 3.7525),
+    (-2.8973, 2.8973),
+)
+"""The Panda's joint limits in radians, as its URDF gives them (a test checks they match the
+loaded model), so a protocol is checked without loading the arm."""
+WORKSPACE_M = 2.0
+"""No scene coordinate (table, objects, reach) lies farther than this from the robot's base."""
 
 
 @dataclass(frozen=True)
@@ -128,12 +144,21 @@ class SceneSpec:
             if key not in d:
                 raise SceneError(f"{where}.{key}: missing (required)")
         name = str(d.get("name", where.rsplit(".", 1)[-1]))
-        start_q = _floats(d["start_q"], f"{where}.start_q", n=ARM_DOF)
+        start_q = _floats(d["start_q"], f"{where}.start_q", n=ARM_DOF, bound=4.0)
+        outside = [
+            f"joint {k + 1} = {q:.4f} not in [{lo}, {hi}]"
+            for k, (q, (lo, hi)) in enumerate(zip(start_q, JOINT_LIMITS, strict=True))
+            if not lo <= q <= hi
+        ]
+        if outside:
+            raise SceneError(
+                f"{where}.start_q: outside the Panda's joint limits ({'; '.join(outside)})"
+            )
         reach = d["reach"]
         if not isinstance(reach, Mapping) or set(reach) != {"min", "max"}:
             raise SceneError(f"{where}.reach: expected {{ min = [x, y, z], max = [x, y, z] }}")
-        lo = _floats(reach["min"], f"{where}.reach.min", n=3)
-        hi = _floats(reach["max"], f"{where}.reach.max", n=3)
+        lo = _floats(reach["min"], f"{where}.reach.min", n=3, bound=WORKSPACE_M)
+        hi = _floats(reach["max"], f"{where}.reach.max", n=3, bound=WORKSPACE_M)
         if any(a >= b for a, b in zip(lo, hi, strict=True)):
             raise SceneError(f"{where}.reach: min {lo} must be below max {hi} on every axis")
         raw_objects = d["objects"]
@@ -148,9 +173,7 @@ class SceneSpec:
         if target not in names:
             raise SceneError(f"{where}.target: {target!r} is not one of the objects {names}")
         table = _table(d.get("table", {}), f"{where}.table")
-        gripper_open = float(d.get("gripper_open", 0.04))
-        if not 0.0 < gripper_open <= 0.04:
-            raise SceneError(f"{where}.gripper_open: {gripper_open} outside (0, 0.04] m")
+        gripper_open = _number(d.get("gripper_open", 0.04), f"{where}.gripper_open", 0.001, 0.04)
         contacts = d.get("contacts", "always")
         if contacts not in ("always", "grasp"):
             raise SceneError(
@@ -199,15 +222,32 @@ class SceneSpec:
                     )
 
 
-def _floats(value: Any, where: str, *, n: int) -> tuple[float, ...]:
+def _floats(value: Any, where: str, *, n: int, bound: float = WORKSPACE_M) -> tuple[float, ...]:
+    """``n`` finite numbers, each within ``bound`` of 0."""
     if isinstance(value, str) or not isinstance(value, Sequence) or len(value) != n:
-        raise SceneError(f"{where}: expected a list of {n} numbers, got {value!r}")
+        raise SceneError(f"{where}: expected a list of {n} numbers, got {_short(value)}")
     out = []
     for i, v in enumerate(value):
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-            raise SceneError(f"{where}[{i}]: expected a finite number, got {v!r}")
+            raise SceneError(f"{where}[{i}]: expected a finite number, got {_short(v)}")
+        if abs(v) > bound:
+            raise SceneError(f"{where}[{i}]: {v} is beyond {bound:g}")
         out.append(float(v))
     return tuple(out)
+
+
+def _number(value: Any, where: str, lo: float, hi: float) -> float:
+    """One finite number in [lo, hi]."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise SceneError(f"{where}: expected a finite number, got {_short(value)}")
+    if not lo <= value <= hi:
+        raise SceneError(f"{where}: {value} outside [{lo:g}, {hi:g}]")
+    return float(value)
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _object(d: Any, where: str) -> ObjectSpec:
@@ -232,11 +272,11 @@ def _object(d: Any, where: str) -> ObjectSpec:
     if any(s <= 0.0 or s > 0.5 for s in size):
         raise SceneError(f"{where}.size: every entry must lie in (0, 0.5] m, got {size}")
     position = _floats(d["position"], f"{where}.position", n=3)
-    yaw = float(d.get("yaw", 0.0))
-    mass = float(d.get("mass", 0.1))
-    if not 0.005 <= mass <= 2.0:
-        raise SceneError(f"{where}.mass: {mass} kg outside [0.005, 2] kg")
-    rgba = _floats(d.get("rgba", (0.2, 0.5, 0.8, 1.0)), f"{where}.rgba", n=4)
+    yaw = _number(d.get("yaw", 0.0), f"{where}.yaw", -2 * math.pi, 2 * math.pi)
+    mass = _number(d.get("mass", 0.1), f"{where}.mass", 0.005, 2.0)
+    rgba = _floats(d.get("rgba", (0.2, 0.5, 0.8, 1.0)), f"{where}.rgba", n=4, bound=1.0)
+    if min(rgba) < 0.0:
+        raise SceneError(f"{where}.rgba: every entry must lie in [0, 1], got {rgba}")
     return ObjectSpec(
         name=name,
         shape=shape,
@@ -259,6 +299,6 @@ def _table(d: Any, where: str) -> TableSpec:
     half = _floats(d.get("half_size", default.half_size), f"{where}.half_size", n=2)
     if min(half) <= 0:
         raise SceneError(f"{where}.half_size: must be positive, got {half}")
-    top_z = float(d.get("top_z", default.top_z))
-    thickness = float(d.get("thickness", default.thickness))
+    top_z = _number(d.get("top_z", default.top_z), f"{where}.top_z", -0.5, 0.5)
+    thickness = _number(d.get("thickness", default.thickness), f"{where}.thickness", 0.005, 0.2)
     return TableSpec(center=center, half_size=half, top_z=top_z, thickness=thickness)  # type: ignore[arg-type]

@@ -10,4 +10,5 @@
     sweep      the arbitration modes calibrated by the paper's criteria (study.sweep)
     export     tidy CSV + Parquet tables, codebook and metadata from a store (study.export)
     retention  record a data-retention answer given in person after a session stopped
+    salvage    what is readable of a damaged store, copied into a new store (study.store.salvage)
 """

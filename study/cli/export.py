@@ -16,6 +16,7 @@ import json
 import sys
 from pathlib import Path
 
+from app.cli import output_dir
 from study.codebook import codebook
 from study.export import (
     ExportError,
@@ -30,7 +31,7 @@ from study.store import Store, StoreError
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--db", type=Path, required=True, help="the study's SQLite store")
-    parser.add_argument("--out", type=Path, required=True, help="directory to write into")
+    parser.add_argument("--out", type=output_dir, required=True, help="directory to write into")
     parser.add_argument(
         "--protocol",
         type=Path,
@@ -46,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     formats = ("csv", "parquet") if args.format == "both" else (args.format,)
     try:
-        with Store.open_readonly(args.db) as store:
+        with Store.open_readonly(args.db, verify=True) as store:  # a damaged file: said so
             if args.protocol:
                 protocol, source = load_protocol(args.protocol), f"file {args.protocol}"
             else:

@@ -22,7 +22,8 @@ from typing import Any
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from app.cli import non_negative_int, positive_float, positive_int
+from app.cli import float_range, int_range, output_file, seed
+from app.files import check_input_file
 from app.robot.scene import build_scene
 from app.trial import load_records, records_from_samples
 from app.trial.video import render_live, replay
@@ -35,23 +36,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--task", default="hard-right", help="task name, or 'training'")
     parser.add_argument("--mode", default="timid", help="mode name, or 'none' (unassisted)")
     parser.add_argument("--input", choices=INPUTS, default="scripted")
-    parser.add_argument(
-        "--seed", type=non_negative_int, default=0, help="seed of the scripted user (live)"
-    )
+    parser.add_argument("--seed", type=seed, default=0, help="seed of the scripted user (live)")
     parser.add_argument("--protocol", type=Path, default=DEFAULT_PROTOCOL, help="protocol TOML")
     parser.add_argument("--replay", type=Path, default=None, help="records (.npz) to replay")
     parser.add_argument("--store", type=Path, default=None, help="study store (SQLite) to replay")
+    parser.add_argument("--trial-id", type=seed, default=None, help="trial to replay from --store")
     parser.add_argument(
-        "--trial-id", type=non_negative_int, default=None, help="trial to replay from --store"
+        "--out", type=output_file, default=Path("data/videos/trial.mp4"), help="MP4 to write"
     )
     parser.add_argument(
-        "--out", type=Path, default=Path("data/videos/trial.mp4"), help="MP4 to write"
+        "--fps", type=float_range(0.0, 240.0, above=True), default=30.0, help="frames a second"
     )
-    parser.add_argument("--fps", type=positive_float, default=30.0, help="frames per second")
-    parser.add_argument("--width", type=positive_int, default=640, help="pixels")
-    parser.add_argument("--height", type=positive_int, default=480, help="pixels")
+    parser.add_argument("--width", type=int_range(16, 4096), default=640, help="pixels, 16..4096")
+    parser.add_argument("--height", type=int_range(16, 4096), default=480, help="pixels, 16..4096")
     parser.add_argument(
-        "--time-limit", type=positive_float, default=None, help="override, seconds (live)"
+        "--time-limit",
+        type=float_range(0.0, 3600.0, above=True),
+        default=None,
+        help="override, seconds (live), in (0, 3600]",
     )
 
 
@@ -64,12 +66,30 @@ def _stored_config(store: Any, task: str, fallback: Path) -> Any:
     return protocol.config_for(task, "none")
 
 
+MAX_RECORDS_BYTES = 512 * 2**20
+"""Largest records file replayed (an hour of 100 Hz ticks is about 60 MB)."""
+
+
+def _records(path: Path) -> tuple[dict[str, Any], Any]:
+    """What ``trial --save`` wrote at ``path`` (a regular file of bounded size), else
+    ``ValueError`` naming the file."""
+    check_input_file(path, max_bytes=MAX_RECORDS_BYTES, what="records file")
+    try:
+        return load_records(path)
+    except Exception as exc:  # numpy and zipfile raise many kinds for a file of another kind
+        raise ValueError(
+            f"{path} is not a records file written by `python -m study trial --save`"
+            f" ({type(exc).__name__})"
+        ) from None
+
+
 def main(args: argparse.Namespace) -> int:
     try:
         config = trial_config_from_protocol(
             args.protocol, args.task, args.mode, time_limit_s=args.time_limit
         )
         size = {"fps": args.fps, "width": args.width, "height": args.height}
+        build_scene(config.scene)  # reachable and compiling, before anything is written
         if args.store is not None:
             if args.trial_id is None:
                 raise ValueError("--store needs --trial-id")
@@ -85,7 +105,7 @@ def main(args: argparse.Namespace) -> int:
             )
             summary = {"store": str(args.store), "trial_id": args.trial_id, "outcome": row.outcome}
         elif args.replay is not None:
-            meta, records = load_records(args.replay)
+            meta, records = _records(args.replay)
             frames = replay(
                 build_scene(config.scene), records, args.out, rate_hz=config.rate_hz, **size
             )

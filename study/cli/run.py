@@ -21,8 +21,9 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from app.cli import non_negative_int
+from app.cli import int_range, seed
 from study.protocol import ProtocolError, load_protocol
+from study.protocol.preflight import check_scenes
 from study.schedule import ScheduleError
 from study.session import Session, SessionError, TrialSummary, open_store
 from study.session.answers import ScriptedAnswers
@@ -40,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--input", choices=["scripted"], default="scripted", help="user input")
     parser.add_argument(
         "--seed",
-        type=non_negative_int,
+        type=seed,
         default=0,
         help="session seed for a new session (trials, answers); a resumed one keeps its own",
     )
@@ -51,10 +52,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--demographics",
         type=_json_object,
         default=None,
-        help="JSON object, stored apart from trial data, e.g. '{\"age\": 30}'",
+        help="JSON object, stored apart from trial data, e.g. '{\"age\": 30}'"
+        f" (at most {MAX_DEMOGRAPHICS} characters, nested at most {MAX_DEMOGRAPHICS_DEPTH} deep)",
     )
     parser.add_argument(
-        "--schedule-row", type=non_negative_int, default=None, help="override the design row (>= 0)"
+        "--schedule-row",
+        type=int_range(0, MAX_SCHEDULE_ROW),
+        default=None,
+        help=f"override the design row, 0..{MAX_SCHEDULE_ROW} (rows repeat every cycle)",
     )
     parser.add_argument("--realtime", action="store_true", help="pace trials to wall-clock time")
     parser.add_argument(
@@ -62,14 +67,35 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+MAX_DEMOGRAPHICS = 4096
+MAX_DEMOGRAPHICS_DEPTH = 4
+MAX_SCHEDULE_ROW = 99_999
+
+
 def _json_object(text: str) -> dict[str, Any]:
+    if len(text) > MAX_DEMOGRAPHICS:
+        raise argparse.ArgumentTypeError(
+            f"{len(text)} characters; at most {MAX_DEMOGRAPHICS} (a few answers, not a file)"
+        )
     try:
         value = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise argparse.ArgumentTypeError(f"not JSON ({exc}); e.g. '{{\"age\": 30}}'") from exc
+        raise argparse.ArgumentTypeError(f"not JSON ({exc}); e.g. '{{\"age\": 30}}'") from None
+    except RecursionError:
+        raise argparse.ArgumentTypeError("nested too deeply to read") from None
     if not isinstance(value, dict):
         raise argparse.ArgumentTypeError(f"must be a JSON object, got {type(value).__name__}")
+    if _depth(value) > MAX_DEMOGRAPHICS_DEPTH:
+        raise argparse.ArgumentTypeError(f"nested more than {MAX_DEMOGRAPHICS_DEPTH} levels deep")
     return value
+
+
+def _depth(value: Any) -> int:
+    if isinstance(value, dict):
+        return 1 + max(map(_depth, value.values()), default=0)
+    if isinstance(value, list):
+        return 1 + max(map(_depth, value), default=0)
+    return 0
 
 
 def main(args: argparse.Namespace) -> int:
@@ -84,6 +110,7 @@ def main(args: argparse.Namespace) -> int:
     code = 1
     try:
         protocol = load_protocol(args.protocol)
+        check_scenes(protocol)  # every scene builds, before anything is written
         if args.resume and not args.db.is_file():
             # opening would create an empty store as a side effect of a mistyped path
             raise StoreError(

@@ -15,11 +15,14 @@ import os
 import sys
 from pathlib import Path
 
+from app.cli import int_range
 from study.protocol import ProtocolError, load_protocol
 from study.schedule import ScheduleError, schedule
 
 DEFAULT_PROTOCOL = Path(__file__).resolve().parents[2] / "protocols" / "dragan2013.toml"
 COLUMNS = ("participant", "position", "task", "mode")
+MAX_PARTICIPANTS = 10_000
+"""Most participants a printed schedule covers (the protocol's own count may be larger)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -31,9 +34,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--participants",
-        type=int,
+        type=int_range(1, MAX_PARTICIPANTS),
         default=None,
-        help="number of participants (default: the protocol's study.participants)",
+        help=f"number of participants, 1..{MAX_PARTICIPANTS} (default: the protocol's"
+        " study.participants)",
     )
     parser.add_argument("--format", choices=("csv", "json"), default="csv", help="output format")
 

@@ -5,7 +5,8 @@ interrupted and every session can be continued by enrolling the same participant
 from __future__ import annotations
 
 import argparse
-import logging
+import errno
+import ipaddress
 import signal
 import socket
 import sys
@@ -15,7 +16,9 @@ from urllib.parse import urlsplit
 
 from app.cli import port as port_number
 from app.cli import rate_hz
-from study.protocol import load_protocol
+from study.protocol import ProtocolError, load_protocol
+from study.protocol.preflight import check_scenes
+from study.server import logs, realtime
 from study.server.forwarded import trusted_networks
 from study.server.live import session_factory
 from study.server.server import StudyServer
@@ -35,7 +38,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--db", type=Path, default=Path("data/study.db"), help="study store; default: %(default)s"
     )
     parser.add_argument(
-        "--host", default="0.0.0.0", help="participant view address (LAN); default: %(default)s"
+        "--host",
+        type=host_address,
+        default="0.0.0.0",
+        help="participant view address (LAN): an IP address of this machine, or 0.0.0.0 for"
+        " all; default: %(default)s",
     )
     parser.add_argument(
         "--port",
@@ -92,6 +99,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="the participants' address as they reach it behind the proxy (e.g."
         " https://study.example.org), printed and shown with the open link",
     )
+    parser.add_argument(
+        "--log",
+        type=Path,
+        default=None,
+        help="the server's log file, rotated (at most"
+        f" {(logs.BACKUPS + 1) * logs.MAX_BYTES // 2**20} MB in {logs.BACKUPS + 1} files);"
+        " default: serve.log beside the store",
+    )
+    parser.add_argument(
+        "--priority",
+        type=nice_value,
+        default=-10,
+        help="the server's scheduling priority as a nice value, -20..19 (lower runs first:"
+        " the control loops then keep their rate when browsers or other work share the"
+        " machine; below 0 needs the right to raise priority, see README); default:"
+        " %(default)s",
+    )
     parser.add_argument("--verbose", action="store_true", help="log viser connections")
 
 
@@ -120,8 +144,30 @@ def public_url(text: str | None) -> str | None:
     return text.rstrip("/")
 
 
+def host_address(text: str) -> str:
+    """argparse type: an IPv4 or IPv6 address to listen on, or ``localhost``."""
+    if text == "localhost":
+        return text
+    try:
+        return str(ipaddress.ip_address(text))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"must be an IP address of this machine (e.g. 0.0.0.0 or 192.168.1.20), got {text!r}"
+        ) from None
+
+
+def nice_value(text: str) -> int:
+    """argparse type: a nice value, -20..19."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number -20..19, got {text!r}") from None
+    if not -20 <= value <= 19:
+        raise argparse.ArgumentTypeError(f"must be -20..19, got {value}")
+    return value
+
+
 def main(args: argparse.Namespace) -> int:
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
     if args.port and args.port == args.experimenter_port:
         print(
             f"error: --port and --experimenter-port are both {args.port}; the two views need "
@@ -131,21 +177,20 @@ def main(args: argparse.Namespace) -> int:
         return 2
     try:
         protocol = load_protocol(args.protocol)
-    except Exception as exc:  # a typed ProtocolError naming file, key and problem
+        check_scenes(protocol)  # every scene builds before a participant can join
+    except ProtocolError as exc:  # naming file, key and problem
         print(f"error: {exc}", file=sys.stderr)
         return 2
     for what, host, port in (
         ("participant", args.host, args.port),
         ("experimenter", "127.0.0.1", args.experimenter_port),
     ):
-        if port and not _port_free(host, port):
+        problem = _cannot_listen(host, port)
+        if problem is not None:
             # viser would quietly move to the next free port, and participants would open the
             # URL they were given -- perhaps another server's
-            print(
-                f"error: port {port} ({what} view) is in use, perhaps by another study server;"
-                f" stop it or choose another port with --{'port' if what == 'participant' else 'experimenter-port'}",
-                file=sys.stderr,
-            )
+            flag = "--port" if what == "participant" else "--experimenter-port"
+            print(f"error: {what} view on {host}:{port}: {problem} ({flag})", file=sys.stderr)
             return 2
     try:
         proxies = trusted_networks(args.trusted_proxy)
@@ -153,12 +198,26 @@ def main(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    args.db.parent.mkdir(parents=True, exist_ok=True)
+    log_path = args.log or args.db.parent / "serve.log"
+    try:
+        args.db.parent.mkdir(parents=True, exist_ok=True)
+        logs.configure(log_path)
+    except OSError as exc:
+        print(f"error: cannot use the folder of {args.db} or {log_path}: {exc}", file=sys.stderr)
+        return 2
     try:
         store = open_store(args.db, protocol)
     except Exception as exc:
         print(f"error: cannot open the store {args.db}: {exc}", file=sys.stderr)
         return 2
+    # before the servers start their threads, which inherit it (Linux: per thread)
+    reached = realtime.set_priority(args.priority)
+    if reached is None:
+        print(
+            f"note: the server runs at its normal priority (raising it to {args.priority} was"
+            " not allowed; see README, 'Priority')",
+            file=sys.stderr,
+        )
     server = StudyServer(
         session_factory(store, protocol),
         condition_words=protocol.condition_words,
@@ -172,6 +231,7 @@ def main(args: argparse.Namespace) -> int:
         open_link=args.open_link,
         public_url=public,
         trusted_proxies=proxies,
+        log_path=log_path,
     )
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -189,12 +249,19 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _port_free(host: str, port: int) -> bool:
-    """True when a TCP server could listen on ``host:port`` now."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+def _cannot_listen(host: str, port: int) -> str | None:
+    """Why a TCP server could not listen on ``host:port`` now (``None``: it could)."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as probe:
         probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             probe.bind((host, port))
-        except OSError:
-            return False
-    return True
+        except OSError as exc:
+            if exc.errno == errno.EADDRINUSE:
+                return (
+                    "the port is in use, perhaps by another study server; stop it or choose another"
+                )
+            if exc.errno == errno.EADDRNOTAVAIL:
+                return "this machine has no such address; use one of its own or 0.0.0.0"
+            return exc.strerror or str(exc)
+    return None

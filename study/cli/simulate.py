@@ -32,8 +32,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from app.cli import non_negative_int, positive_int
-from study.protocol import ProtocolError
+from app.cli import int_range, scheduler_address, seed
+from study.protocol import ProtocolError, load_protocol
+from study.protocol.preflight import check_scenes
 from study.simulated import SimulationError
 from study.simulated.runner import simulate
 from study.store import StoreError
@@ -41,18 +42,23 @@ from study.store import StoreError
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_PROTOCOL = ROOT / "protocols" / "dragan2013.toml"
 DEFAULT_POPULATION = ROOT / "protocols" / "population.toml"
+MAX_PARTICIPANTS = 100_000
+MAX_WORKERS = 256
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--protocol", type=Path, default=DEFAULT_PROTOCOL, help="protocol TOML")
     parser.add_argument("--db", type=Path, required=True, help="study store (SQLite file)")
-    parser.add_argument("--participants", type=positive_int, default=8, help="how many to simulate")
     parser.add_argument(
-        "--seed", type=non_negative_int, default=0, help="population + session seed"
+        "--participants",
+        type=int_range(1, MAX_PARTICIPANTS),
+        default=8,
+        help=f"how many to simulate, 1..{MAX_PARTICIPANTS}",
     )
+    parser.add_argument("--seed", type=seed, default=0, help="population + session seed")
     parser.add_argument(
         "--workers",
-        type=positive_int,
+        type=int_range(1, MAX_WORKERS),
         default=1,
         help="processes: local engine, each writes the same WAL store; dask engine without "
         "--scheduler, the LocalCluster's workers",
@@ -65,6 +71,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--scheduler",
+        type=scheduler_address,
         default=None,
         metavar="ADDRESS",
         help="--engine dask: an existing scheduler (tcp://HOST:PORT); without it a LocalCluster",
@@ -74,7 +81,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--first",
-        type=non_negative_int,
+        type=int_range(0, 10**9),
         default=0,
         help="first population index (to add to a store)",
     )
@@ -96,6 +103,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     result: dict[str, Any]
     try:
+        check_scenes(load_protocol(args.protocol))  # every scene builds, before anything runs
         report = simulate(
             protocol_path=args.protocol,
             db=args.db,

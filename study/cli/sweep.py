@@ -24,9 +24,10 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from app.cli import non_negative_float, non_negative_int, positive_int
-from study.cli.simulate import DEFAULT_POPULATION, DEFAULT_PROTOCOL
-from study.protocol import ProtocolError
+from app.cli import float_range, int_range, output_dir, scheduler_address, seed
+from study.cli.simulate import DEFAULT_POPULATION, DEFAULT_PROTOCOL, MAX_WORKERS
+from study.protocol import ProtocolError, load_protocol
+from study.protocol.preflight import check_scenes
 from study.simulated import SimulationError
 from study.store import StoreError
 from study.sweep import Criteria, SweepError, make_grid, sweep
@@ -42,48 +43,52 @@ from study.sweep.grid import (
 )
 from study.sweep.report import table, write
 
+unit = float_range(0.0, 1.0)
+"""A share or an arbitration setting, 0..1."""
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--protocol", type=Path, default=DEFAULT_PROTOCOL, help="protocol TOML")
-    parser.add_argument("--out", type=Path, required=True, help="folder for evidence and stores")
-    parser.add_argument("--participants", type=positive_int, default=8, help="per setting")
-    parser.add_argument("--seed", type=non_negative_int, default=1, help="population + sessions")
+    parser.add_argument(
+        "--out", type=output_dir, required=True, help="folder for evidence and stores"
+    )
+    parser.add_argument(
+        "--participants", type=int_range(1, 10_000), default=8, help="per setting, 1..10000"
+    )
+    parser.add_argument("--seed", type=seed, default=1, help="population + sessions")
     parser.add_argument("--population", type=Path, default=DEFAULT_POPULATION)
     grid = parser.add_argument_group("grid")
     grid.add_argument(
-        "--timid-alpha-max", type=float, nargs="+", default=list(DEFAULT_TIMID_ALPHA_MAX)
+        "--timid-alpha-max", type=unit, nargs="+", default=list(DEFAULT_TIMID_ALPHA_MAX)
     )
     grid.add_argument(
-        "--aggressive-threshold", type=float, nargs="+", default=list(DEFAULT_AGGRESSIVE_THRESHOLD)
+        "--aggressive-threshold", type=unit, nargs="+", default=list(DEFAULT_AGGRESSIVE_THRESHOLD)
     )
     grid.add_argument(
         "--aggressive-alpha-high",
-        type=float,
+        type=unit,
         nargs="+",
         default=list(DEFAULT_AGGRESSIVE_ALPHA_HIGH),
     )
     crit = parser.add_argument_group("criteria")
-    crit.add_argument(
-        "--min-hard-completion", type=non_negative_float, default=DEFAULT_MIN_HARD_COMPLETION
-    )
-    crit.add_argument(
-        "--min-wrong-corrected", type=non_negative_float, default=DEFAULT_MIN_WRONG_CORRECTED
-    )
+    crit.add_argument("--min-hard-completion", type=unit, default=DEFAULT_MIN_HARD_COMPLETION)
+    crit.add_argument("--min-wrong-corrected", type=unit, default=DEFAULT_MIN_WRONG_CORRECTED)
     crit.add_argument(
         "--max-time-lost",
-        type=non_negative_float,
+        type=float_range(0.0, 3600.0),
         default=DEFAULT_MAX_TIME_LOST_S,
         help="seconds",
     )
     parser.add_argument("--engine", choices=["local", "dask"], default="local")
-    parser.add_argument("--workers", type=positive_int, default=1)
-    parser.add_argument("--scheduler", default=None, metavar="ADDRESS")
+    parser.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=1)
+    parser.add_argument("--scheduler", type=scheduler_address, default=None, metavar="ADDRESS")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
 def main(args: argparse.Namespace) -> int:
     summary: dict[str, Any]
     try:
+        check_scenes(load_protocol(args.protocol))  # every scene builds, before anything runs
         grid = make_grid(
             timid_alpha_max=tuple(args.timid_alpha_max),
             aggressive_threshold=tuple(args.aggressive_threshold),

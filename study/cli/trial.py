@@ -14,7 +14,8 @@ import sys
 import time
 from pathlib import Path
 
-from app.cli import non_negative_float, non_negative_int, positive_float
+from app.cli import float_range, output_file, seed
+from app.robot import build_scene
 from app.teleop import IdleInput, InputSource, ScriptedInput
 from app.trial import save_records
 from app.trial.trial import run_trial
@@ -28,19 +29,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--task", default="hard-right", help="task name, or 'training'")
     parser.add_argument("--mode", default="timid", help="mode name, or 'none' (unassisted)")
     parser.add_argument("--input", choices=INPUTS, default="scripted", help="input source")
-    parser.add_argument(
-        "--seed", type=non_negative_int, default=0, help="seed of the scripted user"
-    )
+    parser.add_argument("--seed", type=seed, default=0, help="seed of the scripted user")
     parser.add_argument("--protocol", type=Path, default=DEFAULT_PROTOCOL, help="protocol TOML")
     parser.add_argument("--realtime", action="store_true", help="pace to wall-clock time")
     parser.add_argument(
-        "--speed", type=positive_float, default=0.15, help="scripted user speed, m/s"
+        "--speed",
+        type=float_range(0.0, 2.0, above=True),
+        default=0.15,
+        help="scripted user speed, m/s, in (0, 2]",
     )
     parser.add_argument(
-        "--noise", type=non_negative_float, default=0.002, help="scripted user noise, m"
+        "--noise", type=float_range(0.0, 0.1), default=0.002, help="scripted user noise, m, 0..0.1"
     )
-    parser.add_argument("--time-limit", type=positive_float, default=None, help="override, s")
-    parser.add_argument("--save", type=Path, default=None, help="write the records (.npz)")
+    parser.add_argument(
+        "--time-limit",
+        type=float_range(0.0, 3600.0, above=True),
+        default=None,
+        help="override, s, in (0, 3600]",
+    )
+    parser.add_argument("--save", type=output_file, default=None, help="write the records (.npz)")
 
 
 def make_input(name: str, *, seed: int, speed: float, noise: float) -> InputSource:
@@ -57,6 +64,7 @@ def main(args: argparse.Namespace) -> int:
             args.protocol, args.task, args.mode, time_limit_s=args.time_limit
         )
         source = make_input(args.input, seed=args.seed, speed=args.speed, noise=args.noise)
+        build_scene(config.scene)  # reachable and compiling, before the trial starts
     except (ValueError, KeyError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -71,6 +79,10 @@ def main(args: argparse.Namespace) -> int:
         file=sys.stderr,
     )
     if args.save is not None:
-        print(f"records written to {save_records(result, args.save)}", file=sys.stderr)
+        try:
+            print(f"records written to {save_records(result, args.save)}", file=sys.stderr)
+        except OSError as exc:
+            print(f"error: cannot write {args.save}: {exc.strerror or exc}", file=sys.stderr)
+            return 2
     print(json.dumps(summary))
     return 0

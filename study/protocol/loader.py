@@ -21,6 +21,7 @@ from types import MappingProxyType
 from typing import Any
 
 import app
+from app.files import InputFileError, read_bytes_file
 from app.robot.errors import SceneError
 from app.robot.scene_spec import SceneSpec
 from app.trial.config import TrialConfig
@@ -39,6 +40,8 @@ from study.protocol.protocol import TRAINING_MODE, Protocol
 from study.schedule import Design
 
 SCHEMA = 1
+MAX_PROTOCOL_BYTES = 2**20
+"""Largest protocol file read (the paper's is about 12 KB)."""
 MAX_NESTING = 32
 """Deepest nesting of arrays and inline tables a protocol may have (the paper's has 3).
 
@@ -65,12 +68,15 @@ _TOP_LEVEL = (
 
 
 def load_protocol(path: str | Path) -> Protocol:
-    """Load and validate the protocol at ``path``; raises a ``ProtocolError`` subclass."""
+    """Load and validate the protocol at ``path``; raises a ``ProtocolError`` subclass. Only a
+    regular file of at most ``MAX_PROTOCOL_BYTES`` is read."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as e:
-        raise ProtocolError(f"cannot read the file ({e.strerror or e})", file=path, key="") from e
+        data = read_bytes_file(path, max_bytes=MAX_PROTOCOL_BYTES, what="protocol file")
+    except InputFileError as e:
+        raise ProtocolError(f"cannot read the file: it {e.problem}", file=path, key="") from None
+    try:
+        text = data.decode("utf-8")
     except UnicodeDecodeError as e:
         raise ProtocolSyntaxError(
             f"not UTF-8 text (byte offset {e.start}); re-save it as UTF-8", file=path, key=""

@@ -132,6 +132,7 @@ class Console(Protocol):
     def progress(self) -> StudyProgress: ...
     def link(self) -> LinkState: ...
     def set_link(self, *, enabled: bool, cap: int) -> LinkState: ...
+    def health(self) -> str: ...
 
 
 def fmt_time(seconds: float | None) -> str:
@@ -279,6 +280,7 @@ class ExperimenterConsole:
                 "Interrupted", options=("(none)",), hint="sessions a restart or crash left open"
             )
             self.reopen_button = gui.add_button("Reopen session", disabled=True)
+            self.health_md = gui.add_markdown("")
         with gui.add_folder("Open link", expand_by_default=False):
             self.link_on = gui.add_checkbox("Open link on", initial_value=False)
             self.link_cap = gui.add_number("Places", initial_value=0, min=0, max=100_000, step=1)
@@ -467,6 +469,7 @@ class ExperimenterConsole:
     def _refresh(self) -> None:
         rows = self.console.summaries()
         _set(self.sessions_md, sessions_markdown(rows))
+        _set(self.health_md, self.console.health())
         options = ("(none)", *(_option(r) for r in rows))
         self._options = {r.code: _option(r) for r in rows}
         if tuple(self.session_select.options) != options:

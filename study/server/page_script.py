@@ -9,7 +9,10 @@ steering key it can stop the event before the camera or anything else sees it:
   (``preventDefault`` + ``stopImmediatePropagation``), auto-repeats included;
 * each change of the set of held keys (not each auto-repeat) is sent to the server as the
   value of one hidden text element, ``"<seq> <keys>"`` (e.g. ``"12 ar"``), through the
-  client's own message channel; losing focus (tab switch, window blur) sends "nothing held";
+  client's own message channel, and the state is resent every ``KEY_RESEND_MS`` while a key
+  is held and for a second after each change: it is a state, not an event, so a lost message
+  (a release above all) is repaired by the next one; losing focus (tab switch, window blur)
+  sends "nothing held";
 * the page title becomes the study's; the settings, command and share buttons of the panel
   are hidden; the orbit camera may not pan (right drag) and stays well above the table plane;
   a clicked button loses focus, so Space or Enter cannot press it again by accident;
@@ -45,6 +48,9 @@ ARROW_KEYCODES: dict[int, str] = {37: "l", 38: "u", 39: "i", 40: "n"}
 """The arrow keys by ``keyCode`` (layout-independent; their ``code`` names would carry a word
 the blinding guard refuses). Swallowed for the camera's sake; they steer nothing."""
 
+KEY_RESEND_MS = 250
+"""How often the page resends its key state while a key is held."""
+
 MAX_KEY_MESSAGE = 40
 """Longest key-state value the server accepts ("<seq> <up to 14 letters>")."""
 
@@ -54,7 +60,9 @@ def page_script(*, keys_uuid: str, title: str) -> str:
     return (
         _TEMPLATE.replace("__CODES__", json.dumps(STEERING_CODES))
         .replace("__ARROWS__", json.dumps({str(k): v for k, v in ARROW_KEYCODES.items()}))
-        .replace("__CONFIG__", json.dumps({"uuid": keys_uuid, "title": title}))
+        .replace(
+            "__CONFIG__", json.dumps({"uuid": keys_uuid, "title": title, "resend": KEY_RESEND_MS})
+        )
     )
 
 
@@ -65,7 +73,8 @@ _TEMPLATE = r"""
   const arrows = __ARROWS__;
   const letter = (e) => codes[e.code] !== undefined ? codes[e.code] : arrows[String(e.keyCode)];
   document.title = cfg.title;
-  const st = window.__studyKeys = window.__studyKeys || {held: new Set(), seq: 0, sent: 0};
+  const st = window.__studyKeys = window.__studyKeys || {held: new Set(), seq: 0, sent: 0,
+                                                         changed: -1e9};
   st.uuid = cfg.uuid;
   const send = () => {
     const m = window.__viserMutable;
@@ -109,16 +118,22 @@ _TEMPLATE = r"""
       if (k === undefined || isField(e.target) || e.ctrlKey || e.metaKey || e.altKey) return;
       e.preventDefault();
       e.stopImmediatePropagation();
-      if (!st.held.has(k)) { st.held.add(k); send(); }
+      if (!st.held.has(k)) { st.held.add(k); st.changed = performance.now(); send(); }
     }, true);
     window.addEventListener("keyup", (e) => {
       const k = letter(e);
       if (k === undefined) return;
       e.preventDefault();
       e.stopImmediatePropagation();
-      if (st.held.delete(k)) send();
+      if (st.held.delete(k)) { st.changed = performance.now(); send(); }
     }, true);
-    const none = () => { if (st.held.size) { st.held.clear(); send(); } };
+    const none = () => {
+      if (st.held.size) { st.held.clear(); st.changed = performance.now(); send(); }
+    };
+    // the state again while a key is held and for a second after each change
+    setInterval(() => {
+      if (st.held.size || performance.now() - st.changed < 1000) send();
+    }, cfg.resend);
     window.addEventListener("blur", none);
     document.addEventListener("visibilitychange", none);
     const style = document.createElement("style");

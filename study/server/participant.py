@@ -9,8 +9,11 @@ no longer shown are ignored, so a late click can never answer the next screen.
 Keyboard (second input): while W/S, A/D or R/F is held the target moves away/back, sideways or
 up/down; G grasps, V brings back the task view. The keys travel through the page script
 (:mod:`study.server.page_script`), which keeps them from viser's camera, as the value of one hidden
-text element: ``"<seq> <held keys>"``; :meth:`ParticipantPage._on_key_state` turns each new
-value into key-down and key-up calls.
+text element: ``"<seq> <held keys>"``, resent every 250 ms while a key is held (and for a
+second after each change), so a lost message costs at most one period; :meth:`ParticipantPage._on_key_state`
+turns each new value into key-down and key-up calls, and :meth:`ParticipantPage.expire_keys`
+lets go of keys whose state has not been heard for a while (a stalled connection never leaves
+the arm moving).
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import contextlib
 import logging
 import re
 import threading
+import time
 from collections import deque
 from collections.abc import Callable, Iterable, Sequence
 
@@ -110,6 +114,8 @@ class ParticipantPage:
         """Called with (keys that went down, keys that went up) on each key-state change."""
         self._key_seq = -1
         self._keys_held: frozenset[str] = frozenset()
+        self._keys_heard_at = 0.0
+        self._keys_lock = threading.Lock()
         self._keys = client.gui.add_text("keys", initial_value="", visible=False)
         self._keys.on_update(self._on_key_state)
         client.gui.set_panel_label(self.title)
@@ -128,13 +134,27 @@ class ParticipantPage:
         except InputRejected as exc:
             asyncio.get_running_loop().run_in_executor(None, self.reject, str(exc), False)
             return
-        if seq <= self._key_seq:
-            return  # a reload restarts the count: a new page object starts at -1
-        self._key_seq = seq
-        down, up = held - self._keys_held, self._keys_held - held
-        self._keys_held = held
+        with self._keys_lock:
+            if seq <= self._key_seq:
+                return  # a reload restarts the count: a new page object starts at -1
+            self._key_seq = seq
+            self._keys_heard_at = time.monotonic()
+            down, up = held - self._keys_held, self._keys_held - held
+            self._keys_held = held
         if self.on_keys is not None and (down or up):
             self.on_keys(down, up)  # in arrival order: a key's up never overtakes its down
+
+    def expire_keys(self, max_age_s: float) -> frozenset[str]:
+        """Let go of the held keys if their state was last heard more than ``max_age_s`` ago
+        (the page resends it every 250 ms while a key is held); returns the keys let go. A
+        later state that still holds them presses them again."""
+        if not self._keys_held:
+            return frozenset()
+        with self._keys_lock:
+            if time.monotonic() - self._keys_heard_at <= max_age_s:
+                return frozenset()
+            held, self._keys_held = self._keys_held, frozenset()
+            return held
 
     # -- plumbing ----------------------------------------------------------------------------
     def _new_screen(self, name: str) -> int:

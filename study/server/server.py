@@ -2,9 +2,11 @@
 
 * Participant view: a ``ViserServer`` on the LAN (``0.0.0.0``), guarded outbound by the
   blinding guard and inbound by a :class:`~study.server.firewall.Firewall` (an allow-list of message
-  types, bounded values and sizes, no share links). A tab that connects types the join code
-  the experimenter's console shows (guesses are throttled per tab and per address, and every
-  failed code gets the same reply); only on a kiosk (``kiosk=True``, one machine, one
+  types, bounded values and sizes, no share links, fair shares for tabs that hold no session).
+  A tab that connects types the join code the experimenter's console shows (guesses are
+  throttled per tab and per address, and every failed code gets the same reply); a tab that
+  held a session keeps its rejoin token in a cookie, so a reload or a reconnect rejoins at once
+  (and gets a slot even when the port is full); only on a kiosk (``kiosk=True``, one machine, one
   participant at a time) does a tab bind to the one open session without a code. A session is
   bound to one tab at a time; when that tab goes away (reload, lost connection) its running
   trial pauses and the session waits for its code again.
@@ -26,16 +28,19 @@ viser runs callbacks in a thread pool; every registry change happens under ``sel
 from __future__ import annotations
 
 import contextlib
+import hmac
+import json
 import logging
 import math
 import threading
 import time
 from collections.abc import Iterable
+from pathlib import Path
 
 import viser
 
 from study.protocol.blinding import find_words
-from study.server import blinding, firewall
+from study.server import blinding, firewall, logs, realtime
 from study.server.experimenter import (
     ExperimenterConsole,
     LinkState,
@@ -43,9 +48,9 @@ from study.server.experimenter import (
     SessionSummary,
     StudyProgress,
 )
-from study.server.firewall import LOOPBACK_NAMES
+from study.server.firewall import LOOPBACK_NAMES, REJOIN_COOKIE
 from study.server.forwarded import Network
-from study.server.join import JoinThrottle, new_join_code, normalize_code
+from study.server.join import JoinThrottle, new_join_code, new_token, normalize_code
 from study.server.live import LiveSession, SessionFactory
 from study.server.live.progress import study_progress
 from study.server.live.screens import show_end
@@ -72,11 +77,11 @@ class ServerError(RuntimeError):
 
 
 JOIN_FAILED = "That code did not work. Please check it with the experimenter and type it again."
-REMEMBERED_CODE_KEY = "study-join-code"
 REJOIN_WAIT_S = 45.0
-"""How long a tab with a kept code waits for the session's old tab to be let go (longer than
+"""How long a tab with a rejoin token waits for the session's old tab to be let go (longer than
 the websocket's ping interval plus timeout, 20 + 20 s)."""
-"""Where a tab keeps its join code (the browser's local storage), so a reload rejoins at once."""
+REJOIN_KEEP_S = 12 * 3600
+"""How long a tab keeps its rejoin cookie (a day's session at most)."""
 JOIN_THROTTLED = "Too many tries. Please wait a minute, then ask the experimenter for the code."
 LINK_QUIET_S = 2.0
 """How long a link tab waits for its session's old tab to let go (a reload) before it is told
@@ -107,11 +112,17 @@ class StudyServer:
         open_link: int = 0,
         public_url: str | None = None,
         trusted_proxies: tuple[Network, ...] = (),
+        port_firewall: firewall.Firewall | None = None,
+        log_path: Path | None = None,
     ) -> None:
         """``open_link``: places of the open-enrolment link (0: off; the console turns it on
         and off); ``public_url``: the participants' address as they reach it (behind a
         proxy), shown with the link; ``trusted_proxies``: reverse proxies whose forwarded
-        client address and host name count (``study.server.forwarded``)."""
+        client address and host name count (``study.server.forwarded``); ``port_firewall``:
+        the participant port's rules (a default ``Firewall`` if not given; tests and
+        benchmarks pass one with other limits); ``log_path``: the server's log file
+        (``study.server.logs``), whose disk use the console shows."""
+        self.log_path = log_path
         self.factory = factory
         self.render_hz = render_hz
         self.kiosk = kiosk
@@ -126,8 +137,14 @@ class StudyServer:
         """Tabs that came with a recruitment ID: they get no join-code screen."""
         self.public_url = public_url
         self.open_link = OpenLink(factory.store, enabled=open_link > 0, cap=open_link)
+        self._tokens: dict[str, str] = {}
+        """Each session's rejoin token, by join code."""
 
-        self.firewall = firewall.Firewall(allow_share=allow_share, trusted_proxies=trusted_proxies)
+        self.firewall = port_firewall or firewall.Firewall(
+            allow_share=allow_share, trusted_proxies=trusted_proxies
+        )
+        self.firewall.rejoin_token = self._proven_token
+        self.firewall.on_bound_drop = self._bound_input_dropped
         with firewall.hardened_serve(self.firewall):
             self.participant = viser.ViserServer(host=host, port=port, verbose=verbose)
         self.guard = blinding.install(self.participant, words=condition_words)
@@ -148,6 +165,8 @@ class StudyServer:
             max_bytes=8 * 2**20,
             rate_per_s=2000.0,
             loopback_only=experimenter_host in LOOPBACK_NAMES,
+            shares_per_s=None,  # the experimenter's own tabs: no shares, never idle-closed
+            idle_timeout_s=None,
         )
         with firewall.hardened_serve(self.experimenter_firewall):
             self.experimenter = viser.ViserServer(
@@ -155,6 +174,7 @@ class StudyServer:
             )
         firewall.install(self.experimenter, self.experimenter_firewall)
         self.console = ExperimenterConsole(self.experimenter, self, refresh_hz=console_refresh_hz)
+        realtime.freeze_heap()  # after start-up: collections never walk it again
 
     # -- addresses ---------------------------------------------------------------------------
     @property
@@ -194,6 +214,7 @@ class StudyServer:
         firewall.uninstall(self.experimenter)
         self.participant.stop()
         self.experimenter.stop()
+        realtime.thaw_heap()
 
     # -- sessions ----------------------------------------------------------------------------
     def enrol(self, participant: str, *, recruitment: Recruitment | None = None) -> str:
@@ -202,7 +223,8 @@ class StudyServer:
             for code, live in self._sessions.items():
                 if live.participant == participant and not live.closed:
                     return code
-            code = new_join_code(set(self._sessions))
+            words = self.guard.words
+            code = new_join_code(set(self._sessions), avoid=words)
             live = self.factory(
                 participant,
                 code=code,
@@ -214,6 +236,7 @@ class StudyServer:
                 live.recruitment = known.ids
             live.on_closed = lambda: self._offer_all()
             self._sessions[code] = live
+            self._tokens[code] = new_token(avoid=words)
         LOGGER.info("session %s opened for %s", code, participant)
         self._offer_all()
         return code
@@ -257,6 +280,22 @@ class StudyServer:
             live = self._sessions.get(code)
         return None if live is None else live.detail()
 
+    def health(self) -> str:
+        """One line for the console: the participant port's tabs and refusals, the log's size."""
+        fw = self.firewall
+        with self._lock:
+            tabs, bound = len(self._pages), len(self._page_session)
+        refused = sum(fw.refused_connections.values()) + fw.slots.evicted + fw.slots.timed_out
+        line = (
+            f"Participant port: {tabs} tab(s), {bound} in a session; {refused} connection(s)"
+            f" refused or closed, {sum(fw.dropped.values())} message(s) refused"
+        )
+        if self.log_path is not None:
+            used = logs.disk_use(self.log_path) / 2**20
+            cap = (logs.BACKUPS + 1) * logs.MAX_BYTES / 2**20
+            line += f". Log: {used:.1f} of at most {cap:.0f} MB (`{self.log_path}`)"
+        return line
+
     def act(self, code: str, action: str, *, reason: str = "") -> str:
         if action not in EXPERIMENTER_ACTIONS:
             actions = ", ".join(EXPERIMENTER_ACTIONS)
@@ -293,23 +332,29 @@ class StudyServer:
     def _participant_connected(self, client: viser.ClientHandle) -> None:
         page = ParticipantPage(client, title=PAGE_TITLE, words=self.guard.words)
         page.address = self._address(client.client_id)
-        frame_task(client.camera, look_at=(0.45, 0.0, 0.15))
+        try:
+            frame_task(client.camera, look_at=(0.45, 0.0, 0.15))
+        except Exception:  # a camera state viser cannot turn (the firewall refuses degenerate ones)
+            LOGGER.warning("could not frame the task view for a new tab", exc_info=True)
         with self._lock:
             # viser runs connect and disconnect callbacks in a pool, in no fixed order: a tab
             # that left before we got here must not be registered (it would hold a session)
             if client.client_id not in self.participant.get_clients():
                 return
             self._pages[client.client_id] = page
-        threading.Thread(target=self._greet, args=(page,), name="greet", daemon=True).start()
+        code = self._code_of(self.firewall.token_of(client.client_id))
+        if code is not None:  # a reload that kept its session's rejoin token
+            threading.Thread(
+                target=self._rejoin, args=(page, code), name="rejoin", daemon=True
+            ).start()
+        elif not self.open_link.in_use():
+            self._offer(page)  # a lab study: the join screen at once, no URL read
+        else:
+            threading.Thread(target=self._greet, args=(page,), name="greet", daemon=True).start()
 
     def _greet(self, page: ParticipantPage) -> None:
-        """A new tab: with a recruitment ID in its URL, the open link's way in; else the join
-        code (a kept one first). While the open link is off and has never enrolled anyone, no
-        tab is asked for its URL: the join screen comes at once, as in a lab study."""
-        if not self.open_link.in_use():
-            self._offer(page)
-            self._rejoin(page)
-            return
+        """A new tab while the open link is in use: with a recruitment ID in its URL, the open
+        link's way in; else the join code."""
         try:
             values = read_link(page)
         except Exception:  # the tab went away
@@ -328,20 +373,19 @@ class StudyServer:
             self._link_join(page, recruitment)
             return
         self._offer(page)
-        self._rejoin(page)
 
-    def _rejoin(self, page: ParticipantPage) -> None:
-        """A reloaded (or reconnected) tab: its browser kept the code it joined with; try it
-        like a typed one (throttled, the same reply on failure, which then clears the kept
-        code). While the session's old tab is still held -- a dropped network connection is
-        only noticed after the websocket's ping timeout -- wait for it to let go."""
-        try:
-            kept = page.client.local_storage.get_item(REMEMBERED_CODE_KEY, timeout=5.0)
-        except Exception:  # no answer, blocked storage, a closed tab: the participant types it
-            return
-        if not kept:
-            return
-        code, deadline = normalize_code(kept), time.monotonic() + REJOIN_WAIT_S
+    def _rejoin(self, page: ParticipantPage, code: str) -> None:
+        """A reloaded (or reconnected) tab that presented its session's rejoin token at the
+        door: bind it without a code and without the throttle. While the session's old tab is
+        still held -- a dropped network connection is only noticed after the websocket's ping
+        timeout -- wait for it to let go; the join screen shows meanwhile (not to an open
+        link's participant, who never sees one)."""
+        with self._lock:
+            live = self._sessions.get(code)
+            if live is not None and live.recruitment:
+                self._link_pages.add(page.client.client_id)
+        self._offer(page)
+        deadline = time.monotonic() + REJOIN_WAIT_S
         while time.monotonic() < deadline:
             with self._lock:
                 live = self._sessions.get(code)
@@ -352,7 +396,33 @@ class StudyServer:
         with self._lock:
             bound = page.client.client_id in self._page_session
         if not bound:
-            self._join(page, code, remembered=True)
+            self._join(page, code, proven=True)
+
+    def _proven_token(self, value: str) -> str | None:
+        """``value`` (a tab's rejoin cookie) when it is the token of an open session, else
+        ``None`` (the firewall asks at the door)."""
+        return value if self._code_of(value) is not None else None
+
+    def _code_of(self, token: str | None) -> str | None:
+        """The open session whose rejoin token is ``token`` (compared in constant time)."""
+        if not token:
+            return None
+        with self._lock:
+            tokens = list(self._tokens.items())
+        for code, expected in tokens:
+            if hmac.compare_digest(token.encode(), expected.encode()):
+                live = self._sessions.get(code)
+                return code if live is not None and not live.closed else None
+        return None
+
+    def _bound_input_dropped(self, client_id: int, reason: str) -> None:
+        """The firewall refused a message of a session's tab (on the event loop): the session
+        records it (from its own worker thread)."""
+        with self._lock:
+            code = self._page_session.get(client_id)
+            live = self._sessions.get(code) if code is not None else None
+        if live is not None:
+            live.input.dropped(reason)
 
     def _link_join(self, page: ParticipantPage, recruitment: Recruitment) -> None:
         """Bind a link tab to its recruitment ID's session: the one it had (reopened after a
@@ -426,6 +496,7 @@ class StudyServer:
             code = self._page_session.pop(client.client_id, None)
             live = self._sessions.get(code) if code is not None else None
         self.throttle.forget_client(client.client_id)
+        self.firewall.bind(client.client_id, False)
         if live is not None and page is not None:
             live.detach(page)
         self._offer_all()
@@ -458,12 +529,13 @@ class StudyServer:
         if page.screen_name != "join" or not page.asks_code:
             page.show_join(ask_code=True, on_code=lambda code, p=page: self._join(p, code))
 
-    def _join(self, page: ParticipantPage, typed: str, *, remembered: bool = False) -> None:
+    def _join(self, page: ParticipantPage, typed: str, *, proven: bool = False) -> None:
         """A typed code: bind on a match; the same reply for any failure (wrong, closed, in
-        use), and no check at all once this tab or its address tried too often. A code the
-        browser ``remembered`` that no longer works is forgotten without a message."""
+        use), and no check at all once this tab or its address tried too often. A ``proven``
+        code (its tab presented the session's rejoin token) skips the throttle; if it no
+        longer works, the tab forgets it and is asked for a code."""
         address = getattr(page, "address", "unknown")
-        if not self.throttle.allow(client=page.client.client_id, address=address):
+        if not proven and not self.throttle.allow(client=page.client.client_id, address=address):
             now = time.monotonic()
             if now - self._throttle_logged > 60.0:
                 self._throttle_logged = now
@@ -484,9 +556,14 @@ class StudyServer:
         if live is None or live.closed or not self._bind(page, live):
             if live is not None and not live.closed:
                 live.note_refused_join(page)
-            if remembered:
+            if proven:
                 with contextlib.suppress(Exception):
-                    page.client.local_storage.remove_item(REMEMBERED_CODE_KEY)
+                    page.run_script(_cookie_script(""))
+                with self._lock:
+                    link_page = page.client.client_id in self._link_pages
+                if link_page:  # a reload then comes in by its link again
+                    page.show_message("Please try again", LINK_FAILED_TEXT)
+                self._offer(page)
                 return
             page.show_join(
                 ask_code=True, on_code=lambda c, p=page: self._join(p, c), notice=JOIN_FAILED
@@ -508,9 +585,19 @@ class StudyServer:
                 self._page_session.pop(page.client.client_id, None)
             live.detach(page)
             return True
-        with contextlib.suppress(Exception):  # the tab keeps its code for a reload
-            page.client.local_storage.set_item(REMEMBERED_CODE_KEY, live.code)
+        self.firewall.bind(page.client.client_id)
+        with self._lock:
+            token = self._tokens.get(live.code, "")
+        with contextlib.suppress(Exception):  # the tab keeps its token for a reload
+            page.run_script(_cookie_script(token))
         return True
+
+
+def _cookie_script(value: str) -> str:
+    """JavaScript that keeps ``value`` in the tab's rejoin cookie (an empty value clears it)."""
+    age = REJOIN_KEEP_S if value else 0
+    cookie = f"{REJOIN_COOKIE}={value}; path=/; max-age={age}; SameSite=Strict"
+    return f"document.cookie = {json.dumps(cookie)};"
 
 
 def _check_page_is_blind(words: tuple[str, ...]) -> None:

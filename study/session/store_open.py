@@ -8,13 +8,16 @@ from study.protocol import Protocol
 from study.store import ProtocolMismatchError, Store, changed_sections
 
 
-def open_store(path: str | Path, protocol: Protocol, *, synchronous: str = "FULL") -> Store:
+def open_store(
+    path: str | Path, protocol: Protocol, *, synchronous: str = "FULL", verify: bool = True
+) -> Store:
     """Open (or create) the store at ``path`` for ``protocol``; a new store keeps the protocol's
     full text, so export and analysis can rebuild it (``study.protocol.protocol_from_store``).
 
     Raises ``ProtocolMismatchError`` (naming both content hashes and the changed sections) if
     the store was started with another protocol: continue with the original file, or use a new
-    path for the edited protocol."""
+    path for the edited protocol; ``StoreDamagedError`` if SQLite finds an existing file
+    damaged (``verify=False`` skips that check: a worker opening a store its parent checked)."""
     return Store.open(
         path,
         protocol_id=protocol.id,
@@ -22,6 +25,7 @@ def open_store(path: str | Path, protocol: Protocol, *, synchronous: str = "FULL
         protocol_version=protocol.study.version,
         protocol_text=protocol.source or None,
         synchronous=synchronous,
+        verify=verify,
     )
 
 

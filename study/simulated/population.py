@@ -18,10 +18,14 @@ from typing import Any
 
 import numpy as np
 
+from app.files import InputFileError, read_bytes_file
+from study.protocol.loader import MAX_NESTING, nesting_depth
 from study.simulated.distributions import Distribution
 from study.simulated.errors import PopulationError
 
 DEFAULT_POPULATION_PATH = Path(__file__).resolve().parents[2] / "protocols" / "population.toml"
+MAX_POPULATION_BYTES = 2**20
+"""Largest population file read (the shipped one is about 5 KB)."""
 
 
 @dataclass(frozen=True)
@@ -201,13 +205,17 @@ def load_population(path: str | Path = DEFAULT_POPULATION_PATH) -> Population:
     """Read and validate a population file."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise PopulationError(f"{path}: cannot read population file ({exc.strerror})") from exc
+        data = read_bytes_file(path, max_bytes=MAX_POPULATION_BYTES, what="population file")
+    except InputFileError as exc:
+        raise PopulationError(f"{path}: cannot read population file: it {exc.problem}") from None
+    try:
+        text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise PopulationError(
             f"{path}: not UTF-8 text (byte offset {exc.start}); re-save it as UTF-8"
         ) from None
+    if nesting_depth(text, stop_above=MAX_NESTING)[0] > MAX_NESTING:
+        raise PopulationError(f"{path}: values are nested more than {MAX_NESTING} levels deep")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -207,7 +207,7 @@ def _init_worker(
     protocol = load_protocol(protocol_path)
     _worker.update(
         protocol=protocol,
-        store=open_store(db, protocol, synchronous=synchronous),
+        store=open_store(db, protocol, synchronous=synchronous, verify=False),  # checked
         population_path=Path(population_path),
         seed=seed,
         progress=progress,

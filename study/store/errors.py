@@ -11,6 +11,12 @@ class NotAStoreError(StoreError):
     """The file is not a SQLite database written by this platform."""
 
 
+class StoreDamagedError(StoreError):
+    """The file is a store, but SQLite's own check finds it damaged (a disk error, a copy cut
+    short, bytes overwritten). Nothing is written to it; ``python -m study salvage`` copies what
+    is readable into a new store."""
+
+
 class SchemaVersionError(StoreError):
     """The database was written with another schema version than this code reads."""
 

@@ -99,6 +99,7 @@ class Store:
         protocol_text: str | None = None,
         synchronous: str = "FULL",
         busy_timeout_s: float = 10.0,
+        verify: bool = True,
     ) -> Store:
         """Open (or create) the store at ``path`` for the protocol ``protocol_id``/``protocol_hash``.
 
@@ -110,7 +111,10 @@ class Store:
         ``NotAStoreError`` if it is not a study store. The file is only read before these checks
         pass; a version-1 file is then upgraded in place (it gains the ``protocols`` table).
         ``synchronous`` is SQLite's durability level (``FULL``: every commit survives power
-        loss; ``NORMAL``: survives a killed process).
+        loss; ``NORMAL``: survives a killed process). An existing file is first checked by
+        SQLite (``opening.check_integrity``, unless ``verify`` is False -- a worker process
+        opening a store its parent just checked): a damaged one raises ``StoreDamagedError``
+        and is never written to.
         """
         if synchronous not in ("FULL", "NORMAL"):
             raise StoreError(f"synchronous must be 'FULL' or 'NORMAL', not {synchronous!r}")
@@ -125,6 +129,8 @@ class Store:
             meta = opening.read_meta(conn, p)
             if meta is None:
                 meta = opening.create_schema(conn, p, protocol_id, protocol_version, protocol_hash)
+            elif verify:
+                opening.check_integrity(conn, p)
             opening.check_protocol(
                 meta,
                 p,
@@ -150,8 +156,9 @@ class Store:
         return cls(conn, path=p, meta=meta, readonly=False, busy_timeout_s=busy_timeout_s)
 
     @classmethod
-    def open_readonly(cls, path: str | os.PathLike[str]) -> Store:
-        """Open an existing store for reading only (any protocol; the schema version must match)."""
+    def open_readonly(cls, path: str | os.PathLike[str], *, verify: bool = False) -> Store:
+        """Open an existing store for reading only (any protocol; the schema version must match);
+        ``verify``: check it first like ``open`` does (export does; ``StoreDamagedError``)."""
         p = Path(path)
         if not p.exists():
             raise StoreError(f"no store at {p}: the file does not exist; check the store path")
@@ -178,6 +185,8 @@ class Store:
                 meta = opening.read_meta(conn, p)
             if meta is None:
                 raise NotAStoreError(f"{p} is an empty SQLite file, not a study store")
+            if verify:
+                opening.check_integrity(conn, p)
         except BaseException:
             conn.close()
             raise

@@ -109,6 +109,22 @@ class LiveInput:
             except InputFrozen as exc:
                 self._refused(exc)
 
+    def let_go(self, keys: frozenset[str]) -> None:
+        """Keys whose state stopped arriving (``ParticipantPage.expire_keys``): released, and
+        recorded as a ``keys_expired`` event."""
+        source = self.source
+        if source is not None:
+            for key in keys & set(KEYMAP):
+                source.key_up(key)
+        with contextlib.suppress(RuntimeError):
+            self._pool.submit(self._record, "keys_expired", {"keys": "".join(sorted(keys))})
+
+    def dropped(self, reason: str) -> None:
+        """The port's firewall refused a message of this session's tab (any thread; recorded
+        as an ``input_dropped`` event from the worker thread)."""
+        with contextlib.suppress(RuntimeError):  # closing: the worker is gone
+            self._pool.submit(self._record, "input_dropped", {"reason": reason[:200]})
+
     def _refused(self, exc: Exception) -> None:
         problem = str(exc)[:200]
         with contextlib.suppress(RuntimeError):  # closing: the worker is gone

@@ -31,6 +31,10 @@ from study.session import Session, TrialRun
 
 LOGGER = logging.getLogger("study.server.live")
 
+KEY_STATE_MAX_AGE_S = 1.0
+"""Held keys whose state the page has not resent for this long are let go (it resends every
+250 ms while a key is held): a stalled connection never leaves the arm moving."""
+
 
 class LiveRun:
     """The current (or last) run of one live session (see module docstring)."""
@@ -118,6 +122,9 @@ class LiveRun:
     def _tick(self, run: TrialRun, trial: Trial) -> bool:
         if self.faults.held:
             return not run.over  # held until the experimenter resumes
+        page = self._page()
+        if page is not None and (stale := page.expire_keys(KEY_STATE_MAX_AGE_S)):
+            self.input.let_go(stale)
         try:
             record = run.tick()
             if record is not None:

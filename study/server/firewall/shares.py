@@ -1,0 +1,105 @@
+"""Fair shares of the server's time for the connections that hold no session.
+
+A bound tab (a session's) is never slowed or dropped by anything here. Everything else shares:
+
+* :class:`FairShares`: unbound connections share ``per_s`` messages a second, split evenly
+  among the addresses that sent in the last ``window_s`` seconds (an address's connections
+  share its part); a message over its address's share is not dropped but read later
+  (``delay``): the connection waits, its frames stay in the kernel's buffer and its sender
+  blocks, so a flood costs the server nothing and a join code typed behind it still arrives.
+* :class:`AcceptGate`: new connections (or new tabs) per address, ``per_s`` a second with a
+  burst of ``burst``. When all addresses together exceed ``total_per_s``, only an address that
+  has been quiet (at least half its burst left) gets in: a reconnect storm from a few
+  addresses cannot keep a new tab out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass
+class _Bucket:
+    tokens: float
+    last: float
+
+
+class FairShares:
+    """Message shares of the unbound connections (used on the server's event loop only)."""
+
+    def __init__(self, *, per_s: float = 400.0, burst_s: float = 1.0, window_s: float = 2.0):
+        self.per_s = per_s
+        self.burst_s = burst_s
+        self.window_s = window_s
+        self._buckets: dict[str, _Bucket] = {}
+        self.delayed = 0
+        """Messages that waited for their address's share."""
+
+    def share(self, now: float) -> float:
+        """Messages a second each active address may send now."""
+        active = sum(1 for b in self._buckets.values() if now - b.last <= self.window_s)
+        return self.per_s / max(1, active)
+
+    def delay(self, address: str, now: float) -> float:
+        """Seconds the next message of ``address`` must wait to stay within its share (0: go)."""
+        self._forget(now)
+        bucket = self._buckets.get(address)
+        share = self.share(now) if bucket is not None else self.per_s / (1 + len(self._buckets))
+        cap = share * self.burst_s
+        if bucket is None:
+            bucket = self._buckets[address] = _Bucket(tokens=cap, last=now)
+        bucket.tokens = min(cap, bucket.tokens + (now - bucket.last) * share)
+        bucket.last = now
+        bucket.tokens -= 1.0
+        if bucket.tokens >= 0.0:
+            return 0.0
+        self.delayed += 1
+        return -bucket.tokens / share
+
+    def _forget(self, now: float) -> None:
+        if len(self._buckets) > 256:
+            for address in [a for a, b in self._buckets.items() if now - b.last > self.window_s]:
+                del self._buckets[address]
+
+
+class AcceptGate:
+    """New connections per address (used on the server's event loop only)."""
+
+    def __init__(
+        self, *, per_s: float = 5.0, burst: float = 30.0, total_per_s: float = 200.0
+    ) -> None:
+        self.per_s = per_s
+        self.burst = burst
+        self.total_per_s = total_per_s
+        self._buckets: dict[str, _Bucket] = {}
+        self._total: _Bucket | None = None
+        self.refused = 0
+
+    def allow(self, address: str, now: float) -> bool:
+        """Count one new connection from ``address``; False when it must be turned away."""
+        bucket = self._buckets.get(address)
+        if bucket is None:
+            if len(self._buckets) > 4096:
+                self._forget(now)
+            bucket = self._buckets[address] = _Bucket(tokens=self.burst, last=now)
+        bucket.tokens = min(self.burst, bucket.tokens + (now - bucket.last) * self.per_s)
+        bucket.last = now
+        total = self._total
+        if total is None:
+            total = self._total = _Bucket(tokens=2 * self.total_per_s, last=now)
+        total.tokens = min(
+            2 * self.total_per_s, total.tokens + (now - total.last) * self.total_per_s
+        )
+        total.last = now
+        quiet = bucket.tokens >= self.burst / 2
+        if bucket.tokens < 1.0 or (total.tokens < 1.0 and not quiet):
+            self.refused += 1
+            return False
+        bucket.tokens -= 1.0
+        total.tokens = max(0.0, total.tokens - 1.0)
+        return True
+
+    def _forget(self, now: float) -> None:
+        full = [a for a, b in self._buckets.items() if now - b.last > self.burst / self.per_s]
+        for address in full:
+            del self._buckets[address]

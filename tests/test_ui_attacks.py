@@ -1,0 +1,329 @@
+"""An honest participant under each attack the port has seen: their inputs land, their session
+never pauses, and the attack costs what it sends (issue 22).
+
+Each test starts a running trial bound to an honest tab on 127.0.0.1, then runs one attack from
+another process (``tests/attacker.py``) from 127.0.0.2 onwards, and meanwhile checks what the
+participant would notice: a handle pose lands within two seconds, a key held for half a second
+moves the arm and its release stops it (a lost release once left the arm moving 50-91 mm), the
+tab stays connected and the session is never paused, and no input of theirs is dropped. The
+attacks are the first pass's failures: 40 addresses each far under its own rate, 7 addresses x 8
+sockets x 190 messages a second, a reconnect storm, 64 idle sockets, join-code guessers from 6
+addresses, and handshakes of another viser version with a 7 KB subprotocol (the log).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import viser
+import websockets
+
+from study.server.firewall import Firewall
+from tests.attacker import CAMERA
+from tests.browser.harness import RunningServer, run_async, start_server
+from tests.test_ui_malformed import AGREE, RawClient
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture
+def study(tmp_path: Path) -> Iterator[RunningServer]:
+    rs = start_server(tmp_path, time_limit_s=120.0, training_runs=1)
+    try:
+        yield rs
+    finally:
+        rs.stop()
+
+
+class Attack:
+    """``tests/attacker.py KIND`` in its own process, for ``seconds``."""
+
+    def __init__(self, kind: str, port: int, *, seconds: float, **options: float) -> None:
+        argv = [sys.executable, "-m", "tests.attacker", kind, "--port", str(port)]
+        argv += ["--seconds", str(seconds)]
+        for key, value in options.items():
+            argv += [f"--{key}", str(value)]
+        self.process = subprocess.Popen(argv, cwd=ROOT, stdout=subprocess.PIPE, text=True)
+
+    def result(self) -> dict[str, Any]:
+        out, _ = self.process.communicate(timeout=120)
+        return json.loads(out.strip().splitlines()[-1])
+
+
+class Honest:
+    """The participant's tab: joined, consented, trial started; sends what a page sends."""
+
+    def __init__(self, client: RawClient, live: Any) -> None:
+        self.c, self.live = client, live
+        self.owner = ""
+        self.keys_uuid = ""
+        self.seq = 0
+        self.landed: list[float] = []
+
+    async def start(self, code: str) -> None:
+        await self.c.join(code)
+        await self.c.click(AGREE)
+        await self.c.click("Start")
+        handle = await self.c.wait_for(lambda m: m.get("type") == "TransformControlsMessage")
+        self.owner = str(handle.get("owner", ""))
+        keys = await self.c.wait_for(
+            lambda m: m.get("type") == "GuiTextMessage" and m["props"]["label"] == "keys"
+        )
+        self.keys_uuid = keys["uuid"]
+        assert await until(lambda: self.live.control_loop is not None)
+
+    async def keys(self, held: str) -> None:
+        self.seq += 1
+        await self.c.send(
+            "GuiUpdateMessage", uuid=self.keys_uuid, updates={"value": f"{self.seq} {held}"}
+        )
+
+    async def inputs_land(self) -> None:
+        """A pose lands; W held half a second moves the target; its release stops it."""
+        y = 0.05 + 0.01 * len(self.landed)
+        sent = time.monotonic()
+        await self.c.pose((0.5, y, 0.3), owner=self.owner)
+        trial = self.live.run.trial
+        assert await until(lambda: abs(float(trial.user_target[1]) - y) < 1e-6, timeout=2.0)
+        self.landed.append(time.monotonic() - sent)
+        source = self.live.participant_input
+        before = np.array(trial.user_target)
+        await self.keys("w")
+        assert await until(lambda: source.keyboard.held == frozenset("w"), timeout=2.0)
+        await asyncio.sleep(0.5)
+        await self.keys("")
+        assert await until(lambda: not source.keyboard.moving, timeout=2.0), "release lost"
+        moved = float(np.linalg.norm(np.array(trial.user_target) - before))
+        await asyncio.sleep(0.3)
+        after = float(np.linalg.norm(np.array(trial.user_target) - before))
+        assert moved > 0.005 and after - moved < 1e-9  # moved while held, not after
+
+    def untouched(self, rs: RunningServer) -> None:
+        """Still bound, never paused, nothing of theirs dropped."""
+        assert not self.c.closed and self.live.page is not None
+        assert not self.live.session.paused
+        kinds = [e.kind for e in rs.store.events()]
+        assert "pause" not in kinds and "input_dropped" not in kinds and "keys_expired" not in kinds
+
+
+async def until(predicate: Any, *, timeout: float = 10.0) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        await asyncio.sleep(0.02)
+    return bool(predicate())
+
+
+def under_attack(rs: RunningServer, kind: str, *, seconds: float = 5.0, **options: float) -> Any:
+    """An honest session while ``kind`` runs: its inputs land, before, during and after it;
+    the control loop keeps at least 75 % of the rate it had just before the attack (the
+    machine's other load is the same then; ``benchmarks/server.py`` holds the strict
+    figure). Returns the attack's own report."""
+    srv = rs.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+    live = srv.session(code)
+
+    async def scenario() -> tuple[dict[str, Any], float]:
+        async with RawClient(srv.participant_port) as client:
+            honest = Honest(client, live)
+            await honest.start(code)
+            ticks, t0 = live.control_loop.ticks, time.monotonic()
+            await honest.inputs_land()
+            await asyncio.sleep(max(0.0, 2.0 - (time.monotonic() - t0)))
+            before = (live.control_loop.ticks - ticks) / (time.monotonic() - t0)
+            attack = Attack(kind, srv.participant_port, seconds=seconds, **options)
+            await asyncio.sleep(1.5)  # under way
+            ticks, t0 = live.control_loop.ticks, time.monotonic()
+            while time.monotonic() - t0 < seconds - 2.5:
+                await honest.inputs_land()
+            rate = (live.control_loop.ticks - ticks) / (time.monotonic() - t0)
+            result = await asyncio.get_running_loop().run_in_executor(None, attack.result)
+            await honest.inputs_land()  # and after it
+            honest.untouched(rs)
+            return result, before, rate
+
+    result, before, rate = run_async(scenario())
+    print(f"{kind}: {result}; control {before:.1f} ticks/s before, {rate:.1f} during")
+    assert rate >= 0.75 * before
+    return result
+
+
+def test_forty_quiet_addresses_never_make_the_honest_tab_the_one_to_go(
+    study: RunningServer,
+) -> None:
+    """40 addresses at 40 messages a second each: the first pass's budget closed the honest
+    tab as "the heaviest address" after 5 s. Now nothing is closed or dropped: unbound
+    connections wait for their address's share."""
+    result = under_attack(study, "flood", addresses=40, tasks=1, rate=40)
+    assert result["opened"] >= 30
+    assert study.server.firewall.closed_connections == 0
+
+
+def test_eight_sockets_from_seven_addresses_cannot_drop_a_key_release(
+    study: RunningServer,
+) -> None:
+    under_attack(study, "flood", addresses=7, tasks=8, rate=190)
+    assert study.server.firewall.shares.delayed > 1000
+
+
+def test_a_reconnect_storm_is_turned_away_before_it_costs_the_server(
+    study: RunningServer,
+) -> None:
+    result = under_attack(study, "storm", addresses=8, tasks=32)
+    fw = study.server.firewall
+    assert result["refused"] > result["opened"]  # most never reached viser
+    assert result["opened"] <= 8 * (6 + 6 * 0.2) + 8  # the new-tab gate's burst and rate
+    assert fw.gate.refused + fw.tab_gate.refused > 0
+
+
+def test_idle_sockets_cannot_lock_a_new_tab_or_a_reload_out(tmp_path: Path) -> None:
+    """Every slot of the port held by 16 addresses (a port of 24 slots here, to fill it fast;
+    the default 64 needs at least 11 addresses, the new-tab gate lets each open about 3-6),
+    first by sockets that never speak, then by ones that greet and idle: a new tab from
+    another address still gets a slot (an idle one makes room), and so does a reload
+    presenting its rejoin token."""
+    rs = start_server(
+        tmp_path,
+        time_limit_s=120.0,
+        training_runs=1,
+        server_kw={"port_firewall": Firewall(max_connections=24)},
+    )
+    srv = rs.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+
+    async def scenario() -> None:
+        for kind in ("idle", "lurk"):
+            attack = Attack(kind, srv.participant_port, seconds=14.0, addresses=16, tasks=96)
+            assert await until(lambda: len(srv.firewall.slots) >= 24, timeout=12.0)
+            async with RawClient(srv.participant_port) as newcomer:
+                await newcomer.join(code)  # a slot, the join screen, the session
+                cookie = next(
+                    m["source"]
+                    for m in newcomer.messages
+                    if m.get("type") == "RunJavascriptMessage" and "study-rejoin" in m["source"]
+                )
+            token = cookie.split("study-rejoin=")[1].split(";")[0]
+            assert await until(lambda: srv.session(code).page is None, timeout=5.0)
+            reload = await websockets.connect(
+                f"ws://127.0.0.1:{srv.participant_port}",
+                subprotocols=[f"viser-v{viser.__version__}"],
+                additional_headers={"Cookie": f"study-rejoin={token}"},
+            )
+            await reload.send(CAMERA)
+            assert await until(lambda: srv.session(code).page is not None, timeout=10.0)
+            await reload.close()
+            assert await until(lambda: srv.session(code).page is None, timeout=5.0)
+            result = await asyncio.get_running_loop().run_in_executor(None, attack.result)
+            assert result["opened"] >= 24
+
+    try:
+        run_async(scenario())
+        assert srv.firewall.slots.evicted >= 2
+    finally:
+        rs.stop()
+
+
+def test_guessers_from_six_addresses_keep_no_one_out(study: RunningServer) -> None:
+    """Fast wrong guesses from 6 addresses spend the server-wide budget; a tab from another
+    address still types its code and joins (0 of 14 did before), and a reload with its token
+    skips the throttle."""
+    srv = study.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+
+    async def scenario() -> None:
+        attack = Attack("guess", srv.participant_port, seconds=12.0, addresses=6, tasks=12)
+        assert await until(lambda: srv.throttle.saturated(), timeout=10.0)
+        async with RawClient(srv.participant_port) as honest:
+            await honest.join(code)
+        result = await asyncio.get_running_loop().run_in_executor(None, attack.result)
+        assert result["guesses"] > 60
+
+    run_async(scenario())
+    assert srv.session(code).ever_attached
+
+
+def test_other_versions_and_bare_connections_leave_a_few_log_lines(
+    study: RunningServer, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A 7 KB subprotocol of another viser version once wrote a traceback per handshake (9.9 MB
+    of log in 10 s); bare TCP connections one line each. Now: refused at the door, a handful of
+    one-line records, no traceback, and viser never echoes its version."""
+    srv = study.server
+    with caplog.at_level(logging.INFO):
+        version = Attack("version", srv.participant_port, seconds=4.0, addresses=2, tasks=8)
+        bare = Attack("tcp", srv.participant_port, seconds=4.0, addresses=2, tasks=8)
+        sent = version.result()["refused"] + bare.result()["opened"]
+    records = caplog.records
+    assert sent > 200
+    assert len(records) < 20, [r.getMessage()[:80] for r in records]
+    assert not [r for r in records if r.exc_info]
+    assert not any(viser.__version__ in r.getMessage() for r in records)
+
+
+def test_no_version_string_reaches_the_participant_port(study: RunningServer) -> None:
+    port = study.server.participant_port
+
+    async def fetch() -> tuple[bytes, int]:
+        reader, writer = await asyncio.open_connection("127.0.0.1", port)
+        writer.write(f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n".encode())
+        await writer.drain()
+        head = await reader.readuntil(b"\r\n\r\n")
+        writer.close()
+        with pytest.raises(websockets.InvalidStatus) as refused:
+            await websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=["viser-v0.0.1"])
+        return head, refused.value.response.status_code
+
+    head, status = run_async(fetch())
+    assert b"200" in head.split(b"\r\n")[0]
+    assert b"Server:" not in head and b"websockets" not in head and b"Python" not in head
+    assert status == 403  # another version is refused at the door, never with viser's reason
+
+
+def test_held_keys_are_a_state_resent_and_let_go_when_it_stops(study: RunningServer) -> None:
+    """The page resends its key state every 250 ms while a key is held: resent, the key stays
+    held; when the state stops arriving (a stalled connection) the key is let go within about
+    a second, recorded, and pressed again by the next state that holds it. A message the
+    firewall refuses from the bound tab is an ``input_dropped`` event."""
+    srv = study.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+    live = srv.session(code)
+
+    async def scenario() -> None:
+        async with RawClient(srv.participant_port) as client:
+            honest = Honest(client, live)
+            await honest.start(code)
+            source = live.participant_input
+            for _ in range(8):  # two seconds of resends: held throughout
+                await honest.keys("w")
+                stalled = time.monotonic()  # (the last state sent)
+                await asyncio.sleep(0.25)
+                assert source.keyboard.held == frozenset("w")
+            assert await until(lambda: not source.keyboard.moving, timeout=3.0)
+            assert 0.9 < time.monotonic() - stalled < 2.0
+            await honest.keys("w")
+            assert await until(lambda: source.keyboard.held == frozenset("w"), timeout=2.0)
+            await honest.keys("")
+            await client.pose((10.0, 10.0, 10.0), owner=honest.owner)  # refused by the firewall
+            assert await until(
+                lambda: "input_dropped" in [e.kind for e in study.store.events()], timeout=5.0
+            )
+
+    run_async(scenario())
+    events = {e.kind: e for e in study.store.events()}
+    assert events["keys_expired"].detail == {"keys": "w"}
+    assert "handle position" in str(events["input_dropped"].detail)
