@@ -10,6 +10,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
+import viser
 from websockets.datastructures import Headers
 
 from study.cli.serve import public_url
@@ -155,7 +156,8 @@ def test_the_origin_check_accepts_the_public_host_only_from_the_proxy() -> None:
     fw = Firewall(trusted_proxies=PROXY)
 
     def request(origin: str) -> SimpleNamespace:
-        return SimpleNamespace(headers=Headers([*h.raw_items(), ("Origin", origin)]))
+        offered = ("Sec-WebSocket-Protocol", f"viser-v{viser.__version__}")
+        return SimpleNamespace(headers=Headers([*h.raw_items(), ("Origin", origin), offered]))
 
     conn = SimpleNamespace(remote_address=("127.0.0.1", 5000))
     assert fw._door_problem(conn, request("https://study.example.org")) is None

@@ -15,6 +15,7 @@ from viser.infra._messages import Message
 
 from study.server import blinding, firewall
 from study.server.firewall import MAX_MESSAGE_BYTES, Firewall
+from study.server.firewall.rules import MAX_GUI_TEXT
 from study.server.firewall.shares import AcceptGate, FairShares
 from study.server.firewall.slots import Slots
 from tests.browser.harness import run_async
@@ -59,7 +60,10 @@ def test_bad_values_sizes_and_types_are_refused_with_a_short_reason() -> None:
         reason = fw.screen(_pose(position))
         assert reason is not None and "handle position" in reason
     assert "value" in (fw.screen(_raw("GuiUpdateMessage", uuid="a", updates={"label": "x"})) or "")
-    assert fw.screen(_raw("GuiUpdateMessage", uuid="a", updates={"value": "x" * 300})) is not None
+    # a free-text answer of 2,000 characters passes; a GUI value past MAX_GUI_TEXT does not
+    assert fw.screen(_raw("GuiUpdateMessage", uuid="a", updates={"value": "x" * 2000})) is None
+    too_long = "x" * (MAX_GUI_TEXT + 1)
+    assert fw.screen(_raw("GuiUpdateMessage", uuid="a", updates={"value": too_long})) is not None
     assert fw.screen(_raw("GuiUpdateMessage", uuid="a", updates={"value": [1, 2]})) is not None
     assert "share" in (fw.screen(_raw("ShareUrlRequest")) or "")
     assert "not accepted" in (fw.screen(_raw("FileTransferStartUpload", uuid="x")) or "")
@@ -160,7 +164,7 @@ def test_the_viser_internals_the_blinding_guard_patches_are_where_it_expects() -
 
 def test_the_console_may_send_long_text() -> None:
     """An experimenter's reason can be long; only the participant port bounds strings."""
-    long_reason = _raw("GuiUpdateMessage", uuid="a", updates={"value": "r" * 500})
+    long_reason = _raw("GuiUpdateMessage", uuid="a", updates={"value": "r" * (MAX_GUI_TEXT + 1)})
     assert Firewall(allowed=None).screen(long_reason) is None
     assert Firewall().screen(long_reason) is not None
 
