@@ -74,7 +74,7 @@ class Texts:
     """Participant-facing text; none of it may name a condition (checked on load).
 
     ``instructions`` maps a phase (``welcome``, ``training``, ``task``, ``rating``,
-    ``preference``, ``pause``) to its text; ``{target}`` in the training and task texts is replaced
+    ``preference``, ``pause``, ``after_training``) to its text; ``{target}`` in the training and task texts is replaced
     by the target object's name.
     """
 

@@ -20,7 +20,9 @@ from study.protocol.protocol import Protocol
 from study.protocol.questionnaire import PHASES, LikertItem, Questionnaire, Scale
 
 INSTRUCTIONS_REQUIRED = ("welcome", "training", "task", "rating")
-INSTRUCTIONS_OPTIONAL = ("preference", "pause")  # preference: required if after_task is asked
+INSTRUCTIONS_OPTIONAL = ("preference", "pause", "after_training")
+"""``preference`` is required if after_task items are asked; ``after_training`` introduces the
+items asked after the practice runs (without it, a neutral sentence about the practice runs)."""
 PLACEHOLDERS = {"training": {"target"}, "task": {"target"}}
 _ITEM_ID = re.compile(r"^[a-z][a-z0-9_]{0,31}$")
 
