@@ -217,6 +217,9 @@ class Firewall:
         self.budget_burst = budget_burst
         self.evict_after_s = evict_after_s
         self._clock = clock  # of the rate limits (a test's own clock)
+        self.page_filter: Callable[[Any, Any], Any] | None = None
+        """Rewrites viser's HTTP responses, ``(request, response) -> response`` (the study
+        server's page head: ``study.server.page_head``)."""
         self.passed = 0
         self.dropped: Counter[str] = Counter()
         self.closed_connections = 0
@@ -252,9 +255,11 @@ class Firewall:
             if inner is None:
                 return None
             try:
-                return inner(connection, request)
+                response = inner(connection, request)
             except OSError:  # e.g. a path too long to be a file name
                 return Response(http.HTTPStatus.NOT_FOUND, "NOT FOUND", Headers(), b"")
+            page_filter = self.page_filter
+            return response if page_filter is None else page_filter(request, response)
 
         return handle
 

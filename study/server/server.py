@@ -30,6 +30,7 @@ from study.server.experimenter import ExperimenterConsole, SessionDetail, Sessio
 from study.server.firewall import LOOPBACK_NAMES
 from study.server.join import JoinThrottle, new_join_code, normalize_code
 from study.server.live import LiveSession, SessionFactory
+from study.server.page_head import PageHead
 from study.server.page_script import page_script
 from study.server.participant import ParticipantPage
 from study.server.scene import frame_task
@@ -86,6 +87,7 @@ class StudyServer:
         self._page_session: dict[int, str] = {}
 
         self.firewall = firewall.Firewall(allow_share=allow_share)
+        self.firewall.page_filter = PageHead()  # viser's own notices hidden from the first paint
         with firewall.hardened_serve(self.firewall):
             self.participant = viser.ViserServer(host=host, port=port, verbose=verbose)
         self.guard = blinding.install(self.participant, words=condition_words)

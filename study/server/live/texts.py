@@ -24,6 +24,10 @@ WAITING_TEXT = (
     "Please wait: the experimenter will start your session in a moment."
     " This page will change by itself."
 )
+AT_REACH_LIMIT = "The arm cannot reach beyond the frame drawn on the table."
+"""Shown while the participant's input is held past the reach (handle or keys)."""
+TIME_WARNING_S = 10.0
+TIME_WARNING = "10 seconds left in this run."
 
 
 def outcome_sentence(run: TrialRun, *, target: str, session_finished: bool) -> str | None:
@@ -35,10 +39,13 @@ def outcome_sentence(run: TrialRun, *, target: str, session_finished: bool) -> s
 
 
 __all__ = [
+    "AT_REACH_LIMIT",
     "ENDED_BY_EXPERIMENTER",
     "MISSED_GRASP",
     "OUTCOME_SENTENCES",
     "TAB_LOST_TEXT",
+    "TIME_WARNING",
+    "TIME_WARNING_S",
     "WAITING_TEXT",
     "WAIT_TEXT",
     "outcome_sentence",
