@@ -10,7 +10,9 @@ the table straight from above, rendered by MuJoCo's offscreen renderer (``MUJOCO
   objects and the gripper's start with 12 cm around them (:func:`top_down_camera`);
 * the arm drawn half transparent (from above it would hide what lies under the hand), the reach
   limit as a frame on the table and a dark disc on the table under the gripper, as in the 3-D
-  view;
+  view; over everything, each object's footprint outlined in its colour and the gripper's point
+  as a cross (seen through the hand), and a dark arrow at the edge toward a gripper outside the
+  picture;
 * 320 x 240 pixels, no multisampling, no shadows or reflections (about 6-10 ms a frame in
   software GL on these machines), JPEG at quality 80 (5-8 kB);
 * at most ``rate_hz`` frames a second (15, so that a loaded machine still shows 10 or more),
@@ -30,6 +32,7 @@ import logging
 import math
 import os
 import time
+from collections import deque
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
@@ -52,6 +55,10 @@ DISC_RADIUS_M = 0.018
 REACH_RGBA = (70 / 255, 100 / 255, 140 / 255, 1.0)
 DISC_RGBA = (0.12, 0.12, 0.12, 1.0)
 LINE_M = 0.008
+EDGE_PX = 6
+EDGE_RGB = (30, 30, 30)
+OUTLINE_RGB = (40, 40, 40)
+_SQUARE = ((-1, -1), (1, -1), (1, 1), (-1, 1))
 
 
 @dataclass(frozen=True)
@@ -207,7 +214,57 @@ class InsetRenderer:
         self._gl.make_current()
         mujoco.mjr_render(self._rect, scene, self._context)
         mujoco.mjr_readPixels(self._rgb, None, self._rect, self._context)
-        return np.flipud(self._rgb).copy()
+        image = np.flipud(self._rgb).copy()
+        self._outline(image, poses)
+        return self._point_out(image, g)
+
+    def _outline(self, image: np.ndarray, poses: BodyPoses) -> None:
+        """Each object's footprint outlined in its colour and the gripper's point marked, over
+        everything: under the hand, from above, they would be hidden."""
+        w, h = self.width, self.height
+        scale = h / self.camera.extent_m
+        for obj, body in zip(self.scene.spec.objects, self.scene.object_body_ids, strict=True):
+            centre = np.asarray(poses.xpos[body], float)
+            colour = tuple(int(255 * c) for c in obj.rgba[:3])
+            if obj.shape == "cylinder":
+                x, y = self.camera.pixel(centre, width=w, height=h)
+                r = max(2, round(obj.size[0] * scale))
+                cv2.circle(image, (round(x), round(y)), r, OUTLINE_RGB, 4, cv2.LINE_AA)
+                cv2.circle(image, (round(x), round(y)), r, colour, 2, cv2.LINE_AA)
+            else:
+                rot = np.asarray(poses.xmat[body], float).reshape(3, 3)
+                hx, hy = obj.size[0], obj.size[1]
+                corners = [centre + rot @ np.array([sx * hx, sy * hy, 0.0]) for sx, sy in _SQUARE]
+                pts = np.array([self.camera.pixel(c, width=w, height=h) for c in corners])
+                pts = pts.round().astype(np.int32).reshape(-1, 1, 2)
+                cv2.polylines(image, [pts], True, OUTLINE_RGB, 4, cv2.LINE_AA)
+                cv2.polylines(image, [pts], True, colour, 2, cv2.LINE_AA)
+        x, y = self.camera.pixel(poses.gripper, width=w, height=h)
+        c = (round(x), round(y))
+        cv2.drawMarker(image, c, OUTLINE_RGB, cv2.MARKER_CROSS, 14, 3, cv2.LINE_AA)
+        cv2.drawMarker(image, c, (250, 250, 250), cv2.MARKER_CROSS, 12, 1, cv2.LINE_AA)
+
+    def _point_out(self, image: np.ndarray, gripper: np.ndarray) -> np.ndarray:
+        """A gripper outside the picture is shown by an arrow at the picture's edge, pointing
+        toward it (the picture frames the task, not all of the reach)."""
+        w, h = self.width, self.height
+        x, y = self.camera.pixel(gripper, width=w, height=h)
+        if 0 <= x < w and 0 <= y < h:
+            return image
+        c = np.array([w / 2, h / 2])
+        d = np.array([x, y]) - c
+        k = min((w / 2 - EDGE_PX) / max(abs(d[0]), 1e-9), (h / 2 - EDGE_PX) / max(abs(d[1]), 1e-9))
+        tip = c + k * d
+        tail = tip - 18 * d / np.linalg.norm(d)
+        cv2.arrowedLine(
+            image,
+            (int(tail[0]), int(tail[1])),
+            (int(tip[0]), int(tip[1])),
+            EDGE_RGB,
+            thickness=3,
+            tipLength=0.5,
+        )
+        return image
 
     def close(self) -> None:
         """Free the GL objects (from the thread that rendered)."""
@@ -299,8 +356,10 @@ class InsetLoop:
         self._done: object = None
         self._closing = False
         self.frames = 0
-        self.render_s: list[float] = []
-        """Wall time of the last renders incl. encoding (seconds; the newest 512)."""
+        self.render_s: deque[float] = deque(maxlen=512)
+        """Wall time of the last renders incl. encoding (seconds)."""
+        self.sent_at: deque[float] = deque(maxlen=512)
+        """When (monotonic) the last pictures were handed to the page."""
         self.failed: str | None = None
         self._loop = PacedLoop(self._step, rate_hz=rate_hz, name=name)
 
@@ -346,7 +405,8 @@ class InsetLoop:
         self._done = job.key
         self._sink(jpeg)
         self.frames += 1
-        self.render_s = [*self.render_s[-511:], time.perf_counter() - t]
+        self.render_s.append(time.perf_counter() - t)
+        self.sent_at.append(time.monotonic())
         return True
 
     def _renderer_for(self, job: InsetJob) -> InsetRenderer:

@@ -110,6 +110,19 @@ def _arrow(page: Any, live: Any, axis: int) -> tuple[np.ndarray, np.ndarray]:
     return o + 0.8 * (tip - o), direction
 
 
+def _camera_still(live: Any) -> None:
+    """Wait until the tab has reported the same camera pose for half a second (the task view
+    is set from the server; the tab reports where its camera is)."""
+    last = None
+    for _ in range(40):
+        cam = live.page.client.camera
+        now = (*np.round(cam.position, 4), *np.round(cam.wxyz, 4), cam.image_width)
+        if now == last:
+            return
+        last = now
+        time.sleep(0.5)
+
+
 def _gripper(live: Any) -> np.ndarray:
     return np.asarray(live.run.trial.poses().gripper, float)
 
@@ -134,21 +147,26 @@ def _inset_frames(frames: FrameLog, uuid: str) -> list[tuple[float, bytes]]:
 
 
 def _steer_to(page: Any, live: Any, goal: np.ndarray, axes: tuple[int, ...]) -> None:
-    """Hold the keys, as a person would, until the target is within 8 mm of ``goal`` on
-    ``axes`` (a held key moves it at 0.1 m/s; correct the overshoot like anyone does)."""
+    """Hold the keys, as a person would, until the target is within 6 mm of ``goal`` on
+    ``axes``: a held key moves it at 0.1 m/s, a tap 8 mm; a loaded browser handles key events
+    late, so aim short and correct, like anyone does."""
     for axis in axes:
-        for _ in range(5):
+        for _ in range(12):
+            page.wait_for_timeout(400)
             error = goal[axis] - float(live.run.trial.user_target[axis])
-            if abs(error) < 0.008:
+            if abs(error) < 0.006:
                 break
             key = KEYS[axis][0 if error > 0 else 1]
-            hold(page, key, min(abs(error) / 0.1, 4.0))
-            page.wait_for_timeout(300)
+            page.keyboard.down(key)
+            page.wait_for_timeout(1000 * min(0.7 * abs(error) / 0.1, 3.0))
+            page.keyboard.up(key)
+    error = goal - np.asarray(live.run.trial.user_target, float)
+    assert np.abs(error[list(axes)]).max() < 0.006, error
 
 
 @pytest.fixture
 def study(tmp_path: Path) -> Any:
-    rs = start_server(tmp_path, time_limit_s=90.0, training_runs=1)
+    rs = start_server(tmp_path, time_limit_s=240.0, training_runs=1)
     try:
         yield rs
     finally:
@@ -175,8 +193,9 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     run = live.run
     scene = run.trial.scene
     _settle(page)
+    _camera_still(live)
     first = _clock(page)
-    assert 80 <= first <= 90, first
+    assert 200 <= first <= 240, first
     _shot(page, screenshots, "11-depth-start")
 
     # The handle floats over the gripper, its arrows pointing up the screen: not over the mug.
@@ -208,30 +227,41 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
         cosine = float(on_screen @ direction) / float(np.linalg.norm(on_screen))
         assert cosine > np.cos(np.radians(30)), (name, on_screen, direction)
 
-    # The view from above is redrawn while the arm moves (keys held for seconds).
+    # The view from above is redrawn while the arm moves (keys held for seconds): the server
+    # makes 10 pictures a second or more, and the page gets them (viser merges two pictures
+    # queued within one send window, so a loaded machine shows fewer, the newest each time).
     uuid = live.page._inset._impl.uuid
+    inset = live.view.inset
     before = len(_inset_frames(frames, uuid))
     t0 = time.monotonic()
     hold(page, "s", 2.0)
     t1 = time.monotonic()
-    page.wait_for_timeout(800)
-    pictures = [(t, j) for t, j in _inset_frames(frames, uuid) if t0 + 0.3 <= t <= t1]
-    rate = len(pictures) / (t1 - t0 - 0.3)
-    print(f"view from above: {rate:.1f} frames/s while the arm moved; {before} before")
+    # from the first picture of the move (keys arrive late on a loaded machine) to the release
+    sent = [t for t in inset.sent_at if t0 < t <= t1]
+    rate = (len(sent) - 1) / (sent[-1] - sent[0])
+    page.wait_for_timeout(1500)
+    got = (len(_inset_frames(frames, uuid)) - before) / (sent[-1] - sent[0])
+    print(
+        f"view from above: made {rate:.1f}/s while the arm moved (render"
+        f" {1e3 * float(np.median(inset.render_s)):.1f} ms median), the page got {got:.1f}/s"
+    )
     assert rate >= 10.0, rate
+    assert got >= 5.0, got
+    pictures = _inset_frames(frames, uuid)[before:]
     a, b = (np.asarray(Image.open(io.BytesIO(j)), float) for _, j in (pictures[0], pictures[-1]))
     assert np.abs(a - b).mean() > 0.5, "the picture from above did not change"
-    top = live.view.inset.camera
-    assert isinstance(top, TopDownCamera)
-    w, h = Image.open(io.BytesIO(pictures[-1][1])).size
-    gx, gy = top.pixel(_gripper(live), width=w, height=h)
-    assert 0 <= gx < w and 0 <= gy < h, "the gripper is in the picture from above"
 
-    # Mid-reach: the keys take the gripper over the mug, then down to it.
+    # Mid-reach: the keys take the gripper over the mug; the picture from above shows both.
     goal = np.asarray(scene.goals.positions[scene.target_index], float)
     _steer_to(page, live, goal, (0, 1))
     page.wait_for_timeout(1000)
     _shot(page, screenshots, "12-depth-mid-reach")
+    top = live.view.inset.camera
+    assert isinstance(top, TopDownCamera)
+    last = Image.open(io.BytesIO(_inset_frames(frames, uuid)[-1][1]))
+    for point in (_gripper(live), goal):
+        x, y = top.pixel(point, width=last.width, height=last.height)
+        assert 0 <= x < last.width and 0 <= y < last.height, "in the picture from above"
 
     # Past the reach: drag the x arrow far out and hold it there -> a notice, the arm stops.
     grab, direction = _arrow(page, live, 0)
@@ -267,7 +297,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
 
 
 def test_a_run_that_ends_while_the_handle_is_held_says_why(tmp_path: Path, wide: Any) -> None:
-    rs = start_server(tmp_path, time_limit_s=8.0, training_runs=1)
+    rs = start_server(tmp_path, time_limit_s=15.0, training_runs=1)
     try:
         srv = rs.server
         code = srv.enrol("P01")
@@ -282,19 +312,25 @@ def test_a_run_that_ends_while_the_handle_is_held_says_why(tmp_path: Path, wide:
         page.get_by_role("button", name="Start").click()
         page.get_by_role("button", name="Close the gripper (G)").wait_for()
         assert wait_until(lambda: live.run is not None and live.page._gizmo is not None)
-        first = _clock(page)
-        page.wait_for_timeout(2000)
-        assert _clock(page) < first <= 8
+        _settle(page, rounds=1)
+        _camera_still(live)
 
-        # Grab the up arrow and keep moving it slowly until the time is up.
+        # Grab the up arrow and keep moving it slowly until the time is up; the countdown runs.
         grab, direction = _arrow(page, live, 2)
-        _press_drag(page, grab, grab + 20 * direction, steps=2)
-        assert wait_until(lambda: live.page.dragging, timeout=10)
-        p = grab + 20 * direction
+        print(f"pressing at trial time {live.run.trial.t:.1f} s, over {live.run.over}")
+        _press_drag(page, grab, grab + 20 * direction, steps=4)
+        assert wait_until(lambda: live.page.dragging, timeout=10), "the handle was not grabbed"
+        first = _clock(page)
+        assert first <= 15
+        p, t = grab + 20 * direction, time.monotonic()
         while not live.run.over:
-            p = p + 2 * direction
+            p = p + 1 * direction
             page.mouse.move(float(p[0]), float(p[1]))
             page.wait_for_timeout(150)
+            if t is not None and time.monotonic() - t > 2.5:
+                assert _clock(page) < first, "the countdown runs"
+                t = None
+        assert live.run.summary.outcome == "timeout" and live.page is not None
         page.get_by_text("Time is up.").first.wait_for(timeout=15_000)
         notices = page.locator(".mantine-Notification-root").all_inner_texts()
         assert any("Time is up." in n for n in notices), notices  # over the scene

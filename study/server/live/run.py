@@ -103,11 +103,13 @@ class LiveRun:
 
     def _released(self, page: ParticipantPage, trial: Trial) -> None:
         """The handle was let go: if it was left past the reach, it goes back over the point the
-        arm was sent to (the reach clamps it), where the gripper is."""
+        arm was sent to (the reach clamps it), and that point becomes the input's target."""
         if self.trial is trial and not trial.done and self.input.source is not None:
             target = self.input.source.last_target
             if target is not None and not trial.scene.reach.contains(target):
-                page.move_gizmo(trial.scene.reach.clamp(target))
+                inside = trial.scene.reach.clamp(target)
+                self.input.on_target(inside)
+                page.move_gizmo(inside)
 
     def gripper(self) -> np.ndarray | None:
         return None if self.trial is None else self.trial.poses().gripper
