@@ -35,8 +35,8 @@ fraction over objects and poses among the legible ones; within ``tie_tolerance``
 the one nearest the default (azimuth 225 deg: behind the robot and to its right, looking across
 the table's diagonal; elevation 35 deg), then the earliest of ``distance_factors``, wins. When
 no legible viewpoint shows every object ``min_visible``, the most legible of those that do wins
-(``TaskView.legibility`` says how legible it is). Deterministic, about 1-3 s per scene on 2
-cores; results are cached per scene (the study server computes them when it starts).
+(``TaskView.legibility`` says how legible it is). Deterministic, about 0.5-1 s per scene on 2
+cores (3 s when no legible view shows every object); results are cached per scene.
 """
 
 from __future__ import annotations
@@ -288,8 +288,8 @@ def task_view(
 
         def score(c: _Candidate) -> float:
             return min(
-                min(c.legibility.shares) / min_axis_share,
-                c.legibility.min_angle_deg / min_axis_angle_deg,
+                min(c.legibility.shares) / max(min_axis_share, 1e-9),
+                c.legibility.min_angle_deg / max(min_axis_angle_deg, 1e-9),
             )
 
         top = max(score(c) for c in seen)
