@@ -361,6 +361,9 @@ class InsetLoop:
         self.sent_at: deque[float] = deque(maxlen=512)
         """When (monotonic) the last pictures were handed to the page."""
         self.failed: str | None = None
+        self.dropped = 0
+        """Pictures not sent: no JPEG quality avoided a condition word (a word spelt by the
+        JPEG format's own tables, such as "cdefghij", would drop them all)."""
         self._loop = PacedLoop(self._step, rate_hz=rate_hz, name=name)
 
     def start(self) -> InsetLoop:
@@ -393,8 +396,10 @@ class InsetLoop:
         try:
             renderer = self._renderer_for(job)
             jpeg = encode_jpeg(renderer.render(job.poses), words=job.words)
-        except InsetError as exc:
-            LOGGER.warning("view from above: %s", exc)
+        except InsetError as exc:  # said once: it would repeat with every picture
+            if not self.dropped:
+                LOGGER.warning("view from above: %s", exc)
+            self.dropped += 1
             self._done = job.key
             return True
         except Exception as exc:  # no GL context: say so once, keep the session going
