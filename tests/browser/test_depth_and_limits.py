@@ -22,7 +22,7 @@ import pytest
 from PIL import Image
 
 from study.server.inset import TopDownCamera
-from study.server.live.texts import AT_REACH_LIMIT
+from study.server.live.texts import AT_REACH_LIMIT, TIME_WARNING
 from study.server.participant import HANDLE_OFFSET_M, HANDLE_PX
 from tests.browser.harness import (
     FrameLog,
@@ -275,6 +275,11 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     assert wait_until(lambda: not notice.first.is_visible(), timeout=10)
     back = np.asarray(live.page._gizmo.position, float) - OFFSET
     assert scene.reach.contains(back, tol=1e-6), "the handle came back inside the reach"
+    # W held at the far edge pushes past it too: the same notice while the key is down
+    page.keyboard.down("w")
+    notice.first.wait_for(timeout=10_000)
+    page.keyboard.up("w")
+    assert wait_until(lambda: not notice.first.is_visible(), timeout=10)
     later = _clock(page)
     assert later < first, (first, later)
 
@@ -322,7 +327,7 @@ def test_a_run_that_ends_while_the_handle_is_held_says_why(tmp_path: Path, wide:
         assert wait_until(lambda: live.page.dragging, timeout=10), "the handle was not grabbed"
         first = _clock(page)
         assert first <= 15
-        p, t = grab + 20 * direction, time.monotonic()
+        p, t, warned = grab + 20 * direction, time.monotonic(), False
         while not live.run.over:
             p = p + 1 * direction
             page.mouse.move(float(p[0]), float(p[1]))
@@ -330,6 +335,8 @@ def test_a_run_that_ends_while_the_handle_is_held_says_why(tmp_path: Path, wide:
             if t is not None and time.monotonic() - t > 2.5:
                 assert _clock(page) < first, "the countdown runs"
                 t = None
+            warned = warned or TIME_WARNING in page.inner_text("body")
+        assert warned, "ten seconds before the end, a notice said so"
         assert live.run.summary.outcome == "timeout" and live.page is not None
         page.get_by_text("Time is up.").first.wait_for(timeout=15_000)
         notices = page.locator(".mantine-Notification-root").all_inner_texts()
