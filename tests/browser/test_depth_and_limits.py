@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from app.robot.scene import grasp_position
 from study.server.inset import TopDownCamera
 from study.server.live.texts import AT_REACH_LIMIT, TIME_WARNING
 from study.server.participant import HANDLE_OFFSET_M, HANDLE_PX
@@ -46,7 +47,7 @@ CLOCK = re.compile(r"Time left: (\d+):(\d\d)")
 @pytest.fixture
 def wide(browser: Any) -> Any:
     ctx = browser.new_context(viewport=VIEWPORT)
-    ctx.set_default_timeout(60_000)
+    ctx.set_default_timeout(120_000)  # a first draw of the scene on a loaded machine
     try:
         yield ctx
     finally:
@@ -116,7 +117,7 @@ def _camera_still(live: Any) -> None:
     last = None
     for _ in range(40):
         cam = live.page.client.camera
-        now = (*np.round(cam.position, 4), *np.round(cam.wxyz, 4), cam.image_width)
+        now = (*np.round(cam.position, 4), *np.round(cam.wxyz, 4))
         if now == last:
             return
         last = now
@@ -243,7 +244,8 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     got = (len(_inset_frames(frames, uuid)) - before) / (sent[-1] - sent[0])
     print(
         f"view from above: made {rate:.1f}/s while the arm moved (render"
-        f" {1e3 * float(np.median(inset.render_s)):.1f} ms median), the page got {got:.1f}/s"
+        f" {1e3 * float(np.median(inset.render_s)):.1f} ms median), the page got at least"
+        f" {got:.1f}/s"
     )
     assert rate >= 10.0, rate
     assert got >= 5.0, got
@@ -252,7 +254,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     assert np.abs(a - b).mean() > 0.5, "the picture from above did not change"
 
     # Mid-reach: the keys take the gripper over the mug; the picture from above shows both.
-    goal = np.asarray(scene.goals.positions[scene.target_index], float)
+    goal = grasp_position(scene.spec.objects[scene.target_index])  # TCP 3 cm below its top
     _steer_to(page, live, goal, (0, 1))
     page.wait_for_timeout(1000)
     _shot(page, screenshots, "12-depth-mid-reach")
@@ -302,7 +304,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
 
 
 def test_a_run_that_ends_while_the_handle_is_held_says_why(tmp_path: Path, wide: Any) -> None:
-    rs = start_server(tmp_path, time_limit_s=15.0, training_runs=1)
+    rs = start_server(tmp_path, time_limit_s=25.0, training_runs=1)
     try:
         srv = rs.server
         code = srv.enrol("P01")
@@ -317,16 +319,19 @@ def test_a_run_that_ends_while_the_handle_is_held_says_why(tmp_path: Path, wide:
         page.get_by_role("button", name="Start").click()
         page.get_by_role("button", name="Close the gripper (G)").wait_for()
         assert wait_until(lambda: live.run is not None and live.page._gizmo is not None)
-        _settle(page, rounds=1)
-        _camera_still(live)
+        _camera_still(live)  # the scene was drawn on the ready screen already
 
         # Grab the up arrow and keep moving it slowly until the time is up; the countdown runs.
         grab, direction = _arrow(page, live, 2)
         print(f"pressing at trial time {live.run.trial.t:.1f} s, over {live.run.over}")
         _press_drag(page, grab, grab + 20 * direction, steps=4)
-        assert wait_until(lambda: live.page.dragging, timeout=10), "the handle was not grabbed"
+        if not wait_until(lambda: live.page.dragging, timeout=10):
+            page.mouse.up()
+            page.screenshot(path=str(tmp_path / "not-grabbed.png"))
+            print("not grabbed:", tmp_path / "not-grabbed.png", grab, direction)
+            raise AssertionError("the handle was not grabbed")
         first = _clock(page)
-        assert first <= 15
+        assert first <= 25
         p, t, warned = grab + 20 * direction, time.monotonic(), False
         while not live.run.over:
             p = p + 1 * direction
