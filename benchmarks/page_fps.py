@@ -8,8 +8,10 @@ callbacks (the browser's frame rate) while
 * the arm moves: the handle's target follows a slow circle at 30 poses/s, as a drag does;
 * the arm holds still: no input (the server then sends no scene updates at all).
 
-It also counts the scene frames the server sent in each window. Run it on an idle machine;
-the load average is printed with the figures. Example::
+It also counts the scene frames the server sent in each window, the pictures from above it made
+(``study.server.inset``; 0 on a page without them) and the control loop's ticks, with the tick
+periods' median, p99 and maximum while the arm moves. Run it on an idle machine, or side by side
+with another version in the same minutes; the load average is printed with the figures::
 
     .venv/bin/python benchmarks/page_fps.py --seconds 5 --repeats 3
 
@@ -29,6 +31,7 @@ import sys
 import tempfile
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 from playwright.sync_api import sync_playwright
@@ -48,12 +51,23 @@ FPS_JS = """(ms) => new Promise((done) => {
 })"""
 
 
-def _window(page, live, seconds: float) -> tuple[float, float]:
-    """(frames/s drawn by the page, scene frames/s sent by the server) over ``seconds``."""
+def _window(page, live, seconds: float) -> tuple[float, float, float, float]:
+    """Over ``seconds``: frames/s drawn by the page, scene frames/s sent by the server, pictures
+    from above made per second (0 where the page has none) and the control loop's ticks/s."""
     sent = live.scene_view.frames_sent
+    inset = getattr(live.view, "inset", None)
+    made = inset.frames if inset is not None else 0
+    ticks = live.control_loop.ticks
     t = time.monotonic()
     fps = float(page.evaluate(FPS_JS, seconds * 1000))
-    return fps, (live.scene_view.frames_sent - sent) / (time.monotonic() - t)
+    dt = time.monotonic() - t
+    made = (inset.frames - made) / dt if inset is not None else 0.0
+    return (
+        fps,
+        (live.scene_view.frames_sent - sent) / dt,
+        made,
+        (live.control_loop.ticks - ticks) / dt,
+    )
 
 
 def _skip_to(srv, code: str, live, mode: str) -> None:
@@ -73,6 +87,7 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=3, help="windows per condition")
     parser.add_argument("--protocol", default=None, help="protocol TOML (default: the paper's)")
     parser.add_argument("--mode", default=None, help="measure the first run in this mode")
+    parser.add_argument("--viewport", default="1100x720", help="page size, WxH (CSS pixels)")
     parser.add_argument(
         "--center",
         default="0.45,0,0.3",
@@ -81,11 +96,9 @@ def main() -> int:
     )
     args = parser.parse_args()
 
+    source = {} if args.protocol is None else {"source": Path(args.protocol)}
     rs = start_server(
-        tempfile.mkdtemp(prefix="bench-fps-"),
-        time_limit_s=600.0,
-        training_runs=1,
-        source=args.protocol,
+        tempfile.mkdtemp(prefix="bench-fps-"), time_limit_s=600.0, training_runs=1, **source
     )
     srv = rs.server
     result: dict = {
@@ -99,7 +112,9 @@ def main() -> int:
         live = srv.session(code)
         with sync_playwright() as p:
             browser = launch(p)
-            page = browser.new_page(viewport={"width": 1100, "height": 720})
+            width, height = (int(v) for v in args.viewport.split("x"))
+            result["viewport"] = args.viewport
+            page = browser.new_page(viewport={"width": width, "height": height})
             page.set_default_timeout(120_000)
             page.goto(rs.url)
             page.get_by_text("Connected").first.wait_for()
@@ -119,7 +134,14 @@ def main() -> int:
             )
             feeder.start()
             page.wait_for_timeout(1000)
+            live.control_loop._stamps.clear()  # tick periods of the moving windows only
             moving = [_window(page, live, args.seconds) for _ in range(args.repeats)]
+            periods = live.control_loop.periods() * 1e3
+            result["control_tick_period_ms_moving"] = {
+                "median": round(float(np.median(periods)), 2),
+                "p99": round(float(np.percentile(periods, 99)), 2),
+                "max": round(float(periods.max()), 1),
+            }
             cue = live.scene_view.intent
             result["ring_shown"] = cue is not None and cue.visible_goal is not None
             result["ring_updates"] = 0 if cue is None else cue.updates
@@ -148,15 +170,22 @@ def main() -> int:
     for name, rows in (("moving", moving), ("still", still)):
         fps = np.array([r[0] for r in rows])
         sent = np.array([r[1] for r in rows])
+        above = np.array([r[2] for r in rows])
+        ticks = np.array([r[3] for r in rows])
         result[name] = {
             "page_fps_median": round(float(np.median(fps)), 1),
             "page_fps_min": round(float(fps.min()), 1),
             "scene_frames_sent_per_s": round(float(np.median(sent)), 1),
+            "pictures_from_above_per_s": round(float(np.median(above)), 1),
+            "control_ticks_per_s": round(float(np.median(ticks)), 1),
         }
         print(
             f"arm {name}: page draws {np.median(fps):.1f} frames/s (min {fps.min():.1f},"
             f" {len(fps)} x {args.seconds:g} s); server sends {np.median(sent):.1f} scene frames/s"
+            f" and {np.median(above):.1f} pictures from above/s; control {np.median(ticks):.1f}"
+            " ticks/s"
         )
+    print(f"control tick periods while moving (ms): {result['control_tick_period_ms_moving']}")
     print(json.dumps(result))
     return 0
 

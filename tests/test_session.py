@@ -407,6 +407,35 @@ def test_skip_a_run_skips_its_items_and_the_preference(store: Store, protocol: P
     again.close()
 
 
+def test_practice_items_fit_practice_and_go_with_every_practice_run(
+    store: Store, protocol: Protocol
+) -> None:
+    """After practice runs the items are introduced as being about the practice runs (not
+    "the run you just finished"); when every practice run is skipped they are not asked."""
+    done = enrol(store, protocol)
+    to_step(done, "ready")
+    done.skip(reason="participant knows the task")  # one practice run skipped: items stay
+    finish_run(done)
+    finish_run(done)
+    screen = done.screen()
+    assert screen.phase == "questions" and screen.questionnaire == "after_training"
+    assert screen.text == protocol.texts.instructions["after_training"].strip()
+    assert "practice runs" in screen.text and "run you just finished" not in screen.text
+    done.close()
+
+    skipped = enrol(store, protocol, "P02")
+    to_step(skipped, "ready")
+    for k in range(3):
+        assert skipped.screen().progress.text == f"Trial {k + 1} of 11"
+        skipped.skip(reason="practice not needed")
+    screen = skipped.screen()  # straight to the first task run: nothing to rate
+    assert screen.phase == "ready" and screen.progress.text == "Trial 4 of 11"
+    skip_events = [e for e in store.events() if e.kind == "skip"]
+    after_training = next(s.index for s in skipped.plan if s.questionnaire == "after_training")
+    assert after_training in skip_events[-1].detail["steps"]
+    skipped.close()
+
+
 def test_withdraw_mid_trial(store: Store, protocol: Protocol) -> None:
     session = enrol(store, protocol)
     to_step(session, "ready")

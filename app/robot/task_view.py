@@ -16,14 +16,27 @@ and the table within ``context_m`` of them must project inside ``[-1 + m, 2u - 1
 1 - m]``. For each (azimuth, elevation) the distance is
 the smallest that satisfies this (bisection), times each of ``distance_factors``.
 
+Legibility: each handle axis must move the gripper visibly across the screen, not along the line
+of sight. At a point ``x`` (camera coordinates ``x_r, x_u, x_f``) a step along world axis ``e_i``
+moves the image by ``s_i = (e_i . r - (x_r / x_f) e_i . f, e_i . u - (x_u / x_f) e_i . f)`` per
+metre at unit depth (the projection's Jacobian times ``x_f``: ``|s_i|`` is about 1 across the
+line of sight, 0 along it). At the gripper in every checked pose, a viewpoint is kept only if
+every ``|s_i| >= min_axis_share`` and every two axes' images are at least ``min_axis_angle_deg``
+apart (so no two arrows of the handle overlap). A camera looking along a table axis (azimuth 180
+or 270 deg) fails: one of the arrows points into the screen; so does one whose axis is diagonal
+while the gripper, off to the side of the picture, is seen along a table axis.
+
 Visibility: each object's surface is sampled (area elements ``dA_i``, outward normals ``n_i``) and
 a ray is cast from ``p`` to each sample with ``mujoco.mj_multiRay`` in every pose; a sample is
 visible if the first geom hit is the object's own. The visible fraction is ``sum(w_i v_i) /
 sum(w_i)`` with ``w_i = dA_i max(0, n_i . (p - x_i) / |p - x_i|)``, the sample's projected area,
 so it estimates the fraction of the object's pixels. The chosen viewpoint maximises the worst
-fraction over objects and poses; within ``tie_tolerance`` of the best, the one nearest the
-default (azimuth 205 deg, elevation 35 deg), then the earliest of ``distance_factors``, wins.
-Deterministic, about 0.1-0.3 s per scene on 2 cores; results are cached per scene.
+fraction over objects and poses among the legible ones; within ``tie_tolerance`` of the best,
+the one nearest the default (azimuth 225 deg: behind the robot and to its right, looking across
+the table's diagonal; elevation 35 deg), then the earliest of ``distance_factors``, wins. When
+no legible viewpoint shows every object ``min_visible``, the most legible of those that do wins
+(``TaskView.legibility`` says how legible it is). Deterministic, about 0.5-1 s per scene on 2
+cores (3 s when no legible view shows every object); results are cached per scene.
 """
 
 from __future__ import annotations
@@ -45,8 +58,12 @@ DEFAULT_ASPECT = 16 / 10
 """Canvas width / height assumed: a landscape page of about 1150 x 720 px."""
 DEFAULT_USABLE_WIDTH = 2 / 3
 """Fraction of the canvas, from the left, not covered by the control panel (about 380 px)."""
-DEFAULT_AZIMUTH_DEG = 205.0
+DEFAULT_AZIMUTH_DEG = 225.0
 DEFAULT_ELEVATION_DEG = 35.0
+MIN_AXIS_SHARE = 0.7
+"""Each world axis spans at least this fraction of its length across the screen."""
+MIN_AXIS_ANGLE_DEG = 45.0
+"""Any two world axes appear at least this far apart on the screen."""
 _UP = (0.0, 0.0, 1.0)
 _RAY_CUTOFF = 100.0  # m; mj_multiRay ignores every geom when the cutoff is negative
 
@@ -73,6 +90,9 @@ class TaskView:
     azimuth_deg: float
     elevation_deg: float
     visible_fraction: float = math.nan
+    legibility: AxisLegibility | None = None
+    """How the world axes x, y, z appear across the screen at the gripper (worst over the
+    checked poses; module doc), when the view was chosen by :func:`task_view`."""
 
     @property
     def fov_deg(self) -> float:
@@ -89,6 +109,44 @@ class TaskView:
         return cam
 
 
+@dataclass(frozen=True)
+class AxisLegibility:
+    """``shares[i] = |s_i|``, the on-screen length of world axis ``i`` (x, y, z) per unit
+    length across the line of sight, and ``min_angle_deg``, the smallest angle between two
+    axes' images (undirected, 0..90 deg); the worst over the points it was taken at."""
+
+    shares: tuple[float, float, float]
+    min_angle_deg: float
+
+    def ok(self, *, min_share: float, min_angle_deg: float) -> bool:
+        return min(self.shares) >= min_share and self.min_angle_deg >= min_angle_deg
+
+
+def axis_legibility(
+    eye: np.ndarray, azimuth_deg: float, elevation_deg: float, points: np.ndarray
+) -> AxisLegibility:
+    """The world axes' images at ``points`` (n, 3) seen from ``eye`` looking at ``(azimuth,
+    elevation)`` (module doc): the smallest share of each axis and the smallest angle."""
+    r, u, f = _basis(azimuth_deg, elevation_deg)
+    rel = np.asarray(points, float).reshape(-1, 3) - np.asarray(eye, float)
+    xf = rel @ f
+    kr, ku = (rel @ r) / xf, (rel @ u) / xf
+    # images[n, i] = on-screen direction of axis i at point n (unit depth)
+    images = np.stack(
+        [np.stack([r[i] - kr * f[i], u[i] - ku * f[i]], axis=1) for i in range(3)], axis=1
+    )
+    shares = np.linalg.norm(images, axis=2)
+    worst = 90.0
+    for i in range(3):
+        for j in range(i + 1, 3):
+            c = np.abs((images[:, i] * images[:, j]).sum(axis=1)) / np.maximum(
+                shares[:, i] * shares[:, j], 1e-12
+            )
+            worst = min(worst, float(np.degrees(np.arccos(np.minimum(c, 1.0))).min()))
+    low = shares.min(axis=0)
+    return AxisLegibility(shares=(float(low[0]), float(low[1]), float(low[2])), min_angle_deg=worst)
+
+
 def view_at(
     look_at: np.ndarray | tuple[float, float, float],
     *,
@@ -97,6 +155,7 @@ def view_at(
     elevation_deg: float,
     fov_rad: float,
     visible_fraction: float = math.nan,
+    legibility: AxisLegibility | None = None,
 ) -> TaskView:
     """The :class:`TaskView` looking at ``look_at`` from ``distance`` at the given angles."""
     la = np.asarray(look_at, float).reshape(3)
@@ -109,6 +168,7 @@ def view_at(
         azimuth_deg=float(azimuth_deg),
         elevation_deg=float(elevation_deg),
         visible_fraction=float(visible_fraction),
+        legibility=legibility,
     )
 
 
@@ -150,17 +210,23 @@ def task_view(
     usable_width: float = DEFAULT_USABLE_WIDTH,
     margin: float = 0.08,
     context_m: float = 0.15,
-    azimuths_deg: tuple[float, ...] = tuple(float(a) for a in range(180, 255, 10)),
+    headroom_m: float = 0.0,
+    azimuths_deg: tuple[float, ...] = tuple(float(a) for a in range(175, 255, 5)),
     elevations_deg: tuple[float, ...] = tuple(float(e) for e in range(25, 65, 5)),
     distance_factors: tuple[float, ...] = (1.25, 1.0, 1.5),
     reach_fractions: tuple[float, ...] = (0.25, 0.5, 0.75),
     min_visible: float = 0.8,
     tie_tolerance: float = 0.02,
+    min_axis_share: float = MIN_AXIS_SHARE,
+    min_axis_angle_deg: float = MIN_AXIS_ANGLE_DEG,
 ) -> TaskView:
-    """The viewpoint of ``scene`` that best shows every object and the gripper (module doc).
+    """The viewpoint of ``scene`` that best shows every object and the gripper (module doc);
+    ``headroom_m`` keeps that much space above the gripper in frame too (the page's handle).
+    Azimuths stay behind the robot's workspace (90-270 deg: moving away from the base moves
+    away from the camera).
 
     Raises :class:`TaskViewError` if no viewpoint keeps everything inside the usable part of
-    the frame, or if the best one leaves some object less than ``min_visible`` visible.
+    the frame, or if every one leaves some object less than ``min_visible`` visible.
     """
     if not 0.0 < usable_width <= 1.0 or not 0.0 <= margin < usable_width:
         raise TaskViewError(
@@ -170,8 +236,8 @@ def task_view(
     fov = math.radians(fov_deg)
     probe = _probe(scene, reach_fractions)
     centre = task_centre(scene)
-    frame_pts = _frame_points(scene, probe, context_m=context_m)
-    candidates: list[tuple[float, float, float, np.ndarray, float, int]] = []
+    frame_pts = _frame_points(scene, probe, context_m=context_m, headroom_m=headroom_m)
+    candidates: list[_Candidate] = []
     for el in elevations_deg:
         for az in azimuths_deg:
             d_fit = _fit_distance(
@@ -179,32 +245,78 @@ def task_view(
             )
             if d_fit is None:
                 continue
-            for k in distance_factors:
-                d = d_fit * k
+            for k, factor in enumerate(distance_factors):
+                d = d_fit * factor
                 look = _look_at(centre, az, el, d, fov=fov, aspect=aspect, usable=usable_width)
                 pos = look + d * _direction(az, el)
-                worst = float(probe.fractions(pos).min())
-                candidates.append((worst, az, el, look, d, distance_factors.index(k)))
+                legibility = axis_legibility(pos, az, el, probe.tcp_points)
+                candidates.append(_Candidate(az, el, look, pos, d, k, legibility))
     if not candidates:
         raise TaskViewError(
             f"scene {scene.name!r}: no viewpoint keeps every object and the gripper inside the"
             f" left {usable_width:.0%} of a {fov_deg:.0f} deg view; widen fov_deg or usable_width"
         )
-    best = max(c[0] for c in candidates)
-    near = [c for c in candidates if c[0] >= best - tie_tolerance]
-    worst, az, el, look, d, _ = min(
-        near,
-        key=lambda c: (math.hypot(c[1] - DEFAULT_AZIMUTH_DEG, c[2] - DEFAULT_ELEVATION_DEG), c[5]),
-    )
-    if worst < min_visible:
-        raise TaskViewError(
-            f"scene {scene.name!r}: the best viewpoint (azimuth {az:.0f}, elevation {el:.0f} deg)"
-            f" leaves only {worst:.0%} of some object visible (need {min_visible:.0%}); move the"
-            " objects apart or away from the arm's reach, or widen the azimuth/elevation grid"
-        )
+
+    def nearest_default(c: _Candidate) -> tuple[float, int]:
+        return (math.hypot(c.az - DEFAULT_AZIMUTH_DEG, c.el - DEFAULT_ELEVATION_DEG), c.k)
+
+    def worst_visible(c: _Candidate) -> float:
+        if c.visible is None:
+            c.visible = float(probe.fractions(c.pos).min())
+        return c.visible
+
+    legible = [
+        c
+        for c in candidates
+        if c.legibility.ok(min_share=min_axis_share, min_angle_deg=min_axis_angle_deg)
+    ]
+    best = max((worst_visible(c) for c in legible), default=-1.0)
+    if best >= min_visible:
+        near = [c for c in legible if worst_visible(c) >= best - tie_tolerance]
+        chosen = min(near, key=nearest_default)
+    else:
+        # no legible view shows every object: the most legible of those that do
+        seen = [c for c in candidates if worst_visible(c) >= min_visible]
+        if not seen:
+            c = max(candidates, key=worst_visible)
+            raise TaskViewError(
+                f"scene {scene.name!r}: the best viewpoint (azimuth {c.az:.0f}, elevation"
+                f" {c.el:.0f} deg) leaves only {worst_visible(c):.0%} of some object visible"
+                f" (need {min_visible:.0%}); move the objects apart or away from the arm's"
+                " reach, or widen the azimuth/elevation grid"
+            )
+
+        def score(c: _Candidate) -> float:
+            return min(
+                min(c.legibility.shares) / max(min_axis_share, 1e-9),
+                c.legibility.min_angle_deg / max(min_axis_angle_deg, 1e-9),
+            )
+
+        top = max(score(c) for c in seen)
+        chosen = min((c for c in seen if score(c) >= top - 0.02), key=nearest_default)
+    look, d, az, el, legibility = chosen.look, chosen.d, chosen.az, chosen.el, chosen.legibility
+    worst = worst_visible(chosen)
     return view_at(
-        look, distance=d, azimuth_deg=az, elevation_deg=el, fov_rad=fov, visible_fraction=worst
+        look,
+        distance=d,
+        azimuth_deg=az,
+        elevation_deg=el,
+        fov_rad=fov,
+        visible_fraction=worst,
+        legibility=legibility,
     )
+
+
+@dataclass(eq=False)
+class _Candidate:
+    az: float
+    el: float
+    look: np.ndarray
+    pos: np.ndarray
+    d: float
+    k: int
+    legibility: AxisLegibility
+    visible: float | None = None
 
 
 # -- geometry ----------------------------------------------------------------------------------
@@ -215,12 +327,18 @@ def _direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
     return np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
 
 
+@functools.lru_cache(maxsize=4096)
 def _basis(azimuth_deg: float, elevation_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Camera right, up and forward vectors (forward points from the camera to the look-at)."""
-    f = -_direction(azimuth_deg, elevation_deg)
-    r = np.cross(f, _UP)
-    r /= np.linalg.norm(r)
-    return r, np.cross(r, f), f
+    """Camera right, up and forward vectors (forward points from the camera to the look-at):
+    ``r = f x z / |f x z| = (-sin a, cos a, 0)``, ``u = r x f``."""
+    a, e = math.radians(azimuth_deg), math.radians(elevation_deg)
+    ca, sa, ce, se = math.cos(a), math.sin(a), math.cos(e), math.sin(e)
+    f = np.array([-ce * ca, -ce * sa, -se])
+    r = np.array([-sa, ca, 0.0])
+    u = np.array([-se * ca, -se * sa, ce])
+    for v in (f, r, u):
+        v.flags.writeable = False
+    return r, u, f
 
 
 def _look_at(
@@ -291,11 +409,15 @@ def _fit_distance(
     return hi
 
 
-def _frame_points(scene: Scene, probe: _Probe, *, context_m: float) -> np.ndarray:
-    """What must be in the frame: the objects, the gripper in every pose, the robot's base and
-    the table around them (the task points' footprint grown by ``context_m``)."""
+def _frame_points(
+    scene: Scene, probe: _Probe, *, context_m: float, headroom_m: float = 0.0
+) -> np.ndarray:
+    """What must be in the frame: the objects, the gripper in every pose (and ``headroom_m``
+    above it), the robot's base and the table around them (the task points' footprint grown by
+    ``context_m``)."""
     top = scene.spec.table.top_z
-    task = np.vstack([probe.object_corners, probe.gripper_points])
+    above = probe.gripper_points + np.array([0.0, 0.0, headroom_m])
+    task = np.vstack([probe.object_corners, probe.gripper_points, above])
     lo, hi = task[:, :2].min(axis=0) - context_m, task[:, :2].max(axis=0) + context_m
     table = np.array([[x, y, top] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])])
     return np.vstack([task, table, [[0.0, 0.0, top]]])
@@ -334,6 +456,7 @@ class _Probe:
             gripper.append(data.site_xpos[scene.tcp_site_id])
             gripper.extend(data.xpos[list(scene.finger_body_ids)])
         self.gripper_points = np.array(gripper)
+        self.tcp_points = self.gripper_points[::3]  # (TCP, finger, finger) per pose
         rest = self.datas[0]
         self.samples = [_surface_samples(model, rest, int(g)) for g in scene.object_geom_ids]
         self.object_corners = np.vstack(

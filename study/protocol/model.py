@@ -74,10 +74,10 @@ class Texts:
     """Participant-facing text; none of it may name a condition (checked on load).
 
     ``instructions`` maps a phase (``welcome``, ``training``, ``task``, ``rating``,
-    ``preference``, ``pause``) to its text; ``{target}`` in the training and task texts is replaced
-    by the target object's name. ``completion_code`` (shown at the end of a completed session)
-    and ``redirect_url`` (where the page then goes: an online panel's completion URL) are for
-    online studies; empty when not used.
+    ``preference``, ``pause``, ``after_training``) to its text; ``{target}`` in the training and
+    task texts is replaced by the target object's name. ``completion_code`` (shown at the end of
+    a completed session) and ``redirect_url`` (where the page then goes: an online panel's
+    completion URL) are for online studies; empty when not used.
     """
 
     consent: str

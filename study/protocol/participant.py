@@ -20,10 +20,18 @@ from study.protocol.protocol import Protocol
 from study.protocol.questionnaire import ChoiceItem, Item, LikertItem, NumberItem, Questionnaire
 
 INSTRUCTIONS_REQUIRED = ("welcome", "training", "task", "rating")
-INSTRUCTIONS_OPTIONAL = ("preference", "pause", "before_training", "between_tasks", "closing")
+INSTRUCTIONS_OPTIONAL = (
+    "preference",
+    "pause",
+    "after_training",
+    "before_training",
+    "between_tasks",
+    "closing",
+)
 """``preference`` is required if after_task items are asked; each questionnaire moment asked
 once per participant (``before_training``, ``between_tasks``, ``closing``) needs its own
-introduction when it has items."""
+introduction when it has items; ``after_training`` introduces the items asked after the
+practice runs (without it, a neutral sentence about the practice runs)."""
 PLACEHOLDERS = {"training": {"target"}, "task": {"target"}}
 _COMPLETION_CODE = re.compile(r"[A-Za-z0-9_-]{1,64}", re.ASCII)
 _URL = re.compile(r"https?://[^\s\\\"'<>`]{1,2000}", re.ASCII)

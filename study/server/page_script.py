@@ -13,9 +13,18 @@ steering key it can stop the event before the camera or anything else sees it:
   is held and for a second after each change: it is a state, not an event, so a lost message
   (a release above all) is repaired by the next one; losing focus (tab switch, window blur)
   sends "nothing held";
-* the page title becomes the study's; the settings, command and share buttons of the panel
-  are hidden; the orbit camera may not pan (right drag) and stays well above the table plane;
-  a clicked button loses focus, so Space or Enter cannot press it again by accident;
+* the page title becomes the study's; the settings, command, share and minimise buttons of the
+  panel are hidden, and a panel collapsed anyway (its header is a click target too) is expanded
+  again before the browser paints it, so the instructions and the study's buttons stay in
+  reach; the orbit camera may not pan (right drag) and stays well above the table plane; a
+  clicked button loses focus, so Space or Enter cannot press it again by accident;
+* Enter in a one-line text field presses the screen's ``submit`` button (Join), a moment later
+  so that the field's last value (sent at most every 50 ms by viser) goes first;
+* the chosen answer of a row of numbered buttons (the server relabels it ``[k]``) is drawn
+  filled, so a participant sees what they chose;
+* the viewer's own notices (:data:`HIDDEN_NOTICES`: software WebGL, an undetected browser
+  version) are closed as soon as they appear; ``study.server.page_head`` hides them before
+  this script runs;
 * meshes are made non-metallic: the scene's glTF meshes carry glTF's default metalness of 1,
   which only an environment map lights, and the page has none (it cost two thirds of a
   software-WebGL frame), so their sides would render black.
@@ -54,15 +63,48 @@ KEY_RESEND_MS = 250
 MAX_KEY_MESSAGE = 40
 """Longest key-state value the server accepts ("<seq> <up to 14 letters>")."""
 
+SUBMIT_LABEL = "Join"
+"""The button Enter presses from a one-line text field (the join screen's)."""
+
+HIDDEN_NOTICES: tuple[str, ...] = ("webgl-software-rendering",)
+"""Ids of the viewer's own notices that participants never see. "Software WebGL rendering
+detected" says only that drawing is slower than on a GPU; viser's "WebGL unavailable" (the page
+cannot draw at all) stays, so that a participant can tell the experimenter."""
+
+HIDDEN_NOTICE_TITLES: tuple[str, ...] = ("Could not detect browser version",)
+"""Titles of the viewer's own notices without an id that participants never see (a browser the
+detector does not know is not a problem for the page)."""
+
+PANEL_CHROME_CSS = (
+    "button:has(svg.tabler-icon-adjustments), button:has(svg.tabler-icon-arrow-back),"
+    " button:has(svg.tabler-icon-share), button:has(svg.tabler-icon-list-search),"
+    " button:has(svg.tabler-icon-command), button:has(svg.tabler-icon-maximize),"
+    " [data-dock-minimize],"
+    ' [aria-label="Minimize panel"], [aria-label="Expand panel"]'
+    " { display: none !important; }"
+    " button[data-study-chosen] { background: var(--mantine-color-blue-filled) !important;"
+    " color: var(--mantine-color-white) !important; font-weight: 700; }"
+    + "".join(f" #{n} {{ display: none !important; }}" for n in HIDDEN_NOTICES)
+)
+"""CSS the page adds: no viewer chrome a participant could lose the panel with, the chosen
+answer filled, the hidden notices."""
+
 
 def page_script(*, keys_uuid: str, title: str) -> str:
     """JavaScript for ``RunJavascriptMessage``: install the key bridge once per page load."""
+    config = {
+        "uuid": keys_uuid,
+        "title": title,
+        "resend": KEY_RESEND_MS,
+        "submit": SUBMIT_LABEL,
+        "css": PANEL_CHROME_CSS,
+        "notices": list(HIDDEN_NOTICES),
+        "noticeTitles": list(HIDDEN_NOTICE_TITLES),
+    }
     return (
         _TEMPLATE.replace("__CODES__", json.dumps(STEERING_CODES))
         .replace("__ARROWS__", json.dumps({str(k): v for k, v in ARROW_KEYCODES.items()}))
-        .replace(
-            "__CONFIG__", json.dumps({"uuid": keys_uuid, "title": title, "resend": KEY_RESEND_MS})
-        )
+        .replace("__CONFIG__", json.dumps(config))
     )
 
 
@@ -137,19 +179,53 @@ _TEMPLATE = r"""
     window.addEventListener("blur", none);
     document.addEventListener("visibilitychange", none);
     const style = document.createElement("style");
-    style.textContent =
-      "button:has(svg.tabler-icon-adjustments), button:has(svg.tabler-icon-arrow-back)," +
-      " button:has(svg.tabler-icon-share), button:has(svg.tabler-icon-list-search)," +
-      " button:has(svg.tabler-icon-command) { display: none !important; }";
+    style.textContent = cfg.css;
     document.head.appendChild(style);
     window.addEventListener("click", (e) => {
       const b = e.target && e.target.closest && e.target.closest("button");
       if (b) setTimeout(() => b.blur(), 0);
     }, true);
+    window.addEventListener("keydown", (e) => {
+      const t = e.target;
+      if (e.key !== "Enter" || e.repeat || e.isComposing || !t || t.tagName !== "INPUT") return;
+      e.preventDefault();
+      setTimeout(() => {
+        const b = [...document.querySelectorAll("button")].find(
+          (x) => x.textContent.trim() === st.submit && !x.disabled);
+        if (b) b.click();
+      }, 120);
+    }, true);
+    // after every change of the page, before the browser paints it: the panel stays open, the
+    // chosen answers are marked, the viewer's own notices go
+    const tidy = () => {
+      const expand = document.querySelector('[aria-label="Expand panel"]');
+      if (expand) expand.click();
+      for (const b of document.querySelectorAll("button")) {
+        const chosen = /^\[\d+\]$/.test(b.textContent.trim());
+        if (chosen !== b.hasAttribute("data-study-chosen")) {
+          if (chosen) b.setAttribute("data-study-chosen", ""); else b.removeAttribute("data-study-chosen");
+        }
+      }
+      for (const n of document.querySelectorAll(".mantine-Notification-root")) {
+        const title = n.querySelector(".mantine-Notification-title");
+        if (st.notices.includes(n.id) ||
+            (title && st.noticeTitles.includes(title.textContent.trim()))) {
+          const close = n.querySelector("button");
+          if (close) close.click(); else n.remove();
+        }
+      }
+    };
+    st.tidy = tidy;
+    new MutationObserver(tidy).observe(document.body, {childList: true, subtree: true,
+                                                        characterData: true});
     setInterval(() => { tame(); if (document.title !== st.title) document.title = st.title; },
                 500);
   }
   st.title = cfg.title;
+  st.submit = cfg.submit;
+  st.notices = cfg.notices;
+  st.noticeTitles = cfg.noticeTitles;
   tame();
+  st.tidy();
 })();
 """

@@ -21,6 +21,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import math
 import re
 import threading
 import time
@@ -40,12 +41,22 @@ from study.server.page_script import ARROW_KEYCODES, MAX_KEY_MESSAGE, STEERING_C
 LOGGER = logging.getLogger("study.server.participant")
 
 KEY_HELP = (
-    "Drag an arrow or a square of the handle at the gripper to move it, or hold the keys "
+    "Drag an arrow or a square of the handle above the gripper to move it, or hold the keys "
     "**W**/**S** (away / back), **A**/**D** (sideways), **R**/**F** (up / down). "
-    "Press **G** or the button below to close the gripper around the object; the arm then "
-    "lifts it. Drag the background to "
+    "The gripper can go anywhere inside the frame drawn on the table. "
+    "Press **G** or the button above to close the gripper around the object; the arm then "
+    "lifts it. The picture shows the table from above. Drag the background to "
     "look around, scroll to zoom; **V** brings back the starting view."
 )
+HANDLE_OFFSET_M = 0.12
+"""The handle floats this far above the point the gripper is sent to (a thin stem joins them),
+so that near a grasp it never covers the object; its arrows point away from the task camera
+(``app.robot.task_view`` keeps the camera behind the robot), upward on the screen."""
+HANDLE_PX = 150.0
+"""Length of the handle's arrows on the screen (pixels, whatever the zoom)."""
+HANDLE_LINE_PX = 5.0
+INSET_SIZE = (320, 240)
+"""Width and height (pixels) of the view from above on the trial screen."""
 DECLINE = "I do not wish to take part"
 KEY_LETTERS = frozenset(STEERING_CODES.values()) | frozenset(ARROW_KEYCODES.values())
 _KEY_STATE = re.compile(r"([0-9]{1,12}) ([a-z]*)", re.ASCII)
@@ -104,6 +115,13 @@ class ParticipantPage:
         self._lock = threading.RLock()
         self._handles: list[object] = []
         self._gizmo: viser.TransformControlsHandle | None = None
+        self._stem: list[object] = []
+        self.dragging = False
+        """True while the participant holds the handle with the mouse."""
+        self._clock: viser.GuiMarkdownHandle | None = None
+        self._clock_text = ""
+        self._inset: viser.GuiImageHandle | None = None
+        self._notice: object | None = None
         self.rejected: deque[str] = deque(maxlen=50)
         self.asks_code = False
         self.address = "unknown"
@@ -163,6 +181,8 @@ class ParticipantPage:
                 with contextlib.suppress(Exception):
                     h.remove()  # type: ignore[attr-defined]
             self._handles = []
+            self._clock = self._inset = None
+            self._clock_text = ""
             self.screen += 1
             self.screen_name = name
             return self.screen
@@ -198,12 +218,31 @@ class ParticipantPage:
                 color="orange",
             )
 
-    def notify(self, text: str) -> None:
+    def notify(self, text: str, *, seconds: float = 3.0) -> None:
         """A short notice in the corner of the page (it closes by itself)."""
         with contextlib.suppress(Exception):
             self.client.add_notification(
-                check_text(text, words=self.words), "", auto_close_seconds=3.0, color="blue"
+                check_text(text, words=self.words), "", auto_close_seconds=seconds, color="blue"
             )
+
+    def hold_notice(self, text: str | None) -> None:
+        """A notice that stays while ``text`` is given and goes with ``None`` (one at a time:
+        a new text replaces the old one)."""
+        with self._lock:
+            old, self._notice = self._notice, None
+            if old is not None:
+                with contextlib.suppress(Exception):
+                    old.remove()  # type: ignore[attr-defined]
+            if text is None:
+                return
+            with contextlib.suppress(Exception):
+                self._notice = self.client.add_notification(
+                    check_text(text, words=self.words),
+                    "",
+                    auto_close_seconds=None,
+                    with_close_button=False,
+                    color="orange",
+                )
 
     def _header(self, progress: str | None) -> None:
         self._md(f"### {self.title}" + (f"\n\n{progress}" if progress else ""))
@@ -390,14 +429,25 @@ class ParticipantPage:
         progress: str | None,
         on_grasp: Callable[[], None],
         on_view: Callable[[], None],
+        time_left_s: float | None = None,
     ) -> int:
-        """The trial screen: the instruction, key help, a grasp and a view button."""
+        """The trial screen: the instruction, the time left (``time_left_s`` now, then
+        :meth:`set_time_left`), the view from above (its frames come through :meth:`show_inset`),
+        a grasp and a view button, and the key help."""
         with self._lock:
             screen = self._new_screen("trial:" + heading)
             self._header(progress)
-            self._md(f"**{heading}**\n\n{instruction}\n\n{KEY_HELP}")
+            self._md(f"**{heading}**\n\n{instruction}")
+            # the render loop keeps it current (the run may start a moment after this screen)
+            self._clock = self._md(clock_text(time_left_s) if time_left_s is not None else " ")
+            w, h = INSET_SIZE
+            self._inset = self.client.gui.add_image(
+                np.full((h, w, 3), 235, np.uint8), format="jpeg", jpeg_quality=80
+            )
+            self._handles.append(self._inset)
             b = self._button("Close the gripper (G)")
             v = self._button("Back to the starting view (V)")
+            self._md(KEY_HELP)
 
             @b.on_click
             def _(_: object) -> None:
@@ -410,30 +460,77 @@ class ParticipantPage:
 
             return screen
 
+    def set_time_left(self, seconds: float) -> None:
+        """Update the trial screen's countdown (sends only when the shown text changes)."""
+        text = clock_text(seconds)
+        with self._lock:
+            if self._clock is not None and text != self._clock_text:
+                self._clock_text = text
+                self._clock.content = check_text(text, words=self.words)
+
+    @property
+    def shows_inset(self) -> bool:
+        return self._inset is not None
+
+    def show_inset(self, jpeg: bytes) -> None:
+        """Show one frame of the view from above: JPEG bytes, encoded and checked for condition
+        words by :mod:`study.server.inset` (viser would otherwise re-encode the array)."""
+        with self._lock:
+            if self._inset is not None:
+                self._inset._data = jpeg
+
     # -- teleoperation -----------------------------------------------------------------------
     def add_gizmo(
-        self, position: np.ndarray, *, on_target: Callable[[np.ndarray], None], scale: float = 0.22
+        self,
+        position: np.ndarray,
+        *,
+        on_target: Callable[[np.ndarray], None],
+        on_release: Callable[[], None] | None = None,
     ) -> viser.TransformControlsHandle:
-        """The transform handle at the end effector; every pose update goes to ``on_target``."""
+        """The transform handle, :data:`HANDLE_OFFSET_M` above the target ``position``, with a
+        stem down to it; every pose update sends the target (the handle's position minus the
+        offset) to ``on_target``, and letting go of it calls ``on_release``."""
+        offset = np.array([0.0, 0.0, HANDLE_OFFSET_M])
         with self._lock:
             self.remove_gizmo()
             gizmo = self.client.scene.add_transform_controls(
                 "/handle",
-                scale=scale,
+                scale=HANDLE_PX,
+                fixed=True,
+                line_width=HANDLE_LINE_PX,
                 disable_rotations=True,
                 depth_test=False,
-                opacity=0.75,
-                position=tuple(np.asarray(position, float)),
+                opacity=0.9,
+                position=tuple(np.asarray(position, float) + offset),
             )
             self._gizmo = gizmo
+            # children move with the handle in the browser while it is dragged
+            self._stem = [
+                self.client.scene.add_cylinder(
+                    "/handle/stem",
+                    radius=0.0025,
+                    height=HANDLE_OFFSET_M,
+                    color=(60, 60, 70),
+                    position=(0.0, 0.0, -HANDLE_OFFSET_M / 2),
+                ),
+                self.client.scene.add_icosphere(
+                    "/handle/tip", radius=0.006, color=(60, 60, 70), position=tuple(-offset)
+                ),
+            ]
 
         # async: runs on viser's event loop in arrival order (thread-pool callbacks may run
         # out of order, and a stale pose must never overwrite a newer one); ``on_target`` only
-        # takes a lock. A rejection (notice + store event) goes to a worker thread.
+        # takes a lock. A rejection (notice + store event) and a release go to a worker thread.
         @gizmo.on_update
-        async def _(event: object) -> None:
+        async def _(event: viser.TransformControlsEvent) -> None:
+            phase = getattr(event, "phase", "update")
+            if phase != "update":
+                self.dragging = phase == "start"
+                if phase == "end" and on_release is not None:
+                    asyncio.get_running_loop().run_in_executor(None, on_release)
+                return  # the same pose as the update before it
             try:
-                target = parse_position(gizmo.position)
+                target = parse_position(gizmo.position) - offset
             except InputRejected as exc:
                 asyncio.get_running_loop().run_in_executor(None, self.reject, str(exc), False)
                 return
@@ -442,9 +539,12 @@ class ParticipantPage:
         return gizmo
 
     def move_gizmo(self, position: np.ndarray) -> None:
+        """Put the handle over the target ``position``."""
         with self._lock:
             if self._gizmo is not None:
-                self._gizmo.position = tuple(np.asarray(position, float))
+                self._gizmo.position = tuple(
+                    np.asarray(position, float) + np.array([0.0, 0.0, HANDLE_OFFSET_M])
+                )
 
     def show_gizmo(self, visible: bool) -> None:
         with self._lock:
@@ -453,7 +553,15 @@ class ParticipantPage:
 
     def remove_gizmo(self) -> None:
         with self._lock:
-            if self._gizmo is not None:
-                with contextlib.suppress(Exception):
-                    self._gizmo.remove()
-                self._gizmo = None
+            self.dragging = False
+            for h in [*self._stem, self._gizmo]:
+                if h is not None:
+                    with contextlib.suppress(Exception):
+                        h.remove()  # type: ignore[attr-defined]
+            self._gizmo, self._stem = None, []
+
+
+def clock_text(seconds: float) -> str:
+    """``"Time left: **1:05**"`` for 65 s (rounded up: 0:00 only when the time is up)."""
+    s = max(0, math.ceil(seconds - 1e-9))
+    return f"Time left: **{s // 60}:{s % 60:02d}**"

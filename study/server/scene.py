@@ -23,7 +23,7 @@ import numpy as np
 import viser
 from mjviser import ViserMujocoScene
 
-from app.robot.task_view import TaskViewError, task_view
+from app.robot.task_view import TaskView, TaskViewError, task_view
 from study.server.intent_cue import IntentCue, IntentGoals
 
 LOGGER = logging.getLogger("study.server.scene")
@@ -110,19 +110,32 @@ def task_center(points: np.ndarray) -> tuple[np.ndarray, float]:
     return center, max(1.1, 1.0 + 2.0 * spread)
 
 
-def frame_scene(camera: viser.CameraHandle, scene: Any) -> None:
-    """Point ``camera`` at ``scene``'s task view (:func:`app.robot.task_view.task_view`: every
-    object and the gripper unoccluded by the arm, left of the control panel); a scene no view
-    can show well enough falls back to the plain framing, with a warning in the log."""
+HANDLE_HEADROOM_M = 0.3
+"""Space kept in the task view above the gripper: the handle floats there
+(``study.server.participant.HANDLE_OFFSET_M``, then its arrows)."""
+
+
+def scene_view(scene: Any) -> TaskView | None:
+    """``scene``'s task view (:func:`app.robot.task_view.task_view`: every object and the
+    gripper unoccluded by the arm, left of the control panel, each handle axis across the
+    screen, room for the handle), or None when no view shows it well enough (logged)."""
     try:
-        view = task_view(scene)
+        return task_view(scene, headroom_m=HANDLE_HEADROOM_M)
     except TaskViewError as exc:
         LOGGER.warning("scene %s: %s; using the plain framing", scene.name, exc)
+        return None
+
+
+def frame_scene(camera: viser.CameraHandle, scene: Any) -> TaskView | None:
+    """Point ``camera`` at ``scene``'s task view (:func:`scene_view`) and return it; a scene no
+    view can show well enough falls back to the plain framing (and None)."""
+    view = scene_view(scene)
+    if view is None:
         center, distance = task_center(
             np.vstack([scene.start_ee, np.asarray(scene.goals.positions, float)])
         )
         frame_task(camera, look_at=center, distance=distance)
-        return
+        return None
     camera.fov = view.fov_rad
     camera.up_direction = view.up
     camera.position = view.position
@@ -130,13 +143,52 @@ def frame_scene(camera: viser.CameraHandle, scene: Any) -> None:
     # zoom stays between a close look at the gripper and the whole table in view
     camera.min_orbit_distance = ORBIT_MIN_M
     camera.max_orbit_distance = max(ORBIT_MAX_M, 1.5 * view.distance)
+    return view
+
+
+REACH_NODE = "/cue/reach"
+REACH_COLOR = (70, 100, 140)
+"""Slate blue: unlike the table, the objects and the intent ring (charcoal)."""
+REACH_LINE_M = 0.006
+
+
+def frame_mesh(
+    lo: tuple[float, float], hi: tuple[float, float], *, width: float, z: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """A flat rectangular frame at height ``z`` whose outer edge is the rectangle ``lo``..``hi``
+    (xy) and whose band is ``width`` wide: ``(vertices (8, 3), faces (8, 3))``."""
+    (x0, y0), (x1, y1) = lo, hi
+    w = min(width, (x1 - x0) / 2, (y1 - y0) / 2)
+    outer = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+    inner = [(x0 + w, y0 + w), (x1 - w, y0 + w), (x1 - w, y1 - w), (x0 + w, y1 - w)]
+    vertices = np.array([(x, y, z) for x, y in outer + inner], dtype=np.float32)
+    faces = []
+    for i in range(4):
+        j = (i + 1) % 4
+        faces += [(i, j, 4 + j), (i, 4 + j, 4 + i)]
+    return vertices, np.array(faces, dtype=np.uint32)
+
+
+def reach_footprint(
+    reach_lo: np.ndarray, reach_hi: np.ndarray, table: Any
+) -> tuple[tuple[float, float], tuple[float, float]] | None:
+    """The reach box's footprint on the table (xy, clipped to the table top), or None when it
+    misses the table."""
+    c, h = np.asarray(table.center, float), np.asarray(table.half_size, float)
+    lo = np.maximum(np.asarray(reach_lo, float)[:2], c - h)
+    hi = np.minimum(np.asarray(reach_hi, float)[:2], c + h)
+    if np.any(hi - lo <= 0):
+        return None
+    return (float(lo[0]), float(lo[1])), (float(hi[0]), float(hi[1]))
 
 
 class SceneView:
     """One participant's view of one simulated scene (per-client nodes, neutral names), with
     a depth cue under the gripper: a thin vertical rod down to the table and a dark disc on
     the table (two small meshes moved per frame; no shadows, which software WebGL cannot
-    afford). With ``goals``, the robot's intent too: a ring around the predicted object
+    afford). With ``reach`` (the footprint ``(lo, hi)`` from :func:`reach_footprint`), the
+    limit of the participant's reach drawn on the table as a thin frame (one static mesh).
+    With ``goals``, the robot's intent too: a ring around the predicted object
     (:class:`study.server.intent_cue.IntentCue`); without, no such node exists."""
 
     def __init__(
@@ -148,6 +200,7 @@ class SceneView:
         shadows: bool = False,
         table_top: float | None = None,
         goals: IntentGoals | None = None,
+        reach: tuple[tuple[float, float], tuple[float, float]] | None = None,
     ) -> None:
         # Shadow maps cost a 10-50x frame rate drop in software WebGL (measured: 0.2-1.3 fps
         # with, 13-30 fps without, for the Panda scene in headless Chromium on 2 cores).
@@ -172,6 +225,20 @@ class SceneView:
             )
             self._disc = scene.add_cylinder(
                 "/cue/disc", radius=0.018, height=0.002, color=(30, 30, 30), visible=False
+            )
+        self.reach = None
+        if reach is not None:
+            vertices, faces = frame_mesh(
+                *reach, width=REACH_LINE_M, z=float(table_top or 0.0) + 0.0012
+            )
+            self.reach = target.scene.add_mesh_simple(
+                REACH_NODE,
+                vertices,
+                faces,
+                color=REACH_COLOR,
+                side="double",
+                cast_shadow=False,
+                receive_shadow=False,
             )
         self.intent = IntentCue(target.scene, goals) if goals is not None else None
         self.frames_sent = 0

@@ -61,6 +61,7 @@ from study.server.live.texts import (
     LINK_INVALID_TEXT,
 )
 from study.server.open_link import LinkClosed, OpenLink
+from study.server.page_head import PageHead
 from study.server.page_script import page_script
 from study.server.participant import ParticipantPage
 from study.server.recruitment import LinkError, Recruitment, link_script, parse_ids, read_link
@@ -145,6 +146,7 @@ class StudyServer:
         )
         self.firewall.rejoin_token = self._proven_token
         self.firewall.on_bound_drop = self._bound_input_dropped
+        self.firewall.page_filter = PageHead()  # viser's own notices hidden from the first paint
         with firewall.hardened_serve(self.firewall):
             self.participant = viser.ViserServer(host=host, port=port, verbose=verbose)
         self.guard = blinding.install(self.participant, words=condition_words)

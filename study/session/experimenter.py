@@ -85,7 +85,8 @@ class ExperimenterActions:
             trial_id = None
             if step.kind == "trial":
                 plan = self.steps.plan
-                skipped += [s for s in plan.dependents(step.index) if s not in skipped]
+                lost = plan.dependents(step.index, skipped=self.state.skipped)
+                skipped += [s for s in lost if s not in skipped]
                 if run is not None:
                     trial_id = run.trial_id
                     self.ledger.record_abort(tx, run, status="skipped", note=f"skipped: {reason}")

@@ -15,7 +15,7 @@ participant's stored assignment rows (``study.schedule`` decides them at enrolme
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -40,7 +40,8 @@ class Step:
     ``trial_number`` counts trial steps 1..n (progress "trial 3 of 11"); ``position`` counts task
     trials 1..8; ``questionnaire`` is the protocol's questionnaire phase for question steps;
     ``rates_step`` is the trial step an after-run question step is about; ``task_steps`` the trial
-    steps an after-task (preference) step compares.
+    steps an after-task (preference) step compares, or the practice runs an after-training step
+    asks about.
     """
 
     index: int
@@ -70,11 +71,20 @@ class Plan:
     def __getitem__(self, index: int) -> Step:
         return self.steps[index]
 
-    def dependents(self, trial_step: int) -> tuple[int, ...]:
-        """Question steps that lose their subject if ``trial_step`` is skipped."""
-        return tuple(
-            s.index for s in self.steps if s.rates_step == trial_step or trial_step in s.task_steps
-        )
+    def dependents(self, trial_step: int, *, skipped: Iterable[int] = ()) -> tuple[int, ...]:
+        """Question steps that lose their subject if ``trial_step`` is skipped (``skipped``:
+        the steps skipped before): its after-run items, its task's preference, and the
+        after-training items once every practice run is skipped."""
+        gone = {trial_step, *skipped}
+
+        def loses(s: Step) -> bool:
+            if s.rates_step == trial_step:
+                return True
+            if trial_step not in s.task_steps:
+                return False
+            return s.questionnaire != "after_training" or gone.issuperset(s.task_steps)
+
+        return tuple(s.index for s in self.steps if loses(s))
 
 
 def build_plan(protocol: Protocol, assignments: Sequence[AssignmentRecord]) -> Plan:
@@ -93,9 +103,11 @@ def build_plan(protocol: Protocol, assignments: Sequence[AssignmentRecord]) -> P
     between = dict(q.between_tasks)
     trial_number = 0
     training = protocol.training.runs
+    practice = []
     for _ in range(training):
         trial_number += 1
-        add("trial", "training", task=None, mode=TRAINING_MODE, trial_number=trial_number)
+        step = add("trial", "training", task=None, mode=TRAINING_MODE, trial_number=trial_number)
+        practice.append(step.index)
     if training and q.after_training:
         add(
             "questions",
@@ -103,6 +115,7 @@ def build_plan(protocol: Protocol, assignments: Sequence[AssignmentRecord]) -> P
             mode=TRAINING_MODE,
             questionnaire="after_training",
             items=tuple(q.after_training),
+            task_steps=tuple(practice),
         )
     rows = sorted(assignments, key=lambda a: a.position)
     task_number = 0

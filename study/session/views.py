@@ -6,6 +6,8 @@ Called with the session lock held; they read (``Steps``, the store), never write
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 from study.protocol import Item
 from study.session.errors import SessionStateError
 from study.session.ledger import SessionInfo
@@ -57,9 +59,8 @@ def screen(steps: Steps, *, revision: int) -> Screen:
             title = progress.text
             text = protocol.describe_trial(step.task or "")
     elif phase == "questions" and step is not None:
-        key = INTRODUCTIONS.get(step.questionnaire or "", "rating")
         title = "Questions"
-        text = texts.instructions.get(key, texts.instructions["rating"])
+        text = _questions_intro(texts.instructions, step.questionnaire)
         items = tuple(steps.pending_items(step))
     elif phase == "debrief":
         title, text = "Thank you", texts.debrief
@@ -79,6 +80,19 @@ def screen(steps: Steps, *, revision: int) -> Screen:
         questionnaire=step.questionnaire if phase == "questions" and step else None,
         revision=revision,
     )
+
+
+AFTER_TRAINING_TEXT = "Please answer a few questions about the practice runs you just did."
+"""The items' introduction after the practice runs when the protocol has no
+``instructions.after_training`` (the after-run text speaks of "the run you just finished")."""
+
+
+def _questions_intro(instructions: Mapping[str, str], questionnaire: str | None) -> str:
+    """The text above a page of items: the protocol's for that moment of the session."""
+    if questionnaire == "after_training":
+        return instructions.get("after_training", AFTER_TRAINING_TEXT)
+    key = INTRODUCTIONS.get(questionnaire or "", "rating")
+    return instructions.get(key, instructions["rating"])
 
 
 def overview(steps: Steps, info: SessionInfo) -> Overview:

@@ -138,6 +138,9 @@ class Firewall:
         self.rejoin_token: Callable[[str], str | None] = lambda _value: None
         """Set by the server: the session token a rejoin cookie's value proves, else ``None``."""
         self.notes = Notes(every_s=log_every_s)
+        self.page_filter: Callable[[Any, Any], Any] | None = None
+        """Rewrites viser's HTTP responses, ``(request, response) -> response`` (the study
+        server's page head: ``study.server.page_head``)."""
         self.passed = 0
         self.dropped: Counter[str] = Counter()
         self.closed_connections = 0
@@ -234,9 +237,11 @@ class Firewall:
             if inner is None:
                 return None
             try:
-                return inner(connection, request)
+                response = inner(connection, request)
             except OSError:  # e.g. a path too long to be a file name
                 return Response(http.HTTPStatus.NOT_FOUND, "NOT FOUND", Headers(), b"")
+            page_filter = self.page_filter
+            return response if page_filter is None else page_filter(request, response)
 
         return handle
 

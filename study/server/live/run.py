@@ -13,10 +13,12 @@ The live session calls ``begin``, ``show_scene`` and ``end`` with its lock held.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from app.teleop.keyboard import KEYMAP
 from app.trial import TickRecord, Trial
 from app.trial.events import EventKind, TrialEvent
 from study.server.inputs import ParticipantInput
@@ -95,9 +97,23 @@ class LiveRun:
             return
         self.view.ensure(page, trial.scene, trial.sim.model, intent=shows_intent(run.config.extra))
         start = source.last_target if source.last_target is not None else trial.user_target
-        page.add_gizmo(np.asarray(start, float), on_target=self.input.on_target)
+        page.add_gizmo(
+            np.asarray(start, float),
+            on_target=self.input.on_target,
+            on_release=lambda: self._released(page, trial),
+        )
         if self.input.frozen or run.paused:
             page.show_gizmo(False)
+
+    def _released(self, page: ParticipantPage, trial: Trial) -> None:
+        """The handle was let go: if it was left past the reach, it goes back over the point the
+        arm was sent to (the reach clamps it), and that point becomes the input's target."""
+        if self.trial is trial and not trial.done and self.input.source is not None:
+            target = self.input.source.last_target
+            if target is not None and not trial.scene.reach.contains(target):
+                inside = trial.scene.reach.clamp(target)
+                self.input.on_target(inside)
+                page.move_gizmo(inside)
 
     def gripper(self) -> np.ndarray | None:
         return None if self.trial is None else self.trial.poses().gripper
@@ -136,6 +152,8 @@ class LiveRun:
     def _after_tick(self, run: TrialRun, trial: Trial, record: TickRecord) -> None:
         if TrialEvent(EventKind.GRASP_MISSED) in record.events:
             self.view.missed_grasp.set()  # the render loop tells the participant
+        if _held_past_reach(trial, self.input.source, record.events):
+            self.view.at_limit = time.monotonic()
         self.view.snap(run, trial.poses(), (int(record.predicted), float(record.confidence)))
         self.plots.add(record)
 
@@ -150,3 +168,27 @@ class LiveRun:
         except Exception:
             LOGGER.exception("session %s: could not pause after a control fault", self.code)
         self._redraw()
+
+
+_PAST_REACH = (TrialEvent(EventKind.TARGET_CLAMPED), TrialEvent(EventKind.TARGET_FAR_OUTSIDE))
+
+
+def _held_past_reach(
+    trial: Trial, source: ParticipantInput | None, events: Sequence[TrialEvent]
+) -> bool:
+    """Whether the participant's input pushes past the reach this tick: the trial clamped the
+    handle's target (its ``target_clamped`` events), or a held key pushes the target (which the
+    keys keep inside) against a face of the reach box."""
+    if any(e in events for e in _PAST_REACH):
+        return True
+    keyboard = getattr(source, "keyboard", None)
+    if keyboard is None:
+        return False
+    x, reach = trial.user_target, trial.scene.reach
+    for key in keyboard.held:
+        axis, sign = KEYMAP.get(key, (0, 0.0))
+        if (sign > 0 and x[axis] >= reach.hi[axis] - 1e-6) or (
+            sign < 0 and x[axis] <= reach.lo[axis] + 1e-6
+        ):
+            return True
+    return False

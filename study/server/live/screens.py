@@ -36,6 +36,7 @@ class PageHandlers(Protocol):
     def grasp(self) -> None: ...
     def reframe(self) -> None: ...
     def preview(self, page: ParticipantPage) -> None: ...
+    def time_left(self) -> float | None: ...
 
 
 def show_screen(
@@ -93,6 +94,7 @@ def show_screen(
             progress=progress,
             on_grasp=handlers.grasp,
             on_view=handlers.reframe,
+            time_left_s=handlers.time_left(),
         )
     elif screen.phase == "questions":
         page.show_questions(

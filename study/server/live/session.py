@@ -264,12 +264,23 @@ class LiveSession:
                 page, scene, sim.model, sim.poses(), intent=shows_intent(config.extra)
             )
 
+    def time_left(self) -> float | None:
+        """Seconds left in the running run (its trial time: pauses excluded), else None."""
+        run = self.trial_run.run
+        if run is None or run.over:
+            return None
+        return run.config.time_limit_s - run.trial.t
+
     def _end_run(self) -> None:
         with self._lock:
             page = self.page
             self.trial_run.end()
+            outcome = self.trial_run.outcome
         if page is not None:
             page.remove_gizmo()
+            self.view.clear_notices(page)
+            if outcome is not None:  # said over the scene too: a drag may have been cut short
+                page.notify(outcome, seconds=6.0)
 
     # -- the page --------------------------------------------------------------------------------
     def _page_loop(self) -> None:

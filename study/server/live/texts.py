@@ -25,6 +25,10 @@ WAITING_TEXT = (
     "Please wait: the experimenter will start your session in a moment."
     " This page will change by itself."
 )
+AT_REACH_LIMIT = "The arm cannot reach beyond the frame drawn on the table."
+"""Shown while the participant's input is held past the reach (handle or keys)."""
+TIME_WARNING_S = 10.0
+TIME_WARNING = "10 seconds left in this run."
 
 CLOSE_TEXT = "You may close this page now."
 REDIRECT_DELAY_S = 8
@@ -80,6 +84,7 @@ def outcome_sentence(run: TrialRun, *, target: str, session_finished: bool) -> s
 
 
 __all__ = [
+    "AT_REACH_LIMIT",
     "CLOSE_TEXT",
     "ENDED_BY_EXPERIMENTER",
     "LINK_CLOSED_TEXT",
@@ -89,6 +94,8 @@ __all__ = [
     "MISSED_GRASP",
     "OUTCOME_SENTENCES",
     "TAB_LOST_TEXT",
+    "TIME_WARNING",
+    "TIME_WARNING_S",
     "WAITING_TEXT",
     "WAIT_TEXT",
     "end_screen",

@@ -4,14 +4,17 @@ The control thread hands over a snapshot of the run's body poses after each tick
 something (``snap``); the render loop (``step``, up to ``render_hz``) sends the newest snapshot
 to the tab, but only while the view shows that run (``frame_key``): never an earlier run's end
 pose on the next ready screen, whose preview (``draw_preview``) shows the next run's start.
-The render loop also carries the page's small live notices (a missed grasp, the handle following
-the keys).
+The render loop also carries the page's small live notices (a missed grasp, the input held past
+the reach, ten seconds left), the trial screen's countdown and the handle following the keys.
+The view from above (:class:`study.server.inset.InsetLoop`) draws the same snapshots in a thread
+of its own.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
@@ -20,14 +23,18 @@ import numpy as np
 
 from app.robot import BodyPoses, Scene
 from study.server.inputs import ParticipantInput
+from study.server.inset import InsetJob, InsetLoop
 from study.server.intent_cue import IntentGoals, ring_opacity
-from study.server.live.texts import MISSED_GRASP
+from study.server.live.texts import AT_REACH_LIMIT, MISSED_GRASP, TIME_WARNING, TIME_WARNING_S
 from study.server.loop import PacedLoop
 from study.server.participant import ParticipantPage
-from study.server.scene import SceneView, frame_scene
+from study.server.scene import SceneView, frame_scene, reach_footprint
 from study.session import TrialRun
 
 LOGGER = logging.getLogger("study.server.live")
+
+LIMIT_HOLD_S = 0.4
+"""The reach notice stays this long after the input was last held past the reach."""
 
 MOVED_M = 2e-4
 """Bodies that moved less than this (m; rotation-matrix entries by 10x this) since the last
@@ -73,8 +80,15 @@ class LiveView:
         self._lock = threading.Lock()
         """One frame at a time: the render loop's against a preview draw or a view rebuild."""
         self._loop: PacedLoop | None = None
+        self._model: mujoco.MjModel | None = None
+        self._azimuth = 225.0
+        self.inset: InsetLoop | None = None
         self.missed_grasp = threading.Event()
         """Set by the control thread; the render loop tells the participant."""
+        self.at_limit = 0.0
+        """When (monotonic) the control thread last saw the input held past the reach."""
+        self._limit_shown = False
+        self._warned: object = None
 
     # ---- control thread ------------------------------------------------------------------------
     def snap(self, run: TrialRun, poses: BodyPoses, intent: Intent | None = None) -> None:
@@ -100,11 +114,17 @@ class LiveView:
         if self._loop is None or not self._loop.alive:
             self._loop = PacedLoop(self.step, rate_hz=self.render_hz, name=f"render-{self.code}")
             self._loop.start()
+        if self.inset is None or (not self.inset.alive and self.inset.failed is None):
+            self.inset = InsetLoop(
+                name=f"inset-{self.code}", job=self._inset_job, sink=self._inset_frame
+            ).start()
 
     def stop(self) -> None:
         if self._loop is not None:
             self._loop.stop()
             self._loop = None
+        if self.inset is not None:
+            self.inset.stop()
 
     def drop(self) -> None:
         """The tab went away: the next one builds its own view."""
@@ -124,11 +144,14 @@ class LiveView:
                 model,
                 table_top=scene.spec.table.top_z,
                 goals=IntentGoals.of_scene(scene) if intent else None,
+                reach=reach_footprint(scene.reach.lo, scene.reach.hi, scene.spec.table),
             )
             self._view_key = key
             self._scene = scene
             self._rendered_seq = -1
-            frame_scene(page.client.camera, scene)
+            view = frame_scene(page.client.camera, scene)
+            self._azimuth = 225.0 if view is None else view.azimuth_deg
+        self._model = model
         return self.view
 
     def draw_preview(
@@ -160,6 +183,8 @@ class LiveView:
             self.missed_grasp.clear()
             if page is not None:
                 page.notify(MISSED_GRASP)
+        if page is not None:
+            self._notices(page)
         if view is not None and snap is not None and snap.seq != self._rendered_seq:
             with self._lock:
                 if snap.key is self._frame_key and view is self.view:
@@ -175,6 +200,52 @@ class LiveView:
             source.key_moved.clear()
             if source.last_target is not None:
                 page.move_gizmo(source.last_target)
+
+    def _notices(self, page: ParticipantPage) -> None:
+        """The countdown, ten seconds left, and the reach notice while the input is held past
+        the reach (taken down a moment after it no longer is, or when the run is not live)."""
+        run = self._frame_key if isinstance(self._frame_key, TrialRun) else None
+        live = run is not None and not run.over and not run.paused
+        if live and run is not None:
+            left = run.config.time_limit_s - run.trial.t
+            page.set_time_left(left)
+            if left <= TIME_WARNING_S and self._warned is not run:
+                self._warned = run
+                if run.config.time_limit_s > 2 * TIME_WARNING_S:
+                    page.notify(TIME_WARNING)
+        held = live and time.monotonic() - self.at_limit < LIMIT_HOLD_S
+        if held != self._limit_shown:
+            self._limit_shown = held
+            page.hold_notice(AT_REACH_LIMIT if held else None)
+
+    def clear_notices(self, page: ParticipantPage | None) -> None:
+        """The run ended or the tab changed: no reach notice stays up."""
+        self._limit_shown = False
+        if page is not None:
+            page.hold_notice(None)
+
+    # ---- inset thread ----------------------------------------------------------------------
+    def _inset_job(self) -> InsetJob | None:
+        """What the view from above should show now (None: the page shows no such picture)."""
+        page = self._tab()[0]
+        snap, scene, model = self._snapshot, self._scene, self._model
+        if page is None or not page.shows_inset or snap is None or scene is None:
+            return None
+        if model is None or snap.key is not self._frame_key:
+            return None
+        return InsetJob(
+            key=(snap.seq, page.client.client_id, page.screen),
+            scene=scene,
+            model=model,
+            view_azimuth_deg=self._azimuth,
+            poses=snap.poses,
+            words=page.words,
+        )
+
+    def _inset_frame(self, jpeg: bytes) -> None:
+        page = self._tab()[0]
+        if page is not None:
+            page.show_inset(jpeg)
 
 
 def shows_intent(extra: Mapping[str, object]) -> bool:
