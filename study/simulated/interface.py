@@ -3,7 +3,7 @@
 :class:`InterfaceUser` is the ``InputSource`` of one simulated trial. Each tick its
 :class:`~study.simulated.user_model.SimulatedUser` (``goal_level``) says where the participant
 wants the handle (``intent``) and whether they want the gripper closed; a hand turns that into
-what a person does on the page, through the same :class:`study.server.inputs.ParticipantInput` the
+what a person does on the page, through the same :class:`app.teleop.ParticipantInput` the
 browser drives (``set_target``, ``key_down``, ``key_up``, ``request_grasp``):
 
 - :class:`GizmoHand` grabs one handle at a time -- the table plane, or one axis -- as seen from
@@ -28,8 +28,8 @@ import math
 
 import numpy as np
 
+from app.teleop.participant_input import ParticipantInput
 from app.teleop.types import TeleopCommand, TrialObservation
-from study.server.inputs import ParticipantInput
 from study.simulated.experience import RunExperience
 from study.simulated.movement import HandNoise, fitts_time, minimum_jerk
 from study.simulated.population import InterfaceParams, ParticipantParams
