@@ -34,7 +34,10 @@ class TrialObservation:
     ``alpha``/``predicted``: the last arbitration value and predicted goal index;
     ``object_positions``: the objects' centres now (n, 3), same order; ``grasp_points``: the
     grasp points now (n, 3), moved with their objects at once (a nudged object is re-aimed at
-    there; defaults to ``goal_positions``). The arrays are shared: read, never write.
+    there; defaults to ``goal_positions``); ``knocks``: how many times an object has been
+    knocked over or pushed off the table so far in the trial (what a person sees fall);
+    ``lying``: the indices of the objects lying now (knocked over or off the table, not yet
+    stood up again). The arrays are shared: read, never write.
     """
 
     t: float
@@ -52,6 +55,8 @@ class TrialObservation:
     rate_hz: float = 100.0
     object_positions: np.ndarray | None = None
     grasp_points: np.ndarray | None = None
+    knocks: int = 0
+    lying: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         if self.grasp_points is None:

@@ -8,9 +8,24 @@ from typing import Any
 
 import numpy as np
 
-from app.trial.events import TrialEvent, encode
+from app.trial.events import EventKind, TrialEvent, encode
 
-OUTCOMES = ("success", "wrong_object", "dropped", "pushed_off", "timeout", "aborted", "interrupted")
+OUTCOMES = (
+    "success",
+    "wrong_object",
+    "dropped",
+    "knocked_over",
+    "pushed_off",
+    "timeout",
+    "aborted",
+    "interrupted",
+)
+"""How a trial can end: ``success`` (the target lifted), ``wrong_object`` (the other object
+lifted), ``dropped`` (a held object fell out of the gripper or would not come up),
+``knocked_over`` (an object was knocked over, never grasped) and ``pushed_off`` (an object fell
+off the table) -- these two only under ``on_knock = "end"``, and ``dropped`` too: under
+``"reset"`` the run goes on --, ``timeout``, ``aborted`` (the experimenter) and
+``interrupted`` (the participant was lost)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,4 +97,11 @@ class TrialResult:
             "ticks": self.ticks,
             "target": self.target,
             "events": len(self.events),
+            "knocks": self.count(EventKind.KNOCKED_OVER),
+            "pushed_off": self.count(EventKind.PUSHED_OFF),
+            "drops": self.count(EventKind.DROPPED),
         }
+
+    def count(self, kind: EventKind) -> int:
+        """How many events of ``kind`` the trial logged (e.g. its knocks)."""
+        return sum(1 for _, e in self.events if e.kind is kind)

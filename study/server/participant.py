@@ -371,9 +371,15 @@ class ParticipantPage:
 
     # -- teleoperation -----------------------------------------------------------------------
     def add_gizmo(
-        self, position: np.ndarray, *, on_target: Callable[[np.ndarray], None], scale: float = 0.22
+        self,
+        position: np.ndarray,
+        *,
+        on_target: Callable[[np.ndarray], None],
+        on_release: Callable[[], None] | None = None,
+        scale: float = 0.22,
     ) -> viser.TransformControlsHandle:
-        """The transform handle at the end effector; every pose update goes to ``on_target``."""
+        """The transform handle at the end effector; every pose update goes to ``on_target``,
+        the end of a drag (after its last pose) to ``on_release``."""
         with self._lock:
             self.remove_gizmo()
             gizmo = self.client.scene.add_transform_controls(
@@ -392,11 +398,11 @@ class ParticipantPage:
         @gizmo.on_update
         async def _(event: object) -> None:
             try:
-                target = parse_position(gizmo.position)
+                on_target(parse_position(gizmo.position))
             except InputRejected as exc:
                 asyncio.get_running_loop().run_in_executor(None, self.reject, str(exc), False)
-                return
-            on_target(target)
+            if on_release is not None and getattr(event, "phase", None) == "end":
+                on_release()
 
         return gizmo
 

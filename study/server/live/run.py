@@ -91,7 +91,11 @@ class LiveRun:
             return
         self.view.ensure(page, trial.scene, trial.sim.model, intent=shows_intent(run.config.extra))
         start = source.last_target if source.last_target is not None else trial.user_target
-        page.add_gizmo(np.asarray(start, float), on_target=self.input.on_target)
+        page.add_gizmo(
+            np.asarray(start, float),
+            on_target=self.input.on_target,
+            on_release=self.input.on_release,
+        )
         if self.input.frozen or run.paused:
             page.show_gizmo(False)
 
