@@ -96,9 +96,11 @@ def test_relative_pending_motion_is_spent_and_dropped_by_a_pause() -> None:
     here = np.array([0.4, 0.0, 0.3])
     first = src.command(_obs(here)).target
     assert np.allclose(first, [0.45, 0.0, 0.3])
-    # the robot moved the gripper 3 cm sideways: the target goes with it
-    moved = src.command(_obs(here + np.array([0.0, 0.03, 0.0]))).target
-    assert moved[1] == pytest.approx(0.03) and 0.4 < moved[0] < 0.45
+    # the robot moved the gripper 3 cm sideways: the target goes with it; the path the
+    # prediction reads (the user's own displacements) does not
+    cmd = src.command(_obs(here + np.array([0.0, 0.03, 0.0])))
+    assert cmd.target[1] == pytest.approx(0.03) and 0.4 < cmd.target[0] < 0.45
+    assert np.allclose(cmd.path, [0.45, 0.0, 0.3])
     src.freeze()
     src.thaw()
     src.place(here)  # the page puts the handle back on the gripper: nothing pending

@@ -22,7 +22,10 @@ Two mappings (``mapping``, the protocol's ``[control] input_mapping``):
   the gripper travels exactly the input's displacement, ``1/k`` seconds behind. A robot that
   moves the gripper carries the target along: nothing pulls it back, and the user has to keep
   moving against the robot. When a drag ends the handle returns to the gripper
-  (``handle_position``), and follows it while not dragged.
+  (``handle_position``), and follows it while not dragged. The robot predicts the user's goal
+  from the path their own input traced -- the gripper's start plus every displacement they
+  gave, clamped to the reach (``TeleopCommand.path``) -- not from the target, which the robot's
+  own motion carries along (a wrong prediction would then confirm itself).
 
 While ``frozen`` (a pause: by the experimenter, a lost tab, a fault) every input is refused
 with :class:`InputFrozen` and nothing is queued, so nothing done during a pause is applied
@@ -80,6 +83,8 @@ class ParticipantInput:
         self._frozen = False
         # relative mapping: pending displacement, the handle's last position, dragging or not
         self._pending = np.zeros(3)
+        self._moved = np.zeros(3)  # displacement given since the last tick, for the path
+        self._path: np.ndarray | None = None
         self._handle: np.ndarray | None = (
             None if start_target is None else checked_position(start_target)
         )
@@ -101,6 +106,7 @@ class ParticipantInput:
             self._grasp = False
             self._used = self._seq
             self._pending[:] = 0.0
+            self._moved[:] = 0.0
             self._dragging = False
         self.keyboard.release_all(discard=True)
 
@@ -128,6 +134,7 @@ class ParticipantInput:
         with self._lock:
             if self._handle is not None:
                 self._pending += pose - self._handle
+                self._moved += pose - self._handle
             self._handle = pose
             self._dragging = True
             self._seq += 1
@@ -200,9 +207,9 @@ class ParticipantInput:
         if fresh and arrival is not None:
             self.latencies_s.append(time.perf_counter() - arrival)
         if self.relative:
-            target, asked = self._relative(obs)
+            target, path, asked = self._relative(obs)
             self.last_target = target
-            return TeleopCommand(target, bool(grasp or asked))
+            return TeleopCommand(target, bool(grasp or asked), path=path)
         from_gizmo = self.gizmo.command(obs)
         keys_moving = self.keyboard.moving
         from_keys = self.keyboard.command(obs)
@@ -217,13 +224,19 @@ class ParticipantInput:
         self.last_target = np.array(target, dtype=float)
         return TeleopCommand(target, bool(grasp or from_gizmo.grasp or from_keys.grasp))
 
-    def _relative(self, obs: TrialObservation) -> tuple[np.ndarray, bool]:
-        """``target = ee + d`` after adding the keys' displacement; then ``d`` is spent."""
+    def _relative(self, obs: TrialObservation) -> tuple[np.ndarray, np.ndarray, bool]:
+        """``target = ee + d`` after adding the keys' displacement, then ``d`` is spent; and the
+        path, which moves by the user's displacements only."""
         dt = 1.0 / obs.rate_hz
         keys, grasp = self.keyboard.step(dt)
+        ee = np.asarray(obs.ee, dtype=float)
         with self._lock:
             pending = self._pending
             pending += keys
-            target = np.asarray(obs.ee, dtype=float) + pending
+            target = ee + pending
             pending *= math.exp(-dt * GAIN_PER_S)
-        return target, grasp
+            start = ee if self._path is None else self._path
+            self._path = obs.reach.clamp(start + self._moved + keys)
+            self._moved[:] = 0.0
+            path = self._path.copy()
+        return target, path, grasp

@@ -18,10 +18,17 @@ from app.teleop.reach import ReachRegion
 
 @dataclass(frozen=True)
 class TeleopCommand:
-    """The user's wish this tick: end-effector ``target`` (3,) and ``grasp`` (True = close)."""
+    """The user's wish this tick: end-effector ``target`` (3,) and ``grasp`` (True = close).
+
+    ``path`` (3,), when given: where the user's own input has taken the gripper, if that is not
+    the target -- under a relative mapping the target is the gripper plus what is still to
+    come, so it moves with whatever moves the gripper, the robot included. The robot predicts
+    the user's goal from their input's positions (``path`` if given, else ``target``).
+    """
 
     target: np.ndarray
     grasp: bool = False
+    path: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

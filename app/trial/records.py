@@ -32,14 +32,16 @@ off the table) -- these two only under ``on_knock = "end"``, and ``dropped`` too
 class TickRecord:
     """One control tick, after physics.
 
-    ``t``: simulated time (s, pauses excluded); ``q``: robot configuration Q after the tick;
-    ``u``: the user's next configuration U; ``p``: the policy's P; ``command``:
-    ``(1 - alpha) U + alpha P`` sent to the servos; ``probabilities``: ``P(G | xi)``;
-    ``predicted``: index of G*; ``user_target``: the clamped target (3,); ``ee``: TCP (3,);
-    ``gripper``: finger opening (m); ``events``: what happened this tick (``app.trial.events``);
-    ``motion_agreement``: cosine of the user's motion and the robot's heading (Fig. 15);
-    ``rationality``: the user's estimated rationality toward G* (1/m). Both from
-    ``app.blending.BlendRecord`` while reaching (0 and NaN otherwise).
+        ``t``: simulated time (s, pauses excluded); ``q``: robot configuration Q after the tick;
+        ``u``: the user's next configuration U; ``p``: the policy's P; ``command``:
+        ``(1 - alpha) U + alpha P`` sent to the servos; ``probabilities``: ``P(G | xi)``;
+        ``predicted``: index of G*; ``user_target``: the user's input position the prediction read
+    (3,, clamped: the target, or under a relative mapping the path their own input traced);
+    ``ee``: TCP (3,);
+        ``gripper``: finger opening (m); ``events``: what happened this tick (``app.trial.events``);
+        ``motion_agreement``: cosine of the user's motion and the robot's heading (Fig. 15);
+        ``rationality``: the user's estimated rationality toward G* (1/m). Both from
+        ``app.blending.BlendRecord`` while reaching (0 and NaN otherwise).
     """
 
     tick: int

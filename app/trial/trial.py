@@ -96,6 +96,7 @@ class Trial:
         self.accidents = Accidents(self.sim, self.scene.object_names, on_knock=config.on_knock)
         n = len(self.scene.goals)
         self.user_target = self.scene.start_ee.copy()
+        self.user_input = self.user_target  # what the prediction reads: the path, or the target
         reach = self.scene.reach
         self._reach_box = (tuple(reach.lo.tolist()), tuple(reach.hi.tolist()))
         # the state after the last physics step (fresh arrays each tick, never written to):
@@ -303,13 +304,30 @@ class Trial:
             return TeleopCommand(self.user_target.copy(), False)
 
     def _set_user_target(self, cmd: TeleopCommand, events: list[TrialEvent]) -> None:
+        target, outside = self._clamped(cmd.target)
+        if target is None:
+            events.append(TrialEvent(EventKind.INVALID_TARGET))
+            return
+        if outside > 0.0:
+            far = outside > FAR_OUTSIDE_M
+            events.append(
+                TrialEvent(EventKind.TARGET_FAR_OUTSIDE if far else EventKind.TARGET_CLAMPED)
+            )
+        self.user_target = target
+        path = None if cmd.path is None else self._clamped(cmd.path)[0]
+        if cmd.path is not None and path is None:
+            events.append(TrialEvent(EventKind.INVALID_TARGET))
+        self.user_input = target if path is None else path
+
+    def _clamped(self, value: object) -> tuple[np.ndarray | None, float]:
+        """``value`` clamped to the reach box and how far outside it was; ``None`` if it is not
+        three finite numbers."""
         try:
-            raw = np.asarray(cmd.target, dtype=float).reshape(-1).tolist()
+            raw = np.asarray(value, dtype=float).reshape(-1).tolist()
         except (TypeError, ValueError):
             raw = []
         if len(raw) != 3 or not math.isfinite(raw[0] + raw[1] + raw[2]):
-            events.append(TrialEvent(EventKind.INVALID_TARGET))
-            return
+            return None, 0.0
         # clamp to the reach box in scalars (three numbers: cheaper than array operations)
         x, y, z = raw
         (lx, ly, lz), (hx, hy, hz) = self._reach_box
@@ -317,12 +335,7 @@ class Trial:
         cy = ly if y < ly else (hy if y > hy else y)
         cz = lz if z < lz else (hz if z > hz else z)
         outside = math.sqrt((x - cx) ** 2 + (y - cy) ** 2 + (z - cz) ** 2)
-        if outside > 0.0:
-            far = outside > FAR_OUTSIDE_M
-            events.append(
-                TrialEvent(EventKind.TARGET_FAR_OUTSIDE if far else EventKind.TARGET_CLAMPED)
-            )
-        self.user_target = np.array((cx, cy, cz))
+        return np.array((cx, cy, cz)), outside
 
     def _control(
         self, q: np.ndarray, request: bool, events: list[TrialEvent]
@@ -337,7 +350,7 @@ class Trial:
                 self._hold_q = q
                 return q, q, q
             u = self.ik(q, self.user_target)
-            rec = self.blender.step(q, u, x=self.user_target, robot_x=self._ee)
+            rec = self.blender.step(q, u, x=self.user_input, robot_x=self._ee)
             self._last = (
                 rec.alpha,
                 rec.confidence,
@@ -447,7 +460,7 @@ class Trial:
             confidence=float(confidence),
             probabilities=probabilities,
             predicted=int(predicted),
-            user_target=self.user_target,
+            user_target=self.user_input,
             ee=self._ee,
             gripper=self.sim.gripper_opening,
             events=tuple(events),
