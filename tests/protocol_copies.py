@@ -36,3 +36,14 @@ def short_protocol(
     path = Path(directory) / "short.toml"
     path.write_text(text, encoding="utf-8")
     return path
+
+
+def relative_copy(directory: Path | str) -> Path:
+    """protocols/dragan2013.toml with ``[control] input_mapping = "relative"``, in ``directory``."""
+    text, n = re.subn(
+        r'(?m)^input_mapping = "absolute"', 'input_mapping = "relative"', PAPER_PROTOCOL.read_text()
+    )
+    assert n == 1, "the protocol's [control] input_mapping moved: update tests/protocol_copies.py"
+    path = Path(directory) / "relative.toml"
+    path.write_text(text, encoding="utf-8")
+    return path

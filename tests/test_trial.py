@@ -131,6 +131,33 @@ def test_a_knocked_target_is_stood_up_again_and_the_run_goes_on(config, block_s)
     assert result.summary()["knocks"] == 1 and result.count(EventKind.OBJECT_RESET) == 1
 
 
+def test_the_robot_holds_back_while_its_goal_lies_knocked_over(config) -> None:
+    # Aggressive and told the goal (the bottle, near enough for it to take over at once): the
+    # robot would drive the gripper to where the bottle must be stood up again. While it lies,
+    # alpha is 0; once it stands, the robot takes over.
+    cfg = config("easy-right", "aggressive", time_limit_s=30)
+    cfg = dataclasses.replace(cfg, scene=dataclasses.replace(cfg.scene, target="bottle"))
+    trial = Trial(cfg, IdleInput())
+    for _ in range(20):
+        trial.tick()
+    adr = trial.scene.object_qpos_addr[trial.scene.target_index]
+    trial.sim.data.qpos[adr + 2] = 0.03  # tipped onto its side where it stood
+    trial.sim.data.qpos[adr + 3 : adr + 7] = [np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0]
+    alphas, reset = [], None
+    while reset is None and trial.t < 5.0:
+        rec = trial.tick()
+        alphas.append(rec.alpha)
+        if any(e.kind is EventKind.OBJECT_RESET for e in rec.events):
+            reset = rec.t
+    assert reset is not None and trial.accidents.knocks == {"bottle": 1}
+    knocked = next(t for t, e in trial.events if e.kind is EventKind.KNOCKED_OVER)
+    lying = [a for a, r in zip(alphas, trial.records[20:], strict=True) if knocked < r.t <= reset]
+    assert lying and max(lying) == 0.0
+    for _ in range(20):
+        trial.tick()
+    assert trial.records[-1].alpha > 0.5
+
+
 def test_with_on_knock_end_a_knock_ends_the_run(config) -> None:
     cfg = _bottle_target(config, on_knock="end")
     spot = np.array(cfg.scene.object("bottle").position)

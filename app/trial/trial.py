@@ -11,7 +11,9 @@ accidents, each with its own event: a held object that falls out of the gripper 
 an object knocked over (``knocked_over``) or pushed off the table (``pushed_off``). Under
 ``on_knock = "reset"`` (the default) no accident ends the run: the gripper opens after a drop,
 and a knocked or fallen object is stood up again at its start pose once it has settled
-(``app.trial.accidents``), while the run and its clock go on; under ``"end"`` the first
+(``app.trial.accidents``), while the run and its clock go on (meanwhile a robot whose
+predicted goal lies holds back, alpha = 0: it would take the gripper to the very place the
+object must be stood up in, and its own hand would keep it lying); under ``"end"`` the first
 accident ends it with that outcome. Outcomes are logged, never raised. The arm's touches on
 objects are logged as events at the tick they start and end (``app.trial.contacts``).
 
@@ -351,15 +353,18 @@ class Trial:
                 return q, q, q
             u = self.ik(q, self.user_target)
             rec = self.blender.step(q, u, x=self.user_input, robot_x=self._ee)
+            alpha, command = rec.alpha, rec.command
+            if self.accidents.lying(rec.predicted):  # its goal lies, to be stood up where the
+                alpha, command = 0.0, u  # robot would take the gripper: it holds back meanwhile
             self._last = (
-                rec.alpha,
+                alpha,
                 rec.confidence,
                 rec.probabilities,
                 rec.predicted,
                 rec.motion_agreement,
                 rec.rationality,
             )
-            return u, rec.P, rec.command
+            return u, rec.P, command
         if self._phase == "lifting":
             cmd = self.ik(q, self._lift_target, max_speed=LIFT_SPEED)
             return cmd, cmd, cmd

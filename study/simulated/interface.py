@@ -21,8 +21,9 @@ browser drives (``set_target``, ``key_down``, ``key_up``, ``request_grasp``):
   early by ``key_anticipation`` of that delay, so a key overshoots by about
   ``speed tau (1 - anticipation)``; what is left is corrected with taps (``press``).
 
-While the user is stopped (re-planning after a surprise, or waiting for a knocked object to be
-stood up again: ``SimulatedUser.stopped``) the hand lets go of the handle and of every key.
+While the user re-plans after a surprise (``SimulatedUser.replanning``) the hand lets go of the
+handle and of every key; while they wait for a knocked target to be stood up again it raises
+the handle out of the way.
 Under the relative mapping (``[control] input_mapping = "relative"``,
 :class:`app.teleop.ParticipantInput`) a drag moves the gripper by the drag's displacement and
 the handle returns to the gripper when let go: each grab starts from the gripper as it is then,
@@ -266,7 +267,7 @@ class InterfaceUser:
         drawn = self.input.handle_position(obs.ee) if self.input.relative else None
         if drawn is not None:
             self._handle = drawn
-        if self.user.phase == "reach" and not self.user.stopped:  # the handle matters then
+        if self.user.phase == "reach" and not self.user.replanning:  # the handle matters then
             intent = self.user.intent
             if isinstance(self.hand, KeyHand):
                 seen = self.user.seen_handle if self.user.seen_handle is not None else intent

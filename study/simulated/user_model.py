@@ -22,6 +22,15 @@ Each tick the user sets an absolute target (clamped by the interface's reach):
   (``dm_h/dt = (hand - m_h) / lag``), split the same way (a robot ahead is help).
 - ``n``: Ornstein-Uhlenbeck hand noise, sd ``sigma (1 + careless rho)``.
 
+Surprise (:mod:`study.simulated.surprise`): a gripper motion their forward model did not
+predict stops the user's input (no plan progress, no corrections: the hand holds still) for a
+re-planning time; then they plan afresh from where the hand is. Trust
+(:mod:`study.simulated.trust`, carried across a participant's runs) falls with the robot's
+errors as seen -- opposition, the gripper taken to the other object, knocks -- and scales how
+far a relaxer relaxes and how fast the fight builds. While the target lies knocked over
+(``obs.lying``) the user waits, hand raised above the table, until it stands again, then
+approaches it anew.
+
 Grasp (``grasp`` is held True from the request on; trials react to its rising edge): closes
 when the seen gripper is within ``grasp_radius`` of ``a`` and slower than ``settle_speed``
 (or, on an impatient "early" attempt, as soon as it is within ``early_radius``, still moving;
@@ -110,9 +119,19 @@ class SimulatedUser:
 
     @property
     def stopped(self) -> bool:
-        """The user holds their input still: re-planning after a surprise, or waiting for a
-        knocked-over object to be stood up again."""
+        """The user does not pursue the goal: re-planning after a surprise (``replanning``),
+        or waiting for a knocked-over object to be stood up again (``waiting``)."""
         return self._stopped or self._waiting
+
+    @property
+    def replanning(self) -> bool:
+        """Stopped to re-plan after a surprise: the hand holds still."""
+        return self._stopped
+
+    @property
+    def waiting(self) -> bool:
+        """Waiting, hand raised out of the way, for the target to be stood up again."""
+        return self._waiting
 
     # ---- InputSource -----------------------------------------------------------------------
     def command(self, obs: TrialObservation) -> TeleopCommand:
@@ -193,8 +212,10 @@ class SimulatedUser:
                 clamped = clamp_box(hand, lo, hi)
                 self._c = self._c + (clamped - hand)  # anti-windup: the gizmo stops at the reach
                 self._hand = clamped
-            elif self._waiting:  # out of the way of the object's place, above it
-                self._hand[2] = min(max(self._hand[2], goal[2] + self.params.grasp.lift_m), hi[2])
+            elif self._waiting:  # out of the way: above where the object stood
+                stood = float(obs.goal_positions[obs.target_index][2])
+                rise = max(stood, float(goal[2])) + self.params.grasp.lift_m
+                self._hand[2] = min(max(self._hand[2], rise), hi[2])
             shown = own if self.goal_level else self._hand  # the input the robot was given
             self._follow = self._follow + blend * (shown - self._follow)
         scale = 1.0 + self.params.reaction.careless_noise_gain * self.reaction.relax
