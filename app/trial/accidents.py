@@ -74,6 +74,10 @@ class Accidents:
         self.pushes: Counter[str] = Counter()
         self.resets: Counter[str] = Counter()
         self._down: dict[int, _Down] = {}
+        self.count = 0
+        """Accidents so far (knocks and falls off the table, every object)."""
+        self.down: tuple[int, ...] = ()
+        """The objects lying now (knocked over or off the table, not yet put back)."""
         model, data = sim.model, sim.data
         bodies = sim.scene.object_body_ids
         self._qadr = [int(a) for a in sim.scene.object_qpos_addr]
@@ -83,19 +87,9 @@ class Accidents:
         table = model.geom("table").id
         self._ignore = frozenset({table, model.geom("floor").id})
 
-    @property
-    def count(self) -> int:
-        """Accidents so far (knocks and falls off the table, every object)."""
-        return sum(self.knocks.values()) + sum(self.pushes.values())
-
     def lying(self, k: int) -> bool:
         """Object ``k`` was knocked over or pushed off and has not been put back yet."""
         return k in self._down
-
-    @property
-    def down(self) -> tuple[int, ...]:
-        """The objects lying now (knocked over or off the table, not yet put back)."""
-        return tuple(sorted(self._down))
 
     def check(self, t: float, *, held: int | None) -> tuple[list[TrialEvent], str | None]:
         """This check's events and, under ``on_knock = "end"``, the outcome to end with."""
@@ -116,6 +110,9 @@ class Accidents:
                 self._down[k] = _Down(EventKind.KNOCKED_OVER, t)
                 events.append(TrialEvent(EventKind.KNOCKED_OVER, obj=name))
                 outcome = outcome or "knocked_over"
+        if events:
+            self.count = sum(self.knocks.values()) + sum(self.pushes.values())
+            self.down = tuple(sorted(self._down))
         if not self.reset_objects:
             return events, outcome
         if self._down:
@@ -123,6 +120,7 @@ class Accidents:
             for k in sorted(self._down):
                 if k != held and k not in touched and self._settled(k, t) and self._place(k):
                     del self._down[k]
+                    self.down = tuple(sorted(self._down))
                     self.resets[self.names[k]] += 1
                     events.append(TrialEvent(EventKind.OBJECT_RESET, obj=self.names[k]))
         return events, None
