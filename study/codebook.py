@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 
 import pandas as pd
 
+from app.trial.accidents import ACCIDENT_MEASURES
 from app.trial.samples import SAMPLE_DOCS
 from study.protocol.questionnaire import ChoiceItem, NumberItem, TextItem
 
@@ -47,9 +48,13 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
             "completed | redone | skipped | interrupted | running",
         ),
         "outcome": (
-            "how the trial ended",
-            "success | wrong_object | dropped | pushed_off (an object was pushed off the"
-            " table) | timeout | aborted | interrupted",
+            "how the trial ended; the accidents (dropped: a held object slipped out of the"
+            " gripper; knocked_over: an object was knocked over, never grasped; pushed_off: an"
+            " object fell off the table) end a run only under [control] on_knock = end (under"
+            " reset, the default, the object is stood up again and the run goes on: see"
+            " knocks, pushes_off, drops)",
+            "success | wrong_object | dropped | knocked_over | pushed_off | timeout | aborted"
+            " | interrupted",
         ),
         "success": ("the target was lifted", "true | false"),
         "duration_s": ("time to complete, seconds, pauses excluded", "s"),
@@ -60,6 +65,10 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
             "0..",
         ),
         "contact_impulse_ns": ("dependent measure: total normal impulse of those touches", "N s"),
+        **{
+            name: (f"dependent measure beside time: {text}, from the trial's events", "0..")
+            for name, text in ACCIDENT_MEASURES.items()
+        },
         "started_at": ("start time, ISO 8601 UTC", ""),
         "goal_names": ("JSON list of the scene's goal names; prob_<k> follows this order", ""),
         "goal_positions": ("JSON list of [x, y, z] goal positions, metres, world frame", "m"),

@@ -41,6 +41,7 @@ import numpy as np
 import pandas as pd
 
 import app
+from app.trial.accidents import ACCIDENT_MEASURES, accident_totals
 from app.trial.contacts import contact_totals
 from app.trial.events import TrialEvent, decode_events
 from app.trial.samples import SAMPLE_COLUMNS
@@ -81,6 +82,7 @@ TRIAL_COLUMNS = (
     "ticks",
     "contacts",
     "contact_impulse_ns",
+    *ACCIDENT_MEASURES,
     "started_at",
     "goal_names",
     "goal_positions",
@@ -277,7 +279,7 @@ class _Exporter:
     # -- trials ------------------------------------------------------------------------------
     def trials(self, samples: pd.DataFrame | None = None) -> pd.DataFrame:
         t = self.raw_trials.copy()
-        t = _with_contacts(t, self.store.samples() if samples is None else samples)
+        t = _with_event_totals(t, self.store.samples() if samples is None else samples)
         rows = self.participants.set_index("participant")["schedule_row"]
         t["schedule_row"] = t["participant"].map(rows)
         t["mode"] = t["mode"].where(t["phase"] != "training", TRAINING_MODE)
@@ -301,6 +303,7 @@ class _Exporter:
                 "attempt",
                 "ticks",
                 "contacts",
+                *ACCIDENT_MEASURES,
                 "tasks_completed",
                 "trial_id",
                 *after_run,
@@ -495,16 +498,31 @@ class _Exporter:
         return _typed(e[list(EVENT_COLUMNS)].reset_index(drop=True), ints=("session_id",), bools=())
 
 
-def _with_contacts(trials: pd.DataFrame, samples: pd.DataFrame) -> pd.DataFrame:
-    """``contacts`` (touch onsets of the arm on objects) and ``contact_impulse_ns`` per trial,
-    totalled from the samples' events (``app.trial.contacts``)."""
-    touched = samples[samples["events"].astype(str).str.contains("contact", regex=False)]
+_COUNTED = ("contact", "knocked_over", "pushed_off", "dropped", "lift_failed", "object_reset")
+"""The event kinds whose totals are trial columns (a tick without one is not decoded)."""
+
+
+def _with_event_totals(trials: pd.DataFrame, samples: pd.DataFrame) -> pd.DataFrame:
+    """Per trial, from the samples' events: ``contacts`` (touch onsets of the arm on objects)
+    and ``contact_impulse_ns`` (``app.trial.contacts``), and the accident counts
+    (``app.trial.accidents.ACCIDENT_MEASURES``: knocks, pushes off the table, drops, resets).
+    A trial without such events (or a store that predates them) has zeros."""
+    text = samples["events"].astype(str)
+    marked = samples[text.str.contains("|".join(_COUNTED), regex=True)]
     lists: dict[Any, list[TrialEvent]] = {}
-    for tid, events in zip(touched["trial_id"], touched["events"], strict=True):
+    for tid, events in zip(marked["trial_id"], marked["events"], strict=True):
         lists.setdefault(tid, []).extend(decode_events(events))
-    totals = {tid: contact_totals(e) for tid, e in lists.items()}
-    trials["contacts"] = trials["trial_id"].map(lambda k: totals.get(k, (0, 0.0))[0])
-    trials["contact_impulse_ns"] = trials["trial_id"].map(lambda k: totals.get(k, (0, 0.0))[1])
+    contacts = {tid: contact_totals(e) for tid, e in lists.items()}
+    trials["contacts"] = trials["trial_id"].map(lambda k: contacts.get(k, (0, 0.0))[0])
+    trials["contact_impulse_ns"] = trials["trial_id"].map(lambda k: contacts.get(k, (0, 0.0))[1])
+    target = trials["target"] if "target" in trials else pd.Series("", index=trials.index)
+    targets = dict(zip(trials["trial_id"], target, strict=True))
+    for name in ACCIDENT_MEASURES:
+        trials[name] = 0
+    for tid, events in lists.items():
+        rows = trials["trial_id"] == tid
+        for name, value in accident_totals(events, target=str(targets.get(tid, ""))).items():
+            trials.loc[rows, name] = value
     return trials
 
 

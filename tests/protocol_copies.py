@@ -42,6 +42,17 @@ def short_protocol(
     return path
 
 
+def relative_copy(directory: Path | str) -> Path:
+    """protocols/dragan2013.toml with ``[control] input_mapping = "relative"``, in ``directory``."""
+    text, n = re.subn(
+        r'(?m)^input_mapping = "absolute"', 'input_mapping = "relative"', PAPER_PROTOCOL.read_text()
+    )
+    assert n == 1, "the protocol's [control] input_mapping moved: update tests/protocol_copies.py"
+    path = Path(directory) / "relative.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
 def with_completion(path: Path, *, code: str = "", redirect_url: str = "") -> Path:
     """Add an online study's ``completion_code`` and ``redirect_url`` to the protocol at
     ``path`` (in place; either may be left out); return ``path``."""

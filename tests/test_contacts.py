@@ -15,7 +15,7 @@ from app.teleop import TeleopCommand, TrialObservation
 from app.trial import OUTCOMES, Trial, run_trial
 from app.trial.contacts import ContactLog
 from app.trial.events import EventKind, TrialEvent, encode
-from study.export import _with_contacts
+from study.export import _with_event_totals
 from study.protocol import trial_config_from_protocol
 
 
@@ -73,9 +73,9 @@ def test_grasp_only_contacts_restore_the_earlier_behaviour(protocol_path) -> Non
     assert not any(e.kind in contact for _, e in result.events)
 
 
-def test_an_object_pushed_off_the_table_ends_the_trial(protocol_path) -> None:
-    # a small table: the box stands 5 cm from its edge, the gripper sweeps it over the edge
-    scene = SceneSpec.from_dict(
+def _edge_scene(protocol_path) -> SceneSpec:
+    """A small table: a 5 cm cube stands 5 cm from its edge."""
+    return SceneSpec.from_dict(
         {
             "target": "bottle",
             "start_q": list(_scene(protocol_path).start_q),
@@ -91,19 +91,43 @@ def test_an_object_pushed_off_the_table_ends_the_trial(protocol_path) -> None:
                 {
                     "name": "box",
                     "shape": "box",
-                    "size": [0.025, 0.025, 0.05],
-                    "position": [0.45, 0.12, 0.05],
+                    "size": [0.025, 0.025, 0.025],
+                    "position": [0.45, 0.12, 0.025],
                 },
             ],
         },
         where="scenes.edge",
     )
-    sweep = Sweep((0.45, 0.0, 0.06), (0.45, 0.42, 0.06), speed=0.25)
-    result = run_trial(_config(protocol_path, scene), sweep)
+
+
+EDGE_SWEEP = ((0.45, 0.0, 0.03), (0.45, 0.42, 0.03))  # the gripper sweeps the box off, low
+# enough that it slides rather than tips
+
+
+def test_an_object_pushed_off_the_table_ends_the_trial_under_on_knock_end(protocol_path) -> None:
+    cfg = dataclasses.replace(_config(protocol_path, _edge_scene(protocol_path)), on_knock="end")
+    result = run_trial(cfg, Sweep(*EDGE_SWEEP, speed=0.25))
     events = [e for _, e in result.events]
     assert result.outcome == "pushed_off" and "pushed_off" in OUTCOMES
     assert TrialEvent(EventKind.PUSHED_OFF, obj="box") in events
     assert any(e.kind is EventKind.CONTACT and e.obj == "box" for e in events)
+
+
+def test_an_object_pushed_off_the_table_is_put_back_and_the_run_goes_on(protocol_path) -> None:
+    scene = _edge_scene(protocol_path)
+    trial = Trial(_config(protocol_path, scene), Sweep(*EDGE_SWEEP, speed=0.25))
+    box = scene.object_names.index("box")
+    start = trial.sim.object_positions()[box].copy()
+    result = trial.run()
+    events = [(t, e) for t, e in result.events if e.obj == "box"]
+    off = [t for t, e in events if e.kind is EventKind.PUSHED_OFF]
+    back = [t for t, e in events if e.kind is EventKind.OBJECT_RESET]
+    assert len(off) == 1 and len(back) == 1 and back[0] > off[0]
+    assert result.outcome == "timeout" and result.duration_s > back[0] + 1.0
+    # on the table where it stood, upright, and still there at the end
+    np.testing.assert_allclose(trial.sim.object_positions()[box], start, atol=2e-3)
+    assert trial.sim.object_tilts()[box] < 0.05
+    assert trial.accidents.pushes == {"box": 1} and result.summary()["pushed_off"] == 1
 
 
 def test_a_grasp_is_not_a_collision() -> None:
@@ -127,14 +151,17 @@ def test_contacts_are_a_measure_per_trial_in_the_export() -> None:
             "events": [
                 json.dumps(["contact:hand:box"]),
                 json.dumps(["contact_end:hand:box:0.2500", "contact:leftfinger:bottle"]),
-                json.dumps(["contact_end:leftfinger:bottle:0.0500", "outcome:success"]),
-                json.dumps(["outcome:success"]),
+                json.dumps(["contact_end:leftfinger:bottle:0.0500", "knocked_over:bottle"]),
+                json.dumps(["knocked_over:box", "object_reset:box", "outcome:success"]),
             ],
         }
     )
-    trials = _with_contacts(pd.DataFrame({"trial_id": [1, 2, 3]}), samples)
+    trials = pd.DataFrame({"trial_id": [1, 2, 3], "target": ["box", "box", "box"]})
+    trials = _with_event_totals(trials, samples)
     assert list(trials["contacts"]) == [2, 0, 0]
     assert list(trials["contact_impulse_ns"]) == pytest.approx([0.3, 0.0, 0.0])
+    assert list(trials["knocks"]) == [1, 1, 0] and list(trials["target_knocks"]) == [0, 1, 0]
+    assert list(trials["object_resets"]) == [0, 1, 0]
 
 
 def test_the_protocol_chooses_the_contact_mode(protocol_path) -> None:

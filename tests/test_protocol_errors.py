@@ -184,6 +184,18 @@ CASES = [
     ),
     (put("policy.kind", "spline"), ProtocolValueError, "policy.kind", "'spline' is not one of"),
     (
+        put("control.on_knock", "ignore"),
+        ProtocolValueError,
+        "control.on_knock",
+        "'ignore' is not one of reset, end",
+    ),
+    (
+        put("control.input_mapping", "rate"),
+        ProtocolValueError,
+        "control.input_mapping",
+        "'rate' is not one of absolute, relative",
+    ),
+    (
         put("tasks.hard-wrong.scene", "hrad"),
         UndefinedReferenceError,
         "tasks.hard-wrong.scene",
@@ -320,6 +332,17 @@ def test_bad_protocol_is_rejected_with_file_key_and_problem(
     tmp_path: Path, edit: Edit, cls: type[ProtocolError], key: str, problem: str
 ) -> None:
     expect(edited(tmp_path, edit), cls, key, problem)
+
+
+def test_control_options_reach_every_trial(tmp_path: Path) -> None:
+    paper = load_protocol(PAPER)  # defaults: knocks are reset, the handle is absolute
+    assert (paper.control.on_knock, paper.control.input_mapping) == ("reset", "absolute")
+    path = edited(
+        tmp_path, put("control.on_knock", "end"), put("control.input_mapping", "relative")
+    )
+    protocol = load_protocol(path)
+    for config in (protocol.trial_config("hard-wrong", "aggressive"), protocol.training_config()):
+        assert config.on_knock == "end" and config.extra["input_mapping"] == "relative"
 
 
 def test_duplicate_key_names_the_line(tmp_path: Path) -> None:

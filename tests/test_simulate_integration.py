@@ -76,7 +76,7 @@ def test_store_holds_a_completed_session(
         conditions = {(t.task, t.mode) for t in task_trials}
         assert len(conditions) == 8
         for t in trials:
-            assert t.outcome in ("success", "timeout", "dropped", "wrong_object", "pushed_off")
+            assert t.outcome in ("success", "timeout", "wrong_object")  # no accident ends a run
             assert store.sample_count(t.trial_id) == t.ticks > 0
             assert t.duration_s is not None and 0 < t.duration_s <= 20.0 + 1e-6
         # the simulated user picks the object up where the task is feasible

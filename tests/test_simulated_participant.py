@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -14,6 +15,7 @@ from study.simulated.participant import SimulatedParticipant
 from study.simulated.runner import participant_id, plan_jobs, session_seed
 
 ANCHORS = tuple(str(k) for k in range(1, 8))
+CONFIG = SimpleNamespace(extra={"input_mapping": "absolute"})  # what the factory reads of it
 
 
 def screen(questionnaire: str, *items: str) -> Screen:
@@ -29,7 +31,7 @@ def screen(questionnaire: str, *items: str) -> Screen:
 
 
 def lived(person: SimulatedParticipant, *, duration: float, success: bool = True) -> None:
-    user = person(config=None, seed=1)  # type: ignore[arg-type]
+    user = person(config=CONFIG, seed=1)  # type: ignore[arg-type]
     assert isinstance(user, InterfaceUser) and isinstance(user.user, SimulatedUser)
     summary = TrialSummary(1, "success" if success else "timeout", success, duration, 100)
     person.observe(summary, time_limit_s=120.0)
@@ -67,7 +69,7 @@ def test_preference_leans_to_the_much_faster_run() -> None:
 
 def test_aborted_runs_are_not_remembered() -> None:
     person = participant()
-    person(config=None, seed=1)  # type: ignore[arg-type]
+    person(config=CONFIG, seed=1)  # type: ignore[arg-type]
     person.observe(None, time_limit_s=120.0)
     assert person.runs == []
     with pytest.raises(SimulationRunError, match="before any run"):
@@ -76,9 +78,9 @@ def test_aborted_runs_are_not_remembered() -> None:
 
 def test_input_is_seeded_by_participant_and_attempt() -> None:
     person = participant()
-    a = person(config=None, seed=5)  # type: ignore[arg-type]
-    b = person(config=None, seed=5)  # type: ignore[arg-type]
-    c = person(config=None, seed=6)  # type: ignore[arg-type]
+    a = person(config=CONFIG, seed=5)  # type: ignore[arg-type]
+    b = person(config=CONFIG, seed=5)  # type: ignore[arg-type]
+    c = person(config=CONFIG, seed=6)  # type: ignore[arg-type]
     assert a.rng.random() == b.rng.random() != c.rng.random()
 
 

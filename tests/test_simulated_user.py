@@ -19,6 +19,7 @@ from app.teleop import InputSource, ReachRegion, TeleopCommand, TrialObservation
 from study.simulated import SimulatedUser, load_population
 from study.simulated.errors import ObservationError
 from study.simulated.population import ParticipantParams
+from study.simulated.trust import Trust
 
 REACH = ReachRegion(np.array([0.2, -0.5, 0.0]), np.array([0.75, 0.5, 0.6]))
 GOALS = np.array([[0.55, 0.25, 0.08], [0.45, -0.05, 0.05]])
@@ -90,7 +91,9 @@ class Plant:
 
 
 def person(**changes: float) -> ParticipantParams:
-    """The population's typical participant, noise-free, with ``section__name=value`` changes."""
+    """The population's typical participant, noise-free, with ``section__name=value`` changes;
+    never surprised (the tests of other mechanisms), unless ``surprise__threshold_m`` says."""
+    changes = {"surprise__threshold_m": 1e3, **changes}
     p = load_population().typical()
     p = dataclasses.replace(p, motor=dataclasses.replace(p.motor, noise_sd_m=0.0))
     by_section: dict[str, dict[str, float]] = {}
@@ -266,3 +269,88 @@ def test_bad_target_index_is_a_clear_error() -> None:
     )
     with pytest.raises(ObservationError, match="target_index 5"):
         user(person()).command(obs)
+
+
+def test_an_unexpected_robot_motion_stops_the_user_to_replan() -> None:
+    p = person(surprise__threshold_m=0.03)
+    calm_user, wrong_user = user(p), user(p)
+    calm = Plant().run(calm_user, seconds=5.0)
+    onset_s = 1.5
+    wrong = Plant(alpha=adversary(onset_s)).run(wrong_user, seconds=5.0)
+    assert calm_user.surprise.count == 0  # the robot did what the handle asked
+    assert wrong_user.surprise.count >= 1
+    # the stop starts once the user can have seen the robot go its own way, and lasts a
+    # re-planning time; the hand holds still meanwhile
+    held = [
+        (a, b)
+        for a, b in itertools.pairwise(wrong)
+        if np.array_equal(a.target, b.target) and a.t > onset_s
+    ]
+    first = held[0][0].t
+    assert onset_s + p.motor.reaction_delay_s <= first < onset_s + p.motor.reaction_delay_s + 0.6
+    still = sum(1 for a, _ in held if a.t < first + 2.0) / 100
+    assert 0.3 <= still <= 2.0
+    assert still > 0.5 * p.surprise.replan_s
+    # the calm run's hand never held still after it started moving
+    moving = [k for k in calm if 0.5 < k.t < 3.0]
+    assert all(not np.array_equal(a.target, b.target) for a, b in itertools.pairwise(moving))
+
+
+def test_a_pull_once_seen_is_expected_not_surprising_again_and_again() -> None:
+    p = person(surprise__threshold_m=0.03)
+    u = user(p)
+    Plant(alpha=adversary(1.0)).run(u, seconds=6.0)
+    assert 1 <= u.surprise.count <= 2
+    assert u.surprise.stopped_s < 3.0
+
+
+def test_trust_falls_with_the_robots_errors_and_recovers_across_runs() -> None:
+    params = load_population().typical().trust
+    trust = Trust(params)
+    trust.new_run()
+    t0 = trust.level
+    far = np.array([[0.9, 0.9, 0.9]])
+    trust.observe(1.0, opposed=1.0, ee=np.zeros(3), handle=np.zeros(3), others=far, knocks=0)
+    assert trust.level == pytest.approx(t0 * np.exp(-params.opposition_loss_per_s))
+    opposed = trust.level
+    # the robot takes the gripper to the other object, the handle elsewhere: once per approach
+    near = np.array([[0.02, 0.0, 0.0]])
+    handle = np.array([0.3, 0.0, 0.0])
+    for _ in range(5):
+        trust.observe(0.01, opposed=0.0, ee=np.zeros(3), handle=handle, others=near, knocks=0)
+    assert trust.level == pytest.approx(opposed * (1 - params.wrong_approach_loss))
+    # two objects knocked over
+    before = trust.level
+    trust.observe(0.01, opposed=0.0, ee=np.zeros(3), handle=handle, others=far, knocks=2)
+    assert trust.level == pytest.approx(before * (1 - params.knock_loss) ** 2)
+    low = trust.level
+    trust.new_run()  # the next run: part of the shortfall made up
+    assert trust.level == pytest.approx(low + params.recovery_per_run * (t0 - low))
+    for _ in range(20):
+        trust.new_run()
+    assert trust.level == pytest.approx(t0, abs=1e-4)
+
+
+def test_a_user_who_distrusts_the_robot_fights_it_sooner_and_relaxes_less() -> None:
+    p = person(reaction__relaxer=1.0, reaction__relax_depth=0.8)
+    fights, relax = {}, {}
+    for level in (1.0, 0.2):
+        trust = Trust(p.trust)
+        trust.new_run()
+        trust.level = level
+        ticks = Plant(alpha=adversary(1.5)).run(
+            SimulatedUser(p, rng=np.random.default_rng(0), trust=trust), seconds=3.0
+        )
+        fights[level] = next(k.fight for k in ticks if k.t >= 2.3)
+        trust = Trust(p.trust)
+        trust.new_run()
+        trust.level = level
+        helped = Plant(alpha=helper, pull=GOALS[0].copy(), vmax=0.5)
+        relax[level] = max(
+            k.relax
+            for k in helped.run(
+                SimulatedUser(p, rng=np.random.default_rng(0), trust=trust), seconds=3.0
+            )
+        )
+    assert fights[0.2] > 1.3 * fights[1.0] > 0.0
+    assert relax[0.2] < 0.5 * relax[1.0]

@@ -60,7 +60,7 @@ def test_hard_task_needs_assistance(config, task: str) -> None:
         assert sum(clamped in r.events for r in alone.records) > 500
         # A user who tries to grasp anyway at the limit: no success either.
         trying = run_trial(config(task, "none", time_limit_s=15), ScriptedInput(seed=seed))
-        assert not trying.success and trying.outcome in ("timeout", "dropped")
+        assert not trying.success and trying.outcome == "timeout"
         for mode in ("timid", "aggressive"):
             helped = run_trial(config(task, mode, time_limit_s=30), ScriptedInput(seed=seed))
             assert max(r.alpha for r in helped.records) > 0.3
@@ -72,19 +72,101 @@ def test_hard_task_needs_assistance(config, task: str) -> None:
             assert helped.outcome == "success", (task, mode, seed, helped.outcome)
 
 
-def test_knocking_the_target_over_ends_the_trial(config) -> None:
-    trial = Trial(config("easy-right", "timid", time_limit_s=30), ScriptedInput(seed=0))
+class KnockThenPick:
+    """Sweeps the gripper through the bottle high up (knocking it over), holds the hand on the
+    bottle's spot for ``block_s``, then leaves; once the bottle stands again a scripted user
+    picks it up."""
+
+    def __init__(self, spot: np.ndarray, *, block_s: float = 0.0) -> None:
+        self.a = spot + np.array([0.0, 0.18, 0.06])
+        self.b = spot + np.array([0.0, -0.22, 0.06])
+        self.spot, self.block_s = spot, block_s
+        self.knocked_at: float | None = None
+        self.picker = ScriptedInput(seed=0)
+
+    def command(self, obs: TrialObservation) -> TeleopCommand:
+        if obs.knocks and self.knocked_at is None:
+            self.knocked_at = obs.t
+        if self.knocked_at is None:
+            s = min(max(obs.t - 0.5, 0.0) * 0.3 / 0.4, 1.0)
+            return TeleopCommand(self.a + s * (self.b - self.a), False)
+        if obs.t - self.knocked_at < self.block_s:  # the hand where the bottle stood
+            return TeleopCommand(self.spot + np.array([0.0, 0.0, 0.02]), False)
+        return self.picker.command(obs)
+
+
+def _bottle_target(config, **changes):
+    cfg = config("easy-right", "none", time_limit_s=30, **changes)
+    return dataclasses.replace(cfg, scene=dataclasses.replace(cfg.scene, target="bottle"))
+
+
+@pytest.mark.parametrize("block_s", [0.0, 1.5])
+def test_a_knocked_target_is_stood_up_again_and_the_run_goes_on(config, block_s) -> None:
+    cfg = _bottle_target(config)
+    spot = np.array(cfg.scene.object("bottle").position)
+    trial = Trial(cfg, KnockThenPick(spot, block_s=block_s))
+    k = trial.scene.target_index
+    start = trial.sim.object_positions()[k].copy()
+    knocked = reset = None
+    while not trial.done:
+        rec = trial.tick()
+        kinds = {e.kind for e in rec.events if e.obj == "bottle"}
+        if EventKind.KNOCKED_OVER in kinds:
+            knocked = rec.t
+        if EventKind.OBJECT_RESET in kinds:
+            reset = rec.t
+            # upright, still, where it started: at once, not after falling into place
+            assert trial.sim.object_tilts()[k] < 1e-6
+            np.testing.assert_allclose(trial.sim.object_positions()[k], start, atol=1e-9)
+            assert trial.observation().knocks == 1
+    assert knocked is not None and reset is not None, "the sweep should knock the bottle over"
+    # the run went on: the bottle, stood up again, was lifted after the knock
+    assert trial.outcome == "success" and trial.t > reset > knocked
+    assert trial.accidents.knocks == {"bottle": 1} and trial.accidents.resets == {"bottle": 1}
+    if block_s:  # not while the hand stood in its place
+        assert reset - knocked >= block_s
+    else:  # as soon as it lay still
+        assert reset - knocked < 1.5
+    result = trial.result()
+    assert result.summary()["knocks"] == 1 and result.count(EventKind.OBJECT_RESET) == 1
+
+
+def test_the_robot_holds_back_while_its_goal_lies_knocked_over(config) -> None:
+    # Aggressive and told the goal (the bottle, near enough for it to take over at once): the
+    # robot would drive the gripper to where the bottle must be stood up again. While it lies,
+    # alpha is 0; once it stands, the robot takes over.
+    cfg = config("easy-right", "aggressive", time_limit_s=30)
+    cfg = dataclasses.replace(cfg, scene=dataclasses.replace(cfg.scene, target="bottle"))
+    trial = Trial(cfg, IdleInput())
     for _ in range(20):
         trial.tick()
-    assert not trial.done
-    trial.sim.set_grip_contacts(True)  # the bottle comes alive and is tipped onto its side
     adr = trial.scene.object_qpos_addr[trial.scene.target_index]
-    trial.sim.data.qpos[adr + 2] = 0.03
+    trial.sim.data.qpos[adr + 2] = 0.03  # tipped onto its side where it stood
     trial.sim.data.qpos[adr + 3 : adr + 7] = [np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0]
-    while not trial.done:
+    alphas, reset = [], None
+    while reset is None and trial.t < 5.0:
+        rec = trial.tick()
+        alphas.append(rec.alpha)
+        if any(e.kind is EventKind.OBJECT_RESET for e in rec.events):
+            reset = rec.t
+    assert reset is not None and trial.accidents.knocks == {"bottle": 1}
+    knocked = next(t for t, e in trial.events if e.kind is EventKind.KNOCKED_OVER)
+    lying = [a for a, r in zip(alphas, trial.records[20:], strict=True) if knocked < r.t <= reset]
+    assert lying and max(lying) == 0.0
+    for _ in range(20):
         trial.tick()
-    assert trial.outcome == "dropped" and trial.t < 0.5
-    assert TrialEvent(EventKind.KNOCKED_OVER, obj=trial.scene.target) in trial.records[-1].events
+    assert trial.records[-1].alpha > 0.5
+
+
+def test_with_on_knock_end_a_knock_ends_the_run(config) -> None:
+    cfg = _bottle_target(config, on_knock="end")
+    spot = np.array(cfg.scene.object("bottle").position)
+    result = run_trial(cfg, KnockThenPick(spot))
+    assert result.outcome == "knocked_over" and not result.success and result.duration_s < 3
+    last = result.records[-1].events
+    assert TrialEvent(EventKind.KNOCKED_OVER, obj="bottle") in last
+    assert TrialEvent(EventKind.OUTCOME, text="knocked_over") in last
+    assert not any(e.kind is EventKind.OBJECT_RESET for _, e in result.events)
 
 
 def test_unassisted_gripper_in_the_hard_task_closes_short_of_the_target(config) -> None:
@@ -134,14 +216,35 @@ def test_grasping_the_other_object_is_an_outcome(config) -> None:
     assert TrialEvent(EventKind.LIFTED, obj=other) in result.records[-1].events
 
 
-def test_dropping_is_an_outcome(config) -> None:
-    trial = Trial(config("easy-right", "none", time_limit_s=30), ScriptedInput(seed=0))
+def _drop_after_grasp(trial: Trial) -> list[float]:
+    """Run ``trial``; at the first grasp the held mug is pulled down (60 N) until it slips out
+    of the fingers. The times of the ``grasped`` events."""
+    body = trial.scene.object_body_ids[trial.scene.target_index]
+    grasps = []
     while not trial.done:
         rec = trial.tick()
         if any(e.kind is EventKind.GRASPED for e in rec.events):
-            trial.sim.set_grip_contacts(False)  # the bottle slips through the fingers
+            grasps.append(rec.t)
+            if len(grasps) == 1:
+                trial.sim.data.xfrc_applied[body, 2] = -60.0
+        if any(e.kind is EventKind.DROPPED for e in rec.events):
+            trial.sim.data.xfrc_applied[body, 2] = 0.0
+    return grasps
+
+
+def test_a_held_object_dropped_ends_the_run_under_on_knock_end(config) -> None:
+    trial = Trial(config("training", "none", time_limit_s=30, on_knock="end"), ScriptedInput())
+    _drop_after_grasp(trial)
     assert trial.outcome == "dropped"
     assert TrialEvent(EventKind.DROPPED, obj=trial.scene.target) in trial.records[-1].events
+
+
+def test_a_held_object_dropped_is_grasped_again_under_reset(config) -> None:
+    trial = Trial(config("training", "none", time_limit_s=30), ScriptedInput())
+    grasps = _drop_after_grasp(trial)
+    dropped = [t for t, e in trial.events if e == TrialEvent(EventKind.DROPPED, obj="mug")]
+    assert len(dropped) == 1 and trial.outcome == "success"
+    assert len(grasps) == 2 and grasps[1] > dropped[0]  # the gripper opened, the user tried again
 
 
 def test_timeout_and_abort(config) -> None:
@@ -151,7 +254,7 @@ def test_timeout_and_abort(config) -> None:
     trial.tick()
     trial.abort()
     assert trial.outcome == "aborted" and trial.tick() is None
-    assert set(OUTCOMES) >= {"success", "wrong_object", "dropped", "timeout", "aborted"}
+    assert set(OUTCOMES) >= {"success", "wrong_object", "dropped", "knocked_over", "timeout"}
 
 
 class BadInput:

@@ -43,11 +43,14 @@ TODAY = (
 )
 """One string of every kind, exactly as the trial wrote them before events were typed."""
 
+ADDED = ("object_reset:box",)
+"""One string of every kind added since (an object stood up again after a knock)."""
+
 
 def test_every_kind_round_trips_byte_for_byte() -> None:
-    events = [decode(text) for text in TODAY]
+    events = [decode(text) for text in (*TODAY, *ADDED)]
     assert {e.kind for e in events} == set(EventKind)
-    assert [encode(e) for e in events] == list(TODAY)
+    assert [encode(e) for e in events] == [*TODAY, *ADDED]
     assert [decode(encode(e)) for e in events] == events
     moved = events[TODAY.index("goal_moved:box@0.512345,-0.100000,0.050000")]
     assert moved.obj == "box" and moved.position == (0.512345, -0.1, 0.05)
@@ -120,6 +123,9 @@ def test_a_store_written_with_todays_strings_reads_typed_and_rewrites_identicall
     trials = tidy_tables(store)["trials"]
     assert trials["contacts"].tolist() == [1]
     assert trials["contact_impulse_ns"].tolist() == pytest.approx([0.05])
+    # and the accident counts (a store from before resets: none stood up again)
+    counts = trials[["knocks", "target_knocks", "pushes_off", "drops", "object_resets"]]
+    assert counts.iloc[0].tolist() == [1, 0, 1, 2, 0]
     # analysis: the logged goal move is found and read
     _, _, rows = trial_trajectories(samples)[tid]
     moves = goal_moves(rows, ["bottle", "box"], tid)

@@ -19,12 +19,12 @@ class GizmoInput:
 
     def __init__(self, target: np.ndarray | None = None) -> None:
         self._lock = threading.Lock()
-        self._target = None if target is None else _checked(target)
+        self._target = None if target is None else checked_position(target)
         self._grasp = False
 
     def set_target(self, target: np.ndarray) -> None:
         """Set the raw target (3,); a NaN, infinite or misshapen target raises, state unchanged."""
-        checked = _checked(target)
+        checked = checked_position(target)
         with self._lock:
             self._target = checked
 
@@ -45,7 +45,9 @@ class GizmoInput:
             return TeleopCommand(self._target.copy(), grasp)
 
 
-def _checked(target: np.ndarray) -> np.ndarray:
+def checked_position(target: np.ndarray) -> np.ndarray:
+    """``target`` as a fresh (3,) float array; ``InvalidTargetError`` if it is not 3 finite
+    numbers."""
     arr = np.asarray(target, dtype=float).reshape(-1)
     if arr.shape != (3,) or not np.all(np.isfinite(arr)):
         raise InvalidTargetError(f"gizmo target must be 3 finite numbers, got {target!r}")

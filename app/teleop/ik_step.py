@@ -18,6 +18,9 @@ from app.robot.kinematics import Kinematics, downward_rotation
 
 _WORLD_ALIGNED = pin.LOCAL_WORLD_ALIGNED
 
+GAIN_PER_S = 5.0
+"""``k``: the TCP's speed toward its target is ``k`` times the distance (below ``max_speed``)."""
+
 
 class IKStep:
     """Velocity-limited damped-least-squares step of the TCP toward a target position."""
@@ -29,7 +32,7 @@ class IKStep:
         rate_hz: float,
         max_speed: float = 0.3,
         max_joint_speed: float = 1.0,
-        gain: float = 5.0,
+        gain: float = GAIN_PER_S,
         rotation_gain: float = 3.0,
         max_angular_speed: float = 1.0,
         damping: float = 1e-3,

@@ -106,7 +106,13 @@ class KeyboardInput:
     # -- control loop side -------------------------------------------------------------------
     def command(self, obs: TrialObservation) -> TeleopCommand:
         """``target = clamp(user_target + speed * dt * sum(held directions) + owed taps)``."""
-        dt = 1.0 / obs.rate_hz
+        step, grasp = self.step(1.0 / obs.rate_hz)
+        target = obs.reach.clamp(obs.user_target + step)
+        return TeleopCommand(target, grasp)
+
+    def step(self, dt: float) -> tuple[np.ndarray, bool]:
+        """One tick of ``dt`` seconds: the keys' displacement ``speed * dt * sum(held
+        directions) + owed taps`` (3,) and whether a grasp was asked for (each once)."""
         with self._lock:
             step = self._owed.copy()
             self._owed[:] = 0.0
@@ -115,8 +121,7 @@ class KeyboardInput:
                 step[axis] += sign * self.speed * dt
                 self._held[key] += dt
             grasp, self._grasp = self._grasp, False
-        target = obs.reach.clamp(obs.user_target + step)
-        return TeleopCommand(target, grasp)
+        return step, grasp
 
     @property
     def moving(self) -> bool:

@@ -5,7 +5,9 @@ the goal's grasp point (where its object is now, ``obs.grasp_points``), then dow
 ``noise`` (m). The raw target is not clamped: at the interface's limit the user keeps pushing.
 They ask for a grasp when the TCP is within ``grasp_tolerance`` of the grasp point, or (with
 ``grasp_when_stalled``) when the TCP has stalled for ``stall_s`` seconds within
-``stalled_grasp_radius`` of it (close enough to try anyway).
+``stalled_grasp_radius`` of it (close enough to try anyway). While their object lies knocked
+over (``obs.lying``) they wait for it to be stood up again, the hand raised to the hover height
+above where they are, clear of its place; then they approach it afresh.
 """
 
 from __future__ import annotations
@@ -65,6 +67,12 @@ class ScriptedInput:
         ee = obs.ee.tolist()
         if self._target is None:
             self._target = (ee[0], ee[1], ee[2])
+        tx, ty, tz = self._target
+        if goal in obs.lying:  # wait, out of the way, for it to be stood up again
+            self._phase = "hover"
+            self._stall_ref = None
+            rise = float(obs.goal_positions[goal][2]) + self.approach_height
+            return self._move(dt, (tx, ty, max(tz, rise)), grasp=False)
         stalled = self._stalled(obs.t, ee)
         hz = gz + self.approach_height  # hover point: above the grasp point
         if self._phase == "hover":
@@ -73,9 +81,21 @@ class ScriptedInput:
                 self._phase = "descend"
                 self._stall_ref = None
                 stalled = False
-        wz = hz if self._phase == "hover" else gz
-        tx, ty, tz = self._target
-        sx, sy, sz = gx - tx, gy - ty, wz - tz
+        grasp = False
+        if self._phase == "descend" and not obs.gripper_closed:
+            dist = math.dist(ee, (gx, gy, gz))
+            close = dist < self.grasp_tolerance
+            stuck = stalled and self.grasp_when_stalled and dist < self.stalled_grasp_radius
+            if (close or stuck) and obs.t - self._last_grasp_t > self.retry_s:
+                grasp = True
+                self._last_grasp_t = obs.t
+                self._stall_ref = None
+        return self._move(dt, (gx, gy, hz if self._phase == "hover" else gz), grasp=grasp)
+
+    def _move(self, dt: float, way: tuple[float, float, float], *, grasp: bool) -> TeleopCommand:
+        """The noise-free target one step of ``speed dt`` nearer ``way``, plus the noise."""
+        tx, ty, tz = self._target  # type: ignore[misc]
+        sx, sy, sz = way[0] - tx, way[1] - ty, way[2] - tz
         dist = math.sqrt(sx * sx + sy * sy + sz * sz)
         reach = self.speed * dt
         if dist > reach:
@@ -87,15 +107,6 @@ class ScriptedInput:
             nx, ny, nz = self.rng.standard_normal(3).tolist()
             ox, oy, oz = self._offset
             self._offset = (a * ox + b * nx, a * oy + b * ny, a * oz + b * nz)
-        grasp = False
-        if self._phase == "descend" and not obs.gripper_closed:
-            dist = math.dist(ee, (gx, gy, gz))
-            close = dist < self.grasp_tolerance
-            stuck = stalled and self.grasp_when_stalled and dist < self.stalled_grasp_radius
-            if (close or stuck) and obs.t - self._last_grasp_t > self.retry_s:
-                grasp = True
-                self._last_grasp_t = obs.t
-                self._stall_ref = None
         ox, oy, oz = self._offset
         return TeleopCommand(np.array((tx + ox, ty + oy, tz + oz)), grasp)
 

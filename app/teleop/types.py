@@ -18,10 +18,17 @@ from app.teleop.reach import ReachRegion
 
 @dataclass(frozen=True)
 class TeleopCommand:
-    """The user's wish this tick: end-effector ``target`` (3,) and ``grasp`` (True = close)."""
+    """The user's wish this tick: end-effector ``target`` (3,) and ``grasp`` (True = close).
+
+    ``path`` (3,), when given: where the user's own input has taken the gripper, if that is not
+    the target -- under a relative mapping the target is the gripper plus what is still to
+    come, so it moves with whatever moves the gripper, the robot included. The robot predicts
+    the user's goal from their input's positions (``path`` if given, else ``target``).
+    """
 
     target: np.ndarray
     grasp: bool = False
+    path: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -34,7 +41,10 @@ class TrialObservation:
     ``alpha``/``predicted``: the last arbitration value and predicted goal index;
     ``object_positions``: the objects' centres now (n, 3), same order; ``grasp_points``: the
     grasp points now (n, 3), moved with their objects at once (a nudged object is re-aimed at
-    there; defaults to ``goal_positions``). The arrays are shared: read, never write.
+    there; defaults to ``goal_positions``); ``knocks``: how many times an object has been
+    knocked over or pushed off the table so far in the trial (what a person sees fall);
+    ``lying``: the indices of the objects lying now (knocked over or off the table, not yet
+    stood up again). The arrays are shared: read, never write.
     """
 
     t: float
@@ -52,6 +62,8 @@ class TrialObservation:
     rate_hz: float = 100.0
     object_positions: np.ndarray | None = None
     grasp_points: np.ndarray | None = None
+    knocks: int = 0
+    lying: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         if self.grasp_points is None:

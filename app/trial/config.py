@@ -19,6 +19,9 @@ from app.trial.errors import TrialConfigError
 
 ConfigOrObject = Mapping[str, Any] | Any
 
+ON_KNOCK = ("reset", "end")
+"""What an object knocked over or pushed off the table does to the run (``on_knock``)."""
+
 
 def _freeze(value: Any) -> Any:
     if isinstance(value, Mapping):
@@ -31,6 +34,10 @@ def _freeze(value: Any) -> Any:
 @dataclass(frozen=True, eq=False)
 class TrialConfig:
     """One trial's settings.
+
+    ``on_knock``: ``"reset"`` (an object knocked over or pushed off the table is put back at
+    its start pose once it settles and the run goes on, as an experimenter would) or ``"end"``
+    (the first such accident ends the trial); see ``app.trial.accidents``.
 
     ``physics_dt`` must divide the control period ``1 / rate_hz``: each control tick runs
     ``substeps = round(1 / (rate_hz * physics_dt))`` MuJoCo steps.
@@ -45,6 +52,7 @@ class TrialConfig:
     physics_dt: float = 0.002
     time_limit_s: float = 120.0
     lift_height_m: float = 0.05
+    on_knock: str = "reset"
     task: str = ""
     mode: str = ""
     extra: Mapping[str, Any] = field(default_factory=dict)
@@ -64,6 +72,10 @@ class TrialConfig:
         _check_number("physics_dt", self.physics_dt, 1e-4, 0.01)
         _check_number("time_limit_s", self.time_limit_s, 0.1, 3600.0)
         _check_number("lift_height_m", self.lift_height_m, 0.005, 0.3)
+        if self.on_knock not in ON_KNOCK:
+            raise TrialConfigError(
+                f"TrialConfig.on_knock: one of {', '.join(ON_KNOCK)}, got {self.on_knock!r}"
+            )
         ratio = 1.0 / (self.rate_hz * self.physics_dt)
         if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
             raise TrialConfigError(

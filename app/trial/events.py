@@ -12,7 +12,8 @@ text                                 meaning
                                      ``target_clamped``, ``target_far_outside``, ``timeout``,
                                      ``aborted``, ``interrupted``
 ``<kind>:<object>``                  ``grasped``, ``lifted``, ``dropped``, ``lift_failed``,
-                                     ``pushed_off``, ``knocked_over`` (``obj``: the object)
+                                     ``pushed_off``, ``knocked_over``, ``object_reset`` (put
+                                     back at its start pose; ``obj``: the object)
 ``<kind>:<text>``                    ``outcome`` (the trial's outcome), ``input_error`` (the
                                      input source's exception type), ``physics_error`` (message)
 ``goal_moved:<goal>@<x>,<y>,<z>``    the robot re-aims at a moved object: goal ``obj`` is now at
@@ -64,6 +65,7 @@ class EventKind(StrEnum):
     LIFT_FAILED = "lift_failed"
     PUSHED_OFF = "pushed_off"
     KNOCKED_OVER = "knocked_over"
+    OBJECT_RESET = "object_reset"
     OUTCOME = "outcome"
     INPUT_ERROR = "input_error"
     PHYSICS_ERROR = "physics_error"
@@ -80,6 +82,7 @@ OBJECT_KINDS = frozenset(
         EventKind.LIFT_FAILED,
         EventKind.PUSHED_OFF,
         EventKind.KNOCKED_OVER,
+        EventKind.OBJECT_RESET,
     }
 )
 """Kinds whose payload is one object name (``obj``)."""

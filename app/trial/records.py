@@ -8,23 +8,40 @@ from typing import Any
 
 import numpy as np
 
-from app.trial.events import TrialEvent, encode
+from app.trial.events import EventKind, TrialEvent, encode
 
-OUTCOMES = ("success", "wrong_object", "dropped", "pushed_off", "timeout", "aborted", "interrupted")
+OUTCOMES = (
+    "success",
+    "wrong_object",
+    "dropped",
+    "knocked_over",
+    "pushed_off",
+    "timeout",
+    "aborted",
+    "interrupted",
+)
+"""How a trial can end: ``success`` (the target lifted), ``wrong_object`` (the other object
+lifted), ``dropped`` (a held object fell out of the gripper or would not come up),
+``knocked_over`` (an object was knocked over, never grasped) and ``pushed_off`` (an object fell
+off the table) -- these two only under ``on_knock = "end"``, and ``dropped`` too: under
+``"reset"`` the run goes on --, ``timeout``, ``aborted`` (the experimenter) and
+``interrupted`` (the participant was lost)."""
 
 
 @dataclass(frozen=True, slots=True)
 class TickRecord:
     """One control tick, after physics.
 
-    ``t``: simulated time (s, pauses excluded); ``q``: robot configuration Q after the tick;
-    ``u``: the user's next configuration U; ``p``: the policy's P; ``command``:
-    ``(1 - alpha) U + alpha P`` sent to the servos; ``probabilities``: ``P(G | xi)``;
-    ``predicted``: index of G*; ``user_target``: the clamped target (3,); ``ee``: TCP (3,);
-    ``gripper``: finger opening (m); ``events``: what happened this tick (``app.trial.events``);
-    ``motion_agreement``: cosine of the user's motion and the robot's heading (Fig. 15);
-    ``rationality``: the user's estimated rationality toward G* (1/m). Both from
-    ``app.blending.BlendRecord`` while reaching (0 and NaN otherwise).
+        ``t``: simulated time (s, pauses excluded); ``q``: robot configuration Q after the tick;
+        ``u``: the user's next configuration U; ``p``: the policy's P; ``command``:
+        ``(1 - alpha) U + alpha P`` sent to the servos; ``probabilities``: ``P(G | xi)``;
+        ``predicted``: index of G*; ``user_target``: the user's input position the prediction read
+    (3,, clamped: the target, or under a relative mapping the path their own input traced);
+    ``ee``: TCP (3,);
+        ``gripper``: finger opening (m); ``events``: what happened this tick (``app.trial.events``);
+        ``motion_agreement``: cosine of the user's motion and the robot's heading (Fig. 15);
+        ``rationality``: the user's estimated rationality toward G* (1/m). Both from
+        ``app.blending.BlendRecord`` while reaching (0 and NaN otherwise).
     """
 
     tick: int
@@ -82,4 +99,11 @@ class TrialResult:
             "ticks": self.ticks,
             "target": self.target,
             "events": len(self.events),
+            "knocks": self.count(EventKind.KNOCKED_OVER),
+            "pushed_off": self.count(EventKind.PUSHED_OFF),
+            "drops": self.count(EventKind.DROPPED),
         }
+
+    def count(self, kind: EventKind) -> int:
+        """How many events of ``kind`` the trial logged (e.g. its knocks)."""
+        return sum(1 for _, e in self.events if e.kind is kind)

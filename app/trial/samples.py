@@ -153,7 +153,8 @@ SAMPLE_FIELDS: tuple[SampleField, ...] = (
         "user_target",
         "target",
         XYZ,
-        "user target (the interface's absolute end-effector input), {axis}",
+        "user target (the interface's absolute end-effector input, clamped to the reach; under"
+        " a relative mapping the path the user's own input traced), {axis}",
         "m",
     ),
     SampleField.vector("ee", "ee", XYZ, "end-effector position, {axis}", "m"),

@@ -5,11 +5,17 @@ into ``U`` with a velocity-limited IK step, blends ``U`` with the policy's ``P``
 from the user target, confidence ``c = max(0, 1 - d / D)``, arbitration ``alpha(c)``), servos
 the arm to ``(1 - alpha) U + alpha P`` and advances the physics. A grasp request closes the
 gripper in physics; holding an object, the arm lifts it by itself; the trial succeeds when the
-target is ``lift_height_m`` above its rest height. Outcomes: ``success``, ``wrong_object``,
-``dropped`` (the held object fell, or the target was knocked over and can no longer be
-grasped), ``pushed_off`` (the arm pushed an object off the table), ``timeout``, ``aborted`` and
-``interrupted`` -- logged, never raised. The arm's touches on objects are logged as events at
-the tick they start and end (``app.trial.contacts``).
+target is ``lift_height_m`` above its rest height. Outcomes (``app.trial.records.OUTCOMES``):
+``success``, ``wrong_object``, ``timeout``, ``aborted`` and ``interrupted``; and the
+accidents, each with its own event: a held object that falls out of the gripper (``dropped``),
+an object knocked over (``knocked_over``) or pushed off the table (``pushed_off``). Under
+``on_knock = "reset"`` (the default) no accident ends the run: the gripper opens after a drop,
+and a knocked or fallen object is stood up again at its start pose once it has settled
+(``app.trial.accidents``), while the run and its clock go on (meanwhile a robot whose
+predicted goal lies holds back, alpha = 0: it would take the gripper to the very place the
+object must be stood up in, and its own hand would keep it lying); under ``"end"`` the first
+accident ends it with that outcome. Outcomes are logged, never raised. The arm's touches on
+objects are logged as events at the tick they start and end (``app.trial.contacts``).
 
 Thread safety: ``tick``, ``pause``, ``resume``, ``abort`` and ``interrupt`` take one lock; the
 server runs ``tick`` paced in its own thread while UI callbacks feed the input source.
@@ -37,6 +43,7 @@ from app.robot.scene import Scene, build_scene
 from app.robot.simulation import BodyPoses, Simulation, SimulationError
 from app.teleop.ik_step import IKStep
 from app.teleop.types import InputSource, TeleopCommand, TrialObservation
+from app.trial.accidents import Accidents
 from app.trial.config import TrialConfig
 from app.trial.contacts import ContactLog
 from app.trial.events import EventKind, TrialEvent
@@ -48,7 +55,6 @@ LIFT_TIMEOUT_S = 3.0  # the automatic lift must reach the height within this tim
 LIFT_SPEED = 0.1  # m/s, automatic lift
 DROP_S = 0.15  # contact lost this long while lifting = dropped
 FAR_OUTSIDE_M = 0.5  # a raw target this far outside the reach region is logged as such
-TILT_RAD = 0.7  # an object tilted beyond this is logged as knocked over
 WAKE_M = 0.15  # a grasp wakes the objects within this horizontal distance of the gripper
 GOAL_MOVED_M = 0.005  # a goal follows its object once the object has moved this far from it
 
@@ -88,10 +94,11 @@ class Trial:
         self._lift_target = np.zeros(3)
         self._held: int | None = None
         self._lost_t: float | None = None
-        self._knocked: set[int] = set()
         self.contacts = ContactLog(self.scene.object_names)
+        self.accidents = Accidents(self.sim, self.scene.object_names, on_knock=config.on_knock)
         n = len(self.scene.goals)
         self.user_target = self.scene.start_ee.copy()
+        self.user_input = self.user_target  # what the prediction reads: the path, or the target
         reach = self.scene.reach
         self._reach_box = (tuple(reach.lo.tolist()), tuple(reach.hi.tolist()))
         # the state after the last physics step (fresh arrays each tick, never written to):
@@ -173,6 +180,8 @@ class Trial:
             rate_hz=self.config.rate_hz,
             object_positions=self._object_positions,
             grasp_points=self._grasp_points,
+            knocks=self.accidents.count,
+            lying=self.accidents.down,
         )
 
     def _objects_moved(self) -> None:
@@ -186,13 +195,13 @@ class Trial:
         with its grasp configuration by IK from the old one, once ``G_k`` is ``GOAL_MOVED_M``
         off. Each move is logged (a ``goal_moved`` event with the new position) at the tick it
         takes effect, so a replay can apply it. A knocked-over object keeps its goal (no
-        top-down grasp there).
+        top-down grasp there) until it is stood up again.
         """
         goals = self.blender.goals
         off = np.linalg.norm(self._grasp_points - goals.positions, axis=1)
         moves = {}
         for k in np.flatnonzero(off > GOAL_MOVED_M).tolist():
-            if k in self._knocked:
+            if self.accidents.lying(k):
                 continue
             position = self._grasp_points[k].copy()
             q0 = goals.configurations[k] if goals.configurations is not None else self._q
@@ -297,13 +306,30 @@ class Trial:
             return TeleopCommand(self.user_target.copy(), False)
 
     def _set_user_target(self, cmd: TeleopCommand, events: list[TrialEvent]) -> None:
+        target, outside = self._clamped(cmd.target)
+        if target is None:
+            events.append(TrialEvent(EventKind.INVALID_TARGET))
+            return
+        if outside > 0.0:
+            far = outside > FAR_OUTSIDE_M
+            events.append(
+                TrialEvent(EventKind.TARGET_FAR_OUTSIDE if far else EventKind.TARGET_CLAMPED)
+            )
+        self.user_target = target
+        path = None if cmd.path is None else self._clamped(cmd.path)[0]
+        if cmd.path is not None and path is None:
+            events.append(TrialEvent(EventKind.INVALID_TARGET))
+        self.user_input = target if path is None else path
+
+    def _clamped(self, value: object) -> tuple[np.ndarray | None, float]:
+        """``value`` clamped to the reach box and how far outside it was; ``None`` if it is not
+        three finite numbers."""
         try:
-            raw = np.asarray(cmd.target, dtype=float).reshape(-1).tolist()
+            raw = np.asarray(value, dtype=float).reshape(-1).tolist()
         except (TypeError, ValueError):
             raw = []
         if len(raw) != 3 or not math.isfinite(raw[0] + raw[1] + raw[2]):
-            events.append(TrialEvent(EventKind.INVALID_TARGET))
-            return
+            return None, 0.0
         # clamp to the reach box in scalars (three numbers: cheaper than array operations)
         x, y, z = raw
         (lx, ly, lz), (hx, hy, hz) = self._reach_box
@@ -311,12 +337,7 @@ class Trial:
         cy = ly if y < ly else (hy if y > hy else y)
         cz = lz if z < lz else (hz if z > hz else z)
         outside = math.sqrt((x - cx) ** 2 + (y - cy) ** 2 + (z - cz) ** 2)
-        if outside > 0.0:
-            far = outside > FAR_OUTSIDE_M
-            events.append(
-                TrialEvent(EventKind.TARGET_FAR_OUTSIDE if far else EventKind.TARGET_CLAMPED)
-            )
-        self.user_target = np.array((cx, cy, cz))
+        return np.array((cx, cy, cz)), outside
 
     def _control(
         self, q: np.ndarray, request: bool, events: list[TrialEvent]
@@ -331,16 +352,19 @@ class Trial:
                 self._hold_q = q
                 return q, q, q
             u = self.ik(q, self.user_target)
-            rec = self.blender.step(q, u, x=self.user_target, robot_x=self._ee)
+            rec = self.blender.step(q, u, x=self.user_input, robot_x=self._ee)
+            alpha, command = rec.alpha, rec.command
+            if self.accidents.lying(rec.predicted):  # its goal lies, to be stood up where the
+                alpha, command = 0.0, u  # robot would take the gripper: it holds back meanwhile
             self._last = (
-                rec.alpha,
+                alpha,
                 rec.confidence,
                 rec.probabilities,
                 rec.predicted,
                 rec.motion_agreement,
                 rec.rationality,
             )
-            return u, rec.P, rec.command
+            return u, rec.P, command
         if self._phase == "lifting":
             cmd = self.ik(q, self._lift_target, max_speed=LIFT_SPEED)
             return cmd, cmd, cmd
@@ -360,9 +384,9 @@ class Trial:
             events.append(event)
 
     def _judge(self, events: list[TrialEvent]) -> None:
-        check_tilts = self.ticks % 10 == 0
-        if self._phase == "reach" and not check_tilts:
-            return  # nothing to judge while reaching, except now and then a knocked object
+        check_objects = self.ticks % 10 == 0
+        if self._phase == "reach" and not check_objects:
+            return  # nothing to judge while reaching, except now and then the objects
         t = self.t
         names = self.scene.object_names
         if self._phase == "closing" and t - self._phase_t >= CLOSE_S:
@@ -387,24 +411,29 @@ class Trial:
                 events.append(TrialEvent(EventKind.LIFTED, obj=names[i]))
                 self._finish("success" if i == self.scene.target_index else "wrong_object", events)
             elif self._lost_t is not None and t - self._lost_t >= DROP_S:
-                events.append(TrialEvent(EventKind.DROPPED, obj=names[i]))
-                self._finish("dropped", events)
+                self._lost(TrialEvent(EventKind.DROPPED, obj=names[i]), events)
             elif t - self._phase_t >= LIFT_TIMEOUT_S:
-                events.append(TrialEvent(EventKind.LIFT_FAILED, obj=names[i]))
-                self._finish("dropped", events)
-        if check_tilts and not self.done:
-            off = self.sim.objects_off_table()
-            if off:  # an object on the floor ends the trial, whichever it was
-                events.extend(TrialEvent(EventKind.PUSHED_OFF, obj=names[i]) for i in off)
-                self._finish("pushed_off", events)
-                return
-            for i in np.flatnonzero(self.sim.object_tilts() > TILT_RAD):
-                if int(i) not in self._knocked:
-                    self._knocked.add(int(i))
-                    events.append(TrialEvent(EventKind.KNOCKED_OVER, obj=names[i]))
-                    if int(i) == self.scene.target_index:  # it cannot be grasped any more
-                        self._finish("dropped", events)
-                        break
+                self._lost(TrialEvent(EventKind.LIFT_FAILED, obj=names[i]), events)
+        if check_objects and not self.done:
+            held = self._held if self._phase in ("closing", "lifting") else None
+            found, outcome = self.accidents.check(t, held=held)
+            if found:
+                events.extend(found)
+                self._objects_moved()  # an object stood up again is seen where it stands
+            if outcome is not None:
+                self._finish(outcome, events)
+
+    def _lost(self, event: TrialEvent, events: list[TrialEvent]) -> None:
+        """The held object fell out of the gripper (or would not come up): the run ends as
+        ``dropped`` under ``on_knock = "end"``; under ``"reset"`` the gripper opens and the
+        user may reach again (the object, if it lies, is stood up like any knocked object)."""
+        events.append(event)
+        if self.config.on_knock == "end":
+            self._finish("dropped", events)
+            return
+        self._held = None
+        self._lost_t = None
+        self._enter("reopening", events)
 
     def _finish(self, outcome: str, events: list[TrialEvent]) -> None:
         if outcome == "timeout":
@@ -436,7 +465,7 @@ class Trial:
             confidence=float(confidence),
             probabilities=probabilities,
             predicted=int(predicted),
-            user_target=self.user_target,
+            user_target=self.user_input,
             ee=self._ee,
             gripper=self.sim.gripper_opening,
             events=tuple(events),

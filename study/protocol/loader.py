@@ -24,7 +24,8 @@ import app
 from app.files import InputFileError, read_bytes_file
 from app.robot.errors import SceneError
 from app.robot.scene_spec import SceneSpec
-from app.trial.config import TrialConfig
+from app.teleop.participant_input import INPUT_MAPPINGS
+from app.trial.config import ON_KNOCK, TrialConfig
 from study.protocol.components import build_check, component
 from study.protocol.errors import (
     ProtocolError,
@@ -48,6 +49,11 @@ MAX_NESTING = 32
 Python's TOML parser recurses once per level, so a few thousand ``[`` would end in a
 ``RecursionError`` (or worse, in code that walks the parsed value); the text is scanned first."""
 _NAME = re.compile(r"^[a-z][a-z0-9_-]{0,31}$")
+_CONTROL_OPTIONS: dict[str, tuple[tuple[str, ...], str]] = {
+    "on_knock": (ON_KNOCK, "reset"),
+    "input_mapping": (INPUT_MAPPINGS, "absolute"),
+}
+"""Optional ``[control]`` keys with a fixed set of values: (the values, the default)."""
 _TOP_LEVEL = (
     "schema",
     "study",
@@ -273,14 +279,16 @@ class _Loader:
             )
 
     def _control(self, t: Table) -> Control:
-        t.only("rate_hz", "physics_dt", "time_limit_s", "lift_height_m")
+        keys = ("rate_hz", "physics_dt", "time_limit_s", "lift_height_m", *_CONTROL_OPTIONS)
+        t.only(*keys)
         control = Control(
             rate_hz=t.number("rate_hz", minimum=10.0, maximum=1000.0),
             physics_dt=t.number("physics_dt", minimum=1e-4, maximum=0.01),
             time_limit_s=t.number("time_limit_s", minimum=1.0, maximum=3600.0),
             lift_height_m=t.number("lift_height_m", minimum=0.005, maximum=0.3),
+            **{key: t.choice(key, *choices) for key, choices in _CONTROL_OPTIONS.items()},
         )
-        t.close(allowed="rate_hz, physics_dt, time_limit_s, lift_height_m")
+        t.close(allowed=", ".join(keys))
         ratio = 1.0 / (control.rate_hz * control.physics_dt)
         if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
             raise t.value_error(

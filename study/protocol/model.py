@@ -21,12 +21,21 @@ class StudyInfo:
 
 @dataclass(frozen=True)
 class Control:
-    """Timing shared by every trial: ``1 / rate_hz`` must be a whole number of ``physics_dt``."""
+    """Settings shared by every trial: ``1 / rate_hz`` must be a whole number of ``physics_dt``.
+
+    ``on_knock``: ``reset`` (a knocked-over or fallen object is stood up again and the run goes
+    on) or ``end`` (the accident ends the run); ``app.trial.accidents``. ``input_mapping``:
+    ``absolute`` (the handle and keys place the gripper's target) or ``relative`` (they move the
+    gripper from where it is: a robot pulling elsewhere must be countered);
+    ``app.teleop.participant_input``. Both are the interface, not a condition.
+    """
 
     rate_hz: float
     physics_dt: float
     time_limit_s: float
     lift_height_m: float
+    on_knock: str = "reset"
+    input_mapping: str = "absolute"
 
 
 @dataclass(frozen=True)

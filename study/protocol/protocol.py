@@ -152,6 +152,7 @@ class Protocol:
             physics_dt=self.control.physics_dt,
             time_limit_s=t.time_limit_s,
             lift_height_m=self.control.lift_height_m,
+            on_knock=self.control.on_knock,
             task=t.name,
             mode=m.name,
             extra=self._extra(
@@ -186,16 +187,20 @@ class Protocol:
             physics_dt=self.control.physics_dt,
             time_limit_s=self.training.time_limit_s,
             lift_height_m=self.control.lift_height_m,
+            on_knock=self.control.on_knock,
             task="training",
             mode=TRAINING_MODE,
             extra=self._extra(difficulty="", correctness="", phase="training", intent="none"),
         )
 
     def _extra(self, **fields: str) -> dict[str, str]:
+        """Labels a trial carries beside its settings; ``input_mapping`` is the interface's
+        (``[control]``), which the page and simulated participants read from here."""
         return {
             "protocol": self.id,
             "protocol_version": self.study.version,
             "content_hash": self.content_hash,
+            "input_mapping": self.control.input_mapping,
             **fields,
         }
 

@@ -530,11 +530,9 @@ class ParticipantPage:
                     asyncio.get_running_loop().run_in_executor(None, on_release)
                 return  # the same pose as the update before it
             try:
-                target = parse_position(gizmo.position) - offset
+                on_target(parse_position(gizmo.position) - offset)
             except InputRejected as exc:
                 asyncio.get_running_loop().run_in_executor(None, self.reject, str(exc), False)
-                return
-            on_target(target)
 
         return gizmo
 

@@ -7,7 +7,7 @@ runner that drives them through the real session engine.
   input, reaction delay, noise, steering against a wrong robot, relaxing when helped, grasping);
   with ``goal_level`` it only says where the user wants the handle.
 - :class:`~study.simulated.interface.InterfaceUser`: the input a simulated participant gives through the page's gizmo
-  handles or held keys (``study.server.inputs.ParticipantInput``), driven by a goal-level user.
+  handles or held keys (``app.teleop.ParticipantInput``), driven by a goal-level user.
 - :class:`QuestionnaireModel`: Likert ratings and preferences from a run's experience.
 - :class:`SimulatedParticipant`: one person across a session (input factory + answerer for
   ``study.session.headless.run_headless``).

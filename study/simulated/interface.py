@@ -3,7 +3,7 @@
 :class:`InterfaceUser` is the ``InputSource`` of one simulated trial. Each tick its
 :class:`~study.simulated.user_model.SimulatedUser` (``goal_level``) says where the participant
 wants the handle (``intent``) and whether they want the gripper closed; a hand turns that into
-what a person does on the page, through the same :class:`study.server.inputs.ParticipantInput` the
+what a person does on the page, through the same :class:`app.teleop.ParticipantInput` the
 browser drives (``set_target``, ``key_down``, ``key_up``, ``request_grasp``):
 
 - :class:`GizmoHand` grabs one handle at a time -- the table plane, or one axis -- as seen from
@@ -20,6 +20,15 @@ browser drives (``set_target``, ``key_down``, ``key_up``, ``request_grasp``):
   (``app.teleop.keyboard.KEY_SPEED_M_S``). The user sees the handle ``tau`` late and lets go
   early by ``key_anticipation`` of that delay, so a key overshoots by about
   ``speed tau (1 - anticipation)``; what is left is corrected with taps (``press``).
+
+While the user re-plans after a surprise (``SimulatedUser.replanning``) the hand lets go of the
+handle and of every key; while they wait for a knocked target to be stood up again it raises
+the handle out of the way.
+Under the relative mapping (``[control] input_mapping = "relative"``,
+:class:`app.teleop.ParticipantInput`) a drag moves the gripper by the drag's displacement and
+the handle returns to the gripper when let go: each grab starts from the gripper as it is then,
+so a robot that pulls the gripper away between drags costs another drag; held keys give the
+gripper a velocity, so a pull has to be held against.
 """
 
 from __future__ import annotations
@@ -28,11 +37,12 @@ import math
 
 import numpy as np
 
+from app.teleop.participant_input import ParticipantInput
 from app.teleop.types import TeleopCommand, TrialObservation
-from study.server.inputs import ParticipantInput
 from study.simulated.experience import RunExperience
 from study.simulated.movement import HandNoise, fitts_time, minimum_jerk
 from study.simulated.population import InterfaceParams, ParticipantParams
+from study.simulated.trust import Trust
 from study.simulated.user_model import SimulatedUser
 
 AXIS_KEYS = (("s", "w"), ("d", "a"), ("f", "r"))
@@ -83,6 +93,7 @@ class GizmoHand:
         self.noise = noise
         self.view = view_direction(params)
         self.handle: tuple[int, ...] | None = None  # the axes being dragged, None: let go
+        self.dragged = np.zeros(3)  # where the hand last put the handle
         self.drags = 0
         self._from = np.zeros(3)
         self._move = np.zeros(3)
@@ -113,12 +124,20 @@ class GizmoHand:
         assert self.handle is not None
         phi = min((t - self._t0) / self._length, 1.0)
         shake = self.noise.step(dt) * self._mask  # the handle moves only along its axes
-        inp.set_target(self._from + self._move * minimum_jerk(phi) + shake)
+        self.dragged = self._from + self._move * minimum_jerk(phi) + shake
+        inp.set_target(self.dragged)
         if phi >= 1.0:  # let go; look, then grab again
-            self.handle = None
-            self._next_grab = t + self.p.regrab_s * math.exp(
-                self.p.regrab_sigma * float(self.rng.standard_normal())
-            )
+            self.let_go(t, inp)
+
+    def let_go(self, t: float, inp: ParticipantInput) -> None:
+        """Release the handle (if held); the next grab comes after a look (a regrab pause)."""
+        if self.handle is None:
+            return
+        self.handle = None
+        inp.let_go()
+        self._next_grab = t + self.p.regrab_s * math.exp(
+            self.p.regrab_sigma * float(self.rng.standard_normal())
+        )
 
     def _grab(self, t: float, handle_at: np.ndarray, error: np.ndarray) -> None:
         axes = choose_handle(
@@ -188,19 +207,39 @@ class KeyHand:
                 self.presses += 1
                 self._tap_ready = t + self.delay_s + 0.1
 
+    def let_go(self, t: float, inp: ParticipantInput) -> None:
+        """Release every held key (the user stops); look before pressing again."""
+        for axis, key in self.held.items():
+            inp.key_up(key)
+            self._axis_ready[axis] = t + self.delay_s
+        self.held.clear()
+        self._tap_ready = max(self._tap_ready, t + self.delay_s)
+
     def _wrong_way(self, axis: int, error: np.ndarray) -> bool:
         plus = self.held[axis] == AXIS_KEYS[axis][1]
         return (error[axis] > 0) != plus
 
 
 class InterfaceUser:
-    """A simulated participant's trial through the page's gizmo or keys (``InputSource``)."""
+    """A simulated participant's trial through the page's gizmo or keys (``InputSource``).
 
-    def __init__(self, params: ParticipantParams, *, rng: np.random.Generator) -> None:
+    ``trust``: the participant's trust in the robot, carried over from their earlier runs
+    (:class:`~study.simulated.trust.Trust`; a fresh one if ``None``); ``mapping``: the page's
+    input mapping (``absolute`` or ``relative``)."""
+
+    def __init__(
+        self,
+        params: ParticipantParams,
+        *,
+        rng: np.random.Generator,
+        trust: Trust | None = None,
+        mapping: str = "absolute",
+    ) -> None:
         self.params = params
         self.rng = rng
-        self.user = SimulatedUser(params, rng=rng, goal_level=True)
-        self.input = ParticipantInput()
+        self.user = SimulatedUser(params, rng=rng, goal_level=True, trust=trust)
+        self.input = ParticipantInput(mapping=mapping)
+        self._handle: np.ndarray | None = None  # where the page draws the handle (relative)
         self.keyboard = params.interface.keyboard >= 0.5
         self.hand: GizmoHand | KeyHand
         if self.keyboard:
@@ -225,18 +264,22 @@ class InterfaceUser:
         if grasp and not self._grasp:
             self.input.request_grasp()
         self._grasp = grasp
-        if self.user.phase == "reach":  # the handle matters only while reaching
+        drawn = self.input.handle_position(obs.ee) if self.input.relative else None
+        if drawn is not None:
+            self._handle = drawn
+        if self.user.phase == "reach" and not self.user.replanning:  # the handle matters then
             intent = self.user.intent
             if isinstance(self.hand, KeyHand):
                 seen = self.user.seen_handle if self.user.seen_handle is not None else intent
                 self.hand.act(obs.t, seen_handle=seen, intent=intent, inp=self.input)
             else:
-                handle = np.asarray(obs.user_target, dtype=float)
+                handle = self._handle if self._handle is not None else obs.user_target
+                handle = np.asarray(handle, dtype=float)
                 self.hand.act(obs.t, dt, handle_at=handle, intent=intent, inp=self.input)
-        elif isinstance(self.hand, KeyHand) and self.hand.held:
-            for key in self.hand.held.values():
-                self.input.key_up(key)
-            self.hand.held.clear()
+                if self.input.relative and self.hand.handle is not None:
+                    self._handle = self.hand.dragged
+        else:
+            self.hand.let_go(obs.t, self.input)
         return self.input.command(obs)
 
     def experience(self, *, duration_s: float | None = None, success: bool) -> RunExperience:

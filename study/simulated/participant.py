@@ -31,6 +31,7 @@ from study.simulated.experience import RunExperience
 from study.simulated.interface import InterfaceUser
 from study.simulated.population import ParticipantParams, participant_rng
 from study.simulated.questionnaire import QuestionnaireModel
+from study.simulated.trust import Trust
 
 if TYPE_CHECKING:
     from app.trial import TrialConfig
@@ -51,6 +52,8 @@ class SimulatedParticipant:
             params.questionnaire, rng=participant_rng(params.index, seed=params.seed, stream=1)
         )
         self.profile_rng = participant_rng(params.index, seed=params.seed, stream=3)
+        self.trust = Trust(params.trust)
+        """Trust in the robot, carried from run to run (:mod:`study.simulated.trust`)."""
         self.runs: list[RunExperience] = []
         self.training_runs: list[RunExperience] = []
         self._trained = False
@@ -58,11 +61,14 @@ class SimulatedParticipant:
 
     # ---- input factory ----------------------------------------------------------------------
     def __call__(self, config: TrialConfig, seed: int) -> InterfaceUser:
-        """A fresh user for one trial attempt (``config`` is not looked at: it carries the
-        condition, which a participant does not know)."""
-        del config
+        """A fresh user for one trial attempt, with this participant's trust in the robot as
+        their earlier runs left it. Of ``config`` only the page's input mapping is read (the
+        interface, which the participant uses); it carries the condition too, which a
+        participant does not know."""
         rng = np.random.default_rng([self.params.seed, self.params.index, 2, int(seed)])
-        self._user = InterfaceUser(self.params, rng=rng)
+        self.trust.new_run()
+        mapping = str(config.extra.get("input_mapping", "absolute"))
+        self._user = InterfaceUser(self.params, rng=rng, trust=self.trust, mapping=mapping)
         return self._user
 
     # ---- answerer ---------------------------------------------------------------------------

@@ -1,7 +1,8 @@
 """A population of simulated participants: parameter distributions and per-participant draws.
 
-A population file (``protocols/population.toml``) has five tables, ``[motor]``, ``[reaction]``,
-``[grasp]``, ``[questionnaire]`` and ``[interface]``; each key is one parameter of :class:`ParticipantParams`
+A population file (``protocols/population.toml``) has seven tables, ``[motor]``, ``[reaction]``,
+``[surprise]``, ``[trust]``, ``[grasp]``, ``[questionnaire]`` and ``[interface]``; each key is one
+parameter of :class:`ParticipantParams`
 and holds a distribution (see :mod:`study.simulated.distributions`). Participant ``i`` of a run
 with seed ``s`` is drawn from ``Generator(PCG64(SeedSequence([s, i])))``: the same participant
 gets the same parameters whatever the number of participants or workers.
@@ -65,6 +66,33 @@ class ReactionParams:
 
 
 @dataclass(frozen=True)
+class SurpriseParams:
+    """Stopping to re-plan after an unexpected robot motion (:mod:`study.simulated.surprise`)."""
+
+    threshold_m: float  # theta: the gripper this far astray of the forward model = surprise
+    horizon_s: float  # H: the prediction error is accumulated over about this long
+    adapt_s: float  # the robot's own motion, once seen, is expected after about this long
+    expected_speed_m_s: float  # the gripper was seen to follow the handle at most this fast
+    replan_s: float  # median stop to re-plan after a surprise (per surprise x exp(sigma z))
+    replan_sigma: float
+
+
+@dataclass(frozen=True)
+class TrustParams:
+    """Trust in the robot across a participant's runs (:mod:`study.simulated.trust`)."""
+
+    initial: float  # T0: trust before the first run, and what it recovers toward
+    recovery_per_run: float  # rho: share of the shortfall T0 - T made up from one run to the next
+    opposition_loss_per_s: (
+        float  # lambda: dT/dt = -lambda o T while the robot opposes (o in [0, 1])
+    )
+    wrong_approach_loss: float  # T <- T (1 - delta) when the robot takes the gripper to the other
+    wrong_approach_m: float  # object: within this of its grasp point, the user's handle farther
+    knock_loss: float  # T <- T (1 - delta) for each object seen knocked over or off the table
+    distrust_fight_gain: float  # the fight builds (1 + g (1 - T)) times as fast
+
+
+@dataclass(frozen=True)
 class GraspParams:
     """When the gripper is closed, lifted, and how it goes wrong."""
 
@@ -121,6 +149,8 @@ class ParticipantParams:
     seed: int
     motor: MotorParams
     reaction: ReactionParams
+    surprise: SurpriseParams
+    trust: TrustParams
     grasp: GraspParams
     questionnaire: QuestionnaireParams
     interface: InterfaceParams
@@ -129,6 +159,8 @@ class ParticipantParams:
 _SECTIONS: dict[str, type] = {
     "motor": MotorParams,
     "reaction": ReactionParams,
+    "surprise": SurpriseParams,
+    "trust": TrustParams,
     "grasp": GraspParams,
     "questionnaire": QuestionnaireParams,
     "interface": InterfaceParams,

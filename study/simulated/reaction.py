@@ -10,12 +10,14 @@ gripper to what the user is aiming at, how far the robot is ahead of the user's 
   where the user's input should have put it (deviation ``e``, not counting help or a robot
   still on its way) opposes too: ``o_e = clip((|e| - dz) / e_full, 0, 1)``;
   ``o = max(o_v, o_e)``.
-- Fight level (harder the longer it lasts): ``df/dt = rate o - (1 - o) f / decay``,
-  ``0 <= f <= f_max``. The hand is pushed ``push f w`` with ``w = (d - v/|v|) / |d - v/|v||``
+- Fight level (harder the longer it lasts): ``df/dt = rate g o - (1 - o) f / decay``,
+  ``0 <= f <= f_max``, ``g = 1 + g_T (1 - T)`` faster the less the user trusts the robot
+  (:mod:`study.simulated.trust`). The hand is pushed ``push f w`` with ``w = (d - v/|v|) / |d - v/|v||``
   (toward the goal and against the robot's motion), and the corrective gain grows ``(1 + f)``.
 - Help (Fig. 12): ``h = clip((lead - 0.01) / lead_full, 0, 1) (1 - o)`` where
   ``lead = |a - target| - |a - ee|`` is how much nearer the goal ``a`` the robot is than the
-  user's own target. Relaxation: ``d rho/dt = (relaxer depth h - rho) / relax_time``.
+  user's own target. Relaxation: ``d rho/dt = (relaxer depth h T - rho) / relax_time``: a
+  user lets the robot lead as far as they trust it (``T``).
 """
 
 from __future__ import annotations
@@ -79,9 +81,13 @@ class Reaction:
         own_target: np.ndarray,
         commanded: np.ndarray | None = None,
         deviation: float = 0.0,
+        trust: float = 1.0,
+        fight_gain: float = 1.0,
     ) -> None:
         """Advance ``f`` and ``rho`` by ``dt`` given the seen robot, the user's own target and
-        ``commanded``, where their input should have put the gripper (forward model)."""
+        ``commanded``, where their input should have put the gripper (forward model); their
+        ``trust`` in the robot scales how far they relax, ``fight_gain`` how fast they fight
+        (:mod:`study.simulated.trust`)."""
         p = self.params
         to_aim = aim - ee
         dist = norm(to_aim)
@@ -112,11 +118,12 @@ class Reaction:
             self.push = None
         o = max(o, min(max((deviation - _DEADZONE_M) / p.opposition_deviation_m, 0.0), 1.0))
         self.opposed = o
-        self.fight += dt * (p.fight_rate_per_s * o - (1.0 - o) * self.fight / p.fight_decay_s)
+        rate = p.fight_rate_per_s * fight_gain
+        self.fight += dt * (rate * o - (1.0 - o) * self.fight / p.fight_decay_s)
         self.fight = min(max(self.fight, 0.0), p.fight_max)
         lead = norm(aim - own_target) - dist
         h = help_level(lead_m=lead, full_lead_m=p.relax_lead_m, opposed=o)
-        self.relax += dt * (p.relaxer * p.relax_depth * h - self.relax) / p.relax_time_s
+        self.relax += dt * (p.relaxer * p.relax_depth * h * trust - self.relax) / p.relax_time_s
         self.relax = min(max(self.relax, 0.0), 1.0)
 
     def push_offset(self) -> np.ndarray:

@@ -22,6 +22,15 @@ Each tick the user sets an absolute target (clamped by the interface's reach):
   (``dm_h/dt = (hand - m_h) / lag``), split the same way (a robot ahead is help).
 - ``n``: Ornstein-Uhlenbeck hand noise, sd ``sigma (1 + careless rho)``.
 
+Surprise (:mod:`study.simulated.surprise`): a gripper motion their forward model did not
+predict stops the user's input (no plan progress, no corrections: the hand holds still) for a
+re-planning time; then they plan afresh from where the hand is. Trust
+(:mod:`study.simulated.trust`, carried across a participant's runs) falls with the robot's
+errors as seen -- opposition, the gripper taken to the other object, knocks -- and scales how
+far a relaxer relaxes and how fast the fight builds. While the target lies knocked over
+(``obs.lying``) the user waits, hand raised above the table, until it stands again, then
+approaches it anew.
+
 Grasp (``grasp`` is held True from the request on; trials react to its rising edge): closes
 when the seen gripper is within ``grasp_radius`` of ``a`` and slower than ``settle_speed``
 (or, on an impatient "early" attempt, as soon as it is within ``early_radius``, still moving;
@@ -50,9 +59,11 @@ from study.simulated._vec import clamp_box, norm
 from study.simulated.errors import ObservationError
 from study.simulated.experience import ExperienceLog, RunExperience
 from study.simulated.movement import HandNoise, fitts_time, minimum_jerk
-from study.simulated.perception import DelayedView
+from study.simulated.perception import DelayedView, Seen
 from study.simulated.population import ParticipantParams
 from study.simulated.reaction import Reaction
+from study.simulated.surprise import Surprise
+from study.simulated.trust import Trust
 
 WAIT, REACH, CLOSE, LIFT, OPEN = "wait", "reach", "close", "lift", "open"
 
@@ -65,12 +76,22 @@ class SimulatedUser:
     """
 
     def __init__(
-        self, params: ParticipantParams, *, rng: np.random.Generator, goal_level: bool = False
+        self,
+        params: ParticipantParams,
+        *,
+        rng: np.random.Generator,
+        goal_level: bool = False,
+        trust: Trust | None = None,
     ) -> None:
         self.params = params
         self.goal_level = goal_level
         self.rng = rng
         self.reaction = Reaction(params.reaction)
+        self.surprise = Surprise(params.surprise, lag_s=params.motor.follow_lag_s, rng=rng)
+        if trust is None:  # one run on its own
+            trust = Trust(params.trust)
+            trust.new_run()
+        self.trust = trust
         self.noise = HandNoise(sd=params.motor.noise_sd_m, tau=params.motor.noise_tau_s, rng=rng)
         self.log = ExperienceLog()
         self.phase = WAIT
@@ -93,6 +114,24 @@ class SimulatedUser:
         self._early = False
         self._best = self._best_across = math.inf
         self._best_t = self._best_across_t = 0.0
+        self._stopped = False
+        self._waiting = False
+
+    @property
+    def stopped(self) -> bool:
+        """The user does not pursue the goal: re-planning after a surprise (``replanning``),
+        or waiting for a knocked-over object to be stood up again (``waiting``)."""
+        return self._stopped or self._waiting
+
+    @property
+    def replanning(self) -> bool:
+        """Stopped to re-plan after a surprise: the hand holds still."""
+        return self._stopped
+
+    @property
+    def waiting(self) -> bool:
+        """Waiting, hand raised out of the way, for the target to be stood up again."""
+        return self._waiting
 
     # ---- InputSource -----------------------------------------------------------------------
     def command(self, obs: TrialObservation) -> TeleopCommand:
@@ -113,20 +152,22 @@ class SimulatedUser:
         self.seen_handle = seen.own
         m = self.params.motor
         target_name = obs.goal_names[obs.target_index]
-
-        self._advance_phase(
-            obs.t,
-            seen_t=seen.t,
-            ee=seen.ee,
-            speed=norm(seen.velocity),
-            grasped=seen.grasped,
-            goal=goal,
-            target_name=target_name,
-        )
+        self._perceive(obs, dt, seen)
+        if not self.stopped:
+            self._advance_phase(
+                obs.t,
+                seen_t=seen.t,
+                ee=seen.ee,
+                speed=norm(seen.velocity),
+                grasped=seen.grasped,
+                goal=goal,
+                target_name=target_name,
+            )
 
         self.log.add(t=obs.t, input_velocity=seen.own_velocity, robot_velocity=seen.velocity)
         if self.phase != WAIT:
             err, err_size, lag = self._seen_error(seen.plan, seen.ee, seen.velocity)
+            trust = self.trust
             self.reaction.update(
                 dt=dt,
                 velocity=seen.velocity,
@@ -135,35 +176,71 @@ class SimulatedUser:
                 own_target=seen.own,
                 commanded=seen.follow,
                 deviation=self._overridden(seen.follow, seen.ee, seen.velocity),
+                trust=trust.level,
+                fight_gain=trust.fight_gain,
+            )
+            trust.observe(
+                dt,
+                opposed=self.reaction.opposed,
+                ee=seen.ee,
+                handle=seen.own,
+                others=np.delete(np.asarray(obs.grasp_points, float), obs.target_index, axis=0),
+                knocks=obs.knocks,
             )
             rho = self.reaction.relax
             wait = min(max(1.0 - (lag - m.feedback_deadzone_m) / m.wait_lag_m, 0.0), 1.0)
             blend = 1.0 - math.exp(-dt / m.follow_lag_s)
             if self.goal_level:  # the interface moves the handle; the gripper should trail it
-                self._r = self._aim
                 self._model = self._model + blend * (own - self._model)
-            else:
-                self._phi = min(1.0, self._phi + dt * (1.0 - rho) * wait / self._plan_t)
-                self._r = self._r0 + (self._aim - self._r0) * minimum_jerk(self._phi)
-                self._model = self._model + blend * (clamp_box(self._r, lo, hi) - self._model)
-            if err_size > m.feedback_deadzone_m:
-                k = min(
-                    m.max_gain_per_s,
-                    m.feedback_gain_per_s * (1.0 + self.reaction.fight) * (1.0 - rho),
-                )
-                self._c = self._c + dt * k * (1.0 - m.feedback_deadzone_m / err_size) * err
-            self._c = self._c * math.exp(-dt / m.correction_leak_s)
-            hand = self._r + self._c + self.reaction.push_offset()
-            if self.goal_level and self.phase == REACH and not self._lined_up(obs.t, seen.ee):
-                hand[2] = max(hand[2], own[2])  # line up above the object before going down
-            clamped = clamp_box(hand, lo, hi)
-            self._c = self._c + (clamped - hand)  # anti-windup: the gizmo stops at the reach
-            self._hand = clamped
-            shown = own if self.goal_level else clamped  # the input the robot was given
+            if not self.stopped:  # a stopped hand holds still: no plan, no corrections
+                if self.goal_level:
+                    self._r = self._aim
+                else:
+                    self._phi = min(1.0, self._phi + dt * (1.0 - rho) * wait / self._plan_t)
+                    self._r = self._r0 + (self._aim - self._r0) * minimum_jerk(self._phi)
+                    self._model = self._model + blend * (clamp_box(self._r, lo, hi) - self._model)
+                if err_size > m.feedback_deadzone_m:
+                    k = min(
+                        m.max_gain_per_s,
+                        m.feedback_gain_per_s * (1.0 + self.reaction.fight) * (1.0 - rho),
+                    )
+                    self._c = self._c + dt * k * (1.0 - m.feedback_deadzone_m / err_size) * err
+                self._c = self._c * math.exp(-dt / m.correction_leak_s)
+                hand = self._r + self._c + self.reaction.push_offset()
+                if self.goal_level and self.phase == REACH and not self._lined_up(obs.t, seen.ee):
+                    hand[2] = max(hand[2], own[2])  # line up above the object before going down
+                clamped = clamp_box(hand, lo, hi)
+                self._c = self._c + (clamped - hand)  # anti-windup: the gizmo stops at the reach
+                self._hand = clamped
+            elif self._waiting:  # out of the way: above where the object stood
+                stood = float(obs.goal_positions[obs.target_index][2])
+                rise = max(stood, float(goal[2])) + self.params.grasp.lift_m
+                self._hand[2] = min(max(self._hand[2], rise), hi[2])
+            shown = own if self.goal_level else self._hand  # the input the robot was given
             self._follow = self._follow + blend * (shown - self._follow)
         scale = 1.0 + self.params.reaction.careless_noise_gain * self.reaction.relax
         target = clamp_box(self._hand + self.noise.step(dt, scale=scale), lo, hi)
         return TeleopCommand(target=target, grasp=self.grasp_closed)
+
+    def _perceive(self, obs: TrialObservation, dt: float, seen: Seen) -> None:
+        """Surprise and waiting: whether the user's input holds still this tick. A surprise
+        (:mod:`study.simulated.surprise`) stops them while they reach (or wait to start); once
+        the stop is over they plan afresh from where the hand is. A target lying knocked over
+        makes them wait, hand raised, until it stands again; then they approach it anew."""
+        was = self.stopped
+        if self.phase in (WAIT, REACH):
+            self._stopped = self.surprise.update(
+                obs.t, dt, ee=seen.ee, velocity=seen.velocity, handle=seen.own
+            )
+        else:
+            self._stopped = False
+        lying = obs.target_index in obs.lying
+        if self._waiting and not lying and self.phase == REACH:
+            self._waiting = False
+            self._new_attempt(self._goal(obs), obs.t)
+        self._waiting = lying and self.phase == REACH
+        if was and not self.stopped and self.phase == REACH:
+            self._new_plan(self._aim)
 
     @property
     def intent(self) -> np.ndarray:

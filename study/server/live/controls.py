@@ -62,7 +62,7 @@ class LiveInput:
             return
         source.thaw()
         try:
-            source.set_target(gripper)
+            source.place(gripper)
         except (InputFrozen, TeleopError):
             LOGGER.debug("could not put the target on the gripper", exc_info=True)
         if page is not None:
@@ -87,6 +87,11 @@ class LiveInput:
             source.set_target(target)
         except (InputFrozen, TeleopError) as exc:
             self._refused(exc)
+
+    def on_release(self) -> None:
+        """The participant let go of the handle (it returns to the gripper if relative)."""
+        if self.source is not None:
+            self.source.let_go()
 
     def on_keys(
         self, down: frozenset[str], up: frozenset[str], *, reframe: Callable[[], None]

@@ -106,8 +106,10 @@ class LiveRun:
             page.show_gizmo(False)
 
     def _released(self, page: ParticipantPage, trial: Trial) -> None:
-        """The handle was let go: if it was left past the reach, it goes back over the point the
-        arm was sent to (the reach clamps it), and that point becomes the input's target."""
+        """The handle was let go: with a relative mapping it returns to the gripper; if it was
+        left past the reach, it goes back over the point the arm was sent to (the reach clamps
+        it), and that point becomes the input's target."""
+        self.input.on_release()
         if self.trial is trial and not trial.done and self.input.source is not None:
             target = self.input.source.last_target
             if target is not None and not trial.scene.reach.contains(target):

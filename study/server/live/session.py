@@ -222,7 +222,7 @@ class LiveSession:
             with self._lock:
                 if self.trial_run.running:
                     return
-                source = ParticipantInput()
+                source = ParticipantInput(mapping=self.session.protocol.control.input_mapping)
                 run = self.session.start_trial(input_source=source)
                 self.trial_run.begin(run, source)
 

@@ -11,11 +11,14 @@ from study.session import TrialRun
 OUTCOME_SENTENCES: dict[str, str] = {
     "success": "You lifted the {target}.",
     "wrong_object": "You lifted the other object, not the {target}.",
-    "dropped": "The object slipped out of the gripper.",
+    "dropped": "The object slipped out of the gripper, so this run has ended.",
+    "knocked_over": "An object was knocked over, so this run has ended.",
+    "pushed_off": "An object fell off the table, so this run has ended.",
     "timeout": "Time is up.",
 }
 """What the participant reads after a run, ``{target}`` being the object asked for (the
-instructions name it already)."""
+instructions name it already). The three accidents end a run only under ``[control] on_knock =
+"end"``; under ``"reset"`` the object is stood up again and the run goes on."""
 OTHER_OUTCOME = "The run has ended."
 ENDED_BY_EXPERIMENTER = "The experimenter ended this run."
 MISSED_GRASP = "Nothing to grasp there: bring the gripper around the object, then close it."

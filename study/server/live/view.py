@@ -196,10 +196,11 @@ class LiveView:
                         )
                     except Exception:  # a tab closing mid-frame; the next tab gets the next
                         LOGGER.debug("render failed", exc_info=True)
-        if page is not None and source is not None and source.key_moved.is_set():
-            source.key_moved.clear()
-            if source.last_target is not None:
-                page.move_gizmo(source.last_target)
+        if page is not None and source is not None:
+            # the handle follows the keys (absolute), or the gripper when let go (relative)
+            at = source.handle_position(None if snap is None else snap.poses.gripper)
+            if at is not None:
+                page.move_gizmo(at)
 
     def _notices(self, page: ParticipantPage) -> None:
         """The countdown, ten seconds left, and the reach notice while the input is held past

@@ -1,0 +1,63 @@
+"""The relative input mapping on the page, with the mouse: the handle dragged far below the
+table moves the gripper only as far as the reach allows, and on release the handle is back on
+the gripper (under the absolute mapping it would stay where it was dropped, 30 cm away)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from tests.browser.harness import drag, project, start_server, wait_until
+from tests.browser.test_participant_flow import AGREE, _connect, _settle, _shot, join
+from tests.protocol_copies import relative_copy
+
+pytestmark = pytest.mark.browser
+
+
+def test_a_released_handle_returns_to_the_gripper(
+    tmp_path: Path, context: Any, screenshots: Path
+) -> None:
+    study = start_server(
+        tmp_path, time_limit_s=60.0, training_runs=1, source=relative_copy(tmp_path)
+    )
+    try:
+        srv = study.server
+        assert study.protocol.control.input_mapping == "relative"
+        page = context.new_page()
+        _connect(page, study.url)
+        code = srv.enrol("P01")
+        join(page, code, then=None)
+        srv.act(code, "start")
+        page.get_by_role("button", name=AGREE).click()
+        page.get_by_role("button", name="Start").wait_for()
+        _settle(page)
+        page.get_by_role("button", name="Start").click()
+        page.get_by_role("button", name="Close the gripper (G)").wait_for()
+        live = srv.session(code)
+        assert wait_until(lambda: live.scene_view is not None and live.scene_view.frames_sent >= 1)
+        trial = live.run.trial
+        start = trial.poses().gripper.copy()
+        cam = live.page.client.camera
+        # grab the vertical arrow above the gripper and pull it 30 cm down, through the table
+        grab = project(cam, start + np.array([0.0, 0.0, 0.2]))
+        end = project(cam, start + np.array([0.0, 0.0, -0.1]))
+        for _ in range(2):  # software WebGL under load can miss the first grab
+            drag(page, grab, end, steps=8)
+            if wait_until(lambda: trial.poses().gripper[2] < start[2] - 0.1, timeout=10):
+                break
+        floor = trial.scene.reach.lo[2]
+        assert trial.poses().gripper[2] < start[2] - 0.1, "the handle was not dragged"
+
+        def handle_on_gripper() -> bool:
+            gizmo = live.page._gizmo
+            at = np.asarray(gizmo.position) if gizmo is not None else np.full(3, np.inf)
+            return float(np.linalg.norm(at - trial.poses().gripper)) < 0.01
+
+        assert wait_until(handle_on_gripper, timeout=10)
+        assert trial.poses().gripper[2] > floor - 0.01  # stopped at the reach, not below
+        _shot(page, screenshots, "relative-released")
+    finally:
+        study.stop()
