@@ -15,21 +15,27 @@ now (a feedback policy: the user may have moved the arm anywhere):
    within ``ROTATION_TOL`` of the grasp rotation): ``c = g - max(0, h - s) a``, the point of
    the axis one step ``s`` nearer the grasp point ``g`` than the TCP's height ``h`` above it:
    down the gripper axis ``a``, at ``approach_speed`` below the pre-grasp point, to ``g``,
-   where the fingers straddle the object and the policy stops;
+   where the fingers straddle the object and the policy stops. Below the pre-grasp point the
+   corridor widens to the slot plane: a hand the user brought down beside the object, with
+   the object between the open fingers (off the axis along the fingers' width, not across
+   the slot), slides along that plane to the axis, clear of the other objects;
 2. else ``c = p``, the pre-grasp point ``g - standoff a`` (fingertips above the object's top),
    if the straight TCP segment ``x -> p`` keeps the hand clear of every object;
 3. else ``c = (p_x, p_y, z_t)``, above the pre-grasp point at the height ``z_t`` at which the
    hand passes over everything between, if the segment there is clear;
-4. else ``c = (x_x, x_y, z_t)``: straight up first.
+4. else ``c = (x_x, x_y, z_t)``: straight up first. Between 3 and 4 (and wherever a user holds
+   a part of the hand within an object's clearance but above its top) the carrot's sideways
+   offset shrinks with that part's height over the top, so the motion turns smoothly.
 
 Clearance: the hand (fingers, hand, wrist links: the parts that collide) is a stack of layers,
 each a box in the TCP frame between heights ``lo`` and ``hi`` above the TCP; a layer on the link
 before the last joint turns by ``-q_7`` about the TCP axis. Each object is an upright cylinder
 (its goal's envelope). A TCP segment ``A -> B`` (orientation held) is clear of object ``j`` when,
 for every layer, over the part of the segment where the layer's box, inflated by the object's
-radius plus ``clearance``, covers the object's axis (an interval of the segment found by slabs),
-the layer's bottom stays ``clearance`` above the object's top. The model assumes an approach
-axis near vertical (top-down grasps); a tilted hand inflates every layer by its tilt.
+radius plus ``clearance`` (corners rounded by an octagon), covers the object's axis (an
+interval of the segment found by slabs), the layer's bottom stays ``clearance`` above the
+object's top. The model assumes an approach axis near vertical (top-down grasps); a tilted
+hand inflates every layer by its tilt.
 
 Pure numpy: the arm comes in as an :class:`ArmModel` (a ``pose_jacobian`` callable and plain
 numbers), so this module imports no kinematics library.
@@ -57,6 +63,9 @@ ROTATION_SPEED = 1.0
 """rad/s: how fast the gripper turns toward the grasp rotation."""
 POSTURE_GAIN = 1.0
 """1/s: the null-space pull toward the goal's grasp configuration while in transit."""
+SLOT_REACH = 0.02
+"""m: below the pre-grasp point, with the object inside the open slot, the hand slides along
+the slot plane to the axis from up to the object's radius plus this off it."""
 TOL_MIN, TOL_MAX = 0.002, 0.01
 """m: the approach corridor's radius is half the fingers' slack around the object (three
 quarters once they straddle it), within these bounds."""
@@ -103,15 +112,23 @@ class ArmModel:
         return max(0.0, -min((layer.lo for layer in self.layers), default=0.0))
 
 
+_SQRT_HALF = math.sqrt(0.5)
+_Frame = tuple[float, float, float, float, tuple[tuple[float, float, float], ...]]
+"""A hand layer in the world's xy plane (see ``GraspApproachPolicy._frames``)."""
+
+
 class _Goal(NamedTuple):
     g: tuple[float, float, float]  # grasp point
     p: tuple[float, float, float]  # pre-grasp point
     a: tuple[float, float, float]  # approach axis (TCP z at the grasp)
+    x: tuple[float, float, float]  # along the fingers' width (TCP x at the grasp)
+    y: tuple[float, float, float]  # the fingers' closing direction (TCP y at the grasp)
     rotation: np.ndarray  # R_g
     standoff: float
     top: float  # object's top above the grasp point
     tol_entry: float  # corridor radius with the fingers above the object
     tol_deep: float  # ... once they straddle it
+    slot_reach: float  # how far along x the slot plane counts as the approach (m)
     posture: np.ndarray | None  # q_g
 
 
@@ -197,18 +214,21 @@ class GraspApproachPolicy:
         pregrasp = goals.pregrasp_positions()
         out = []
         for k in range(len(goals)):
-            _, top, half_width = goals.envelopes[k].tolist()
+            radius, top, half_width = goals.envelopes[k].tolist()
             slack = self._slot - half_width
             out.append(
                 _Goal(
                     g=tuple(goals.positions[k].tolist()),
                     p=tuple(pregrasp[k].tolist()),
                     a=tuple(rotations[k][:, 2].tolist()),
+                    x=tuple(rotations[k][:, 0].tolist()),
+                    y=tuple(rotations[k][:, 1].tolist()),
                     rotation=rotations[k].copy(),
                     standoff=float(goals.standoffs[k]),
                     top=top,
                     tol_entry=min(TOL_MAX, max(TOL_MIN, 0.5 * slack)),
                     tol_deep=min(TOL_MAX, max(TOL_MIN, 0.75 * slack)),
+                    slot_reach=radius + SLOT_REACH,
                     posture=None
                     if goals.configurations is None
                     else goals.configurations[k].copy(),
@@ -230,7 +250,7 @@ class GraspApproachPolicy:
         xs = x.tolist()
         e = rotation_log((goal.rotation @ rot.T).tolist())
         rot_err = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
-        carrot, speed, transit = self._carrot(q, xs, rot, goal, rot_err)
+        carrot, speed, transit = self._carrot(q, xs, rot, int(target), rot_err)
         v = [carrot[0] - xs[0], carrot[1] - xs[1], carrot[2] - xs[2]]
         n = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
         sv = speed / n if n > speed else 1.0
@@ -260,36 +280,58 @@ class GraspApproachPolicy:
         return dq
 
     def _carrot(
-        self, q: np.ndarray, xs: list[float], rot: np.ndarray, goal: _Goal, rot_err: float
+        self, q: np.ndarray, xs: list[float], rot: np.ndarray, k: int, rot_err: float
     ) -> tuple[tuple[float, float, float], float, bool]:
-        """``(carrot, TCP step, in transit)`` from the TCP at ``xs``."""
-        g, a = goal.g, goal.a
+        """``(carrot, TCP step, in transit)`` from the TCP at ``xs`` toward goal ``k``."""
+        goal = self._goals[k]
+        g, a, gx, gy = goal.g, goal.a, goal.x, goal.y
         dx, dy, dz = xs[0] - g[0], xs[1] - g[1], xs[2] - g[2]
-        axial = dx * a[0] + dy * a[1] + dz * a[2]  # > 0 below the grasp point
-        lat2 = max(0.0, dx * dx + dy * dy + dz * dz - axial * axial)
-        above = -axial  # TCP height above the grasp point along the axis
-        tol = goal.tol_entry if above >= goal.top + self._drop else goal.tol_deep
-        if rot_err <= ROTATION_TOL and lat2 <= tol * tol:
-            # along the axis: the carrot is the axis point one step nearer the grasp, so the
-            # lateral error is taken out first and the descent runs down the gripper axis
+        above = -(dx * a[0] + dy * a[1] + dz * a[2])  # TCP height over the grasp point
+        ex = dx * gx[0] + dy * gx[1] + dz * gx[2]  # off the axis along the fingers' width
+        ey = dx * gy[0] + dy * gy[1] + dz * gy[2]  # ... across the slot
+        frames = None
+        if rot_err <= ROTATION_TOL:
+            tol = goal.tol_entry if above >= goal.top + self._drop else goal.tol_deep
+            # the axis point one step nearer the grasp: the lateral error is taken out first
+            # and the descent runs down the gripper axis
             step = self.approach_step if above <= goal.standoff + 0.005 else self.tcp_step
             h = above - step if above > step else 0.0
-            return (g[0] - h * a[0], g[1] - h * a[1], g[2] - h * a[2]), step, False
-        frames = self._frames(q, rot)
+            down = (g[0] - h * a[0], g[1] - h * a[1], g[2] - h * a[2])
+            if ex * ex + ey * ey <= tol * tol:
+                return down, step, False
+            # below the pre-grasp point with the object in the open slot (a user brought the
+            # hand there): the fingers may slide along the slot plane to the axis, as long as
+            # the hand keeps clear of the other objects
+            if (
+                above < goal.standoff
+                and abs(ey) + abs(ex) * rot_err <= tol
+                and abs(ex) <= goal.slot_reach
+            ):
+                frames = self._frames(q, rot)
+                if self._freedom(xs, down, frames, skip=k) >= 1.0:
+                    return down, step, False
+                # another object's clearance floor is in the way: slide at that height
+                floor = self._pass_height(xs, down, frames, skip=k)
+                held = (down[0], down[1], max(down[2], floor))
+                f = self._freedom(xs, held, frames, skip=k)
+                if f > 0.0:
+                    return _toward(xs, held, f), step, False
+        if frames is None:
+            frames = self._frames(q, rot)
         p = goal.p
-        if self._clear(xs, p, frames):
-            return p, self.tcp_step, True
+        f = self._freedom(xs, p, frames)
+        if f > 0.0:
+            return _toward(xs, p, f), self.tcp_step, True
         zt = max(p[2], self._pass_height(xs, p, frames))
         over = (p[0], p[1], zt)
-        if xs[2] >= zt or self._clear(xs, over, frames):
-            return over, self.tcp_step, True
-        return (xs[0], xs[1], zt), self.tcp_step, True
+        f = 1.0 if xs[2] >= zt else self._freedom(xs, over, frames)
+        return _toward(xs, over, f), self.tcp_step, True
 
     # ---- clearance -----------------------------------------------------------------------
-    def _frames(self, q: np.ndarray, rot: np.ndarray) -> list[tuple[float, ...]]:
-        """Each layer in the world's xy plane: ``(bottom offset, ox, oy, ux, uy, vx, vy, Hx,
-        Hy)``: its bottom's height relative to the TCP, its centre's offset from the TCP, its
-        axes and its half-extents inflated by the clearance and the hand's tilt."""
+    def _frames(self, q: np.ndarray, rot: np.ndarray) -> list[_Frame]:
+        """Each layer in the world's xy plane: its bottom's height relative to the TCP (less
+        the clearance), its centre's offset from the TCP, how much to inflate it (clearance
+        and tilt) and its support in four directions (its axes and their diagonals)."""
         (r00, r01, r02), (r10, r11, r12), _ = rot.tolist()
         tilt = math.sqrt(r02 * r02 + r12 * r12)  # sin of the approach axis' angle to vertical
         if self._turns:
@@ -307,44 +349,87 @@ class GraspApproachPolicy:
             ox, oy = cx * ux + cy * vx, cx * uy + cy * vy
             grow = m + max(abs(hi), abs(lo)) * tilt
             bottom = lo - max(hx, hy) * tilt - m
-            out.append((bottom, ox, oy, ux, uy, vx, vy, hx + grow, hy + grow))
+            hd = (hx + hy) * _SQRT_HALF
+            dirs = (
+                (ux, uy, hx),
+                (vx, vy, hy),
+                ((ux + vx) * _SQRT_HALF, (uy + vy) * _SQRT_HALF, hd),
+                ((ux - vx) * _SQRT_HALF, (uy - vy) * _SQRT_HALF, hd),
+            )
+            out.append((bottom, ox, oy, grow, dirs))
         return out
 
-    def _clear(
-        self, a: Sequence[float], b: Sequence[float], frames: list[tuple[float, ...]]
-    ) -> bool:
-        """True when the TCP segment ``a -> b`` keeps every layer clear of every object."""
+    def _freedom(
+        self,
+        a: Sequence[float],
+        b: Sequence[float],
+        frames: list[_Frame],
+        *,
+        skip: int = -1,
+    ) -> float:
+        """How much of the TCP segment ``a -> b`` the hand may take, clear of every object
+        but ``skip``: 1 all of it, 0 none.
+
+        A layer already within an object's clearance zone at ``a`` (a user may hold the hand
+        there) does not block a segment that takes it away from the object: beside the object,
+        a segment along which the layer's distance to it grows; above its top, a segment that
+        does not descend, whose sideways share then falls with the layer's height above the
+        top, ``f = (z - z_top) / clearance``, to 0 (straight up) at the top, so the motion
+        changes smoothly there.
+        """
         az, bz = a[2], b[2]
         low = az if az < bz else bz
+        rising = bz >= az
+        m = self.clearance
         mx, my = b[0] - a[0], b[1] - a[1]
-        for cx, cy, radius, top in self._objects:
-            for bottom, ox, oy, ux, uy, vx, vy, hx, hy in frames:
+        free = 1.0
+        for j, (cx, cy, radius, top) in enumerate(self._objects):
+            if j == skip:
+                continue
+            for bottom, ox, oy, grow, dirs in frames:
                 need = top - bottom  # the TCP height at which this layer clears the top
                 if low >= need:
                     continue
-                px, py = cx - a[0] - ox, cy - a[1] - oy
-                span = _overlap(px, py, mx, my, ux, uy, vx, vy, hx + radius, hy + radius)
+                span = _overlap(cx - a[0] - ox, cy - a[1] - oy, mx, my, dirs, radius + grow)
                 if span is None:
                     continue
                 s0, s1 = span
-                if az + s0 * (bz - az) < need or az + s1 * (bz - az) < need:
-                    return False
-        return True
+                if az + s0 * (bz - az) >= need and az + s1 * (bz - az) >= need:
+                    continue
+                if s0 > 0.0:  # the segment would enter this object's clearance zone
+                    return 0.0
+                # already within it (a user may hold the hand there): a layer beside the
+                # object may move away from it, one above it may rise, easing sideways
+                (ux, uy, hu), (vx, vy, hv) = dirs[0], dirs[1]
+                px, py = cx - a[0] - ox, cy - a[1] - oy
+                du, dv = px * ux + py * uy, px * vx + py * vy
+                du -= hu if du > hu else (-hu if du < -hu else du)
+                dv -= hv if dv > hv else (-hv if dv < -hv else dv)
+                if du * du + dv * dv > radius * radius and (
+                    (mx * ux + my * uy) * du + (mx * vx + my * vy) * dv <= 0.0
+                ):
+                    continue
+                if rising and az > need - m:
+                    free = min(free, (az - need + m) / m)
+                    continue
+                return 0.0
+        return free
 
     def _pass_height(
-        self, a: Sequence[float], b: Sequence[float], frames: list[tuple[float, ...]]
+        self, a: Sequence[float], b: Sequence[float], frames: list[_Frame], *, skip: int = -1
     ) -> float:
         """The lowest TCP height at which the hand passes from above ``a`` to above ``b``
-        clear of every object (``-inf`` when nothing lies between)."""
+        clear of every object but ``skip`` (``-inf`` when nothing lies between)."""
         mx, my = b[0] - a[0], b[1] - a[1]
         height = -math.inf
-        for cx, cy, radius, top in self._objects:
-            for bottom, ox, oy, ux, uy, vx, vy, hx, hy in frames:
+        for j, (cx, cy, radius, top) in enumerate(self._objects):
+            if j == skip:
+                continue
+            for bottom, ox, oy, grow, dirs in frames:
                 need = top - bottom
                 if need <= height:
                     continue
-                px, py = cx - a[0] - ox, cy - a[1] - oy
-                if _overlap(px, py, mx, my, ux, uy, vx, vy, hx + radius, hy + radius):
+                if _overlap(cx - a[0] - ox, cy - a[1] - oy, mx, my, dirs, radius + grow):
                     height = need
         return height
 
@@ -355,42 +440,47 @@ class GraspApproachPolicy:
         )
 
 
+def _toward(x: Sequence[float], c: Sequence[float], f: float) -> tuple[float, float, float]:
+    """The carrot ``c`` with only the share ``f`` of its horizontal offset from ``x``."""
+    if f >= 1.0:
+        return c[0], c[1], c[2]
+    return x[0] + f * (c[0] - x[0]), x[1] + f * (c[1] - x[1]), c[2]
+
+
 def _overlap(
     px: float,
     py: float,
     mx: float,
     my: float,
-    ux: float,
-    uy: float,
-    vx: float,
-    vy: float,
-    hu: float,
-    hv: float,
+    dirs: tuple[tuple[float, float, float], ...],
+    rho: float,
 ) -> tuple[float, float] | None:
-    """The interval of ``s`` in [0, 1] over which a box (axes ``u``, ``v``, half-extents
-    ``hu``, ``hv``) moved by ``s m`` covers the point ``p`` (relative to its start), or
-    ``None``: ``|p.u - s m.u| <= hu`` and ``|p.v - s m.v| <= hv`` (two slabs)."""
+    """The interval of ``s`` in [0, 1] over which a box moved by ``s m``, inflated by ``rho``,
+    covers the point ``p`` (relative to the box's centre at ``s = 0``), or ``None``.
+
+    The box's support ``h_i`` in each direction ``n_i`` of ``dirs`` (its two axes and their
+    diagonals) makes slabs ``|p.n_i - s m.n_i| <= h_i + rho``, whose intersection is the box
+    with octagonal corners: within 8 % of ``rho`` of the box rounded by ``rho``, never inside
+    it.
+    """
     s0, s1 = 0.0, 1.0
-    pu, mu = px * ux + py * uy, mx * ux + my * uy
-    if -1e-12 < mu < 1e-12:
-        if abs(pu) > hu:
-            return None
-    else:
-        t0, t1 = (pu - hu) / mu, (pu + hu) / mu
-        s0, s1 = (t0, t1) if t0 < t1 else (t1, t0)
-        s0 = 0.0 if s0 < 0.0 else s0
-        s1 = 1.0 if s1 > 1.0 else s1
+    for nx, ny, h in dirs:
+        pn, mn = px * nx + py * ny, mx * nx + my * ny
+        h += rho
+        if -1e-12 < mn < 1e-12:
+            if pn > h or pn < -h:
+                return None
+            continue
+        t0, t1 = (pn - h) / mn, (pn + h) / mn
+        if t0 > t1:
+            t0, t1 = t1, t0
+        if t0 > s0:
+            s0 = t0
+        if t1 < s1:
+            s1 = t1
         if s0 > s1:
             return None
-    pv, mv = px * vx + py * vy, mx * vx + my * vy
-    if -1e-12 < mv < 1e-12:
-        return None if abs(pv) > hv else (s0, s1)
-    t0, t1 = (pv - hv) / mv, (pv + hv) / mv
-    if t0 > t1:
-        t0, t1 = t1, t0
-    s0 = t0 if t0 > s0 else s0
-    s1 = t1 if t1 < s1 else s1
-    return None if s0 > s1 else (s0, s1)
+    return s0, s1
 
 
 def rotation_log(m: Sequence[Sequence[float]]) -> tuple[float, float, float]:
