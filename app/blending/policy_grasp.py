@@ -18,7 +18,10 @@ now (a feedback policy: the user may have moved the arm anywhere):
    where the fingers straddle the object and the policy stops. Below the pre-grasp point the
    corridor widens to the slot plane: a hand the user brought down beside the object, with
    the object between the open fingers (off the axis along the fingers' width, not across
-   the slot), slides along that plane to the axis, clear of the other objects;
+   the slot), slides along that plane to the axis, clear of the other objects; one held with
+   its fingertips above the object's top moves over to the axis at that height. The TCP's
+   step is capped at ``tcp_speed`` throughout, so a lateral error is taken out at that speed
+   while the descent proceeds at ``approach_speed``;
 2. else ``c = p``, the pre-grasp point ``g - standoff a`` (fingertips above the object's top),
    if the straight TCP segment ``x -> p`` keeps the hand clear of every object;
 3. else ``c = (p_x, p_y, z_t)``, above the pre-grasp point at the height ``z_t`` at which the
@@ -66,9 +69,16 @@ POSTURE_GAIN = 1.0
 SLOT_REACH = 0.02
 """m: below the pre-grasp point, with the object inside the open slot, the hand slides along
 the slot plane to the axis from up to the object's radius plus this off it."""
-TOL_MIN, TOL_MAX = 0.002, 0.01
-"""m: the approach corridor's radius is half the fingers' slack around the object (three
-quarters once they straddle it), within these bounds."""
+ALIGN_MARGIN, ALIGN_REACH = 0.005, 0.05
+"""m: below the pre-grasp point, with the fingertips at least ``ALIGN_MARGIN`` above the
+object's top and the TCP within the object's radius plus ``ALIGN_REACH`` of the axis, the hand
+moves over to the axis at that height instead of retreating to the pre-grasp point."""
+TOL_MIN = 0.002
+SLOT_MARGIN_ENTRY, SLOT_MARGIN_DEEP = 0.004, 0.002
+"""m: the approach corridor's radius is the open fingers' slack around the object (the slot's
+half-width less the object's half-width across it) less this margin: the larger one while
+the fingertips are above the object's top, the smaller once they straddle it (so a hand held
+near the edge does not flip between descending and retreating); at least ``TOL_MIN``."""
 
 
 @dataclass(frozen=True)
@@ -129,6 +139,7 @@ class _Goal(NamedTuple):
     tol_entry: float  # corridor radius with the fingers above the object
     tol_deep: float  # ... once they straddle it
     slot_reach: float  # how far along x the slot plane counts as the approach (m)
+    near: float  # how far off the axis the hand may align over the object (m)
     posture: np.ndarray | None  # q_g
 
 
@@ -182,14 +193,18 @@ class GraspApproachPolicy:
         self._pose_jacobian = arm.pose_jacobian
         self._slot = positive(arm.slot, name="arm.slot")
         self._drop = arm.reach_below
+        # per layer: lo, its reach up or down (for tilt), centre, half-extents, their diagonal
+        # support and largest value, and whether it turns with the last joint
         self._layers = tuple(
             (
                 float(layer.lo),
-                float(layer.hi),
+                max(abs(float(layer.hi)), abs(float(layer.lo))),
                 float(layer.center[0]),
                 float(layer.center[1]),
                 float(layer.half[0]),
                 float(layer.half[1]),
+                (float(layer.half[0]) + float(layer.half[1])) * _SQRT_HALF,
+                max(float(layer.half[0]), float(layer.half[1])),
                 bool(layer.turns),
             )
             for layer in arm.layers
@@ -226,9 +241,10 @@ class GraspApproachPolicy:
                     rotation=rotations[k].copy(),
                     standoff=float(goals.standoffs[k]),
                     top=top,
-                    tol_entry=min(TOL_MAX, max(TOL_MIN, 0.5 * slack)),
-                    tol_deep=min(TOL_MAX, max(TOL_MIN, 0.75 * slack)),
+                    tol_entry=max(TOL_MIN, slack - SLOT_MARGIN_ENTRY),
+                    tol_deep=max(TOL_MIN, slack - SLOT_MARGIN_DEEP),
                     slot_reach=radius + SLOT_REACH,
+                    near=radius + ALIGN_REACH,
                     posture=None
                     if goals.configurations is None
                     else goals.configurations[k].copy(),
@@ -248,7 +264,7 @@ class GraspApproachPolicy:
         goal = self._goals[int(target)]
         x, rot, jac = self._pose_jacobian(q)
         xs = x.tolist()
-        e = rotation_log((goal.rotation @ rot.T).tolist())
+        e = rotation_log(goal.rotation.dot(rot.T).tolist())
         rot_err = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
         carrot, speed, transit = self._carrot(q, xs, rot, int(target), rot_err)
         v = [carrot[0] - xs[0], carrot[1] - xs[1], carrot[2] - xs[2]]
@@ -262,13 +278,13 @@ class GraspApproachPolicy:
         if transit and goal.posture is not None and self.posture_step > 0.0:
             z = goal.posture - q
             z *= self.posture_step
-            twist -= jac @ z
-        a = jac @ jac.T
+            twist -= jac.dot(z)
+        a = jac.dot(jac.T)  # ndarray.dot: less call overhead than @ on these small arrays
         a += self._lam2
         _, y, info = dposv(a, twist, overwrite_a=1, overwrite_b=1)
         if info != 0:  # pragma: no cover - J J^T + lambda^2 I is positive definite
             raise InvalidInputError("arm.pose_jacobian: returned a Jacobian that is not finite")
-        dq = jac.T @ y
+        dq = jac.T.dot(y)
         if z is not None:
             dq += z
         m = math.sqrt(float(dq.dot(dq)))
@@ -292,30 +308,37 @@ class GraspApproachPolicy:
         frames = None
         if rot_err <= ROTATION_TOL:
             tol = goal.tol_entry if above >= goal.top + self._drop else goal.tol_deep
-            # the axis point one step nearer the grasp: the lateral error is taken out first
-            # and the descent runs down the gripper axis
-            step = self.approach_step if above <= goal.standoff + 0.005 else self.tcp_step
-            h = above - step if above > step else 0.0
+            # the axis point one step down (at approach_speed below the pre-grasp point):
+            # with the TCP's step capped at tcp_speed, the lateral error is taken out first,
+            # then the descent runs down the gripper axis
+            sink = self.approach_step if above <= goal.standoff + 0.005 else self.tcp_step
+            h = above - sink if above > sink else 0.0
             down = (g[0] - h * a[0], g[1] - h * a[1], g[2] - h * a[2])
             if ex * ex + ey * ey <= tol * tol:
-                return down, step, False
-            # below the pre-grasp point with the object in the open slot (a user brought the
-            # hand there): the fingers may slide along the slot plane to the axis, as long as
-            # the hand keeps clear of the other objects
-            if (
-                above < goal.standoff
-                and abs(ey) + abs(ex) * rot_err <= tol
-                and abs(ex) <= goal.slot_reach
-            ):
+                return down, self.tcp_step, False
+            if above < goal.standoff:  # below the pre-grasp point (a user brought it there)
                 frames = self._frames(q, rot)
-                if self._freedom(xs, down, frames, skip=k) >= 1.0:
-                    return down, step, False
-                # another object's clearance floor is in the way: slide at that height
-                floor = self._pass_height(xs, down, frames, skip=k)
-                held = (down[0], down[1], max(down[2], floor))
-                f = self._freedom(xs, held, frames, skip=k)
-                if f > 0.0:
-                    return _toward(xs, held, f), step, False
+                # the object in the open slot: the fingers slide along the slot plane to the
+                # axis (and on down), the hand clear of the other objects
+                if abs(ey) + abs(ex) * rot_err <= tol and abs(ex) <= goal.slot_reach:
+                    if self._freedom(xs, down, frames, skip=k) >= 1.0:
+                        return down, self.tcp_step, False
+                    # another object's clearance floor is in the way: slide at that height
+                    floor = self._pass_height(xs, down, frames, skip=k)
+                    held = (down[0], down[1], max(down[2], floor))
+                    f = self._freedom(xs, held, frames, skip=k)
+                    if f > 0.0:
+                        return _toward(xs, held, f), self.tcp_step, False
+                # the fingertips above the object's top, near it: over to the axis at this
+                # height, then down
+                if (
+                    above - self._drop >= goal.top + ALIGN_MARGIN
+                    and ex * ex + ey * ey <= goal.near * goal.near
+                ):
+                    level = (g[0] - above * a[0], g[1] - above * a[1], g[2] - above * a[2])
+                    f = self._freedom(xs, level, frames, skip=k)
+                    if f > 0.0:
+                        return _toward(xs, level, f), self.tcp_step, False
         if frames is None:
             frames = self._frames(q, rot)
         p = goal.p
@@ -339,24 +362,27 @@ class GraspApproachPolicy:
             ct, st = math.cos(turn), math.sin(turn)
         out = []
         m = self.clearance
-        for lo, hi, cx, cy, hx, hy, turns in self._layers:
+        for lo, reach, cx, cy, hx, hy, hd, hmax, turns in self._layers:
             if turns:
-                e1x, e1y, e2x, e2y = ct, st, -st, ct
+                ux, uy = r00 * ct + r01 * st, r10 * ct + r11 * st
+                vx, vy = r01 * ct - r00 * st, r11 * ct - r10 * st
             else:
-                e1x, e1y, e2x, e2y = 1.0, 0.0, 0.0, 1.0
-            ux, uy = r00 * e1x + r01 * e1y, r10 * e1x + r11 * e1y
-            vx, vy = r00 * e2x + r01 * e2y, r10 * e2x + r11 * e2y
-            ox, oy = cx * ux + cy * vx, cx * uy + cy * vy
-            grow = m + max(abs(hi), abs(lo)) * tilt
-            bottom = lo - max(hx, hy) * tilt - m
-            hd = (hx + hy) * _SQRT_HALF
+                ux, uy, vx, vy = r00, r10, r01, r11
             dirs = (
                 (ux, uy, hx),
                 (vx, vy, hy),
                 ((ux + vx) * _SQRT_HALF, (uy + vy) * _SQRT_HALF, hd),
                 ((ux - vx) * _SQRT_HALF, (uy - vy) * _SQRT_HALF, hd),
             )
-            out.append((bottom, ox, oy, grow, dirs))
+            out.append(
+                (
+                    lo - hmax * tilt - m,  # bottom, less the clearance
+                    cx * ux + cy * vx,  # centre's offset from the TCP
+                    cx * uy + cy * vy,
+                    m + reach * tilt,  # inflation
+                    dirs,
+                )
+            )
         return out
 
     def _freedom(
