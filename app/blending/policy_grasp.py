@@ -69,10 +69,14 @@ POSTURE_GAIN = 1.0
 SLOT_REACH = 0.02
 """m: below the pre-grasp point, with the object inside the open slot, the hand slides along
 the slot plane to the axis from up to the object's radius plus this off it."""
-ALIGN_MARGIN, ALIGN_REACH = 0.005, 0.05
+ALIGN_MARGIN, ALIGN_REACH = 0.002, 0.05
 """m: below the pre-grasp point, with the fingertips at least ``ALIGN_MARGIN`` above the
 object's top and the TCP within the object's radius plus ``ALIGN_REACH`` of the axis, the hand
 moves over to the axis at that height instead of retreating to the pre-grasp point."""
+HOLD_WIDEN = 0.003
+"""m: once approaching a goal (corridor, slot plane or aligning over it), the policy keeps
+approaching until the hand is this much farther off than the thresholds that let it start
+(hysteresis: a hand held at a threshold does not flip between approaching and retreating)."""
 TOL_MIN = 0.002
 SLOT_MARGIN_ENTRY, SLOT_MARGIN_DEEP = 0.004, 0.002
 """m: the approach corridor's radius is the open fingers' slack around the object (the slot's
@@ -214,6 +218,7 @@ class GraspApproachPolicy:
         self._lower = arm.lower
         self._upper = arm.upper
         self._goals: tuple[_Goal, ...] = ()
+        self._approaching: set[int] = set()  # goals it is approaching (hysteresis)
         self._objects: tuple[tuple[float, float, float, float], ...] = ()
 
     # ---- goals -------------------------------------------------------------------------
@@ -250,6 +255,8 @@ class GraspApproachPolicy:
                     else goals.configurations[k].copy(),
                 )
             )
+        if len(out) != len(self._goals):
+            self._approaching.clear()
         self._goals = tuple(out)
         self._objects = tuple(
             (float(pos[0]), float(pos[1]), float(env[0]), float(pos[2] + env[1]))
@@ -266,7 +273,12 @@ class GraspApproachPolicy:
         xs = x.tolist()
         e = rotation_log(goal.rotation.dot(rot.T).tolist())
         rot_err = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
-        carrot, speed, transit = self._carrot(q, xs, rot, int(target), rot_err)
+        k = int(target)
+        carrot, speed, transit = self._carrot(q, xs, rot, k, rot_err)
+        if transit:
+            self._approaching.discard(k)
+        else:
+            self._approaching.add(k)
         v = [carrot[0] - xs[0], carrot[1] - xs[1], carrot[2] - xs[2]]
         n = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
         sv = speed / n if n > speed else 1.0
@@ -306,8 +318,10 @@ class GraspApproachPolicy:
         ex = dx * gx[0] + dy * gx[1] + dz * gx[2]  # off the axis along the fingers' width
         ey = dx * gy[0] + dy * gy[1] + dz * gy[2]  # ... across the slot
         frames = None
-        if rot_err <= ROTATION_TOL:
-            tol = goal.tol_entry if above >= goal.top + self._drop else goal.tol_deep
+        held = k in self._approaching
+        widen = HOLD_WIDEN if held else 0.0
+        if rot_err <= ROTATION_TOL + (0.05 if held else 0.0):
+            tol = (goal.tol_entry if above >= goal.top + self._drop else goal.tol_deep) + widen
             # the axis point one step down (at approach_speed below the pre-grasp point):
             # with the TCP's step capped at tcp_speed, the lateral error is taken out first,
             # then the descent runs down the gripper axis
@@ -325,14 +339,14 @@ class GraspApproachPolicy:
                         return down, self.tcp_step, False
                     # another object's clearance floor is in the way: slide at that height
                     floor = self._pass_height(xs, down, frames, skip=k)
-                    held = (down[0], down[1], max(down[2], floor))
-                    f = self._freedom(xs, held, frames, skip=k)
+                    slide = (down[0], down[1], max(down[2], floor))
+                    f = self._freedom(xs, slide, frames, skip=k)
                     if f > 0.0:
-                        return _toward(xs, held, f), self.tcp_step, False
+                        return _toward(xs, slide, f), self.tcp_step, False
                 # the fingertips above the object's top, near it: over to the axis at this
                 # height, then down
                 if (
-                    above - self._drop >= goal.top + ALIGN_MARGIN
+                    above - self._drop >= goal.top + (0.0 if held else ALIGN_MARGIN)
                     and ex * ex + ey * ey <= goal.near * goal.near
                 ):
                     level = (g[0] - above * a[0], g[1] - above * a[1], g[2] - above * a[2])
