@@ -99,6 +99,33 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
         "kind": ("event kind (enrol, consent, trial_start, trial_end, answer, redo, ...)", ""),
         "detail": ("JSON object with the event's details", ""),
     },
+    "sessions": {
+        "participant": ("participant id (pseudonymous; L0001... for the open link's)", ""),
+        "session_id": ("the participant's session in the store", ""),
+        "schedule_row": ("design row of the counterbalanced schedule (study.schedule)", ">= 0"),
+        "status": (
+            "what became of the session",
+            "enrolled | running | completed | withdrawn | ended",
+        ),
+        "enrolled_at": ("enrolment time, ISO 8601 UTC", ""),
+        "started_at": ("first start of the session, ISO 8601 UTC (empty: never started)", ""),
+        "ended_at": ("time the session completed, was withdrawn or ended, ISO 8601 UTC", ""),
+        "source": (
+            "how the participant came: enrolled in the console, or by the open link",
+            "console | link",
+        ),
+        "prolific_pid": (
+            "recruitment ID: the link's PROLIFIC_PID (identifies the panel account: remove"
+            " before sharing the data)",
+            "",
+        ),
+        "prolific_study_id": ("the link's STUDY_ID (the panel's study)", ""),
+        "prolific_session_id": ("the link's SESSION_ID (the panel's submission)", ""),
+        "pid": (
+            "recruitment ID: the link's generic pid (remove before sharing the data)",
+            "",
+        ),
+    },
 }
 
 
@@ -181,7 +208,8 @@ def write_codebook(book: pd.DataFrame, out: str | os.PathLike[str]) -> list[Path
         "# Codebook",
         "",
         "Tidy long-format tables exported by `python -m study export`; one row per trial"
-        " attempt (trials), control tick (samples), answer (ratings) or event (events).",
+        " attempt (trials), control tick (samples), answer (ratings), event (events) or"
+        " participant's session (sessions).",
         "",
     ]
     for table, group in book.groupby("table", sort=False):

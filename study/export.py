@@ -1,4 +1,4 @@
-"""Tidy long-format tables from a study store: trials, samples, ratings, events.
+"""Tidy long-format tables from a study store: trials, samples, ratings, events, sessions.
 
 ``tidy_tables(store_or_path)`` is the one place that defines them (the team contract's "Tidy
 tables"); ``python -m study export`` writes them as CSV and Parquet with a codebook
@@ -44,7 +44,7 @@ from study.store import Store, now_iso
 if TYPE_CHECKING:
     from study.protocol import Protocol
 
-TABLE_NAMES = ("trials", "samples", "ratings", "events")
+TABLE_NAMES = ("trials", "samples", "ratings", "events", "sessions")
 DEFAULT_POINTS = 7
 
 TRIAL_COLUMNS = (
@@ -92,6 +92,24 @@ RATING_COLUMNS = (
     "trial_id",
 )
 EVENT_COLUMNS = ("participant", "session_id", "at", "kind", "detail")
+RECRUITMENT_COLUMNS: dict[str, str] = {
+    "PROLIFIC_PID": "prolific_pid",
+    "STUDY_ID": "prolific_study_id",
+    "SESSION_ID": "prolific_session_id",
+    "pid": "pid",
+}
+"""An open link's URL parameters (``study.server.recruitment``) -> their ``sessions`` column."""
+SESSION_COLUMNS = (
+    "participant",
+    "session_id",
+    "schedule_row",
+    "status",
+    "enrolled_at",
+    "started_at",
+    "ended_at",
+    "source",
+    *RECRUITMENT_COLUMNS.values(),
+)
 
 
 class ExportError(ValueError):
@@ -104,7 +122,7 @@ def tidy_tables(
     protocol: Protocol | None = None,
     search: Sequence[Path] | None = None,
 ) -> dict[str, pd.DataFrame]:
-    """The tidy tables of a store: ``{"trials", "samples", "ratings", "events"}``.
+    """The tidy tables of a store: ``{"trials", "samples", "ratings", "events", "sessions"}``.
 
     ``protocol`` (optional; must be the one the store was run with) names the questionnaire's
     items and scales; without it ``resolve_protocol(store, search=search)`` picks one.
@@ -200,6 +218,7 @@ class _Exporter:
             "samples": samples,
             "ratings": self.ratings(),
             "events": self.events(),
+            "sessions": self.sessions(),
         }
 
     # -- trials ------------------------------------------------------------------------------
@@ -323,6 +342,35 @@ class _Exporter:
         columns = [c for s in SAMPLE_COLUMNS for c in (prob_cols if s == "probabilities" else [s])]
         out = out[[*SAMPLE_KEY, *columns]].reset_index(drop=True)
         return _typed(out, ints=("trial_id", "tick"), bools=())
+
+    # -- sessions ----------------------------------------------------------------------------
+    def sessions(self) -> pd.DataFrame:
+        """One row per participant's session: status, times, and how they came (``source``:
+        ``console`` or ``link``, with the recruitment IDs an open link carried)."""
+        events = self.store.frame("events")
+        rows = []
+        rows_by = self.participants.set_index("participant")
+        for s in self.store.sessions():
+            mine = events[events["session_id"] == s.session_id]
+            started = mine.loc[mine["kind"] == "start", "at"]
+            enrol = mine.loc[mine["kind"] == "enrol", "detail"]
+            detail = json.loads(enrol.iloc[0]) if len(enrol) else {}
+            recruitment = detail.get("recruitment") or {}
+            row = {
+                "participant": s.participant,
+                "session_id": s.session_id,
+                "schedule_row": rows_by.loc[s.participant, "schedule_row"],
+                "status": s.status,
+                "enrolled_at": s.created_at,
+                "started_at": started.iloc[0] if len(started) else None,
+                "ended_at": s.ended_at,
+                "source": "link" if recruitment else "console",
+            }
+            for param, column in RECRUITMENT_COLUMNS.items():
+                row[column] = recruitment.get(param)
+            rows.append(row)
+        out = pd.DataFrame(rows, columns=list(SESSION_COLUMNS))
+        return _typed(out, ints=("session_id", "schedule_row"), bools=())
 
     # -- ratings and events ------------------------------------------------------------------
     def ratings(self) -> pd.DataFrame:

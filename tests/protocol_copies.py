@@ -36,3 +36,16 @@ def short_protocol(
     path = Path(directory) / "short.toml"
     path.write_text(text, encoding="utf-8")
     return path
+
+
+def with_completion(path: Path, *, code: str = "", redirect_url: str = "") -> Path:
+    """Add an online study's ``completion_code`` and ``redirect_url`` to the protocol at
+    ``path`` (in place; either may be left out); return ``path``."""
+    text = path.read_text(encoding="utf-8")
+    lines = ([f"completion_code = {code!r}"] if code else []) + (
+        [f"redirect_url = {redirect_url!r}"] if redirect_url else []
+    )
+    text, n = re.subn(r"(?m)^\[debrief\]\n", "[debrief]\n" + "".join(f"{x}\n" for x in lines), text)
+    assert n == 1, "the protocol's [debrief] table moved: update tests/protocol_copies.py"
+    path.write_text(text, encoding="utf-8")
+    return path

@@ -219,7 +219,7 @@ def store_path(tmp_path_factory, protocol):
 def test_trials_table_columns_and_covariates(store_path, protocol) -> None:
     path, info = store_path
     tables = tidy_tables(path)
-    assert set(tables) == {"trials", "samples", "ratings", "events"}
+    assert set(tables) == {"sessions", "trials", "samples", "ratings", "events"}
     trials = tables["trials"]
     contract = [
         "participant",
@@ -365,7 +365,7 @@ def test_export_cli_writes_csv_parquet_and_codebook(store_path, tmp_path) -> Non
     )
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout.strip().splitlines()[-1])
-    assert summary["rows"] == {"trials": 7, "samples": 9, "ratings": 10, "events": 2}
+    assert summary["rows"] == {"trials": 7, "samples": 9, "ratings": 10, "events": 2, "sessions": 2}
     tables = tidy_tables(path)
     for name, df in tables.items():
         parquet = pd.read_parquet(out / f"{name}.parquet")

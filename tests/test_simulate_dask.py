@@ -232,10 +232,13 @@ def test_ctrl_c_leaves_whole_participants_and_resume_finishes(
         start_new_session=True,
     )
     try:
-        deadline = time.monotonic() + 120
+        # generous: on a loaded machine two participants can take minutes; a deadline that
+        # passes silently would interrupt too early and fail on the count below instead
+        deadline = time.monotonic() + 480
         while progress(db)[1] < 2 and time.monotonic() < deadline and proc.poll() is None:
             time.sleep(0.01)
         assert proc.poll() is None, "the simulation ended before it could be interrupted"
+        assert progress(db)[1] >= 2, "two participants not completed within 480 s"
         os.killpg(proc.pid, signal.SIGINT)
         out, err = proc.communicate(timeout=60)
     finally:

@@ -11,10 +11,12 @@ import socket
 import sys
 import threading
 from pathlib import Path
+from urllib.parse import urlsplit
 
 from app.cli import port as port_number
 from app.cli import rate_hz
 from study.protocol import load_protocol
+from study.server.forwarded import trusted_networks
 from study.server.live import session_factory
 from study.server.server import StudyServer
 from study.session import open_store
@@ -65,7 +67,57 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="allow viser's public share link (off by default: a study is never published)",
     )
+    parser.add_argument(
+        "--open-link",
+        type=places,
+        default=0,
+        metavar="PLACES",
+        help="turn the open-enrolment link on with this many places (online studies: a tab"
+        " whose URL carries PROLIFIC_PID or pid gets a session without a join code); default:"
+        " off (the console turns it on and off)",
+    )
+    parser.add_argument(
+        "--trusted-proxy",
+        action="append",
+        default=[],
+        metavar="ADDR",
+        help="a TLS reverse proxy's address or network (repeatable): connections from it count"
+        " under the client address it appends to X-Forwarded-For, and the Origin check accepts"
+        " the host name it forwards",
+    )
+    parser.add_argument(
+        "--public-url",
+        default=None,
+        metavar="URL",
+        help="the participants' address as they reach it behind the proxy (e.g."
+        " https://study.example.org), printed and shown with the open link",
+    )
     parser.add_argument("--verbose", action="store_true", help="log viser connections")
+
+
+def places(text: str) -> int:
+    """``--open-link``: a whole number of places, 0..100000."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"must be a whole number of places, got {text!r}"
+        ) from None
+    if not 0 <= value <= 100_000:
+        raise argparse.ArgumentTypeError(f"must be 0..100000 places, got {value}")
+    return value
+
+
+def public_url(text: str | None) -> str | None:
+    """``--public-url``: an http(s) URL of a host, without query or fragment."""
+    if text is None:
+        return None
+    parts = urlsplit(text)
+    if parts.scheme not in ("http", "https") or not parts.hostname or parts.query or parts.fragment:
+        raise ValueError(
+            f"--public-url {text!r} is not an http(s) address such as https://study.example.org"
+        )
+    return text.rstrip("/")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -95,6 +147,12 @@ def main(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             return 2
+    try:
+        proxies = trusted_networks(args.trusted_proxy)
+        public = public_url(args.public_url)
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     args.db.parent.mkdir(parents=True, exist_ok=True)
     try:
         store = open_store(args.db, protocol)
@@ -111,6 +169,9 @@ def main(args: argparse.Namespace) -> int:
         verbose=args.verbose,
         kiosk=args.kiosk,
         allow_share=args.share,
+        open_link=args.open_link,
+        public_url=public,
+        trusted_proxies=proxies,
     )
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -118,6 +179,8 @@ def main(args: argparse.Namespace) -> int:
     participant_url, experimenter_url = server.urls()
     print(f"participant view:  {participant_url}", flush=True)
     print(f"experimenter view: {experimenter_url}  (this machine only)", flush=True)
+    if args.open_link:
+        print(f"open link ({args.open_link} places): {server.link_url()}", flush=True)
     try:
         stop.wait()
     finally:

@@ -75,10 +75,14 @@ class Texts:
 
     ``instructions`` maps a phase (``welcome``, ``training``, ``task``, ``rating``,
     ``preference``, ``pause``) to its text; ``{target}`` in the training and task texts is replaced
-    by the target object's name.
+    by the target object's name. ``completion_code`` (shown at the end of a completed session)
+    and ``redirect_url`` (where the page then goes: an online panel's completion URL) are for
+    online studies; empty when not used.
     """
 
     consent: str
     consent_agree: str
     debrief: str
     instructions: Mapping[str, str]
+    completion_code: str = ""
+    redirect_url: str = ""

@@ -23,6 +23,11 @@ INSTRUCTIONS_REQUIRED = ("welcome", "training", "task", "rating")
 INSTRUCTIONS_OPTIONAL = ("preference", "pause")  # preference: required if after_task is asked
 PLACEHOLDERS = {"training": {"target"}, "task": {"target"}}
 _ITEM_ID = re.compile(r"^[a-z][a-z0-9_]{0,31}$")
+_COMPLETION_CODE = re.compile(r"[A-Za-z0-9_-]{1,64}", re.ASCII)
+_URL = re.compile(r"https?://[^\s\\\"'<>`]{1,2000}", re.ASCII)
+REDIRECT_PLACEHOLDERS = ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID", "pid")
+"""What ``debrief.redirect_url`` may contain in braces: the participant's browser fills each in
+from its own link (``study.server.recruitment``)."""
 
 
 def read_questionnaire(t: Table, *, n_modes: int) -> Questionnaire:
@@ -85,7 +90,7 @@ def read_texts(root: Table, *, questionnaire: Questionnaire) -> Texts:
     consent = root.table("consent")
     consent.only("text", "agree")
     debrief = root.table("debrief")
-    debrief.only("text")
+    debrief.only("text", "completion_code", "redirect_url")
     t = root.table("instructions")
     t.only(*INSTRUCTIONS_REQUIRED, *INSTRUCTIONS_OPTIONAL)
     instructions: dict[str, str] = {}
@@ -100,7 +105,36 @@ def read_texts(root: Table, *, questionnaire: Questionnaire) -> Texts:
         consent_agree=consent.string("agree"),
         debrief=debrief.string("text"),
         instructions=MappingProxyType(instructions),
+        completion_code=_completion_code(debrief),
+        redirect_url=_redirect_url(debrief),
     )
+
+
+def _completion_code(t: Table) -> str:
+    """``debrief.completion_code``: what an online panel asks participants to paste back."""
+    if "completion_code" not in t:
+        return ""
+    code = t.string("completion_code")
+    if not _COMPLETION_CODE.fullmatch(code):
+        raise t.value_error("completion_code", "use 1-64 letters, digits, '-' or '_'")
+    return code
+
+
+def _redirect_url(t: Table) -> str:
+    """``debrief.redirect_url``: an http(s) URL, its only placeholders the link's IDs."""
+    if "redirect_url" not in t:
+        return ""
+    url = t.string("redirect_url")
+    if not _URL.fullmatch(url):
+        raise t.value_error(
+            "redirect_url", "give an http:// or https:// URL without spaces or quotes"
+        )
+    fields = re.findall(r"\{([^{}]*)\}", url)
+    unknown = [f for f in fields if f not in REDIRECT_PLACEHOLDERS]
+    if unknown or url.count("{") != len(fields) or url.count("}") != len(fields):
+        allowed = ", ".join(f"{{{p}}}" for p in REDIRECT_PLACEHOLDERS)
+        raise t.value_error("redirect_url", f"placeholders may only be {allowed}")
+    return url
 
 
 def _placeholders_checked(t: Table, phase: str) -> str:
@@ -125,6 +159,8 @@ def participant_texts(p: Protocol) -> list[tuple[str, str]]:
         ("consent.text", p.texts.consent),
         ("consent.agree", p.texts.consent_agree),
         ("debrief.text", p.texts.debrief),
+        ("debrief.completion_code", p.texts.completion_code),
+        ("debrief.redirect_url", p.texts.redirect_url),
     ]
     texts += [(f"instructions.{k}", v) for k, v in p.texts.instructions.items()]
     scales = {}

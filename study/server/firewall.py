@@ -9,9 +9,11 @@ front of that:
   websocket server a message-size limit of ``max_bytes`` from the handshake on (a bigger
   message closes its connection before it is buffered), refuses a websocket whose ``Origin``
   is another site's (a page elsewhere in the browser cannot drive the study), refuses more than
-  ``max_connections_per_address`` / ``max_connections`` open websockets, refuses a repeated
-  ``Host``/``Origin``/``Upgrade`` header and a ``Host`` carrying userinfo or a path (403, never
-  500), and answers a request for a file it cannot even name (a 5,000-character path) with 404
+  ``max_connections_per_address`` / ``max_connections`` open websockets (an address being,
+  behind a trusted reverse proxy, the client's it forwards: ``trusted_proxies``,
+  :mod:`study.server.forwarded`, which also gives the host names the origin check accepts),
+  refuses a repeated ``Host``/``Origin``/``Upgrade`` header and a ``Host`` carrying userinfo
+  or a path (403, never 500), and answers a request for a file it cannot even name (a 5,000-character path) with 404
   instead of 500;
 * per frame, before viser sees it (:meth:`Firewall.screened_recv`): a text frame (viser speaks
   binary) closes its connection with 1003; and a server-wide budget of ``budget_per_s``
@@ -64,6 +66,8 @@ import websockets.asyncio.server as ws_server
 from viser import _messages as vm
 from websockets.datastructures import Headers
 from websockets.http11 import Response
+
+from study.server.forwarded import Network, accepted_hosts, client_address
 
 LOGGER = logging.getLogger("study.server.firewall")
 
@@ -195,6 +199,7 @@ class Firewall:
         budget_per_s: float | None = 1000.0,
         budget_burst: float = 2000.0,
         evict_after_s: int = 2,
+        trusted_proxies: tuple[Network, ...] = (),
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.allowed = None if allowed is None else frozenset(allowed) - SHARE_TYPES
@@ -216,6 +221,8 @@ class Firewall:
         self.budget_per_s = budget_per_s
         self.budget_burst = budget_burst
         self.evict_after_s = evict_after_s
+        self.trusted_proxies = trusted_proxies
+        """Peers whose forwarded client address counts (``study.server.forwarded``)."""
         self._clock = clock  # of the rate limits (a test's own clock)
         self.passed = 0
         self.dropped: Counter[str] = Counter()
@@ -272,17 +279,28 @@ class Firewall:
             return "a name other than this machine's (DNS rebinding)"
         if self.check_origin:
             origin = request.headers.get("Origin")
-            if origin is not None and urlsplit(origin).netloc.lower() != host.lower():
+            hosts = accepted_hosts(
+                _remote_host(connection), request.headers, trusted=self.trusted_proxies
+            )
+            if origin is not None and urlsplit(origin).netloc.lower() not in hosts:
                 return "another site's page (origin check)"
         server = self._server
         live = dict(server._websock_server._live_connections) if server is not None else {}
         if len(live) >= self.max_connections:
             return f"too many connections ({len(live)})"
-        address = _remote_host(connection)
-        same = sum(1 for c in live.values() if _remote_host(c) == address)
+        address = self.client_host(connection, request.headers)
+        same = sum(1 for c in live.values() if self.client_host(c) == address)
         if same >= self.max_connections_per_address:
             return f"too many connections from one address ({same})"
         return None
+
+    def client_host(self, connection: Any, headers: Any = None) -> str:
+        """The address limits and logs use for ``connection``: its peer's, or behind a trusted
+        proxy the client's (``study.server.forwarded``)."""
+        if headers is None:
+            request = getattr(connection, "request", None)
+            headers = getattr(request, "headers", None)
+        return client_address(_remote_host(connection), headers, trusted=self.trusted_proxies)
 
     # -- per message -----------------------------------------------------------------------------
     def admit(self) -> None:
@@ -323,7 +341,7 @@ class Firewall:
     def screened_recv(self, connection: Any) -> Callable[..., Any]:
         """``connection.recv`` behind the text-frame rule and the server-wide budget."""
         recv = connection.recv
-        address = _remote_host(connection)
+        address = self.client_host(connection)
 
         async def screened(*args: Any, **kwargs: Any) -> Any:
             while True:

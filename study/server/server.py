@@ -8,6 +8,15 @@
   participant at a time) does a tab bind to the one open session without a code. A session is
   bound to one tab at a time; when that tab goes away (reload, lost connection) its running
   trial pauses and the session waits for its code again.
+* Open enrolment (online studies, off by default): once it is on (or has enrolled anyone), a
+  new tab first says what its URL carries, and a tab whose URL carries a recruitment ID
+  (``?PROLIFIC_PID=...`` or ``?pid=...``, :mod:`study.server.recruitment`) gets a session
+  without a code while the link is on and has places (:mod:`study.server.open_link`); the
+  session starts at once. One session per recruitment ID: a reload with the same ID rejoins
+  it, another tab with the same ID waits (and is told so) while the first holds it.
+* Behind a TLS reverse proxy (``trusted_proxies``), limits and logs use the client address
+  the proxy forwards and the ``Origin`` check accepts the public host name it forwards
+  (:mod:`study.server.forwarded`).
 * Experimenter view: a second ``ViserServer`` on ``127.0.0.1`` only, so the participant's
   machine has no route to it. The two servers share nothing but this object.
 
@@ -18,6 +27,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import threading
 import time
 from collections.abc import Iterable
@@ -26,14 +36,31 @@ import viser
 
 from study.protocol.blinding import find_words
 from study.server import blinding, firewall
-from study.server.experimenter import ExperimenterConsole, SessionDetail, SessionSummary
+from study.server.experimenter import (
+    ExperimenterConsole,
+    LinkState,
+    SessionDetail,
+    SessionSummary,
+    StudyProgress,
+)
 from study.server.firewall import LOOPBACK_NAMES
+from study.server.forwarded import Network
 from study.server.join import JoinThrottle, new_join_code, normalize_code
 from study.server.live import LiveSession, SessionFactory
+from study.server.live.progress import study_progress
+from study.server.live.screens import show_end
+from study.server.live.texts import (
+    LINK_CLOSED_TEXT,
+    LINK_FAILED_TEXT,
+    LINK_IN_USE_TEXT,
+    LINK_INVALID_TEXT,
+)
+from study.server.open_link import LinkClosed, OpenLink
 from study.server.page_script import page_script
 from study.server.participant import ParticipantPage
+from study.server.recruitment import LinkError, Recruitment, link_script, parse_ids, read_link
 from study.server.scene import frame_task
-from study.session import EXPERIMENTER_ACTIONS
+from study.session import EXPERIMENTER_ACTIONS, FINAL_STATUSES
 
 LOGGER = logging.getLogger("study.server.server")
 
@@ -51,6 +78,9 @@ REJOIN_WAIT_S = 45.0
 the websocket's ping interval plus timeout, 20 + 20 s)."""
 """Where a tab keeps its join code (the browser's local storage), so a reload rejoins at once."""
 JOIN_THROTTLED = "Too many tries. Please wait a minute, then ask the experimenter for the code."
+LINK_QUIET_S = 2.0
+"""How long a link tab waits for its session's old tab to let go (a reload) before it is told
+that the study is open in another tab."""
 
 
 class StudyServer:
@@ -74,7 +104,14 @@ class StudyServer:
         kiosk: bool = False,
         allow_share: bool = False,
         throttle: JoinThrottle | None = None,
+        open_link: int = 0,
+        public_url: str | None = None,
+        trusted_proxies: tuple[Network, ...] = (),
     ) -> None:
+        """``open_link``: places of the open-enrolment link (0: off; the console turns it on
+        and off); ``public_url``: the participants' address as they reach it (behind a
+        proxy), shown with the link; ``trusted_proxies``: reverse proxies whose forwarded
+        client address and host name count (``study.server.forwarded``)."""
         self.factory = factory
         self.render_hz = render_hz
         self.kiosk = kiosk
@@ -84,8 +121,13 @@ class StudyServer:
         self._sessions: dict[str, LiveSession] = {}
         self._pages: dict[int, ParticipantPage] = {}
         self._page_session: dict[int, str] = {}
+        self._link_pages: set[int] = set()
+        self._link_logged: dict[str, float] = {}
+        """Tabs that came with a recruitment ID: they get no join-code screen."""
+        self.public_url = public_url
+        self.open_link = OpenLink(factory.store, enabled=open_link > 0, cap=open_link)
 
-        self.firewall = firewall.Firewall(allow_share=allow_share)
+        self.firewall = firewall.Firewall(allow_share=allow_share, trusted_proxies=trusted_proxies)
         with firewall.hardened_serve(self.firewall):
             self.participant = viser.ViserServer(host=host, port=port, verbose=verbose)
         self.guard = blinding.install(self.participant, words=condition_words)
@@ -124,12 +166,21 @@ class StudyServer:
         return self.experimenter.get_port()
 
     def urls(self, *, lan_host: str | None = None) -> tuple[str, str]:
-        host = lan_host or self.participant.get_host()
-        if host in ("0.0.0.0", ""):
-            host = _lan_address()
+        if self.public_url:
+            participant_url = self.public_url.rstrip("/")
+        else:
+            host = lan_host or self.participant.get_host()
+            if host in ("0.0.0.0", ""):
+                host = _lan_address()
+            participant_url = f"http://{host}:{self.participant_port}"
+        return participant_url, f"http://127.0.0.1:{self.experimenter_port}"
+
+    def link_url(self) -> str:
+        """The open link as a recruitment site takes it (Prolific fills its placeholders)."""
+        base = self.urls()[0]
         return (
-            f"http://{host}:{self.participant_port}",
-            f"http://127.0.0.1:{self.experimenter_port}",
+            f"{base}/?PROLIFIC_PID={{{{%PROLIFIC_PID%}}}}&STUDY_ID={{{{%STUDY_ID%}}}}"
+            f"&SESSION_ID={{{{%SESSION_ID%}}}}"
         )
 
     def stop(self) -> None:
@@ -145,19 +196,43 @@ class StudyServer:
         self.experimenter.stop()
 
     # -- sessions ----------------------------------------------------------------------------
-    def enrol(self, participant: str) -> str:
+    def enrol(self, participant: str, *, recruitment: Recruitment | None = None) -> str:
         """Enrol ``participant`` (or reopen their session) and return its join code."""
         with self._lock:
             for code, live in self._sessions.items():
                 if live.participant == participant and not live.closed:
                     return code
             code = new_join_code(set(self._sessions))
-            live = self.factory(participant, code=code, title=PAGE_TITLE, render_hz=self.render_hz)
+            live = self.factory(
+                participant,
+                code=code,
+                title=PAGE_TITLE,
+                render_hz=self.render_hz,
+                recruitment=recruitment.as_dict() if recruitment else None,
+            )
+            if recruitment is None and (known := self.open_link.recruitment_of(participant)):
+                live.recruitment = known.ids
             live.on_closed = lambda: self._offer_all()
             self._sessions[code] = live
         LOGGER.info("session %s opened for %s", code, participant)
         self._offer_all()
         return code
+
+    def reopenable(self) -> list[str]:
+        """Unfinished sessions in the store that no live session holds (a restart or crash
+        left them): the console can reopen them."""
+        with self._lock:
+            open_now = {s.participant for s in self._sessions.values() if not s.closed}
+        return self.factory.reopenable(open_now=open_now)
+
+    def reopen(self, participant: str) -> str:
+        """Reopen ``participant``'s interrupted session; returns its join code."""
+        if participant not in self.reopenable():
+            raise ServerError(
+                f"{participant!r} has no interrupted session to reopen (finished, open already,"
+                " or not enrolled)"
+            )
+        return self.enrol(participant)
 
     def session(self, code: str) -> LiveSession:
         with self._lock:
@@ -190,10 +265,34 @@ class StudyServer:
         self._offer_all()
         return result
 
+    def progress(self) -> StudyProgress:
+        return study_progress(self.factory.store, self.factory.protocol)
+
+    def link(self) -> LinkState:
+        return LinkState(
+            enabled=self.open_link.enabled,
+            cap=self.open_link.cap,
+            used=self.open_link.used(),
+            url=self.link_url(),
+        )
+
+    def set_link(self, *, enabled: bool, cap: int) -> LinkState:
+        self.open_link.configure(enabled=enabled, cap=cap)
+        LOGGER.info("open link %s (%d places)", "on" if enabled else "off", cap)
+        return self.link()
+
     # -- participant tabs ----------------------------------------------------------------------
+    def _address(self, client_id: int) -> str:
+        """The address a participant tab connected from ("unknown" if viser hides it): behind a
+        trusted proxy, the client's address the proxy forwarded."""
+        connection = self.participant._websock_server._live_connections.get(client_id)
+        if connection is None:
+            return "unknown"
+        return self.firewall.client_host(connection)
+
     def _participant_connected(self, client: viser.ClientHandle) -> None:
         page = ParticipantPage(client, title=PAGE_TITLE, words=self.guard.words)
-        page.address = _address(self.participant, client.client_id)
+        page.address = self._address(client.client_id)
         frame_task(client.camera, look_at=(0.45, 0.0, 0.15))
         with self._lock:
             # viser runs connect and disconnect callbacks in a pool, in no fixed order: a tab
@@ -201,8 +300,35 @@ class StudyServer:
             if client.client_id not in self.participant.get_clients():
                 return
             self._pages[client.client_id] = page
+        threading.Thread(target=self._greet, args=(page,), name="greet", daemon=True).start()
+
+    def _greet(self, page: ParticipantPage) -> None:
+        """A new tab: with a recruitment ID in its URL, the open link's way in; else the join
+        code (a kept one first). While the open link is off and has never enrolled anyone, no
+        tab is asked for its URL: the join screen comes at once, as in a lab study."""
+        if not self.open_link.in_use():
+            self._offer(page)
+            self._rejoin(page)
+            return
+        try:
+            values = read_link(page)
+        except Exception:  # the tab went away
+            values = {}
+        try:
+            recruitment = parse_ids(values)
+        except LinkError as exc:
+            self._note_link("invalid", f"link refused (last from {page.address}): {exc}")
+            with self._lock:
+                self._link_pages.add(page.client.client_id)
+            page.show_message("This link does not work", LINK_INVALID_TEXT)
+            return
+        if recruitment is not None:
+            with self._lock:
+                self._link_pages.add(page.client.client_id)
+            self._link_join(page, recruitment)
+            return
         self._offer(page)
-        threading.Thread(target=self._rejoin, args=(page,), name="rejoin", daemon=True).start()
+        self._rejoin(page)
 
     def _rejoin(self, page: ParticipantPage) -> None:
         """A reloaded (or reconnected) tab: its browser kept the code it joined with; try it
@@ -228,8 +354,74 @@ class StudyServer:
         if not bound:
             self._join(page, code, remembered=True)
 
+    def _link_join(self, page: ParticipantPage, recruitment: Recruitment) -> None:
+        """Bind a link tab to its recruitment ID's session: the one it had (reopened after a
+        restart; its end screen if it finished), or a new one while the link has places. While
+        another tab holds the session this one waits, is told so after ``LINK_QUIET_S``, and
+        takes over only once that tab has let go (within ``REJOIN_WAIT_S``; later, a reload
+        asks again). A new session starts by itself: no experimenter is there to start it."""
+        try:
+            live, ended = self._link_session(recruitment)
+        except LinkClosed as exc:
+            self._note_link("closed", f"open link refused a new participant: {exc}")
+            page.show_message("Not open at the moment", LINK_CLOSED_TEXT)
+            return
+        except Exception:  # the store refused, the session is held elsewhere: say so, go on
+            LOGGER.exception("open link: no session for a tab from %s", page.address)
+            page.show_message("Please try again", LINK_FAILED_TEXT)
+            return
+        if live is None:
+            show_end(page, ended, self.factory.protocol.texts)
+            return
+        start = time.monotonic()
+        told = False
+        while not self._bind(page, live):
+            if not told and time.monotonic() - start > LINK_QUIET_S:
+                told = True
+                live.note_refused_join(page)
+                page.show_message("Already open", LINK_IN_USE_TEXT)
+            with self._lock:
+                gone = page.client.client_id not in self._pages
+            if gone or live.closed or time.monotonic() - start > REJOIN_WAIT_S:
+                return
+            time.sleep(0.25)
+        if live.session.phase() == "waiting":
+            try:
+                live.act("start")
+            except Exception as exc:
+                LOGGER.warning("link session %s could not start: %s", live.code, exc)
+
+    def _note_link(self, key: str, text: str) -> None:
+        """Log a refused link at most once a minute per kind (any tab can cause one)."""
+        now = time.monotonic()
+        with self._lock:
+            if now - self._link_logged.get(key, -math.inf) < 60.0:
+                return
+            self._link_logged[key] = now
+        LOGGER.info("%s", text)
+
+    def _link_session(self, recruitment: Recruitment) -> tuple[LiveSession | None, str]:
+        """The live session of ``recruitment`` (enrolled now, or reopened), or ``(None,
+        status)`` when its session is over; :class:`LinkClosed` for a new ID while the link
+        is off or full. One ID at a time (the server's lock), so an ID gets one session."""
+        with self._lock:
+            participant = self.open_link.participant_for(recruitment)
+            if participant is None:
+                participant = self.open_link.claim(recruitment)
+                code = self.enrol(participant, recruitment=recruitment)
+                self.open_link.taken(participant, recruitment)
+                return self._sessions[code], ""
+            for live in self._sessions.values():
+                if live.participant == participant and not live.closed:
+                    return live, ""
+            status = self.factory.store.session(participant).status
+            if status in FINAL_STATUSES:
+                return None, status
+            return self._sessions[self.enrol(participant)], ""
+
     def _participant_disconnected(self, client: viser.ClientHandle) -> None:
         with self._lock:
+            self._link_pages.discard(client.client_id)
             page = self._pages.pop(client.client_id, None)
             code = self._page_session.pop(client.client_id, None)
             live = self._sessions.get(code) if code is not None else None
@@ -248,7 +440,8 @@ class StudyServer:
         """Ask ``page`` for a join code (on a kiosk: bind it to the one free session, or ask
         it to wait)."""
         with self._lock:
-            if page.client.client_id in self._page_session:
+            cid = page.client.client_id
+            if cid in self._page_session or cid in self._link_pages:
                 return
             open_ = self.open_sessions()
         if self.kiosk:
@@ -320,18 +513,20 @@ class StudyServer:
         return True
 
 
-def _address(server: viser.ViserServer, client_id: int) -> str:
-    """The network address a participant tab connected from ("unknown" if viser hides it)."""
-    connection = server._websock_server._live_connections.get(client_id)
-    remote = getattr(connection, "remote_address", None)
-    return str(remote[0]) if isinstance(remote, tuple) and remote else "unknown"
-
-
 def _check_page_is_blind(words: tuple[str, ...]) -> None:
     """Raise :class:`ServerError` when a condition word of the served protocol occurs in the
     participant page's own script or fixed texts (the guard would block them, breaking the page):
     the level must be renamed."""
-    fixed = [page_script(keys_uuid="", title=PAGE_TITLE), JOIN_FAILED, JOIN_THROTTLED]
+    fixed = [
+        page_script(keys_uuid="", title=PAGE_TITLE),
+        link_script(uuid=""),
+        JOIN_FAILED,
+        JOIN_THROTTLED,
+        LINK_CLOSED_TEXT,
+        LINK_FAILED_TEXT,
+        LINK_INVALID_TEXT,
+        LINK_IN_USE_TEXT,
+    ]
     found = sorted({w for text in fixed for w in find_words(text, words)})
     if found:
         raise ServerError(

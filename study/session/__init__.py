@@ -77,15 +77,17 @@ from study.session.errors import (
     SessionStateError,
     UnknownItemError,
 )
+from study.session.experimenter import check_reason
 from study.session.screen import Overview, Progress, Screen
 from study.session.session import Session
-from study.session.state import PauseCause
+from study.session.state import FINAL_STATUSES, PauseCause
 from study.session.store_open import open_store
 from study.session.trial_run import TrialRun, TrialSummary
 from study.session.views import EXPERIMENTER_ACTIONS, NEEDS_REASON
 
 __all__ = [
     "EXPERIMENTER_ACTIONS",
+    "FINAL_STATUSES",
     "MAX_SEED",
     "NEEDS_REASON",
     "InvalidAnswerError",
@@ -102,5 +104,6 @@ __all__ = [
     "TrialRun",
     "TrialSummary",
     "UnknownItemError",
+    "check_reason",
     "open_store",
 ]

@@ -41,7 +41,7 @@ class ExperimenterActions:
         if self.state.paused:
             raise SessionStateError("the session is already paused; resume() continues it")
         with self.ledger.tx() as tx:
-            self.ledger.event(tx, "pause", self.ledger.where())
+            self.ledger.event(tx, "pause", {**self.ledger.where(), "cause": cause})
         self.state.set_paused(cause)
 
     def resume(self) -> None:

@@ -24,9 +24,11 @@ def enrol_participant(
     demographics: Mapping[str, Any] | None,
     seed: int,
     schedule_row: int | None,
+    recruitment: Mapping[str, str] | None = None,
 ) -> None:
-    """Write ``participant``'s enrolment: schedule row, assignments, seed (see
-    ``Session.enrol`` for the errors); nothing is written if one is raised."""
+    """Write ``participant``'s enrolment: schedule row, assignments, seed, and the recruitment
+    IDs they came with (in the ``enrol`` event; see ``Session.enrol`` for the errors); nothing
+    is written if one is raised."""
     check_participant_id(participant)
     seed = check_seed(seed)
     if schedule_row is not None and (
@@ -56,12 +58,14 @@ def enrol_participant(
             seed=seed,
             demographics=demographics,
         )
-        tx.event(
-            session_id,
-            participant,
-            "enrol",
-            {"schedule_row": schedule_row, "seed": seed, "demographics": bool(demographics)},
-        )
+        detail: dict[str, Any] = {
+            "schedule_row": schedule_row,
+            "seed": seed,
+            "demographics": bool(demographics),
+        }
+        if recruitment:
+            detail["recruitment"] = {str(k): str(v) for k, v in recruitment.items()}
+        tx.event(session_id, participant, "enrol", detail)
 
 
 def check_reopenable(store: Store, protocol: Protocol, participant: str) -> None:

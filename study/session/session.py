@@ -118,12 +118,14 @@ class Session:
         demographics: Mapping[str, Any] | None = None,
         seed: int = 0,
         schedule_row: int | None = None,
+        recruitment: Mapping[str, str] | None = None,
         trial_factory: TrialFactory | None = None,
         heartbeat_s: float = 2.0,
         flush_interval_s: float = DEFAULT_FLUSH_INTERVAL_S,
     ) -> Self:
         """Enrol a new participant (pseudonymous ``participant`` ID; ``demographics`` go to their
-        own table) and open their session. The schedule row comes from ``study.schedule.next_row``
+        own table; ``recruitment``, the IDs of an online panel's link such as ``PROLIFIC_PID``,
+        go to the ``enrol`` event) and open their session. The schedule row comes from ``study.schedule.next_row``
         over everyone enrolled so far unless given. Raises ``DuplicateParticipantError`` if the ID
         is taken, ``InvalidParticipantIdError`` if it is not a pseudonym, ``InvalidSeedError`` if
         ``seed`` is not in ``0..MAX_SEED`` and ``ScheduleError`` for a negative ``schedule_row``;
@@ -135,6 +137,7 @@ class Session:
             demographics=demographics,
             seed=seed,
             schedule_row=schedule_row,
+            recruitment=recruitment,
         )
         return cls(
             store=store,

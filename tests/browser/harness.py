@@ -194,16 +194,19 @@ def start_server(
     *,
     host: str = "127.0.0.1",
     server_kw: dict[str, Any] | None = None,
+    edit: Any = None,
     **protocol_kw: Any,
 ) -> RunningServer:
     """A ``StudyServer`` on free ports over a fresh store in ``directory`` (``server_kw`` go
-    to the ``StudyServer``, e.g. ``kiosk=True``)."""
+    to the ``StudyServer``, e.g. ``kiosk=True``; ``edit(path)`` may change the protocol copy
+    first, e.g. ``tests.protocol_copies.with_completion``)."""
     from study.protocol import load_protocol
     from study.server.live import session_factory
     from study.server.server import StudyServer
     from study.session import open_store
 
-    protocol = load_protocol(short_protocol(directory, **protocol_kw))
+    path = short_protocol(directory, **protocol_kw)
+    protocol = load_protocol(edit(path) if edit is not None else path)
     store = open_store(Path(directory) / "study.db", protocol)
     server = StudyServer(
         session_factory(store, protocol),

@@ -76,7 +76,7 @@ def test_no_frame_names_a_condition_of_the_served_protocol(
         for _ in range(60):
             if live.session.phase() == "debrief":
                 break
-            srv.act(code, "skip")
+            srv.act(code, "skip", reason="test: on to the next step")
         page.get_by_role("button", name="Finish").wait_for()
         seen.append(page.inner_text("body"))
         page.get_by_role("button", name="Finish").click()

@@ -37,7 +37,7 @@ def test_console_enrols_and_participant_joins_by_code(
     _connect(console, study.console_url)
     text_input(console, "Participant ID").fill("P01")
     console.get_by_role("button", name="Enrol and open session").click()
-    status = console.get_by_text(re.compile(r"join code"))
+    status = console.get_by_text(re.compile(r"Session for P01: join code"))
     status.wait_for()
     code = re.search(r"code ([A-Z0-9]{6})", status.inner_text()).group(1)  # type: ignore[union-attr]
     assert srv.session(code).participant == "P01"

@@ -150,6 +150,6 @@ def test_keys_steer_the_arm_never_the_camera_and_a_pause_freezes_them(
     assert "grasp_requested" not in events  # G was pressed only while paused
 
     # The next screen: keys still leave the camera alone.
-    srv.act(code, "skip")
+    srv.act(code, "skip", reason="test: on to the next step")
     page.get_by_role("button", name="Start").wait_for()
     _keys_leave_the_camera_alone(page, updates)

@@ -294,7 +294,7 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     for _ in range(40):
         if live.session.phase() == "debrief":
             break
-        srv.act(code, "skip")
+        srv.act(code, "skip", reason="test: on to the next step")
     page.get_by_role("button", name="Finish").wait_for()
     _shot(page, screenshots, "09-debrief")
     text_now()

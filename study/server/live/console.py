@@ -1,22 +1,24 @@
 """What the experimenter's console shows of one live session: its row in the sessions list
 (``session_summary``) and the selected session's detail (``session_detail``): the schedule,
-the current condition, live plots of the running trial (``LivePlots``), the event log, a held
-fault and the attempts so far.
+the current condition, the actions its state allows, live plots of the running trial
+(``LivePlots``), the timeline of runs and events (``timeline``), a held fault and the attempts
+so far. Session time counts from the session's first start, read from the store.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
-import time
 from collections import deque
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
 
 import numpy as np
 
 from app.trial import TickRecord
 from study.server.experimenter import SessionDetail, SessionSummary
+from study.server.live.timeline import timeline
 from study.session import Overview, Session, TrialRun
 
 LOGGER = logging.getLogger("study.server.live")
@@ -73,10 +75,12 @@ class LiveFacts:
 
     code: str
     connected: bool
-    opened_at: float
+    started_at: datetime | None
+    """When the session was first started (``None``: not yet)."""
     run: TrialRun | None
     log: tuple[str, ...]
     fault: str | None
+    recruitment: tuple[tuple[str, str], ...] = field(default_factory=tuple)
 
 
 def session_summary(session: Session, facts: LiveFacts) -> SessionSummary:
@@ -92,7 +96,10 @@ def _summary(o: Overview, participant: str, facts: LiveFacts) -> SessionSummary:
         + (f" / {o.phase}" if o.phase != o.status else ""),
         position=f"{min(o.step + 1, o.steps)}/{o.steps}",
         connected=facts.connected,
-        elapsed_s=time.monotonic() - facts.opened_at,
+        elapsed_s=None
+        if facts.started_at is None
+        else (datetime.now(UTC) - facts.started_at).total_seconds(),
+        source="link" if facts.recruitment else "",
     )
 
 
@@ -106,17 +113,10 @@ def session_detail(session: Session, facts: LiveFacts, plots: LivePlots) -> Sess
         )
         for s in session.plan.steps
     ]
-    if o.task:
-        condition = (
-            f"{o.training_or_task}: {o.task} ({o.difficulty}, {o.correctness}),"
-            f" mode {o.mode}, {o.run} run, attempt {o.attempt}"
-        )
-    elif o.step_kind == "trial":
-        condition = f"training, mode {o.mode}, attempt {o.attempt}"
-    else:
-        condition = o.step_kind or o.phase
+    condition = condition_line(o)
     t, alpha, conf, probs = plots.arrays()
     run = facts.run
+    rows, tally = _timeline(session)
     return SessionDetail(
         summary=_summary(o, session.participant, facts),
         schedule=schedule,
@@ -132,7 +132,39 @@ def session_detail(session: Session, facts: LiveFacts, plots: LivePlots) -> Sess
         log=facts.log,
         fault=facts.fault or _text(session.samples_error),
         trials=_trial_rows(session),
+        actions=o.experimenter_actions,
+        timeline=rows,
+        tally=tally,
+        recruitment=facts.recruitment,
     )
+
+
+def condition_line(o: Overview) -> str:
+    """The current step's condition in one line ("attempt" only where a run is next or on)."""
+    attempt = f", attempt {o.attempt}" if o.attempt is not None else ""
+    if o.phase == "done":
+        return f"none: the session is {o.status}"
+    if o.task:
+        where = "questions after" if o.step_kind == "questions" else o.training_or_task
+        return (
+            f"{where}: {o.task} ({o.difficulty}, {o.correctness}), mode {o.mode},"
+            f" {o.run} run{attempt}"
+        )
+    if o.step_kind == "trial":
+        return f"practice, unassisted{attempt}"
+    if o.step_kind == "questions":
+        return f"questions ({o.training_or_task})"
+    return o.step_kind or o.phase
+
+
+def _timeline(session: Session) -> tuple[tuple[tuple[str, str, str], ...], str]:
+    try:
+        events = session.store.events(session_id=session.session_id)
+        trials = session.store.trials(session_id=session.session_id)
+    except Exception:
+        LOGGER.debug("could not read the session's timeline", exc_info=True)
+        return (), ""
+    return timeline(events, trials)
 
 
 def _trial_rows(session: Session) -> tuple[tuple[str, int, str, str, str], ...]:

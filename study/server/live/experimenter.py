@@ -1,6 +1,7 @@
 """``ExperimenterControl``: the console's actions on one live session.
 
-Each of ``study.session.EXPERIMENTER_ACTIONS`` goes to the session; around it the live parts
+Each of ``study.session.EXPERIMENTER_ACTIONS`` goes to the session (those in ``NEEDS_REASON``
+only with a reason: an empty one is refused, never filled in); around it the live parts
 that the session does not know of: a pause freezes the participant's input first; a resume
 waits until the store takes this session's samples again, writes a control fault the store
 refused earlier and drops the held fault, which is the whole resume when the fault left the
@@ -15,7 +16,7 @@ from collections.abc import Callable
 from study.server.live.controls import LiveInput
 from study.server.live.faults import ControlFaults
 from study.server.participant import ParticipantPage
-from study.session import EXPERIMENTER_ACTIONS, NEEDS_REASON, Session, TrialRun
+from study.session import EXPERIMENTER_ACTIONS, NEEDS_REASON, Session, TrialRun, check_reason
 
 
 class ExperimenterControl:
@@ -45,7 +46,7 @@ class ExperimenterControl:
             actions = ", ".join(EXPERIMENTER_ACTIONS)
             raise ValueError(f"unknown action {action!r}; use one of {actions}")
         if action in NEEDS_REASON:
-            getattr(s, action)(reason=reason or f"{action} by the experimenter")
+            getattr(s, action)(reason=check_reason(reason, action))
         elif action == "start":
             s.start()
         elif action == "pause":

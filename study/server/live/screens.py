@@ -10,8 +10,16 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Protocol
 
-from study.server.live.texts import TAB_LOST_TEXT, WAIT_TEXT, WAITING_TEXT
+from study.protocol.model import Texts
+from study.server.live.texts import (
+    REDIRECT_DELAY_S,
+    TAB_LOST_TEXT,
+    WAIT_TEXT,
+    WAITING_TEXT,
+    end_screen,
+)
 from study.server.participant import ParticipantPage
+from study.server.recruitment import redirect_script
 from study.session import PauseCause, Screen
 
 
@@ -39,6 +47,8 @@ def show_screen(
     outcome: str | None,
     agree_label: str,
     handlers: PageHandlers,
+    status: str = "",
+    texts: Texts | None = None,
 ) -> None:
     """Build ``screen`` on ``page`` (see module docstring)."""
     progress: str | None = screen.progress.text if screen.progress.of else None
@@ -88,10 +98,23 @@ def show_screen(
         )
     elif screen.phase == "debrief":
         page.show_message(title, text, progress=None, button="Finish", on_button=handlers.finish)
+    elif screen.phase == "done" and texts is not None:
+        show_end(page, status, texts)
     elif screen.phase == "done":
-        page.show_message(
-            title or "Done",
-            (text + "\n\n" if text else "Thank you. ") + "You may close this page now.",
-        )
+        page.show_message(title or "Done", (text + "\n\n" if text else "") + "Thank you.")
     else:  # waiting: the protocol's welcome, and that the experimenter starts the session
         page.show_message(title, (text + "\n\n" if text else "") + WAITING_TEXT)
+
+
+def show_end(page: ParticipantPage, status: str, texts: Texts) -> None:
+    """The end of the session (``texts.end_screen``): after a completed session with a
+    ``redirect_url``, the page goes back to the recruitment site by itself after
+    ``REDIRECT_DELAY_S`` seconds, or at once on Continue."""
+    title, text, redirect = end_screen(status, texts)
+    if redirect is None:
+        page.show_message(title, text)
+        return
+    page.show_message(
+        title, text, button="Continue", on_button=lambda: page.run_script(redirect_script(redirect))
+    )
+    page.run_script(redirect_script(redirect, delay_ms=REDIRECT_DELAY_S * 1000))

@@ -25,6 +25,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Mapping
+from datetime import datetime
 from typing import Any
 
 from app.robot import Simulation, build_scene
@@ -36,6 +37,7 @@ from study.server.live.experimenter import ExperimenterControl
 from study.server.live.faults import ControlFaults
 from study.server.live.run import LiveRun
 from study.server.live.screens import show_screen
+from study.server.live.timeline import started_at
 from study.server.live.view import LiveView, shows_intent
 from study.server.loop import PacedLoop
 from study.server.participant import ParticipantPage
@@ -61,7 +63,10 @@ class LiveSession:
         self.ever_attached = False
         """A tab has held this session (a kiosk then asks for the code after a drop)."""
         self.on_closed: Callable[[], None] | None = None
-        self.opened_at = time.monotonic()
+        self.recruitment: tuple[tuple[str, str], ...] = ()
+        """The recruitment IDs the participant came with (open enrolment), for the console."""
+        self._started_at: datetime | None = None
+        self._start_lookup = 0.0
         self.log: deque[str] = deque(maxlen=20)
         self._lock = threading.RLock()
         """The current run, its trial, the input and the view against the page thread, viser
@@ -320,6 +325,8 @@ class LiveSession:
             outcome=self.trial_run.outcome,
             agree_label=self.session.protocol.texts.consent_agree or "I agree",
             handlers=self,
+            status=self.session.status,
+            texts=self.session.protocol.texts,
         )
         self._shown = key  # only once shown: a screen that failed is tried again
 
@@ -332,11 +339,22 @@ class LiveSession:
         return LiveFacts(
             code=self.code,
             connected=self.page is not None,
-            opened_at=self.opened_at,
+            started_at=self.started_at(),
             run=self.trial_run.run,
             log=tuple(self.log),
             fault=self.faults.fault,
+            recruitment=self.recruitment,
         )
+
+    def started_at(self) -> datetime | None:
+        """When the session was first started (its first ``start`` event; looked up in the
+        store at most once a second until it has one)."""
+        if self._started_at is None and time.monotonic() >= self._start_lookup:
+            self._start_lookup = time.monotonic() + 1.0
+            with contextlib.suppress(Exception):
+                events = self.session.store.events(session_id=self.session.session_id)
+                self._started_at = started_at(events)
+        return self._started_at
 
     def summary(self) -> SessionSummary:
         return session_summary(self.session, self._facts())

@@ -5,6 +5,7 @@ Neutral sentences only: how the run ended, never a condition.
 
 from __future__ import annotations
 
+from study.protocol.model import Texts
 from study.session import TrialRun
 
 OUTCOME_SENTENCES: dict[str, str] = {
@@ -25,6 +26,50 @@ WAITING_TEXT = (
     " This page will change by itself."
 )
 
+CLOSE_TEXT = "You may close this page now."
+REDIRECT_DELAY_S = 8
+"""Seconds the end screen shows the completion code before the page goes back to the
+recruitment site by itself (the participant may press Continue sooner)."""
+LINK_INVALID_TEXT = (
+    "This link is missing what the study needs to know. Please open the study again from the"
+    " page where you found it (for example your study page on the recruitment site)."
+)
+LINK_CLOSED_TEXT = (
+    "The study is not taking new participants at the moment; its places may all be taken."
+    " Please close this page and, if you came from a recruitment site, return the study there."
+    " Thank you for your interest."
+)
+LINK_FAILED_TEXT = (
+    "The study could not open your session just now. Please reload this page in a minute;"
+    " nothing you did is lost."
+)
+LINK_IN_USE_TEXT = (
+    "The study is already open in another tab or window. Please go on there and close this"
+    " one. If you closed the other one, this page goes on by itself in a moment."
+)
+
+
+def end_screen(status: str, texts: Texts) -> tuple[str, str, str | None]:
+    """``(title, text, redirect URL or None)`` of the page once the session is over: after a
+    completed session the debrief, the protocol's completion code and the way back to the
+    recruitment site (``redirect_url``); otherwise that the session has ended."""
+    if status != "completed":
+        return "Done", f"The session has ended. Thank you. {CLOSE_TEXT}", None
+    parts = [texts.debrief.strip()] if texts.debrief.strip() else ["Thank you."]
+    if texts.completion_code:
+        parts.append(
+            f"Your completion code is **{texts.completion_code}**. Please copy it now, in case"
+            " the recruitment site asks for it."
+        )
+    if texts.redirect_url:
+        parts.append(
+            f"This page takes you back to the recruitment site in {REDIRECT_DELAY_S} seconds;"
+            " press Continue to go now."
+        )
+        return "Done", "\n\n".join(parts), texts.redirect_url
+    parts.append(CLOSE_TEXT)
+    return "Done", "\n\n".join(parts), None
+
 
 def outcome_sentence(run: TrialRun, *, target: str, session_finished: bool) -> str | None:
     """The sentence shown after ``run`` ended: its outcome, "ended by the experimenter" for a
@@ -35,11 +80,17 @@ def outcome_sentence(run: TrialRun, *, target: str, session_finished: bool) -> s
 
 
 __all__ = [
+    "CLOSE_TEXT",
     "ENDED_BY_EXPERIMENTER",
+    "LINK_CLOSED_TEXT",
+    "LINK_FAILED_TEXT",
+    "LINK_INVALID_TEXT",
+    "LINK_IN_USE_TEXT",
     "MISSED_GRASP",
     "OUTCOME_SENTENCES",
     "TAB_LOST_TEXT",
     "WAITING_TEXT",
     "WAIT_TEXT",
+    "end_screen",
     "outcome_sentence",
 ]

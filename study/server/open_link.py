@@ -1,0 +1,98 @@
+"""The open-enrolment link of an online study: on or off, its places, one session per ID.
+
+Off by default. The experimenter turns it on with a number of places (``serve --open-link N``
+or the console); a tab whose URL carries a recruitment ID (``study.server.recruitment``) then
+gets a session without a join code: a new ID is enrolled under a study pseudonym (``L0001``,
+``L0002``, ...; the recruitment IDs are stored with the enrolment, never used as the
+participant ID), an ID seen before gets its own session back. Places count the link's
+sessions that did not withdraw (a participant who declines consent frees the place again, as
+a returned submission does on Prolific).
+
+The IDs a link enrolled are read back from the store's ``enrol`` events when the server
+starts, so a restart keeps one session per ID. Thread-safe.
+"""
+
+from __future__ import annotations
+
+import re
+import threading
+
+from study.server.recruitment import Recruitment
+from study.store import Store
+
+LINK_PARTICIPANT = re.compile(r"L(\d{4,})")
+LINK_SOURCE = "link"
+
+
+class LinkClosed(RuntimeError):
+    """The link does not take new participants now (off, or every place taken)."""
+
+
+class OpenLink:
+    """See module docstring."""
+
+    def __init__(self, store: Store, *, enabled: bool = False, cap: int = 0) -> None:
+        self.store = store
+        self._lock = threading.Lock()
+        self.enabled = False
+        self.cap = 0
+        self._by_key: dict[str, str] = {}
+        self._recruitment: dict[str, Recruitment] = {}
+        for event in store.events():
+            rec = event.detail.get("recruitment") if event.kind == "enrol" else None
+            if isinstance(rec, dict) and event.participant:
+                try:
+                    recruitment = Recruitment(tuple((str(k), str(v)) for k, v in rec.items()))
+                    key = recruitment.key
+                except (StopIteration, TypeError):
+                    continue
+                self._by_key[key] = event.participant
+                self._recruitment[event.participant] = recruitment
+        self.configure(enabled=enabled, cap=cap)
+
+    def configure(self, *, enabled: bool, cap: int) -> None:
+        if isinstance(cap, bool) or not isinstance(cap, int) or not 0 <= cap <= 100_000:
+            raise ValueError(f"places must be a whole number 0..100000, got {cap!r}")
+        if enabled and cap == 0:
+            raise ValueError("give the open link at least one place (e.g. --open-link 20)")
+        with self._lock:
+            self.enabled, self.cap = bool(enabled), cap
+
+    def in_use(self) -> bool:
+        """On, or it enrolled someone (who may come back to their session or end screen)."""
+        with self._lock:
+            return self.enabled or bool(self._by_key)
+
+    def participant_for(self, recruitment: Recruitment) -> str | None:
+        """The participant a recruitment ID enrolled before, if any."""
+        with self._lock:
+            return self._by_key.get(recruitment.key)
+
+    def recruitment_of(self, participant: str) -> Recruitment | None:
+        with self._lock:
+            return self._recruitment.get(participant)
+
+    def used(self) -> int:
+        """Places taken: the link's sessions that did not withdraw."""
+        with self._lock:
+            mine = set(self._by_key.values())
+        return sum(s.participant in mine and s.status != "withdrawn" for s in self.store.sessions())
+
+    def claim(self, recruitment: Recruitment) -> str:
+        """A new study pseudonym for ``recruitment`` (call ``taken`` once it is enrolled);
+        :class:`LinkClosed` while the link is off or full."""
+        if not self.enabled:
+            raise LinkClosed("the open link is off")
+        if self.used() >= self.cap:
+            raise LinkClosed(f"all {self.cap} places are taken")
+        ids = (p.participant for p in self.store.participants())
+        numbers = [int(m[1]) for p in ids if (m := LINK_PARTICIPANT.fullmatch(p))]
+        return f"L{max(numbers, default=0) + 1:04d}"
+
+    def taken(self, participant: str, recruitment: Recruitment) -> None:
+        with self._lock:
+            self._by_key[recruitment.key] = participant
+            self._recruitment[participant] = recruitment
+
+
+__all__ = ["LINK_SOURCE", "LinkClosed", "OpenLink"]

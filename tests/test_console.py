@@ -1,0 +1,105 @@
+"""The console's data without a browser: a session a server restart left is offered for reopening
+and continues; actions needing a reason refuse an empty one (nothing filled in); the condition
+line never says "attempt None"; session time counts from the start; the study's progress and the
+timeline come from the store. (tests/browser/test_console_day.py uses it all in Chromium.)"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from study.server.live import session_factory
+from study.server.server import ServerError, StudyServer
+from study.session import MissingReasonError, open_store
+from tests.browser.harness import start_server, wait_until
+
+
+def _answer(live) -> None:  # type: ignore[no-untyped-def]
+    live.answer({i.id: 4 for i in live.session.screen().items})
+
+
+def test_an_interrupted_session_is_reopened_from_the_console(tmp_path: Path) -> None:
+    rs = start_server(tmp_path, time_limit_s=60.0, training_runs=1)
+    srv = rs.server
+    code = srv.enrol("P01")
+    assert srv.summaries()[0].elapsed_s is None  # not started: no session time yet
+    srv.act(code, "start")
+    live = srv.session(code)
+    live.agree()
+    assert wait_until(lambda: srv.summaries()[0].elapsed_s is not None, timeout=5)
+    live.start_trial()
+    assert wait_until(lambda: live.run is not None and live.run.ticks > 5)
+    srv.stop()  # the server goes down mid-run; the store stays
+    protocol = rs.protocol
+    store = open_store(tmp_path / "study.db", protocol)
+    again = StudyServer(
+        session_factory(store, protocol),
+        condition_words=protocol.condition_words,
+        host="127.0.0.1",
+        port=0,
+        experimenter_port=0,
+    )
+    try:
+        assert again.reopenable() == ["P01"]
+        with pytest.raises(ServerError, match="no interrupted session"):
+            again.reopen("P02")
+        new_code = again.reopen("P01")
+        assert again.reopenable() == []
+        live = again.session(new_code)
+        assert live.session.phase() == "waiting"  # the experimenter starts it again
+        again.act(new_code, "start")
+        assert live.session.phase() == "ready"
+        detail = again.detail(new_code)
+        assert detail is not None and detail.summary.elapsed_s is not None
+        assert "run 1: practice, unassisted -> interrupted" in " ".join(
+            r[2] for r in detail.timeline
+        )
+        assert "session reopened" in [r[2] for r in detail.timeline]
+        assert detail.condition == "practice, unassisted, attempt 2"
+        assert set(detail.actions) == {"pause", "skip", "withdraw", "end"}
+    finally:
+        again.stop()
+        store.close()
+
+
+def test_reasons_are_required_and_the_condition_line_fits_the_step(tmp_path: Path) -> None:
+    rs = start_server(tmp_path, time_limit_s=1.0, training_runs=1)
+    srv = rs.server
+    try:
+        code = srv.enrol("P01")
+        for action in ("end", "withdraw"):
+            with pytest.raises(MissingReasonError, match=f"{action} needs a reason"):
+                srv.act(code, action, reason="  ")
+        assert rs.store.session("P01").status == "enrolled"
+        srv.act(code, "start")
+        live = srv.session(code)
+        live.agree()
+        live.start_trial()
+        assert wait_until(lambda: live.session.phase() == "questions", timeout=30)
+        _answer(live)
+        live.start_trial()
+        assert wait_until(lambda: live.session.phase() == "questions", timeout=30)
+        detail = srv.detail(code)
+        assert detail is not None
+        assert (
+            detail.condition.startswith("questions after: ") and "attempt" not in detail.condition
+        )
+        assert "redo" in detail.actions
+        with pytest.raises(MissingReasonError):
+            srv.act(code, "redo")
+        assert [t.status for t in rs.store.trials()].count("redone") == 0
+        srv.act(code, "redo", reason="the participant asked a question mid-run")
+        detail = srv.detail(code)
+        assert detail is not None and detail.condition.endswith("first run, attempt 2")
+        assert "redo: the participant asked a question mid-run" in [r[2] for r in detail.timeline]
+        progress = srv.progress()
+        assert (progress.completed, progress.running, progress.stopped) == (0, 1, 0)
+        assert progress.planned == rs.protocol.study.participants
+        assert progress.conditions == ()  # the one task run was redone: nothing counts
+        assert progress.next_row == 1 and len(progress.next_schedule) == 8
+        srv.act(code, "end", reason="test over")
+        assert srv.detail(code).condition == "none: the session is ended"  # type: ignore[union-attr]
+        assert srv.progress().stopped == 1 and srv.detail(code).actions == ()  # type: ignore[union-attr]
+    finally:
+        rs.stop()
