@@ -1,8 +1,9 @@
 """Time a full control tick and a whole headless trial.
 
 A tick (``Trial.tick``) is: ask the input source (a scripted user), clamp the target, one
-velocity-limited IK step (``U``), blending (prediction, confidence, arbitration, straight-line
-``P``, blend), servo + ``physics_dt``-substeps of MuJoCo, outcome checks and the tick record.
+velocity-limited IK step (``U``), blending (prediction, confidence, arbitration, the protocol's
+policy ``P`` -- or the one ``--policy`` names --, blend), servo + ``physics_dt``-substeps of
+MuJoCo, outcome checks and the tick record.
 Each tick is timed on its own (``perf_counter_ns``) across trials of every task and mode of the
 protocol; the parts (IK step, blending step, physics substeps) are timed separately too.
 The real-time factor is simulated seconds per wall second over whole ``run_trial`` calls,
@@ -13,7 +14,7 @@ Prints a table, then as its last line one JSON object:
 ``{"tick_ms": {"median": .., "p99": ..}, "realtime_factor": .., "parts_us": {..}, ...}``.
 Targets on the 2-core machines: median tick <= 0.5 ms, p99 <= 2 ms, real-time factor >= 50.
 
-    python benchmarks/control_loop.py [--quick]
+    python benchmarks/control_loop.py [--quick] [--policy straight_line|grasp_approach]
 """
 
 from __future__ import annotations
@@ -50,6 +51,9 @@ def stats(values_ns: list[int]) -> dict[str, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="fewer trials")
+    parser.add_argument(
+        "--policy", help="policy kind instead of the protocol's (its max_speed is kept)"
+    )
     args = parser.parse_args()
     seeds = range(1) if args.quick else range(3)
     limit = 8.0 if args.quick else 20.0
@@ -58,6 +62,9 @@ def main() -> int:
         for t in TASKS
         for m in MODES
     ]
+    if args.policy:
+        policy = {"kind": args.policy, "max_speed": configs[0].policy["max_speed"]}
+        configs = [dataclasses.replace(c, policy=policy) for c in configs]
     start = time.perf_counter()
     for cfg in configs:
         build_scene(cfg.scene)
@@ -133,7 +140,7 @@ def main() -> int:
         f"  ({cpu_s:.2f} s of this process's CPU -> {rtf_cpu:.1f}x per CPU second;"
         f" load average {load:.1f} on {os.cpu_count()} cores while measuring)"
     )
-    print(f"outcomes per mode: {outcomes}")
+    print(f"policy: {configs[0].policy['kind']}; outcomes per mode: {outcomes}")
     print(
         json.dumps(
             {
@@ -145,6 +152,7 @@ def main() -> int:
                 "trial_setup_ms": setup["median"] / 1e6,
                 "outcomes": outcomes,
                 "ticks": len(ticks),
+                "policy": configs[0].policy["kind"],
                 "substeps": configs[0].substeps,
                 "rate_hz": configs[0].rate_hz,
                 "targets": {"tick_median_ms": 0.5, "tick_p99_ms": 2.0, "realtime_factor": 50},

@@ -29,9 +29,10 @@ Every component kind is declared once in :mod:`app.blending.spec` (the built-in 
 :mod:`app.blending.kinds`); :func:`register` adds a new one, which the builders, the protocol
 loader and the docs then know. Modules: goals, goal_moves, prediction/ (amnesic, memory eq. 9,
 laplace eq. 8, oracle, costs, rationality: the user's rationality estimated online),
-confidence, arbitration, adaptive (stateful arbitration: yielding, user_confidence), policy,
-blend, spec, kinds, config, errors, reference (exact soft value iteration on a 2-D grid, to test
-eq. 9 against).
+confidence, arbitration, adaptive (stateful arbitration: yielding, user_confidence), policy
+(straight lines), policy_grasp (pre-grasp, approach along the gripper axis, clearance), blend,
+spec, kinds, config, errors, reference (exact soft value iteration on a 2-D grid, to test eq. 9
+against).
 """
 
 from .adaptive import StatefulArbitration, TickSignals, UserConfidence, Yielding
@@ -64,6 +65,7 @@ from .errors import BlendingError, ConfigError, InvalidArbitrationError, Invalid
 from .goal_moves import GoalMoves, moved_goals
 from .goals import GoalSet
 from .policy import Policy, StraightLinePolicy, WorkspaceLinePolicy
+from .policy_grasp import ArmModel, GraspApproachPolicy, HandLayer
 from .prediction import (
     AmnesicPredictor,
     GoalPrediction,
@@ -81,6 +83,7 @@ __all__ = [
     "Aggressive",
     "AmnesicPredictor",
     "Arbitration",
+    "ArmModel",
     "BlendRecord",
     "BlendingError",
     "BuildContext",
@@ -92,6 +95,8 @@ __all__ = [
     "GoalMoves",
     "GoalPrediction",
     "GoalSet",
+    "GraspApproachPolicy",
+    "HandLayer",
     "InvalidArbitrationError",
     "InvalidInputError",
     "Kind",

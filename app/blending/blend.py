@@ -77,8 +77,9 @@ class PolicyBlender:
         predictor: a goal predictor over the goals in ``space``.
         confidence: ``(prediction, distance) -> [0, 1]``.
         arbitration: ``c -> alpha``.
-        policy: ``step(Q, target) -> P``; its ``target_space`` picks goal configurations or
-            positions.
+        policy: ``step(Q, target) -> P``; its ``target_space`` picks goal configurations,
+            positions, or (``"goal"``) the goal's index into the goal set the blender hands the
+            policy's ``set_goals`` whenever the goals change (grasp frames).
         feature: ``U -> x``, maps the user's configuration into the predictor's space (e.g.
             forward kinematics); ``None`` means ``x = U``.
         space: the predictor's space, ``"workspace"`` or ``"configuration"``; default
@@ -138,7 +139,17 @@ class PolicyBlender:
                 f"goals: {type(self.policy).__name__} steers toward goal configurations; give "
                 "the GoalSet configurations (or use a workspace policy)"
             )
-        targets = goals.points(self.policy.target_space)
+        set_goals = None
+        if self.policy.target_space == "goal":  # the policy reads the goals' grasp frames
+            set_goals = getattr(self.policy, "set_goals", None)
+            if set_goals is None:
+                raise InvalidInputError(
+                    f"policy: {type(self.policy).__name__} steers toward goals by index"
+                    " (target_space 'goal') but has no set_goals(goals)"
+                )
+            targets: Any = list(range(len(goals)))
+        else:
+            targets = goals.points(self.policy.target_space)
         if self.predictor.n_goals != len(goals):
             raise InvalidInputError(
                 f"predictor: predicts over {self.predictor.n_goals} goals, the goal set has "
@@ -153,6 +164,8 @@ class PolicyBlender:
         dof = goals.configurations.shape[1] if goals.configurations is not None else None
         if self.dof is not None and dof is not None and dof != self.dof:
             raise InvalidInputError(f"goals: configurations are {dof}-D, the robot is {self.dof}-D")
+        if set_goals is not None:
+            set_goals(goals)
         self.goals = goals
         self._points = points
         self._point_lists = points.tolist()

@@ -80,9 +80,11 @@ def policy_from_config(
     where: str = "policy",
     fk: Callable[[np.ndarray], Any] | None = None,
     jacobian: Callable[[np.ndarray], Any] | None = None,
+    arm: Any = None,
 ) -> Policy:
     """Policy from a table, with ``max_speed`` per second turned into ``max_step = max_speed /
-    rate_hz`` per tick."""
+    rate_hz`` per tick. ``fk``/``jacobian``: the workspace line's kinematics; ``arm``: the
+    grasping policy's :class:`~app.blending.policy_grasp.ArmModel`."""
     if (
         isinstance(rate_hz, bool)
         or not isinstance(rate_hz, int | float)
@@ -91,5 +93,7 @@ def policy_from_config(
     ):
         raise ConfigError(f"{where}: rate_hz must be a finite number > 0, got {rate_hz!r}")
     return build(
-        "policy", cfg, BuildContext(where, rate_hz=float(rate_hz), fk=fk, jacobian=jacobian)
+        "policy",
+        cfg,
+        BuildContext(where, rate_hz=float(rate_hz), fk=fk, jacobian=jacobian, arm=arm),
     )

@@ -32,7 +32,14 @@ def moved_goals(
             if configurations is None:
                 raise InvalidInputError("moves: the goal set has no configurations to move")
             configurations[k] = configuration
-    return GoalSet(goals.names, positions, goals.orientations, configurations)
+    return GoalSet(
+        goals.names,
+        positions,
+        goals.orientations,
+        configurations,
+        standoffs=goals.standoffs,
+        envelopes=goals.envelopes,
+    )
 
 
 @dataclass(frozen=True)

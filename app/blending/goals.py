@@ -1,5 +1,10 @@
 """The goal set G: named goals with workspace positions, optional orientations and configurations.
 
+A goal may be a grasp frame: the position and orientation of the tool centre point (TCP) at
+the grasp, a pre-grasp ``standoff`` back along the gripper's approach axis ``a`` (the TCP's z
+axis: ``pregrasp = position - standoff a``) and the ``envelope`` of the object it grasps, which
+a grasping policy must straddle and every other goal's policy must clear.
+
 Goals are known only at run time and may change in number and place between (or during)
 trials: build a new :class:`GoalSet` and hand it to ``PolicyBlender.set_goals``.
 """
@@ -15,7 +20,10 @@ import numpy as np
 from ._checks import as_finite_array, as_points
 from .errors import InvalidInputError
 
-__all__ = ["GoalSet"]
+__all__ = ["GoalSet", "quaternion_matrix"]
+
+ENVELOPE_COLUMNS = ("radius", "top", "half_width")
+"""The columns of ``GoalSet.envelopes``."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -28,12 +36,20 @@ class GoalSet:
         orientations: ``(n, 4)`` unit quaternions (w, x, y, z), or ``None``.
         configurations: ``(n, dof)`` goal configurations (e.g. grasp configurations by IK),
             or ``None`` when only workspace goals are known.
+        standoffs: ``(n,)`` pre-grasp distances back along the approach axis (metres, > 0),
+            or ``None``; needs ``orientations``.
+        envelopes: ``(n, 3)`` the grasped objects as upright cylinders on the grasp point's
+            vertical, columns ``ENVELOPE_COLUMNS``: footprint radius, height of the object's
+            top above the grasp point, half-width across the fingers' closing direction
+            (metres); or ``None``.
     """
 
     names: tuple[str, ...]
     positions: np.ndarray
     orientations: np.ndarray | None = None
     configurations: np.ndarray | None = None
+    standoffs: np.ndarray | None = None
+    envelopes: np.ndarray | None = None
 
     def __init__(
         self,
@@ -41,6 +57,9 @@ class GoalSet:
         positions: Any,
         orientations: Any | None = None,
         configurations: Any | None = None,
+        *,
+        standoffs: Any | None = None,
+        envelopes: Any | None = None,
     ) -> None:
         names_t = tuple(names)
         if not names_t:
@@ -74,13 +93,35 @@ class GoalSet:
                 raise InvalidInputError(
                     f"configurations: expected {n} rows (one per name), got shape {cfg.shape}"
                 )
-        for arr in (pos, ori, cfg):
+        off = None
+        if standoffs is not None:
+            if ori is None:
+                raise InvalidInputError(
+                    "standoffs: a pre-grasp standoff runs along the approach axis; give the"
+                    " goals' orientations too"
+                )
+            off = as_finite_array(standoffs, name="standoffs", ndim=1)
+            if off.shape[0] != n or not (off > 0.0).all():
+                raise InvalidInputError(
+                    f"standoffs: expected {n} distances > 0 (one per name), got {off.tolist()}"
+                )
+        env = None
+        if envelopes is not None:
+            env = as_finite_array(envelopes, name="envelopes", ndim=2, dim=3)
+            if env.shape[0] != n or not (env[:, 0] > 0.0).all() or not (env[:, 2] > 0.0).all():
+                raise InvalidInputError(
+                    f"envelopes: expected {n} rows of {ENVELOPE_COLUMNS} with radius and"
+                    f" half_width > 0, got {env.tolist()}"
+                )
+        for arr in (pos, ori, cfg, off, env):
             if arr is not None:
                 arr.setflags(write=False)
         object.__setattr__(self, "names", names_t)
         object.__setattr__(self, "positions", pos)
         object.__setattr__(self, "orientations", ori)
         object.__setattr__(self, "configurations", cfg)
+        object.__setattr__(self, "standoffs", off)
+        object.__setattr__(self, "envelopes", env)
 
     def __len__(self) -> int:
         return len(self.names)
@@ -94,6 +135,21 @@ class GoalSet:
                 f"name: no goal called {name!r}; goals are {list(self.names)}"
             ) from None
 
+    def rotations(self) -> np.ndarray:
+        """``(n, 3, 3)`` the goals' orientations as rotation matrices (columns: the TCP's axes
+        in the world frame)."""
+        if self.orientations is None:
+            raise InvalidInputError("orientations: this GoalSet has none; give them to build it")
+        return np.array([quaternion_matrix(w) for w in self.orientations])
+
+    def pregrasp_positions(self) -> np.ndarray:
+        """``(n, 3)`` pre-grasp points ``position - standoff a``, ``a`` the approach axis (the
+        third column of each goal's rotation)."""
+        if self.standoffs is None:
+            raise InvalidInputError("standoffs: this GoalSet has none; give them to build it")
+        axes = self.rotations()[:, :, 2]
+        return self.positions - self.standoffs[:, None] * axes
+
     def points(self, space: str) -> np.ndarray:
         """The goals as points of ``space``: ``"workspace"`` (positions) or ``"configuration"``."""
         if space == "workspace":
@@ -105,3 +161,15 @@ class GoalSet:
                 )
             return self.configurations
         raise InvalidInputError(f"space: must be 'workspace' or 'configuration', got {space!r}")
+
+
+def quaternion_matrix(wxyz: Any) -> np.ndarray:
+    """The rotation matrix of a unit quaternion ``(w, x, y, z)``."""
+    w, x, y, z = (float(v) for v in wxyz)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )

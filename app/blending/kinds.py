@@ -15,6 +15,7 @@ from .errors import BlendingError, ConfigError
 from .goals import GoalSet
 from .params import POSITIVE, UNIT, Choice, IndexOrName, Integer, Number, Pairs, Weights
 from .policy import StraightLinePolicy, WorkspaceLinePolicy
+from .policy_grasp import POSTURE_GAIN, ROTATION_SPEED, GraspApproachPolicy
 from .prediction import (
     AmnesicPredictor,
     LaplacePredictor,
@@ -131,8 +132,21 @@ def _eq9_params(cost_doc: str) -> tuple[Param, ...]:
     )
 
 
-def _step(p: dict[str, Any], ctx: BuildContext) -> float:
-    return float(p["max_speed"]) / float(ctx.rate_hz or 1.0)
+def _step(p: dict[str, Any], ctx: BuildContext, key: str = "max_speed") -> float:
+    return float(p[key]) / float(ctx.rate_hz or 1.0)
+
+
+def _grasp(p: dict[str, Any], ctx: BuildContext) -> GraspApproachPolicy:
+    rate = float(ctx.rate_hz or 1.0)
+    return GraspApproachPolicy(
+        arm=ctx.arm,
+        max_step=_step(p, ctx),
+        tcp_step=_step(p, ctx, "tcp_speed"),
+        approach_step=_step(p, ctx, "approach_speed"),
+        clearance=p["clearance"],
+        rotation_step=ROTATION_SPEED / rate,
+        posture_step=POSTURE_GAIN / rate,
+    )
 
 
 BUILTIN: tuple[Kind, ...] = (
@@ -306,6 +320,36 @@ BUILTIN: tuple[Kind, ...] = (
         ),
         example={"max_speed": 0.2},
         needs=("rate_hz", "fk", "jacobian"),
+    ),
+    Kind(
+        "policy",
+        "grasp_approach",
+        "a grasping robot: to the pre-grasp point over whatever lies between (hand clear of"
+        " the other objects), gripper turned to the grasp, then down the gripper axis to the"
+        " grasp, fingers straddling the object (needs the arm model)",
+        (
+            Param(
+                "max_speed",
+                MAX_SPEED.type,
+                "limit on |P - Q| per second, configuration units (as straight_line)",
+            ),
+            Param("tcp_speed", Number(0.0, 2.0, lo_open=True), "TCP speed in transit, m/s", 0.3),
+            Param(
+                "approach_speed",
+                Number(0.0, 1.0, lo_open=True),
+                "TCP speed from the pre-grasp point down to the grasp, m/s",
+                0.1,
+            ),
+            Param(
+                "clearance",
+                Number(0.0, 0.2),
+                "distance the hand keeps beside and above the objects it does not grasp, m",
+                0.02,
+            ),
+        ),
+        _grasp,
+        example={"max_speed": 1.0, "tcp_speed": 0.3},
+        needs=("rate_hz", "arm"),
     ),
 )
 

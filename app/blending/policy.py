@@ -23,7 +23,9 @@ __all__ = ["Policy", "StraightLinePolicy", "WorkspaceLinePolicy"]
 @runtime_checkable
 class Policy(Protocol):
     """``step(Q, target) -> P``; ``target_space`` says which goal data ``target`` is:
-    ``"configuration"`` (goal configuration) or ``"workspace"`` (goal position)."""
+    ``"configuration"`` (goal configuration), ``"workspace"`` (goal position) or ``"goal"``
+    (the goal's index; the policy then has ``set_goals(goals)``, which the blender calls with
+    every new goal set: :class:`app.blending.policy_grasp.GraspApproachPolicy`)."""
 
     target_space: str
 

@@ -73,7 +73,9 @@ class BuildContext:
     """What a factory may need besides its parameters: ``where`` (the table's key path, for
     errors), the goal ``points`` (a ``GoalSet`` or an ``(n, d)`` array) and the oracle's
     ``target`` (prediction), the control rate ``rate_hz`` (policies, stateful arbitrations),
-    and the arm's ``fk``/``jacobian`` callables (workspace policies)."""
+    the arm's ``fk``/``jacobian`` callables (workspace policies) and ``arm``, an
+    :class:`app.blending.policy_grasp.ArmModel` (policies that keep the hand clear of the
+    scene)."""
 
     where: str
     points: Any = None
@@ -81,6 +83,7 @@ class BuildContext:
     rate_hz: float | None = None
     fk: Callable[[Any], Any] | None = None
     jacobian: Callable[[Any], Any] | None = None
+    arm: Any = None
 
 
 Factory = Callable[[dict[str, Any], BuildContext], Any]

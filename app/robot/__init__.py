@@ -2,7 +2,9 @@
 
 ``load_arm()`` -> ``Arm`` (MuJoCo spec factory + pinocchio ``Kinematics``);
 ``SceneSpec.from_dict(d, where=...)`` -> ``build_scene(spec)`` -> ``Scene`` (compiled once,
-cached); ``Simulation(scene, physics_dt=...)`` steps one trial's physics.
+cached; its goals are grasp frames, ``Scene.arm_model(kinematics)`` is the arm a grasping
+policy steers, with the hand's collision layers from ``app.robot.hand``);
+``Simulation(scene, physics_dt=...)`` steps one trial's physics.
 """
 
 import os

@@ -1,10 +1,13 @@
 """Scenes built from data: the arm, a table and graspable objects, compiled once and cached.
 
 ``build_scene(spec)`` adds the table and objects of a ``SceneSpec`` to the arm's MuJoCo spec,
-computes each object's grasp pose (top-down, fingers closing across the object) and its goal
-configuration by IK from the start configuration. An object the arm cannot grasp raises
-``UnreachableError`` naming it. The compiled model is shared read-only by every trial of that
-scene; each trial makes its own ``MjData`` (see ``Simulation``).
+computes each object's grasp frame (top-down, fingers closing across the object; a pre-grasp
+standoff up the approach axis that lifts the open fingertips ``PREGRASP_CLEARANCE`` above the
+object's top; the object's envelope) and its goal configuration by IK from the start
+configuration, and reads the hand's collision parts from the model (``app.robot.hand``). An
+object the arm cannot grasp raises ``UnreachableError`` naming it. The compiled model is shared
+read-only by every trial of that scene; each trial makes its own ``MjData`` (see
+``Simulation``); ``Scene.arm_model(kinematics)`` gives a grasping policy the arm it steers.
 """
 
 from __future__ import annotations
@@ -17,9 +20,11 @@ import mujoco
 import numpy as np
 
 from app.blending.goals import GoalSet
+from app.blending.policy_grasp import ArmModel, HandLayer
 from app.robot.arm import (
     ARM_JOINTS,
     GRIPPER_ACTUATOR,
+    GRIPPER_MAX,
     OBJECT_CONAFFINITY,
     OBJECT_CONTYPE,
     TCP_SITE,
@@ -29,11 +34,13 @@ from app.robot.arm import (
     load_arm,
 )
 from app.robot.errors import SceneError, UnreachableError
-from app.robot.kinematics import downward_rotation
+from app.robot.hand import hand_layers
+from app.robot.kinematics import Kinematics, downward_rotation
 from app.robot.scene_spec import ObjectSpec, SceneSpec
 from app.teleop.reach import ReachRegion
 
 GRASP_DEPTH = 0.03  # m, TCP below the object's top when grasping
+PREGRASP_CLEARANCE = 0.03  # m, open fingertips above the object's top at the pre-grasp point
 # Sliding, torsional and rolling friction of objects and table. Rolling: torque = mu_r N, a
 # rolling-resistance coefficient mu_r / r of about 0.03 for a 3-cm bottle (plastic on wood
 # with a rim or label: 0.01-0.05), so a knocked-over bottle rolls some decimetres and stops
@@ -46,7 +53,9 @@ class Scene:
     """A compiled scene: MuJoCo model, goals (grasp poses and goal configurations), reach, start.
 
     ``goals.positions`` are the TCP grasp points, ``goals.configurations`` the IK solutions,
-    both in the order of ``spec.objects``; ``object_rest_z`` the objects' initial heights.
+    ``goals.standoffs`` and ``goals.envelopes`` the pre-grasp distances and the objects'
+    envelopes, all in the order of ``spec.objects``; ``object_rest_z`` the objects' initial
+    heights; ``hand`` the hand's collision parts with the scene's finger opening.
     """
 
     spec: SceneSpec
@@ -64,6 +73,19 @@ class Scene:
     tcp_site_id: int
     gripper_actuator_id: int
     finger_body_ids: tuple[int, int]
+    hand: tuple[HandLayer, ...]
+
+    def arm_model(self, kinematics: Kinematics) -> ArmModel:
+        """The arm as a grasping policy sees it, steered through ``kinematics`` (give each
+        trial its own copy: pinocchio's data is not shared between threads)."""
+        return ArmModel(
+            pose_jacobian=kinematics.pose_and_jacobian,
+            layers=self.hand,
+            slot=self.spec.gripper_open,
+            table_z=self.spec.table.top_z,
+            lower=self.arm.lower,
+            upper=self.arm.upper,
+        )
 
     @property
     def name(self) -> str:
@@ -89,16 +111,34 @@ def grasp_rotation(obj: ObjectSpec) -> np.ndarray:
     robot (the way a reach-limited user pushes toward a far object). A box is gripped across
     the pair of faces nearest that direction: ``psi = yaw + k pi/2`` closest to 0.
     """
-    psi = 0.0
+    return downward_rotation(_grasp_yaw(obj))
+
+
+def _grasp_yaw(obj: ObjectSpec) -> float:
     if obj.shape == "box":
-        psi = obj.yaw - round(obj.yaw / (math.pi / 2)) * (math.pi / 2)
-    return downward_rotation(psi)
+        return obj.yaw - round(obj.yaw / (math.pi / 2)) * (math.pi / 2)
+    return 0.0
 
 
 def grasp_position(obj: ObjectSpec) -> np.ndarray:
     top = obj.position[2] + obj.half_height
-    depth = min(GRASP_DEPTH, obj.half_height)
-    return np.array([obj.position[0], obj.position[1], top - depth])
+    return np.array([obj.position[0], obj.position[1], top - grasp_depth(obj)])
+
+
+def grasp_depth(obj: ObjectSpec) -> float:
+    """How far below the object's top the TCP grasps it (m)."""
+    return min(GRASP_DEPTH, obj.half_height)
+
+
+def envelope(obj: ObjectSpec) -> tuple[float, float, float]:
+    """The object as its grasp sees it (``GoalSet.envelopes``): footprint radius, its top above
+    the grasp point, and its half-width across the fingers' closing direction (the TCP's y
+    axis; for a box, the half-extent along whichever of its axes that is)."""
+    half_width = obj.size[0]
+    if obj.shape == "box":
+        turns = round((obj.yaw - _grasp_yaw(obj)) / (math.pi / 2))
+        half_width = obj.size[1] if turns % 2 == 0 else obj.size[0]
+    return obj.footprint_radius, grasp_depth(obj), half_width
 
 
 def build_scene(spec: SceneSpec, arm: Arm | None = None) -> Scene:
@@ -133,8 +173,19 @@ def _build_scene(spec: SceneSpec, arm: Arm) -> Scene:
         rotations.append(rot)
         configurations.append(result.q)
     quats = np.array([_wxyz(r) for r in rotations])
-    goals = GoalSet(spec.object_names, np.array(positions), quats, np.array(configurations))
     model = _compile(spec, arm)
+    tcp_site_id = model.site(TCP_SITE).id
+    hand = hand_layers(model, tcp_site_id, opening=min(spec.gripper_open, GRIPPER_MAX))
+    fingertips = max(0.0, -min(layer.lo for layer in hand))  # below the TCP
+    envelopes = np.array([envelope(o) for o in spec.objects])
+    goals = GoalSet(
+        spec.object_names,
+        np.array(positions),
+        quats,
+        np.array(configurations),
+        standoffs=envelopes[:, 1] + fingertips + PREGRASP_CLEARANCE,
+        envelopes=envelopes,
+    )
     return Scene(
         spec=spec,
         arm=arm,
@@ -150,9 +201,10 @@ def _build_scene(spec: SceneSpec, arm: Arm) -> Scene:
         ),
         object_rest_z=np.array([o.position[2] for o in spec.objects]),
         object_geom_ids=tuple(model.geom(o.name).id for o in spec.objects),
-        tcp_site_id=model.site(TCP_SITE).id,
+        tcp_site_id=tcp_site_id,
         gripper_actuator_id=model.actuator(GRIPPER_ACTUATOR).id,
         finger_body_ids=(model.body("panda_leftfinger").id, model.body("panda_rightfinger").id),
+        hand=hand,
     )
 
 

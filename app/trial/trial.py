@@ -39,6 +39,7 @@ from app.blending import (
     policy_from_config,
     predictor_from_config,
 )
+from app.robot.kinematics import Kinematics
 from app.robot.scene import Scene, build_scene
 from app.robot.simulation import BodyPoses, Simulation, SimulationError
 from app.teleop.ik_step import IKStep
@@ -80,7 +81,7 @@ class Trial:
         kin = self.scene.arm.kinematics.copy()
         self.kinematics = kin
         self.ik = IKStep(kin, rate_hz=config.rate_hz, posture=self.scene.start_q)
-        self.blender = _blender(config, self.scene)
+        self.blender = _blender(config, self.scene, kin)
         self.blender.reset(self.scene.start_ee)
         self._lock = threading.RLock()
         self._paused = False
@@ -476,7 +477,7 @@ class Trial:
         return rec
 
 
-def _blender(config: TrialConfig, scene: Scene) -> PolicyBlender:
+def _blender(config: TrialConfig, scene: Scene, kinematics: Kinematics) -> PolicyBlender:
     goals = scene.goals
     prediction = config.prediction
     space = "workspace"
@@ -501,7 +502,12 @@ def _blender(config: TrialConfig, scene: Scene) -> PolicyBlender:
         )
     policy = config.policy
     if isinstance(policy, Mapping):
-        policy = policy_from_config(dict(policy), rate_hz=config.rate_hz, where="policy")
+        policy = policy_from_config(
+            dict(policy),
+            rate_hz=config.rate_hz,
+            where="policy",
+            arm=scene.arm_model(kinematics),
+        )
     if space != "workspace":
         raise ValueError(
             "prediction.space: the trial predicts from the user's target, use 'workspace'"

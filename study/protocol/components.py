@@ -28,6 +28,7 @@ from app.blending.config import (
     predictor_from_config,
 )
 from app.blending.errors import BlendingError, ConfigError
+from app.blending.policy_grasp import ArmModel, HandLayer
 from study.protocol.errors import (
     MissingKeyError,
     ProtocolError,
@@ -36,6 +37,12 @@ from study.protocol.errors import (
     UnknownKeyError,
 )
 from study.protocol.fields import Table
+
+_CHECK_ARM = ArmModel(
+    pose_jacobian=lambda q: (np.zeros(3), np.eye(3), np.zeros((6, len(q)))),
+    layers=(HandLayer(lo=0.0, hi=0.1, center=(0.0, 0.0), half=(0.05, 0.05)),),
+    slot=0.04,
+)
 
 _ERRORS: dict[str, type[ProtocolError]] = {
     "missing": MissingKeyError,
@@ -83,13 +90,14 @@ def build_check(
             confidence_from_config(dict(cfg), where=where)
         elif role == "arbitration":
             arbitration_from_config(dict(cfg), where=where, rate_hz=rate_hz)
-        else:
+        else:  # the arm's kinematics and hand come with the scene: stand-ins to check the table
             policy_from_config(
                 dict(cfg),
                 rate_hz=rate_hz,
                 where=where,
                 fk=lambda q: q[:3],
                 jacobian=lambda q: np.zeros((6, len(q))),
+                arm=_CHECK_ARM,
             )
     except ConfigError as e:
         raise _protocol_error(e, file=file, where=where) from None
