@@ -143,6 +143,12 @@ def test_only_the_hop_the_trusted_proxy_appended_counts() -> None:
         h = Headers([("X-Forwarded-For", f"1.1.1.1, {bad}")])
         assert client_address("127.0.0.1", h, trusted=PROXY) == "127.0.0.1", bad
     assert client_address("127.0.0.1", Headers(), trusted=PROXY) == "127.0.0.1"
+    # a client's own long X-Forwarded-For (the proxy appends to it) once made the server read
+    # a Forwarded header the client wrote instead: any address it liked, per connection
+    long = Headers(
+        [("X-Forwarded-For", "1.1.1.1," * 400 + " 10.1.2.3"), ("Forwarded", "for=6.6.6.6")]
+    )
+    assert client_address("127.0.0.1", long, trusted=PROXY) == "10.1.2.3"
     nets = trusted_networks(["10.0.0.0/8", "::1"])
     assert client_address("10.200.0.1", forged, trusted=nets) == "10.1.2.3"
     with pytest.raises(ValueError, match="not an IP address or network"):
@@ -153,6 +159,10 @@ def test_the_origin_check_accepts_the_public_host_only_from_the_proxy() -> None:
     h = Headers([("Host", "127.0.0.1:8080"), ("X-Forwarded-Host", "study.example.org")])
     assert "study.example.org" in accepted_hosts("127.0.0.1", h, trusted=PROXY)
     assert accepted_hosts("192.0.2.9", h, trusted=PROXY) == {"127.0.0.1:8080"}
+    padded = Headers(
+        [("X-Forwarded-Host", "a," * 2000 + "study.example.org"), ("Forwarded", "host=evil")]
+    )
+    assert "evil" not in accepted_hosts("127.0.0.1", padded, trusted=PROXY)
     fw = Firewall(trusted_proxies=PROXY)
 
     def request(origin: str) -> SimpleNamespace:
