@@ -327,3 +327,74 @@ def test_held_keys_are_a_state_resent_and_let_go_when_it_stops(study: RunningSer
     events = {e.kind: e for e in study.store.events()}
     assert events["keys_expired"].detail == {"keys": "w"}
     assert "handle position" in str(events["input_dropped"].detail)
+
+
+# -- the second pass's attacks on the merged whole (open link, rejoin cookie, text floods) ----
+def _cookie(client: RawClient) -> str:
+    script = next(
+        m["source"]
+        for m in client.messages
+        if m.get("type") == "RunJavascriptMessage" and "study-rejoin=" in m["source"]
+    )
+    return script.split("study-rejoin=")[1].split(";")[0]
+
+
+def test_a_link_tab_gets_no_join_screen_before_its_url_is_read_and_one_session(
+    tmp_path: Path,
+) -> None:
+    """A tab that delays its URL's answer once got the join screen from any other tab's
+    coming and going, typed a code, then answered a recruitment ID: bound to two sessions, it
+    left the first held by a gone tab (its participant was refused for good)."""
+    rs = start_server(tmp_path, time_limit_s=120.0, training_runs=1, server_kw={"open_link": 2})
+    srv = rs.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+
+    async def scenario() -> None:
+        async with RawClient(srv.participant_port) as tab:
+            link = await tab.wait_for(
+                lambda m: m.get("type") == "GuiTextMessage" and m["props"]["label"] == "link"
+            )
+            async with RawClient(srv.participant_port):  # a tab that comes and goes
+                await asyncio.sleep(0.5)
+            await asyncio.sleep(1.0)
+            assert not any(m.get("props", {}).get("label") == "Join code" for m in tab.messages)
+            for value in ("P=" + "b" * 24, "."):
+                await tab.send("GuiUpdateMessage", uuid=link["uuid"], updates={"value": value})
+            await tab.button(AGREE)
+            page = next(iter(srv._pages.values()))
+            assert not srv._bind(page, srv.session(code))  # one tab, one session
+
+    try:
+        run_async(scenario())
+        assert srv.session(code).page is None
+        assert [s.participant for s in srv.sessions() if s.ever_attached] == ["L0001"]
+    finally:
+        rs.stop()
+
+
+def test_a_second_tab_of_the_same_browser_leaves_the_rejoin_cookie_alone(
+    study: RunningServer, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A second tab sends the same cookie; refused because the first holds the session, it
+    once cleared the cookie the browser shares, so the first tab's next reload met the join
+    screen. Now the cookie is cleared only when its session is over."""
+    import study.server.server as server_module
+
+    monkeypatch.setattr(server_module, "REJOIN_WAIT_S", 1.0)
+    srv = study.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+
+    async def scenario() -> None:
+        async with RawClient(srv.participant_port) as first:
+            await first.join(code)
+            token = _cookie(first)
+            cookie = {"Cookie": f"study-rejoin={token}"}
+            async with RawClient(srv.participant_port, headers=cookie) as second:
+                await second.wait_for(lambda m: m.get("props", {}).get("label") == "Join code")
+                await asyncio.sleep(2.0)  # past the wait for the first tab to let go
+                cleared = [m for m in second.messages if "study-rejoin=;" in str(m)]
+                assert not cleared and srv.session(code).page is not None
+
+    run_async(scenario())

@@ -134,8 +134,11 @@ class StudyServer:
         self._pages: dict[int, ParticipantPage] = {}
         self._page_session: dict[int, str] = {}
         self._link_pages: set[int] = set()
-        self._link_logged: dict[str, float] = {}
         """Tabs that came with a recruitment ID: they get no join-code screen."""
+        self._greeting: set[int] = set()
+        """Tabs whose URL is being read: no join screen until it is known (a code typed
+        meanwhile and a recruitment ID answered later once bound one tab to two sessions)."""
+        self._link_logged: dict[str, float] = {}
         self.public_url = public_url
         self.open_link = OpenLink(factory.store, enabled=open_link > 0, cap=open_link)
         self._tokens: dict[str, str] = {}
@@ -352,11 +355,14 @@ class StudyServer:
         elif not self.open_link.in_use():
             self._offer(page)  # a lab study: the join screen at once, no URL read
         else:
+            with self._lock:
+                self._greeting.add(client.client_id)
             threading.Thread(target=self._greet, args=(page,), name="greet", daemon=True).start()
 
     def _greet(self, page: ParticipantPage) -> None:
         """A new tab while the open link is in use: with a recruitment ID in its URL, the open
-        link's way in; else the join code."""
+        link's way in; else the join code (offered only once the URL is known)."""
+        cid = page.client.client_id
         try:
             values = read_link(page)
         except Exception:  # the tab went away
@@ -366,12 +372,15 @@ class StudyServer:
         except LinkError as exc:
             self._note_link("invalid", f"link refused (last from {page.address}): {exc}")
             with self._lock:
-                self._link_pages.add(page.client.client_id)
+                self._link_pages.add(cid)
+                self._greeting.discard(cid)
             page.show_message("This link does not work", LINK_INVALID_TEXT)
             return
+        with self._lock:
+            if recruitment is not None:
+                self._link_pages.add(cid)
+            self._greeting.discard(cid)
         if recruitment is not None:
-            with self._lock:
-                self._link_pages.add(page.client.client_id)
             self._link_join(page, recruitment)
             return
         self._offer(page)
@@ -494,6 +503,7 @@ class StudyServer:
     def _participant_disconnected(self, client: viser.ClientHandle) -> None:
         with self._lock:
             self._link_pages.discard(client.client_id)
+            self._greeting.discard(client.client_id)
             page = self._pages.pop(client.client_id, None)
             code = self._page_session.pop(client.client_id, None)
             live = self._sessions.get(code) if code is not None else None
@@ -514,7 +524,7 @@ class StudyServer:
         it to wait)."""
         with self._lock:
             cid = page.client.client_id
-            if cid in self._page_session or cid in self._link_pages:
+            if cid in self._page_session or cid in self._link_pages or cid in self._greeting:
                 return
             open_ = self.open_sessions()
         if self.kiosk:
@@ -558,9 +568,12 @@ class StudyServer:
         if live is None or live.closed or not self._bind(page, live):
             if live is not None and not live.closed:
                 live.note_refused_join(page)
-            if proven:
+            if proven and (live is None or live.closed):
+                # the token's session is over; one still held by another tab (a second tab of
+                # the same browser, which shares the cookie) keeps it for that tab's reload
                 with contextlib.suppress(Exception):
                     page.run_script(_cookie_script(""))
+            if proven:
                 with self._lock:
                     link_page = page.client.client_id in self._link_pages
                 if link_page:  # a reload then comes in by its link again
@@ -578,6 +591,8 @@ class StudyServer:
                 return True  # the tab closed meanwhile: nothing to tell it
             if live.page is not None and live.page is not page:
                 return False
+            if self._page_session.get(page.client.client_id, live.code) != live.code:
+                return False  # one tab, one session: it holds another already
             self._page_session[page.client.client_id] = live.code
         live.attach(page)
         with self._lock:
