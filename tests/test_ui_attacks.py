@@ -398,3 +398,50 @@ def test_a_second_tab_of_the_same_browser_leaves_the_rejoin_cookie_alone(
                 assert not cleared and srv.session(code).page is not None
 
     run_async(scenario())
+
+
+def test_long_texts_cost_what_a_page_sends_and_only_their_own_tab_waits(
+    study: RunningServer,
+) -> None:
+    """8,000 characters 190 times a second from a session's own tab (1.5 MB/s) once took the
+    other session's control loop to 0-16 ticks in a 0.25-s window: the server now reads a
+    bound tab at most 128 KiB/s after a 1 MiB burst (a person typing sends a tenth of that),
+    the other participant's inputs land, and a tab without a session sends no long text."""
+    srv = study.server
+    codes = [srv.enrol(p) for p in ("P01", "P02")]
+    for code in codes:
+        srv.act(code, "start")
+    live = srv.session(codes[0])
+    fw = srv.firewall
+
+    async def flood(client: RawClient, uuid: str, seconds: float) -> int:
+        sent, end = 0, time.monotonic() + seconds
+        while time.monotonic() < end:
+            value = f"{sent} w " + "x" * 7990
+            await client.send("GuiUpdateMessage", uuid=uuid, updates={"value": value})
+            sent += 1
+            await asyncio.sleep(1 / 190)
+        return sent
+
+    async def scenario() -> tuple[int, int]:
+        async with RawClient(srv.participant_port) as a, RawClient(srv.participant_port) as b:
+            honest, hostile = Honest(a, live), Honest(b, srv.session(codes[1]))
+            await honest.start(codes[0])
+            await hostile.start(codes[1])
+            passed = fw.passed
+            attack = asyncio.create_task(flood(b, hostile.keys_uuid, 5.0))
+            await asyncio.sleep(1.0)
+            while not attack.done():
+                await honest.inputs_land()
+            read = fw.passed - passed
+            assert not a.closed and live.page is not None and not live.session.paused
+            async with RawClient(srv.participant_port) as c:  # no session: short texts only
+                field = await c.wait_for(lambda m: m.get("props", {}).get("label") == "Join code")
+                await c.send("GuiUpdateMessage", uuid=field["uuid"], updates={"value": "x" * 65})
+                assert await until(lambda: fw.dropped["GuiUpdateMessage"] >= 1)
+            return await attack, read
+
+    sent, read = run_async(scenario())
+    print(f"sent {sent}, read {read} while the flood lasted, {fw.slowed} reads waited")
+    assert fw.slowed > 0 and read < 300, (sent, read)  # 1 MiB + 128 KiB/s: about 230
+    assert not [e for e in study.store.events(participant="P01") if e.kind == "input_dropped"]

@@ -42,6 +42,8 @@ class Slot:
     closing: bool = False
     rate: Any = field(default=None, repr=False)
     """Its :class:`~study.server.firewall.limits.ConnectionRate` (created on its first message)."""
+    budget: Any = field(default=None, repr=False)
+    """Its :class:`~study.server.firewall.shares.ByteBudget` (created once it is bound)."""
 
     @property
     def reserved(self) -> bool:
