@@ -18,6 +18,7 @@ import json
 import logging
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -445,3 +446,25 @@ def test_long_texts_cost_what_a_page_sends_and_only_their_own_tab_waits(
     print(f"sent {sent}, read {read} while the flood lasted, {fw.slowed} reads waited")
     assert fw.slowed > 0 and read < 300, (sent, read)  # 1 MiB + 128 KiB/s: about 230
     assert not [e for e in study.store.events(participant="P01") if e.kind == "input_dropped"]
+
+
+def test_a_cookie_at_the_door_never_waits_for_an_enrolment(study: RunningServer) -> None:
+    """The door asked the server's lock whether a rejoin cookie was good; the lock is held while
+    a session is built (7-300 ms here, each link bot's enrolment), so every handshake with any
+    cookie, and with it the whole event loop, waited."""
+    srv = study.server
+    held = threading.Event()
+
+    def enrolment() -> None:
+        with srv._lock:
+            held.set()
+            time.sleep(1.5)
+
+    async def handshake() -> float:
+        t = time.monotonic()
+        async with RawClient(srv.participant_port, headers={"Cookie": "study-rejoin=forged"}):
+            return time.monotonic() - t
+
+    threading.Thread(target=enrolment, daemon=True).start()
+    assert held.wait(5.0)
+    assert run_async(handshake()) < 1.0

@@ -418,9 +418,10 @@ class StudyServer:
         """The open session whose rejoin token is ``token`` (compared in constant time)."""
         if not token:
             return None
-        with self._lock:
-            tokens = list(self._tokens.items())
-        for code, expected in tokens:
+        # no lock: the firewall asks from the event loop, which must never wait for an
+        # enrolment (the server's lock is held while a session is built); a dict copy is atomic
+        tokens = self._tokens.copy()
+        for code, expected in tokens.items():
             if hmac.compare_digest(token.encode(), expected.encode()):
                 live = self._sessions.get(code)
                 return code if live is not None and not live.closed else None
@@ -429,9 +430,8 @@ class StudyServer:
     def _bound_input_dropped(self, client_id: int, reason: str) -> None:
         """The firewall refused a message of a session's tab (on the event loop): the session
         records it (from its own worker thread)."""
-        with self._lock:
-            code = self._page_session.get(client_id)
-            live = self._sessions.get(code) if code is not None else None
+        code = self._page_session.get(client_id)  # no lock: on the event loop (see _code_of)
+        live = self._sessions.get(code) if code is not None else None
         if live is not None:
             live.input.dropped(reason)
 
