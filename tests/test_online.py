@@ -89,6 +89,23 @@ def test_the_open_link_is_off_by_default_counts_places_and_survives_a_restart(
     store.close()
 
 
+def test_one_address_gets_a_few_new_ids_an_hour_and_its_known_ids_always(tmp_path: Path) -> None:
+    """A script from 8 addresses once filled 50 places in 20 s with made-up IDs."""
+    protocol = load_protocol(short_protocol(tmp_path))
+    store = open_store(tmp_path / "s.db", protocol)
+    link = OpenLink(store, enabled=True, cap=50, per_address=2)
+    for k in range(2):
+        ids = Recruitment((("pid", f"bot{k}"),))
+        who = link.claim(ids, address="10.0.0.9")
+        Session.enrol(store, protocol, who, recruitment=ids.as_dict()).close()
+        link.taken(who, ids, address="10.0.0.9")
+    with pytest.raises(LinkClosed, match="2 new IDs from one address"):
+        link.claim(Recruitment((("pid", "bot2"),)), address="10.0.0.9")
+    assert link.claim(Recruitment((("pid", "other"),)), address="10.0.0.10") == "L0003"
+    assert link.participant_for(Recruitment((("pid", "bot0"),))) == "L0001"  # comes back
+    store.close()
+
+
 # -- completion code, redirect, end screen ------------------------------------------------------
 def test_the_protocol_gives_a_completion_code_and_redirect(tmp_path: Path) -> None:
     url = "https://app.prolific.com/submissions/complete?cc=C0DE1234&p={PROLIFIC_PID}"

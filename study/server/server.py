@@ -442,7 +442,7 @@ class StudyServer:
         takes over only once that tab has let go (within ``REJOIN_WAIT_S``; later, a reload
         asks again). A new session starts by itself: no experimenter is there to start it."""
         try:
-            live, ended = self._link_session(recruitment)
+            live, ended = self._link_session(recruitment, address=page.address)
         except LinkClosed as exc:
             self._note_link("closed", f"open link refused a new participant: {exc}")
             page.show_message("Not open at the moment", LINK_CLOSED_TEXT)
@@ -481,16 +481,18 @@ class StudyServer:
             self._link_logged[key] = now
         LOGGER.info("%s", text)
 
-    def _link_session(self, recruitment: Recruitment) -> tuple[LiveSession | None, str]:
+    def _link_session(
+        self, recruitment: Recruitment, *, address: str = "unknown"
+    ) -> tuple[LiveSession | None, str]:
         """The live session of ``recruitment`` (enrolled now, or reopened), or ``(None,
         status)`` when its session is over; :class:`LinkClosed` for a new ID while the link
         is off or full. One ID at a time (the server's lock), so an ID gets one session."""
         with self._lock:
             participant = self.open_link.participant_for(recruitment)
             if participant is None:
-                participant = self.open_link.claim(recruitment)
+                participant = self.open_link.claim(recruitment, address=address)
                 code = self.enrol(participant, recruitment=recruitment)
-                self.open_link.taken(participant, recruitment)
+                self.open_link.taken(participant, recruitment, address=address)
                 return self._sessions[code], ""
             for live in self._sessions.values():
                 if live.participant == participant and not live.closed:
