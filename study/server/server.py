@@ -348,6 +348,8 @@ class StudyServer:
                 return
             self._pages[client.client_id] = page
         code = self._code_of(self.firewall.token_of(client.client_id))
+        if code is not None and self._by_link(code):
+            code = None  # the link's tab: its URL's ID decides (another tab is told, not held)
         if code is not None:  # a reload that kept its session's rejoin token
             threading.Thread(
                 target=self._rejoin, args=(page, code), name="rejoin", daemon=True
@@ -408,6 +410,11 @@ class StudyServer:
             bound = page.client.client_id in self._page_session
         if not bound:
             self._join(page, code, proven=True)
+
+    def _by_link(self, code: str) -> bool:
+        """Whether session ``code`` came by the open link (its tabs come back by their URL)."""
+        live = self._sessions.get(code)
+        return live is not None and bool(live.recruitment)
 
     def _proven_token(self, value: str) -> str | None:
         """``value`` (a tab's rejoin cookie) when it is the token of an open session, else

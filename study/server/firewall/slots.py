@@ -9,7 +9,8 @@ door (a reload of a bound tab).
 Slots are shared, never hoarded:
 
 * at most ``max_per_address`` per address and ``max_total`` in all, but a reserved tab is
-  always let in (at most ``reserved_per_token`` per token: a reload overlaps its old socket);
+  always let in (at most ``reserved_per_token`` per token: a reload overlaps its old socket;
+  past that a tab with the token is an ordinary newcomer);
 * when the port is full, a newcomer from an address with at least two slots fewer than the
   address holding the most unbound slots takes the oldest of those (waiting ones first): idle
   sockets from a few addresses cannot keep a new tab out, and bound or reserved tabs are never
@@ -91,11 +92,12 @@ class Slots:
         close for it, or ``None``), ``(None, problem)`` when it does not."""
         live = [s for s in self._slots.values() if not s.closing]
         evict = None
-        if token is not None:
-            same = sum(1 for s in live if s.token == token)
-            if same >= self.reserved_per_token:
-                return None, f"too many connections with one rejoin token ({same})"
-        else:
+        if token is not None and sum(s.token == token for s in live) >= self.reserved_per_token:
+            # more tabs of one browser (they share the cookie) than a reload needs: the next is
+            # an ordinary newcomer, never refused for its cookie (two extra tabs once kept the
+            # session's own reload out)
+            token = None
+        if token is None:
             mine = sum(1 for s in live if s.address == address)
             if mine >= self.max_per_address:
                 return None, f"too many connections from one address ({mine})"
