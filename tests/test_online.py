@@ -89,6 +89,23 @@ def test_the_open_link_is_off_by_default_counts_places_and_survives_a_restart(
     store.close()
 
 
+def test_one_address_gets_a_few_new_ids_an_hour_and_its_known_ids_always(tmp_path: Path) -> None:
+    """A script from 8 addresses once filled 50 places in 20 s with made-up IDs."""
+    protocol = load_protocol(short_protocol(tmp_path))
+    store = open_store(tmp_path / "s.db", protocol)
+    link = OpenLink(store, enabled=True, cap=50, per_address=2)
+    for k in range(2):
+        ids = Recruitment((("pid", f"bot{k}"),))
+        who = link.claim(ids, address="10.0.0.9")
+        Session.enrol(store, protocol, who, recruitment=ids.as_dict()).close()
+        link.taken(who, ids, address="10.0.0.9")
+    with pytest.raises(LinkClosed, match="2 new IDs from one address"):
+        link.claim(Recruitment((("pid", "bot2"),)), address="10.0.0.9")
+    assert link.claim(Recruitment((("pid", "other"),)), address="10.0.0.10") == "L0003"
+    assert link.participant_for(Recruitment((("pid", "bot0"),))) == "L0001"  # comes back
+    store.close()
+
+
 # -- completion code, redirect, end screen ------------------------------------------------------
 def test_the_protocol_gives_a_completion_code_and_redirect(tmp_path: Path) -> None:
     url = "https://app.prolific.com/submissions/complete?cc=C0DE1234&p={PROLIFIC_PID}"
@@ -143,6 +160,12 @@ def test_only_the_hop_the_trusted_proxy_appended_counts() -> None:
         h = Headers([("X-Forwarded-For", f"1.1.1.1, {bad}")])
         assert client_address("127.0.0.1", h, trusted=PROXY) == "127.0.0.1", bad
     assert client_address("127.0.0.1", Headers(), trusted=PROXY) == "127.0.0.1"
+    # a client's own long X-Forwarded-For (the proxy appends to it) once made the server read
+    # a Forwarded header the client wrote instead: any address it liked, per connection
+    long = Headers(
+        [("X-Forwarded-For", "1.1.1.1," * 400 + " 10.1.2.3"), ("Forwarded", "for=6.6.6.6")]
+    )
+    assert client_address("127.0.0.1", long, trusted=PROXY) == "10.1.2.3"
     nets = trusted_networks(["10.0.0.0/8", "::1"])
     assert client_address("10.200.0.1", forged, trusted=nets) == "10.1.2.3"
     with pytest.raises(ValueError, match="not an IP address or network"):
@@ -153,6 +176,10 @@ def test_the_origin_check_accepts_the_public_host_only_from_the_proxy() -> None:
     h = Headers([("Host", "127.0.0.1:8080"), ("X-Forwarded-Host", "study.example.org")])
     assert "study.example.org" in accepted_hosts("127.0.0.1", h, trusted=PROXY)
     assert accepted_hosts("192.0.2.9", h, trusted=PROXY) == {"127.0.0.1:8080"}
+    padded = Headers(
+        [("X-Forwarded-Host", "a," * 2000 + "study.example.org"), ("Forwarded", "host=evil")]
+    )
+    assert "evil" not in accepted_hosts("127.0.0.1", padded, trusted=PROXY)
     fw = Firewall(trusted_proxies=PROXY)
 
     def request(origin: str) -> SimpleNamespace:

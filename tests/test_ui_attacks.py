@@ -18,6 +18,7 @@ import json
 import logging
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -327,3 +328,143 @@ def test_held_keys_are_a_state_resent_and_let_go_when_it_stops(study: RunningSer
     events = {e.kind: e for e in study.store.events()}
     assert events["keys_expired"].detail == {"keys": "w"}
     assert "handle position" in str(events["input_dropped"].detail)
+
+
+# -- the second pass's attacks on the merged whole (open link, rejoin cookie, text floods) ----
+def _cookie(client: RawClient) -> str:
+    script = next(
+        m["source"]
+        for m in client.messages
+        if m.get("type") == "RunJavascriptMessage" and "study-rejoin=" in m["source"]
+    )
+    return script.split("study-rejoin=")[1].split(";")[0]
+
+
+def test_a_link_tab_gets_no_join_screen_before_its_url_is_read_and_one_session(
+    tmp_path: Path,
+) -> None:
+    """A tab that delays its URL's answer once got the join screen from any other tab's
+    coming and going, typed a code, then answered a recruitment ID: bound to two sessions, it
+    left the first held by a gone tab (its participant was refused for good)."""
+    rs = start_server(tmp_path, time_limit_s=120.0, training_runs=1, server_kw={"open_link": 2})
+    srv = rs.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+
+    async def scenario() -> None:
+        async with RawClient(srv.participant_port) as tab:
+            link = await tab.wait_for(
+                lambda m: m.get("type") == "GuiTextMessage" and m["props"]["label"] == "link"
+            )
+            async with RawClient(srv.participant_port):  # a tab that comes and goes
+                await asyncio.sleep(0.5)
+            await asyncio.sleep(1.0)
+            assert not any(m.get("props", {}).get("label") == "Join code" for m in tab.messages)
+            for value in ("P=" + "b" * 24, "."):
+                await tab.send("GuiUpdateMessage", uuid=link["uuid"], updates={"value": value})
+            await tab.button(AGREE)
+            page = next(iter(srv._pages.values()))
+            assert not srv._bind(page, srv.session(code))  # one tab, one session
+
+    try:
+        run_async(scenario())
+        assert srv.session(code).page is None
+        assert [s.participant for s in srv.sessions() if s.ever_attached] == ["L0001"]
+    finally:
+        rs.stop()
+
+
+def test_a_second_tab_of_the_same_browser_leaves_the_rejoin_cookie_alone(
+    study: RunningServer, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A second tab sends the same cookie; refused because the first holds the session, it
+    once cleared the cookie the browser shares, so the first tab's next reload met the join
+    screen. Now the cookie is cleared only when its session is over."""
+    import study.server.server as server_module
+
+    monkeypatch.setattr(server_module, "REJOIN_WAIT_S", 1.0)
+    srv = study.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+
+    async def scenario() -> None:
+        async with RawClient(srv.participant_port) as first:
+            await first.join(code)
+            token = _cookie(first)
+            cookie = {"Cookie": f"study-rejoin={token}"}
+            async with RawClient(srv.participant_port, headers=cookie) as second:
+                await second.wait_for(lambda m: m.get("props", {}).get("label") == "Join code")
+                await asyncio.sleep(2.0)  # past the wait for the first tab to let go
+                cleared = [m for m in second.messages if "study-rejoin=;" in str(m)]
+                assert not cleared and srv.session(code).page is not None
+
+    run_async(scenario())
+
+
+def test_long_texts_cost_what_a_page_sends_and_only_their_own_tab_waits(
+    study: RunningServer,
+) -> None:
+    """8,000 characters 190 times a second from a session's own tab (1.5 MB/s) once took the
+    other session's control loop to 0-16 ticks in a 0.25-s window: the server now reads a
+    bound tab at most 128 KiB/s after a 1 MiB burst (a person typing sends a tenth of that),
+    the other participant's inputs land, and a tab without a session sends no long text."""
+    srv = study.server
+    codes = [srv.enrol(p) for p in ("P01", "P02")]
+    for code in codes:
+        srv.act(code, "start")
+    live = srv.session(codes[0])
+    fw = srv.firewall
+
+    async def flood(client: RawClient, uuid: str, seconds: float) -> int:
+        sent, end = 0, time.monotonic() + seconds
+        while time.monotonic() < end:
+            value = f"{sent} w " + "x" * 7990
+            await client.send("GuiUpdateMessage", uuid=uuid, updates={"value": value})
+            sent += 1
+            await asyncio.sleep(1 / 190)
+        return sent
+
+    async def scenario() -> tuple[int, int]:
+        async with RawClient(srv.participant_port) as a, RawClient(srv.participant_port) as b:
+            honest, hostile = Honest(a, live), Honest(b, srv.session(codes[1]))
+            await honest.start(codes[0])
+            await hostile.start(codes[1])
+            passed = fw.passed
+            attack = asyncio.create_task(flood(b, hostile.keys_uuid, 5.0))
+            await asyncio.sleep(1.0)
+            while not attack.done():
+                await honest.inputs_land()
+            read = fw.passed - passed
+            assert not a.closed and live.page is not None and not live.session.paused
+            async with RawClient(srv.participant_port) as c:  # no session: short texts only
+                field = await c.wait_for(lambda m: m.get("props", {}).get("label") == "Join code")
+                await c.send("GuiUpdateMessage", uuid=field["uuid"], updates={"value": "x" * 65})
+                assert await until(lambda: fw.dropped["GuiUpdateMessage"] >= 1)
+            return await attack, read
+
+    sent, read = run_async(scenario())
+    print(f"sent {sent}, read {read} while the flood lasted, {fw.slowed} reads waited")
+    assert fw.slowed > 0 and read < 300, (sent, read)  # 1 MiB + 128 KiB/s: about 230
+    assert not [e for e in study.store.events(participant="P01") if e.kind == "input_dropped"]
+
+
+def test_a_cookie_at_the_door_never_waits_for_an_enrolment(study: RunningServer) -> None:
+    """The door asked the server's lock whether a rejoin cookie was good; the lock is held while
+    a session is built (7-300 ms here, each link bot's enrolment), so every handshake with any
+    cookie, and with it the whole event loop, waited."""
+    srv = study.server
+    held = threading.Event()
+
+    def enrolment() -> None:
+        with srv._lock:
+            held.set()
+            time.sleep(1.5)
+
+    async def handshake() -> float:
+        t = time.monotonic()
+        async with RawClient(srv.participant_port, headers={"Cookie": "study-rejoin=forged"}):
+            return time.monotonic() - t
+
+    threading.Thread(target=enrolment, daemon=True).start()
+    assert held.wait(5.0)
+    assert run_async(handshake()) < 1.0

@@ -30,14 +30,17 @@ AGREE = "I have read this and agree to take part"
 class RawClient:
     """A minimal viser client: collects decoded messages, sends msgpack messages."""
 
-    def __init__(self, port: int) -> None:
+    def __init__(self, port: int, *, headers: dict[str, str] | None = None) -> None:
         self.port = port
+        self.headers = headers
         self.messages: list[dict[str, Any]] = []
         self.closed = False
 
     async def __aenter__(self) -> RawClient:
         self.ws = await websockets.connect(
-            f"ws://127.0.0.1:{self.port}", subprotocols=[f"viser-v{viser.__version__}"]
+            f"ws://127.0.0.1:{self.port}",
+            subprotocols=[f"viser-v{viser.__version__}"],
+            additional_headers=self.headers,
         )
         self._reader = asyncio.create_task(self._read())
         await self.send(

@@ -25,7 +25,7 @@ from typing import Any
 
 Network = ipaddress.IPv4Network | ipaddress.IPv6Network
 MAX_HEADER = 2048
-"""Longest forwarding header read (a longer one is not a proxy's: the peer's address stays)."""
+"""Longest forwarding entry read (a longer one is not a proxy's: the peer's address stays)."""
 
 
 def trusted_networks(values: Iterable[str]) -> tuple[Network, ...]:
@@ -57,14 +57,14 @@ def client_address(peer: str, headers: Any, *, trusted: tuple[Network, ...]) -> 
     """The client's address: the one the trusted proxy ``peer`` appended, else ``peer``."""
     if headers is None or not is_trusted(peer, trusted):
         return peer
-    xff = _joined(headers, "X-Forwarded-For")
+    xff = _last(headers, "X-Forwarded-For")
     if xff is not None:
-        entry = xff.split(",")[-1]
+        entry = xff
     else:
-        forwarded = _joined(headers, "Forwarded")
+        forwarded = _last(headers, "Forwarded")
         if forwarded is None:
             return peer
-        entry = _param(forwarded.split(",")[-1], "for") or ""
+        entry = _param(forwarded, "for") or ""
     return _ip(entry) or peer
 
 
@@ -72,25 +72,29 @@ def accepted_hosts(peer: str, headers: Any, *, trusted: tuple[Network, ...]) -> 
     """Host names (``host`` or ``host:port``, lower case) an ``Origin`` may carry here."""
     hosts = {str(headers.get("Host", "")).lower()} if headers is not None else set()
     if headers is not None and is_trusted(peer, trusted):
-        public = _joined(headers, "X-Forwarded-Host")
+        public = _last(headers, "X-Forwarded-Host")
         if public is not None:
-            hosts.add(public.split(",")[-1].strip().lower())
-        elif (forwarded := _joined(headers, "Forwarded")) is not None:
-            host = _param(forwarded.split(",")[-1], "host")
+            hosts.add(public.strip().lower())
+        elif (forwarded := _last(headers, "Forwarded")) is not None:
+            host = _param(forwarded, "host")
             if host:
                 hosts.add(host.lower())
     hosts.discard("")
     return frozenset(h for h in hosts if not any(ch in h for ch in "@/\\?# "))
 
 
-def _joined(headers: Any, name: str) -> str | None:
-    """Every ``name`` header's value joined by commas, in order; ``None`` if none or too long."""
+def _last(headers: Any, name: str) -> str | None:
+    """The last comma-separated entry of the last ``name`` header (the one the proxy
+    appended), ``None`` if there is no such header. However long the headers are (a client
+    can make them long), their presence decides: a long ``X-Forwarded-For`` never lets a
+    ``Forwarded`` header the client wrote take its place; an entry longer than
+    ``MAX_HEADER`` is "" (not an address)."""
     values = headers.get_all(name) if hasattr(headers, "get_all") else [headers.get(name)]
     values = [str(v) for v in values if v is not None]
     if not values:
         return None
-    text = ",".join(values)
-    return text if len(text) <= MAX_HEADER else None
+    entry = values[-1].rpartition(",")[2]
+    return entry if len(entry) <= MAX_HEADER else ""
 
 
 def _param(element: str, name: str) -> str | None:

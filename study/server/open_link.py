@@ -10,12 +10,21 @@ a returned submission does on Prolific).
 
 The IDs a link enrolled are read back from the store's ``enrol`` events when the server
 starts, so a restart keeps one session per ID. Thread-safe.
+
+Bots: anyone with the link can make up IDs, and a script from 8 addresses once filled 50
+places in 20 s. One address gets at most ``per_address`` new IDs in ``window_s`` (3 an hour, 0: no limit;
+people behind one address -- a household, a carrier's shared address -- rarely start the
+same study within the hour; an ID seen before is never refused by it). A script with many
+addresses still fills places; the console shows them, and declined or withdrawn sessions
+give them back.
 """
 
 from __future__ import annotations
 
 import re
 import threading
+import time
+from collections import deque
 
 from study.server.recruitment import Recruitment
 from study.store import Store
@@ -31,8 +40,20 @@ class LinkClosed(RuntimeError):
 class OpenLink:
     """See module docstring."""
 
-    def __init__(self, store: Store, *, enabled: bool = False, cap: int = 0) -> None:
+    def __init__(
+        self,
+        store: Store,
+        *,
+        enabled: bool = False,
+        cap: int = 0,
+        per_address: int = 3,
+        window_s: float = 3600.0,
+    ) -> None:
         self.store = store
+        self.per_address = per_address
+        self.window_s = window_s
+        self._new: dict[str, deque[float]] = {}
+        """When each address last had a new ID enrolled (at most ``per_address`` kept)."""
         self._lock = threading.Lock()
         self.enabled = False
         self.cap = 0
@@ -78,21 +99,41 @@ class OpenLink:
             mine = set(self._by_key.values())
         return sum(s.participant in mine and s.status != "withdrawn" for s in self.store.sessions())
 
-    def claim(self, recruitment: Recruitment) -> str:
-        """A new study pseudonym for ``recruitment`` (call ``taken`` once it is enrolled);
-        :class:`LinkClosed` while the link is off or full."""
+    def claim(self, recruitment: Recruitment, *, address: str = "unknown") -> str:
+        """A new study pseudonym for ``recruitment`` from ``address`` (call ``taken`` once it
+        is enrolled); :class:`LinkClosed` while the link is off or full, or ``address`` had
+        its new IDs for now."""
         if not self.enabled:
             raise LinkClosed("the open link is off")
         if self.used() >= self.cap:
             raise LinkClosed(f"all {self.cap} places are taken")
+        if self.per_address > 0 and self._recent(address, time.monotonic()) >= self.per_address:
+            raise LinkClosed(
+                f"{self.per_address} new IDs from one address within {self.window_s:g} s"
+            )
         ids = (p.participant for p in self.store.participants())
         numbers = [int(m[1]) for p in ids if (m := LINK_PARTICIPANT.fullmatch(p))]
         return f"L{max(numbers, default=0) + 1:04d}"
 
-    def taken(self, participant: str, recruitment: Recruitment) -> None:
+    def taken(
+        self, participant: str, recruitment: Recruitment, *, address: str = "unknown"
+    ) -> None:
         with self._lock:
             self._by_key[recruitment.key] = participant
             self._recruitment[participant] = recruitment
+            if address != "unknown" and self.per_address > 0:
+                self._new.setdefault(address, deque(maxlen=self.per_address)).append(
+                    time.monotonic()
+                )
+
+    def _recent(self, address: str, now: float) -> int:
+        """New IDs ``address`` had enrolled within the window (forgetting quiet addresses)."""
+        with self._lock:
+            if len(self._new) > 4096:
+                for quiet in [a for a, q in self._new.items() if now - q[-1] > self.window_s]:
+                    del self._new[quiet]
+            stamps = self._new.get(address, ())
+            return sum(1 for t in stamps if now - t <= self.window_s)
 
 
 __all__ = ["LINK_SOURCE", "LinkClosed", "OpenLink"]

@@ -134,8 +134,11 @@ class StudyServer:
         self._pages: dict[int, ParticipantPage] = {}
         self._page_session: dict[int, str] = {}
         self._link_pages: set[int] = set()
-        self._link_logged: dict[str, float] = {}
         """Tabs that came with a recruitment ID: they get no join-code screen."""
+        self._greeting: set[int] = set()
+        """Tabs whose URL is being read: no join screen until it is known (a code typed
+        meanwhile and a recruitment ID answered later once bound one tab to two sessions)."""
+        self._link_logged: dict[str, float] = {}
         self.public_url = public_url
         self.open_link = OpenLink(factory.store, enabled=open_link > 0, cap=open_link)
         self._tokens: dict[str, str] = {}
@@ -345,20 +348,23 @@ class StudyServer:
                 return
             self._pages[client.client_id] = page
         code = self._code_of(self.firewall.token_of(client.client_id))
-        with self._lock:
-            live = self._sessions.get(code) if code is not None else None
-        if live is not None and not live.recruitment:  # a reload that kept its rejoin token
+        if code is not None and self._by_link(code):
+            code = None  # the link's tab: its URL's ID decides (another tab is told, not held)
+        if code is not None:  # a reload that kept its session's rejoin token
             threading.Thread(
                 target=self._rejoin, args=(page, code), name="rejoin", daemon=True
             ).start()
         elif not self.open_link.in_use():
             self._offer(page)  # a lab study: the join screen at once, no URL read
         else:
+            with self._lock:
+                self._greeting.add(client.client_id)
             threading.Thread(target=self._greet, args=(page,), name="greet", daemon=True).start()
 
     def _greet(self, page: ParticipantPage) -> None:
         """A new tab while the open link is in use: with a recruitment ID in its URL, the open
-        link's way in; else the join code."""
+        link's way in; else the join code (offered only once the URL is known)."""
+        cid = page.client.client_id
         try:
             values = read_link(page)
         except Exception:  # the tab went away
@@ -368,12 +374,15 @@ class StudyServer:
         except LinkError as exc:
             self._note_link("invalid", f"link refused (last from {page.address}): {exc}")
             with self._lock:
-                self._link_pages.add(page.client.client_id)
+                self._link_pages.add(cid)
+                self._greeting.discard(cid)
             page.show_message("This link does not work", LINK_INVALID_TEXT)
             return
+        with self._lock:
+            if recruitment is not None:
+                self._link_pages.add(cid)
+            self._greeting.discard(cid)
         if recruitment is not None:
-            with self._lock:
-                self._link_pages.add(page.client.client_id)
             self._link_join(page, recruitment)
             return
         self._offer(page)
@@ -398,6 +407,11 @@ class StudyServer:
         if not bound:
             self._join(page, code, proven=True)
 
+    def _by_link(self, code: str) -> bool:
+        """Whether session ``code`` came by the open link (its tabs come back by their URL)."""
+        live = self._sessions.get(code)
+        return live is not None and bool(live.recruitment)
+
     def _proven_token(self, value: str) -> str | None:
         """``value`` (a tab's rejoin cookie) when it is the token of an open session, else
         ``None`` (the firewall asks at the door)."""
@@ -407,9 +421,10 @@ class StudyServer:
         """The open session whose rejoin token is ``token`` (compared in constant time)."""
         if not token:
             return None
-        with self._lock:
-            tokens = list(self._tokens.items())
-        for code, expected in tokens:
+        # no lock: the firewall asks from the event loop, which must never wait for an
+        # enrolment (the server's lock is held while a session is built); a dict copy is atomic
+        tokens = self._tokens.copy()
+        for code, expected in tokens.items():
             if hmac.compare_digest(token.encode(), expected.encode()):
                 live = self._sessions.get(code)
                 return code if live is not None and not live.closed else None
@@ -418,9 +433,8 @@ class StudyServer:
     def _bound_input_dropped(self, client_id: int, reason: str) -> None:
         """The firewall refused a message of a session's tab (on the event loop): the session
         records it (from its own worker thread)."""
-        with self._lock:
-            code = self._page_session.get(client_id)
-            live = self._sessions.get(code) if code is not None else None
+        code = self._page_session.get(client_id)  # no lock: on the event loop (see _code_of)
+        live = self._sessions.get(code) if code is not None else None
         if live is not None:
             live.input.dropped(reason)
 
@@ -431,7 +445,7 @@ class StudyServer:
         takes over only once that tab has let go (within ``REJOIN_WAIT_S``; later, a reload
         asks again). A new session starts by itself: no experimenter is there to start it."""
         try:
-            live, ended = self._link_session(recruitment)
+            live, ended = self._link_session(recruitment, address=page.address)
         except LinkClosed as exc:
             self._note_link("closed", f"open link refused a new participant: {exc}")
             page.show_message("Not open at the moment", LINK_CLOSED_TEXT)
@@ -470,16 +484,18 @@ class StudyServer:
             self._link_logged[key] = now
         LOGGER.info("%s", text)
 
-    def _link_session(self, recruitment: Recruitment) -> tuple[LiveSession | None, str]:
+    def _link_session(
+        self, recruitment: Recruitment, *, address: str = "unknown"
+    ) -> tuple[LiveSession | None, str]:
         """The live session of ``recruitment`` (enrolled now, or reopened), or ``(None,
         status)`` when its session is over; :class:`LinkClosed` for a new ID while the link
         is off or full. One ID at a time (the server's lock), so an ID gets one session."""
         with self._lock:
             participant = self.open_link.participant_for(recruitment)
             if participant is None:
-                participant = self.open_link.claim(recruitment)
+                participant = self.open_link.claim(recruitment, address=address)
                 code = self.enrol(participant, recruitment=recruitment)
-                self.open_link.taken(participant, recruitment)
+                self.open_link.taken(participant, recruitment, address=address)
                 return self._sessions[code], ""
             for live in self._sessions.values():
                 if live.participant == participant and not live.closed:
@@ -492,6 +508,7 @@ class StudyServer:
     def _participant_disconnected(self, client: viser.ClientHandle) -> None:
         with self._lock:
             self._link_pages.discard(client.client_id)
+            self._greeting.discard(client.client_id)
             page = self._pages.pop(client.client_id, None)
             code = self._page_session.pop(client.client_id, None)
             live = self._sessions.get(code) if code is not None else None
@@ -512,7 +529,7 @@ class StudyServer:
         it to wait)."""
         with self._lock:
             cid = page.client.client_id
-            if cid in self._page_session or cid in self._link_pages:
+            if cid in self._page_session or cid in self._link_pages or cid in self._greeting:
                 return
             open_ = self.open_sessions()
         if self.kiosk:
@@ -556,9 +573,16 @@ class StudyServer:
         if live is None or live.closed or not self._bind(page, live):
             if live is not None and not live.closed:
                 live.note_refused_join(page)
-            if proven:
+            if proven and (live is None or live.closed):
+                # the token's session is over; one still held by another tab (a second tab of
+                # the same browser, which shares the cookie) keeps it for that tab's reload
                 with contextlib.suppress(Exception):
                     page.run_script(_cookie_script(""))
+            if proven:
+                with self._lock:
+                    link_page = page.client.client_id in self._link_pages
+                if link_page:  # a reload then comes in by its link again
+                    page.show_message("Please try again", LINK_FAILED_TEXT)
                 self._offer(page)
                 return
             page.show_join(
@@ -572,6 +596,8 @@ class StudyServer:
                 return True  # the tab closed meanwhile: nothing to tell it
             if live.page is not None and live.page is not page:
                 return False
+            if self._page_session.get(page.client.client_id, live.code) != live.code:
+                return False  # one tab, one session: it holds another already
             self._page_session[page.client.client_id] = live.code
         live.attach(page)
         with self._lock:

@@ -11,10 +11,13 @@
   room kept for tabs that present a session's rejoin token). A request for a file that cannot
   even be named gets 404.
 * Per frame, before viser (``screened_recv``): a text frame closes its connection with 1003;
-  an unbound connection waits for its address's share (``shares.FairShares``); a bound tab
-  never waits.
+  an unbound connection waits for its address's share (``shares.FairShares``; a message counts
+  once per KiB begun); a bound tab waits only past ``bound_bytes_per_s`` (``shares.ByteBudget``,
+  far above what a page sends).
 * Per message (``admit`` and ``screen``, called by the decoder hook): the per-connection
-  :class:`~study.server.firewall.limits.ConnectionRate`, then ``rules.screen``.
+  :class:`~study.server.firewall.limits.ConnectionRate`, then ``rules.screen``; GUI text
+  values up to ``rules.MAX_GUI_TEXT`` characters from a bound tab (a free-text answer), up to
+  ``rules.MAX_STRING`` from any other (a join code, a link's IDs).
 * Every second, slots that never sent a message, or sat idle on the join screen too long, are
   closed.
 
@@ -48,14 +51,16 @@ from study.server.firewall.limits import ConnectionRate
 from study.server.firewall.notes import LOGGER, Notes
 from study.server.firewall.rules import (
     LOOPBACK_NAMES,
+    MAX_GUI_TEXT,
     MAX_MESSAGE_BYTES,
     MAX_POSITION_M,
+    MAX_STRING,
     PARTICIPANT_TYPES,
     SHARE_TYPES,
     ConnectionFlood,
     Dropped,
 )
-from study.server.firewall.shares import AcceptGate, FairShares
+from study.server.firewall.shares import AcceptGate, ByteBudget, FairShares
 from study.server.firewall.slots import Slot, Slots
 from study.server.forwarded import Network, accepted_hosts, client_address, is_trusted
 
@@ -90,6 +95,8 @@ class Firewall:
         loopback_only: bool = False,
         backlog_s: float = 10.0,
         shares_per_s: float | None = 400.0,
+        bound_bytes_per_s: float | None = 128 * 1024,
+        bound_bytes_burst: float = 1024 * 1024,
         accept_per_s: float | None = 1.0,
         accept_burst: float = 12.0,
         accept_total_per_s: float = 40.0,
@@ -123,6 +130,10 @@ class Firewall:
             idle_timeout_s=idle_timeout_s,
         )
         self.shares = None if shares_per_s is None else FairShares(per_s=shares_per_s)
+        self.bound_bytes_per_s = bound_bytes_per_s
+        self.bound_bytes_burst = bound_bytes_burst
+        self.slowed = 0
+        """Reads of a bound tab that waited for its byte budget."""
         self.gate = (
             None
             if accept_per_s is None
@@ -323,10 +334,17 @@ class Firewall:
             if not isinstance(raw, bytes):
                 self.refuse("text frame (viser speaks binary)")
                 self._closing("a text frame", code=1003)
+            wait = 0.0
             if not slot.bound and self.shares is not None:
-                wait = self.shares.delay(slot.address, now)
-                if wait > 0.0:
-                    await asyncio.sleep(wait)
+                wait = self.shares.delay(slot.address, now, cost=1 + len(raw) // 1024)
+            elif slot.bound and self.bound_bytes_per_s is not None:
+                if slot.budget is None:
+                    per_s, burst = self.bound_bytes_per_s, self.bound_bytes_burst
+                    slot.budget = ByteBudget(per_s=per_s, burst=burst, now=now)
+                wait = slot.budget.delay(len(raw), now)
+                self.slowed += wait > 0.0
+            if wait > 0.0:
+                await asyncio.sleep(wait)
             return raw
 
         return screened
@@ -377,12 +395,14 @@ class Firewall:
 
     def screen(self, raw: bytes) -> str | None:
         """``None`` when ``raw`` may be decoded, else the reason it is refused."""
+        slot = self._slot()
         return rules.screen(
             raw,
             max_bytes=self.max_bytes,
             allowed=self.allowed,
             allow_share=self.allow_share,
             max_position_m=self.max_position_m,
+            max_text=MAX_GUI_TEXT if slot is None or slot.bound else MAX_STRING,
         )
 
     def refuse(self, reason: str) -> Dropped:

@@ -107,8 +107,11 @@ def _string(value: Any, *, what: str, limit: int = MAX_STRING) -> None:
         raise RefusedMessage(f"{what} is not a string of at most {limit} characters")
 
 
-def check_values(kind: str, body: dict[str, Any], *, max_position_m: float) -> None:
-    """Raise :class:`RefusedMessage` unless ``body`` (a decoded message) is plausible."""
+def check_values(
+    kind: str, body: dict[str, Any], *, max_position_m: float, max_text: int = MAX_GUI_TEXT
+) -> None:
+    """Raise :class:`RefusedMessage` unless ``body`` (a decoded message) is plausible; GUI
+    text values of at most ``max_text`` characters."""
     if kind == "TransformControlsUpdateMessage":
         _string(body.get("name"), what="handle name")
         _string(body.get("owner", ""), what="handle owner")
@@ -124,7 +127,7 @@ def check_values(kind: str, body: dict[str, Any], *, max_position_m: float) -> N
             raise RefusedMessage("GUI update changes something other than its value")
         value = updates["value"]
         if isinstance(value, str):
-            _string(value, what="GUI value", limit=MAX_GUI_TEXT)
+            _string(value, what="GUI value", limit=max_text)
         elif not isinstance(value, bool):
             _finite(value, bound=1e9, what="GUI value")
     elif kind == "LocalStorageGetItemResponseMessage":
@@ -152,6 +155,7 @@ def screen(
     allowed: frozenset[str] | None,
     allow_share: bool,
     max_position_m: float,
+    max_text: int = MAX_GUI_TEXT,
 ) -> str | None:
     """``None`` when ``raw`` may be decoded, else the reason it is refused (``allowed=None``:
     every type, no value rules -- the console, whose reasons may be long)."""
@@ -172,7 +176,7 @@ def screen(
     if allowed is None:
         return None
     try:
-        check_values(kind, body, max_position_m=max_position_m)
+        check_values(kind, body, max_position_m=max_position_m, max_text=max_text)
     except RefusedMessage as exc:
         return f"{kind}: {exc}"
     except Exception:  # a structure too odd to inspect (e.g. nested too deep)

@@ -7,6 +7,11 @@ A bound tab (a session's) is never slowed or dropped by anything here. Everythin
   share its part); a message over its address's share is not dropped but read later
   (``delay``): the connection waits, its frames stay in the kernel's buffer and its sender
   blocks, so a flood costs the server nothing and a join code typed behind it still arrives.
+* :class:`ByteBudget`: the bytes one bound tab may send, far above what a page sends (its
+  poses and key states are a few KiB a second; a free-text answer typed out to 8,000
+  characters at ten keys a second, each key sending the whole value, is 80 KiB a second);
+  past it the tab's reads wait as above. Eight thousand characters 190 times a second from
+  one tab once took the other sessions' control loops to 0-16 ticks in a 0.25-s window.
 * :class:`AcceptGate`: new connections (or new tabs) per address, ``per_s`` a second with a
   burst of ``burst``. When all addresses together exceed ``total_per_s``, only an address that
   has been quiet (at least half its burst left) gets in: a reconnect storm from a few
@@ -40,8 +45,9 @@ class FairShares:
         active = sum(1 for b in self._buckets.values() if now - b.last <= self.window_s)
         return self.per_s / max(1, active)
 
-    def delay(self, address: str, now: float) -> float:
-        """Seconds the next message of ``address`` must wait to stay within its share (0: go)."""
+    def delay(self, address: str, now: float, *, cost: float = 1.0) -> float:
+        """Seconds the next message of ``address`` must wait to stay within its share (0: go);
+        ``cost``: what it counts as (a long message counts as several)."""
         self._forget(now)
         bucket = self._buckets.get(address)
         share = self.share(now) if bucket is not None else self.per_s / (1 + len(self._buckets))
@@ -50,7 +56,7 @@ class FairShares:
             bucket = self._buckets[address] = _Bucket(tokens=cap, last=now)
         bucket.tokens = min(cap, bucket.tokens + (now - bucket.last) * share)
         bucket.last = now
-        bucket.tokens -= 1.0
+        bucket.tokens -= cost
         if bucket.tokens >= 0.0:
             return 0.0
         self.delayed += 1
@@ -60,6 +66,22 @@ class FairShares:
         if len(self._buckets) > 256:
             for address in [a for a, b in self._buckets.items() if now - b.last > self.window_s]:
                 del self._buckets[address]
+
+
+class ByteBudget:
+    """Bytes a second of one connection, ``per_s`` after a burst of ``burst``."""
+
+    def __init__(self, *, per_s: float, burst: float, now: float) -> None:
+        self.per_s = per_s
+        self.burst = burst
+        self._bucket = _Bucket(tokens=burst, last=now)
+
+    def delay(self, size: int, now: float) -> float:
+        """Seconds the connection waits after a message of ``size`` bytes (0: go on)."""
+        b = self._bucket
+        b.tokens = min(self.burst, b.tokens + (now - b.last) * self.per_s) - size
+        b.last = now
+        return 0.0 if b.tokens >= 0.0 else -b.tokens / self.per_s
 
 
 class AcceptGate:

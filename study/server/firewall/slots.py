@@ -9,7 +9,8 @@ door (a reload of a bound tab).
 Slots are shared, never hoarded:
 
 * at most ``max_per_address`` per address and ``max_total`` in all, but a reserved tab is
-  always let in (at most ``reserved_per_token`` per token: a reload overlaps its old socket);
+  always let in (at most ``reserved_per_token`` per token: a reload overlaps its old socket;
+  past that a tab with the token is an ordinary newcomer);
 * when the port is full, a newcomer from an address with at least two slots fewer than the
   address holding the most unbound slots takes the oldest of those (waiting ones first): idle
   sockets from a few addresses cannot keep a new tab out, and bound or reserved tabs are never
@@ -42,6 +43,8 @@ class Slot:
     closing: bool = False
     rate: Any = field(default=None, repr=False)
     """Its :class:`~study.server.firewall.limits.ConnectionRate` (created on its first message)."""
+    budget: Any = field(default=None, repr=False)
+    """Its :class:`~study.server.firewall.shares.ByteBudget` (created once it is bound)."""
 
     @property
     def reserved(self) -> bool:
