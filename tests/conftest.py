@@ -32,6 +32,7 @@ def short_protocol(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return _short_protocol(tmp_path_factory.mktemp("protocol"))
 
 
+@pytest.hookimpl(tryfirst=True)  # before xdist reads the groups into the test ids
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Under pytest-xdist each test module runs whole on one worker (its module-scoped fixtures,
     such as a simulated reference store, are built once), and the browser tests run one after
