@@ -94,10 +94,13 @@ def each_target_once(path: Path, *, mode: str = "timid") -> Path:
         (r"(?ms)^\[prediction\.wrong\]\n.*?\n\n", ""),
         (rf"(?m)^\[modes\.{other}\]\n.*\n\n", ""),
         (r'(?m)^after_task = \["preference"\]$', "after_task = []"),
-        (r"(?m)^between_tasks = \[\{ after_task = 2,", "between_tasks = [{ after_task = 1,"),
     )
     for pattern, new in edits:
         text, n = re.subn(pattern, new, text)
         assert n >= 1, f"{pattern!r} no longer matches the protocol: update this helper"
+    # (a copy without the questions asked once has no attention check to move)
+    text = re.sub(
+        r"(?m)^between_tasks = \[\{ after_task = 2,", "between_tasks = [{ after_task = 1,", text
+    )
     path.write_text(text, encoding="utf-8")
     return path
