@@ -84,9 +84,10 @@ def hold(page: Any, key: str, seconds: float, *, repeat_hz: float = 30.0) -> Non
     page.keyboard.up(key)
 
 
-def _shot(page: Any, folder: Path, name: str) -> None:
-    """Save a small screenshot for the README (PNG with a 96-colour palette), without the
-    viser client's own software-WebGL notice."""
+def _shot(page: Any, folder: Path, name: str, *, colors: int = 96) -> None:
+    """Save a small screenshot for the README (PNG with a ``colors`` palette), without the
+    viser client's own software-WebGL notice. 96 colours merge the box's orange with the
+    table's in the view from above (the box looks hollow): 256 keep it."""
     notice = page.locator(".mantine-Notification-root button")
     for k in range(notice.count()):
         notice.nth(k).click()
@@ -95,7 +96,7 @@ def _shot(page: Any, folder: Path, name: str) -> None:
     png = page.screenshot()
     print(f"screenshot {name}: {time.monotonic() - t:.1f} s")
     image = Image.open(io.BytesIO(png)).convert("RGB")
-    image.quantize(colors=96, method=Image.Quantize.MEDIANCUT).save(
+    image.quantize(colors=colors, method=Image.Quantize.MEDIANCUT).save(
         folder / f"{name}.png", optimize=True
     )
 
