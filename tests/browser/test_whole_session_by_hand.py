@@ -169,6 +169,12 @@ class Person:
         assert origin[1] < obj[1] - 30, "the handle sits above the target on the screen"
         box = self.page.locator("canvas").first.bounding_box()
         assert box["x"] < obj[0] < box["x"] + box["width"] and 0 < obj[1] < box["height"]
+        reach = self.run.trial.scene.reach
+        if not reach.contains(goal, tol=1e-6):
+            # the robot's help took the gripper past the frame: the notice the participant
+            # read at the frame spoke of what the handle and keys do, not of what the arm can
+            assert not reach.contains(self.gripper(), tol=0.01), self.gripper()
+            assert "handle" in AT_REACH_LIMIT and "keys" in AT_REACH_LIMIT
         self.shot(f"{label}-grasp")
 
     def finish_run(self, target: str, press_continue: Any) -> None:
@@ -371,6 +377,7 @@ def test_a_whole_session_with_the_mouse_alone(
     field.click()
     page.keyboard.type("4")
     page.get_by_text("Your answer: 4 hours per week").wait_for()
+    me.shot("about-you")
     page.get_by_role("button", name="Continue").click()
 
     ratings = [[5, 4, 5], [6, 6, 5], [4, 3, 4]]
@@ -384,18 +391,25 @@ def test_a_whole_session_with_the_mouse_alone(
         me.finish_run(target, lambda: page.get_by_role("button", name="Continue").click())
         page.get_by_text("Your answer: none yet").first.wait_for()
         me.read()
+        if n == 0:
+            me.shot("ratings")
         _click_answers(page, ratings[n])
         if n == 1:  # the attention check between the two tasks
             page.get_by_text("please choose Somewhat").wait_for()
             me.read()
             _choose_by_mouse(page, 0, "Somewhat")
+            me.shot("attention")
             page.get_by_role("button", name="Continue").click()
 
     # Closing: the comment is optional and left empty; keep the data; the debrief; the end.
     page.get_by_text("anything else you would like to tell us").wait_for()
     me.read()
     _choose_by_mouse(page, 0, KEEP)
+    me.shot("closing")
     page.get_by_role("button", name="Continue").click()
+    page.get_by_role("button", name="Finish").wait_for()
+    me.read()
+    me.shot("debrief")
     page.get_by_role("button", name="Finish").click()
     page.get_by_text("You may close this page now.").wait_for()
     me.read()
