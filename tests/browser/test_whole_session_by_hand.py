@@ -41,7 +41,7 @@ from playwright.sync_api import expect
 from app.robot.scene import grasp_position
 from study.protocol import load_protocol
 from study.server.live.texts import AT_REACH_LIMIT
-from study.server.participant import HANDLE_OFFSET_M, HANDLE_PX
+from study.server.participant import HANDLE_PX, INSET_SIZE
 from tests.browser.harness import FrameLog, RunningServer, start_server, wait_until
 from tests.browser.test_depth_and_limits import _camera_still, _pixels_per_m, _screen
 from tests.browser.test_participant_flow import AGREE, _connect, _settle, _shot, hold, join
@@ -50,7 +50,6 @@ from tests.protocol_copies import PAPER_PROTOCOL, each_target_once
 pytestmark = pytest.mark.browser
 
 TIME_LIMIT_S = 90.0
-OFFSET = np.array([0.0, 0.0, HANDLE_OFFSET_M])
 PLANE_AT = 1.7 / 7
 """Centre of a plane square of the handle along each of its two axes, in arrow lengths (drei's
 PivotControls); the square is 0.225 arrow lengths wide."""
@@ -99,6 +98,7 @@ class Person:
         self.live = rs.server.session(code)
         self.seen: list[str] = []
         self.presses = 0
+        self.clock_at_start = 0
 
     def read(self) -> str:
         text = self.page.inner_text("body")
@@ -145,7 +145,7 @@ class Person:
         assert wait_until(lambda: self.run is not None and not self.run.over)
         assert wait_until(lambda: self.live.page._gizmo is not None)
         _camera_still(self.live)
-        left = self.clock()
+        self.clock_at_start = left = self.clock()
         assert TIME_LIMIT_S - 15 <= left <= TIME_LIMIT_S, left
         return self.run.trial.scene.target
 
@@ -169,6 +169,13 @@ class Person:
         assert origin[1] < obj[1] - 30, "the handle sits above the target on the screen"
         box = self.page.locator("canvas").first.bounding_box()
         assert box["x"] < obj[0] < box["x"] + box["width"] and 0 < obj[1] < box["height"]
+        assert self.clock() < self.clock_at_start, "the countdown runs"
+        # The view from above shows the gripper's cross on the target: depth is read there.
+        top = self.live.view.inset.camera
+        w, h = INSET_SIZE
+        cross, mark = (np.array(top.pixel(p, width=w, height=h)) for p in (self.gripper(), goal))
+        assert 0 <= mark[0] < w and 0 <= mark[1] < h, "the target is in the view from above"
+        assert np.linalg.norm(cross - mark) < 0.02 * h / top.extent_m, (cross, mark)
         reach = self.run.trial.scene.reach
         if not reach.contains(goal, tol=1e-6):
             # the robot's help took the gripper past the frame: the notice the participant
@@ -182,6 +189,17 @@ class Person:
         body = self.read()
         assert f"You lifted the {target}." in body, body
         press_continue()
+
+    def stuck(self, problem: str) -> None:
+        """Fail with what the participant sees and what the session last recorded."""
+        self.shot("stuck")
+        events = [(e.kind, e.detail) for e in self.rs.store.events()][-6:]
+        screen = self.live.session.screen()
+        raise AssertionError(
+            f"{problem}; run over: {self.run.over}, screen {screen.phase} (paused"
+            f" {screen.paused}), page keys {self.live.page._keys_held}; last events {events};"
+            f" page says: {self.read()[-600:]!r}"
+        )
 
     # -- blinding ---------------------------------------------------------------------------
     def check_blinding(self, frames: FrameLog) -> None:
@@ -199,7 +217,7 @@ class Person:
 # -- the mouse ---------------------------------------------------------------------------------
 
 
-def _mouse_path(page: Any, start: np.ndarray, end: np.ndarray, *, px: float = 12.0) -> None:
+def _mouse_path(page: Any, start: np.ndarray, end: np.ndarray, *, px: float = 16.0) -> None:
     """Move the (pressed) mouse from ``start`` to ``end`` a few pixels at a time."""
     n = max(2, int(np.ceil(np.linalg.norm(end - start) / px)))
     for k in range(1, n + 1):
@@ -474,6 +492,7 @@ def _steer(person: Person, goal: np.ndarray, axes: tuple[int, ...], *, tol: floa
     press is as long as the last one's gain says, and after an overshoot the next is shorter,
     down to a tap (a press and release, at least 8 mm)."""
     gain = 1.0  # metres moved per metre meant, learnt from the presses so far
+    still = 0
     for axis in axes:
         for _ in range(14):
             error = goal[axis] - float(person.target()[axis])
@@ -486,21 +505,46 @@ def _steer(person: Person, goal: np.ndarray, axes: tuple[int, ...], *, tol: floa
                 person.page.keyboard.press(key)  # a tap
             else:
                 hold(person.page, key, min(seconds, 3.0))
-            person.page.wait_for_timeout(400)
+            person.page.wait_for_timeout(300)
             moved = abs(float(person.target()[axis]) - before)
             if seconds >= 0.15 and moved > 0:
                 gain = float(np.clip(0.5 * gain + 0.5 * moved / (seconds * KEY_SPEED_M_S), 1, 4))
             person.presses += 1
             print(f"{person.name}: {key} {seconds:.2f} s, target {person.target().round(3)}")
+            still = still + 1 if moved < 1e-4 else 0
+            if still == 3:
+                person.stuck(f"three presses of {key!r} did not move the target")
+
+
+def _diagonal(person: Person, aim: np.ndarray) -> None:
+    """Hold the away/back and the sideways key together (the target moves diagonally), let go
+    of each when it has done about four fifths of its way; the last one pressed repeats."""
+    error = aim - person.target()
+    keys = [
+        (KEYS[a][0 if error[a] > 0 else 1], 0.8 * abs(error[a]) / KEY_SPEED_M_S) for a in (0, 1)
+    ]
+    keys.sort(key=lambda k: k[1])
+    page, t0 = person.page, time.monotonic()
+    for key, _ in keys:
+        page.keyboard.down(key)
+    for key, seconds in keys:
+        while time.monotonic() - t0 < seconds:
+            page.wait_for_timeout(33)
+            page.keyboard.down(keys[-1][0])  # auto-repeat of the key pressed last
+        page.keyboard.up(key)
+    person.presses += 1
+    page.wait_for_timeout(300)
+    print(
+        f"{person.name}: {'+'.join(k for k, _ in keys)} together, target {person.target().round(3)}"
+    )
 
 
 def _reach_by_keys(person: Person, label: str) -> None:
     goal = person.goal()
     reach = person.run.trial.scene.reach
     aim = np.clip(goal, reach.lo, reach.hi)
-    half = person.target() + 0.5 * (aim - person.target())
-    _steer(person, half, (0, 1))
-    person.shot(f"{label}-mid-reach")
+    _diagonal(person, aim)
+    person.shot(f"{label}-mid-reach")  # on the way, over the table, before the descent
     _steer(person, aim, (0, 1))
     if not np.allclose(aim, goal, atol=1e-4):
         # the box is past the frame: W held on, the notice says why the gripper stops
