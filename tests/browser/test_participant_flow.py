@@ -11,6 +11,7 @@ tests/browser/screenshots (linked from the README) with UPDATE_SCREENSHOTS=1.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import time
@@ -20,6 +21,7 @@ from typing import Any
 import numpy as np
 import pytest
 from PIL import Image
+from playwright.sync_api import Error as PlaywrightError
 from playwright.sync_api import expect
 
 from tests.browser.harness import (
@@ -85,12 +87,17 @@ def hold(page: Any, key: str, seconds: float, *, repeat_hz: float = 30.0) -> Non
 
 
 def _shot(page: Any, folder: Path, name: str, *, colors: int = 96) -> None:
-    """Save a small screenshot for the README (PNG with a ``colors`` palette), without the
-    viser client's own software-WebGL notice. 96 colours merge the box's orange with the
-    table's in the view from above (the box looks hollow): 256 keep it."""
-    notice = page.locator(".mantine-Notification-root button")
-    for k in range(notice.count()):
-        notice.nth(k).click()
+    """Save a small screenshot for the README (PNG with a ``colors`` palette), with the study's
+    notices as the participant sees them and without the viser client's own software-WebGL
+    notice, should one show (the page hides it). 96 colours merge the box's orange with the
+    table's in the view from above (the box looks hollow): 256 keep it.
+
+    Only a visible notice is closed, and never waited for: a click on a hidden one (the page
+    hides viser's) waited until some later notice appeared, 10 seconds before a run's end."""
+    viewer = page.locator(".mantine-Notification-root:visible", has_text="WebGL").locator("button")
+    for k in range(viewer.count()):
+        with contextlib.suppress(PlaywrightError):
+            viewer.nth(k).click(timeout=1000)
     page.wait_for_timeout(300)
     t = time.monotonic()
     png = page.screenshot()
