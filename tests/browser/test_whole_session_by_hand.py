@@ -98,6 +98,7 @@ class Person:
         self.live = rs.server.session(code)
         self.seen: list[str] = []
         self.presses = 0
+        self.t0 = time.monotonic()
         self.clock_at_start = 0
 
     def read(self) -> str:
@@ -105,7 +106,11 @@ class Person:
         self.seen.append(text)
         return text
 
+    def mark(self, label: str) -> None:
+        print(f"[{time.monotonic() - self.t0:6.1f} s] {self.name} {label}")
+
     def shot(self, label: str) -> None:
+        self.mark(label)
         _shot(self.page, self.shots, f"{self.name}-{label}", colors=256)
 
     # -- where things are -------------------------------------------------------------------
@@ -139,11 +144,13 @@ class Person:
         """From the ready screen into the run (``press_start`` presses Start); returns the
         target's name. Checks the countdown starts at the time limit."""
         self.page.get_by_role("button", name="Start").wait_for()
+        self.mark("ready")
         _settle(self.page)
         press_start()
         self.page.get_by_role("button", name="Close the gripper (G)").wait_for()
         assert wait_until(lambda: self.run is not None and not self.run.over)
         assert wait_until(lambda: self.live.page._gizmo is not None)
+        self.mark("run started")
         _camera_still(self.live)
         self.clock_at_start = left = self.clock()
         assert TIME_LIMIT_S - 15 <= left <= TIME_LIMIT_S, left
@@ -185,7 +192,9 @@ class Person:
         self.shot(f"{label}-grasp")
 
     def finish_run(self, target: str, press_continue: Any) -> None:
+        self.mark("grasp pressed")
         self.page.get_by_text("Run finished").wait_for(timeout=30_000)
+        self.mark("run finished")
         body = self.read()
         assert f"You lifted the {target}." in body, body
         press_continue()
@@ -217,25 +226,26 @@ class Person:
 # -- the mouse ---------------------------------------------------------------------------------
 
 
-def _mouse_path(page: Any, start: np.ndarray, end: np.ndarray, *, px: float = 16.0) -> None:
-    """Move the (pressed) mouse from ``start`` to ``end`` a few pixels at a time."""
+def _mouse_path(page: Any, start: np.ndarray, end: np.ndarray, *, px: float = 25.0) -> None:
+    """Move the (pressed) mouse from ``start`` to ``end`` ``px`` pixels at a time (each move
+    waits for the page to take it: 0.1-0.3 s a move in software WebGL under load)."""
     n = max(2, int(np.ceil(np.linalg.norm(end - start) / px)))
     for k in range(1, n + 1):
         p = start + (end - start) * k / n
         page.mouse.move(float(p[0]), float(p[1]))
-        page.wait_for_timeout(60)
+        page.wait_for_timeout(30)
 
 
 def _grab(page: Any, at: np.ndarray) -> None:
     """Come to ``at`` from a little way off, as a hand does, and press."""
     page.mouse.move(float(at[0]) - 30, float(at[1]) + 20)
-    page.wait_for_timeout(200)
+    page.wait_for_timeout(150)
     page.mouse.move(float(at[0]) - 4, float(at[1]) + 3)
-    page.wait_for_timeout(250)
+    page.wait_for_timeout(150)
     page.mouse.move(float(at[0]), float(at[1]))
-    page.wait_for_timeout(400)
+    page.wait_for_timeout(300)  # the handle lights up the part under the pointer
     page.mouse.down()
-    page.wait_for_timeout(250)
+    page.wait_for_timeout(150)
 
 
 def _arm_length_m(person: Person) -> float:
@@ -291,7 +301,7 @@ def _drag_handle(
             raise AssertionError(f"pressing the handle's {part} at {start.round()} grabbed nothing")
         first = start + (end - start) * min(1.0, 30.0 / max(float(np.linalg.norm(end - start)), 1))
         _mouse_path(page, start, first)
-        page.wait_for_timeout(400)
+        page.wait_for_timeout(300)
         moved = person.handle() - origin
         if np.abs(np.delete(moved, axes)).max() < 0.002:
             break
@@ -305,10 +315,10 @@ def _drag_handle(
     half = start + 0.5 * (end - start)
     _mouse_path(page, first, half)
     if midway is not None:
-        page.wait_for_timeout(500)
+        page.wait_for_timeout(200)
         midway()
     _mouse_path(page, half, end)
-    page.wait_for_timeout(500)
+    page.wait_for_timeout(300)
     if release:
         page.mouse.up()
         assert wait_until(lambda: not person.live.page.dragging, timeout=5)
@@ -395,7 +405,6 @@ def test_a_whole_session_with_the_mouse_alone(
     field.click()
     page.keyboard.type("4")
     page.get_by_text("Your answer: 4 hours per week").wait_for()
-    me.shot("about-you")
     page.get_by_role("button", name="Continue").click()
 
     ratings = [[5, 4, 5], [6, 6, 5], [4, 3, 4]]
@@ -409,8 +418,6 @@ def test_a_whole_session_with_the_mouse_alone(
         me.finish_run(target, lambda: page.get_by_role("button", name="Continue").click())
         page.get_by_text("Your answer: none yet").first.wait_for()
         me.read()
-        if n == 0:
-            me.shot("ratings")
         _click_answers(page, ratings[n])
         if n == 1:  # the attention check between the two tasks
             page.get_by_text("please choose Somewhat").wait_for()
@@ -423,11 +430,9 @@ def test_a_whole_session_with_the_mouse_alone(
     page.get_by_text("anything else you would like to tell us").wait_for()
     me.read()
     _choose_by_mouse(page, 0, KEEP)
-    me.shot("closing")
     page.get_by_role("button", name="Continue").click()
     page.get_by_role("button", name="Finish").wait_for()
     me.read()
-    me.shot("debrief")
     page.get_by_role("button", name="Finish").click()
     page.get_by_text("You may close this page now.").wait_for()
     me.read()
