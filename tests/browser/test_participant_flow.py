@@ -11,7 +11,6 @@ tests/browser/screenshots (linked from the README) with UPDATE_SCREENSHOTS=1.
 
 from __future__ import annotations
 
-import contextlib
 import io
 import json
 import time
@@ -21,7 +20,6 @@ from typing import Any
 import numpy as np
 import pytest
 from PIL import Image
-from playwright.sync_api import Error as PlaywrightError
 from playwright.sync_api import expect
 
 from tests.browser.harness import (
@@ -87,17 +85,10 @@ def hold(page: Any, key: str, seconds: float, *, repeat_hz: float = 30.0) -> Non
 
 
 def _shot(page: Any, folder: Path, name: str, *, colors: int = 96) -> None:
-    """Save a small screenshot for the README (PNG with a ``colors`` palette), with the study's
-    notices as the participant sees them and without the viser client's own software-WebGL
-    notice, should one show (the page hides it). 96 colours merge the box's orange with the
-    table's in the view from above (the box looks hollow): 256 keep it.
-
-    Only a visible notice is closed, and never waited for: a click on a hidden one (the page
-    hides viser's) waited until some later notice appeared, 10 seconds before a run's end."""
-    viewer = page.locator(".mantine-Notification-root:visible", has_text="WebGL").locator("button")
-    for k in range(viewer.count()):
-        with contextlib.suppress(PlaywrightError):
-            viewer.nth(k).click(timeout=1000)
+    """Save a small screenshot for the README (PNG with a ``colors`` palette). The viewer's
+    own notices (software WebGL) are the page's to hide (``study.server.page_head``): a
+    screenshot shows what the participant sees. 96 colours merge the box's orange with the
+    table's in the view from above (the box looks hollow): 256 keep it."""
     page.wait_for_timeout(300)
     t = time.monotonic()
     png = page.screenshot()
