@@ -19,9 +19,12 @@ W/S, A/D and R/F with auto-repeat for seconds, presses G, moves between buttons 
 presses them with Enter, opens each dropdown with the arrow keys and picks with Enter, and
 types its comment. Nothing needs the mouse.
 
-Screenshots at the start of each run, mid-reach and at the grasp (and where the input is held
-past the reach) are looked at and kept (``UPDATE_SCREENSHOTS=1`` writes them to
-tests/browser/screenshots/). Asserted: what the participant sees (the countdown, the outcome
+Screenshots at the start of each run, mid-reach (the mouse: half way through the first drag,
+the button held; the keys: after the diagonal press over the table, before the descent) and at
+the grasp, and where the input is held past the reach, are looked at and kept
+(``UPDATE_SCREENSHOTS=1`` writes them to tests/browser/screenshots/). Each session takes
+1.5-2 min on 2 cores under load (most of it the browser drawing each mouse move and key in
+software WebGL); the printed phase times show where. Asserted: what the participant sees (the countdown, the outcome
 sentence, the notice at the reach's edge, the handle above the target on the screen, nothing
 with a condition word) and what lands in the store (three completed trials with outcome
 success, every rating and answer as given).
