@@ -210,7 +210,7 @@ def test_cli_defaults_to_the_planned_sample_size() -> None:
 
 def test_cli_reports_bad_input(tmp_path: Path) -> None:
     out = run_cli("--protocol", str(PAPER), "--participants", "0")
-    assert out.returncode == 2 and "participants must be a positive integer" in out.stderr
+    assert out.returncode == 2 and "--participants: must be 1..10000, got 0" in out.stderr
     bad = tmp_path / "bad.toml"
     bad.write_text(PAPER.read_text().replace("runs = 3", "runs = 'three'"))
     out = run_cli("--protocol", str(bad), "--participants", "8")

@@ -345,7 +345,9 @@ class StudyServer:
                 return
             self._pages[client.client_id] = page
         code = self._code_of(self.firewall.token_of(client.client_id))
-        if code is not None:  # a reload that kept its session's rejoin token
+        with self._lock:
+            live = self._sessions.get(code) if code is not None else None
+        if live is not None and not live.recruitment:  # a reload that kept its rejoin token
             threading.Thread(
                 target=self._rejoin, args=(page, code), name="rejoin", daemon=True
             ).start()
@@ -380,12 +382,8 @@ class StudyServer:
         """A reloaded (or reconnected) tab that presented its session's rejoin token at the
         door: bind it without a code and without the throttle. While the session's old tab is
         still held -- a dropped network connection is only noticed after the websocket's ping
-        timeout -- wait for it to let go; the join screen shows meanwhile (not to an open
-        link's participant, who never sees one)."""
-        with self._lock:
-            live = self._sessions.get(code)
-            if live is not None and live.recruitment:
-                self._link_pages.add(page.client.client_id)
+        timeout -- wait for it to let go; the join screen shows meanwhile. (An open link's
+        tab comes back by its link instead: ``_greet``.)"""
         self._offer(page)
         deadline = time.monotonic() + REJOIN_WAIT_S
         while time.monotonic() < deadline:
@@ -561,10 +559,6 @@ class StudyServer:
             if proven:
                 with contextlib.suppress(Exception):
                     page.run_script(_cookie_script(""))
-                with self._lock:
-                    link_page = page.client.client_id in self._link_pages
-                if link_page:  # a reload then comes in by its link again
-                    page.show_message("Please try again", LINK_FAILED_TEXT)
                 self._offer(page)
                 return
             page.show_join(

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from study.server.participant import HANDLE_OFFSET_M
 from tests.browser.harness import drag, project, start_server, wait_until
 from tests.browser.test_participant_flow import AGREE, _connect, _settle, _shot, join
 from tests.protocol_copies import relative_copy
@@ -51,10 +52,11 @@ def test_a_released_handle_returns_to_the_gripper(
         floor = trial.scene.reach.lo[2]
         assert trial.poses().gripper[2] < start[2] - 0.1, "the handle was not dragged"
 
-        def handle_on_gripper() -> bool:
+        def handle_on_gripper() -> bool:  # the handle floats HANDLE_OFFSET_M above its point
             gizmo = live.page._gizmo
             at = np.asarray(gizmo.position) if gizmo is not None else np.full(3, np.inf)
-            return float(np.linalg.norm(at - trial.poses().gripper)) < 0.01
+            above = trial.poses().gripper + np.array([0.0, 0.0, HANDLE_OFFSET_M])
+            return float(np.linalg.norm(at - above)) < 0.01
 
         assert wait_until(handle_on_gripper, timeout=10)
         assert trial.poses().gripper[2] > floor - 0.01  # stopped at the reach, not below

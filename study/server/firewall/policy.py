@@ -269,6 +269,8 @@ class Firewall:
         if f"viser-v{viser.__version__}" not in offered:
             return "a client that does not speak this server's version"
         token = self.rejoin_token(_cookie(headers, REJOIN_COOKIE))
+        if token is not None and not self.slots.room_for_token(token):
+            token = None  # another tab of the same browser: a new tab (Slots.room_for_token)
         address = self.client_host(connection, headers)
         now = self._clock()
         if token is None and self.tab_gate is not None and not self.tab_gate.allow(address, now):

@@ -89,11 +89,9 @@ class Slots:
         close for it, or ``None``), ``(None, problem)`` when it does not."""
         live = [s for s in self._slots.values() if not s.closing]
         evict = None
-        if token is not None:
-            same = sum(1 for s in live if s.token == token)
-            if same >= self.reserved_per_token:
-                return None, f"too many connections with one rejoin token ({same})"
-        else:
+        if token is not None and not self.room_for_token(token):
+            token = None  # see room_for_token
+        if token is None:
             mine = sum(1 for s in live if s.address == address)
             if mine >= self.max_per_address:
                 return None, f"too many connections from one address ({mine})"
@@ -107,6 +105,14 @@ class Slots:
         slot = Slot(address=address, opened=now, connection=connection, token=token, last_seen=now)
         self._slots[id(connection)] = slot
         return evict, None
+
+    def room_for_token(self, token: str) -> bool:
+        """Whether another connection may hold a slot kept for ``token``. Beyond that, more tabs
+        of one browser (they share its cookie) come in as new tabs do, under their address's
+        limits, and the page tells them the session is open elsewhere: a refusal would leave an
+        honest tab "connecting" for ever."""
+        live = [s for s in list(self._slots.values()) if not s.closing and s.token == token]
+        return len(live) < self.reserved_per_token
 
     def _fair_victim(self, live: list[Slot], *, newcomer: int) -> Slot | None:
         """The oldest unbound slot (waiting ones first) of the address holding the most
