@@ -78,3 +78,29 @@ def _without_asked_once(text: str) -> str:
     text, n = re.subn(r"(?m)^(before_training|between_tasks|closing) = \[.*\]\n", "", text)
     assert n in (0, 3), "the protocol's once-asked questionnaire lists moved: update this helper"
     return text
+
+
+def each_target_once(path: Path, *, mode: str = "timid") -> Path:
+    """Cut the protocol at ``path`` (in place) to each target once after the practice: the
+    correctness level ``right`` only (tasks easy-right and hard-right: the box on the table and
+    the box at the reach's edge) and the one mode ``mode``; no preference item (it compares two
+    modes), the attention check between the two tasks. Return ``path``."""
+    text = path.read_text(encoding="utf-8")
+    other = "aggressive" if mode == "timid" else "timid"
+    edits = (
+        (r'(?m)^correctness = \["right", "wrong"\]$', 'correctness = ["right"]'),
+        (r'(?m)^mode = \["timid", "aggressive"\]$', f'mode = ["{mode}"]'),
+        (r"(?ms)^\[tasks\.(easy|hard)-wrong\]\n.*?\n\n", ""),
+        (r"(?ms)^\[prediction\.wrong\]\n.*?\n\n", ""),
+        (rf"(?m)^\[modes\.{other}\]\n.*\n\n", ""),
+        (r'(?m)^after_task = \["preference"\]$', "after_task = []"),
+    )
+    for pattern, new in edits:
+        text, n = re.subn(pattern, new, text)
+        assert n >= 1, f"{pattern!r} no longer matches the protocol: update this helper"
+    # (a copy without the questions asked once has no attention check to move)
+    text = re.sub(
+        r"(?m)^between_tasks = \[\{ after_task = 2,", "between_tasks = [{ after_task = 1,", text
+    )
+    path.write_text(text, encoding="utf-8")
+    return path

@@ -43,7 +43,7 @@ LOGGER = logging.getLogger("study.server.participant")
 KEY_HELP = (
     "Drag an arrow or a square of the handle above the gripper to move it, or hold the keys "
     "**W**/**S** (away / back), **A**/**D** (sideways), **R**/**F** (up / down). "
-    "The gripper can go anywhere inside the frame drawn on the table. "
+    "The handle and the keys move the gripper anywhere inside the frame drawn on the table. "
     "Press **G** or the button above to close the gripper around the object; the arm then "
     "lifts it. The picture shows the table from above. Drag the background to "
     "look around, scroll to zoom; **V** brings back the starting view."

@@ -36,6 +36,17 @@ def context(browser: Any) -> Iterator[Any]:
 
 
 @pytest.fixture
+def wide(browser: Any) -> Iterator[Any]:
+    """A 1366 x 768 window, a common laptop screen: the size the page is tried at."""
+    ctx = browser.new_context(viewport={"width": 1366, "height": 768})
+    ctx.set_default_timeout(120_000)  # a first draw of the scene on a loaded machine
+    try:
+        yield ctx
+    finally:
+        ctx.close()
+
+
+@pytest.fixture
 def page_with_frames(context: Any) -> tuple[Any, FrameLog]:
     page = context.new_page()
     return page, FrameLog().attach(page)

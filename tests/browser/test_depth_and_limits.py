@@ -37,21 +37,10 @@ from tests.browser.test_participant_flow import AGREE, _connect, _settle, _shot,
 
 pytestmark = pytest.mark.browser
 
-VIEWPORT = {"width": 1366, "height": 768}
 OFFSET = np.array([0.0, 0.0, HANDLE_OFFSET_M])
 AXES = {"x": 0, "y": 1, "z": 2}
 KEYS = {0: ("w", "s"), 1: ("a", "d"), 2: ("r", "f")}
 CLOCK = re.compile(r"Time left: (\d+):(\d\d)")
-
-
-@pytest.fixture
-def wide(browser: Any) -> Any:
-    ctx = browser.new_context(viewport=VIEWPORT)
-    ctx.set_default_timeout(120_000)  # a first draw of the scene on a loaded machine
-    try:
-        yield ctx
-    finally:
-        ctx.close()
 
 
 def _screen(page: Any, camera: Any, point: np.ndarray) -> np.ndarray:

@@ -84,16 +84,17 @@ def hold(page: Any, key: str, seconds: float, *, repeat_hz: float = 30.0) -> Non
     page.keyboard.up(key)
 
 
-def _shot(page: Any, folder: Path, name: str) -> None:
-    """Save a small screenshot for the README (PNG with a 96-colour palette). The viewer's
+def _shot(page: Any, folder: Path, name: str, *, colors: int = 96) -> None:
+    """Save a small screenshot for the README (PNG with a ``colors`` palette). The viewer's
     own notices (software WebGL) are the page's to hide (``study.server.page_head``): a
-    screenshot shows what the participant sees."""
+    screenshot shows what the participant sees. 96 colours merge the box's orange with the
+    table's in the view from above (the box looks hollow): 256 keep it."""
     page.wait_for_timeout(300)
     t = time.monotonic()
     png = page.screenshot()
     print(f"screenshot {name}: {time.monotonic() - t:.1f} s")
     image = Image.open(io.BytesIO(png)).convert("RGB")
-    image.quantize(colors=96, method=Image.Quantize.MEDIANCUT).save(
+    image.quantize(colors=colors, method=Image.Quantize.MEDIANCUT).save(
         folder / f"{name}.png", optimize=True
     )
 

@@ -36,16 +36,6 @@ HEADER = """() => {
 }"""
 
 
-@pytest.fixture
-def wide(browser: Any) -> Any:
-    ctx = browser.new_context(viewport={"width": 1366, "height": 768})
-    ctx.set_default_timeout(60_000)
-    try:
-        yield ctx
-    finally:
-        ctx.close()
-
-
 def _no_viewer_notice(page: Any, *, seconds: float = 3.0) -> None:
     """Poll the page from now for ``seconds``: viser's notice is in the page (it was raised)
     but never visible."""

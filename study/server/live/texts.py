@@ -28,8 +28,12 @@ WAITING_TEXT = (
     "Please wait: the experimenter will start your session in a moment."
     " This page will change by itself."
 )
-AT_REACH_LIMIT = "The arm cannot reach beyond the frame drawn on the table."
-"""Shown while the participant's input is held past the reach (handle or keys)."""
+AT_REACH_LIMIT = (
+    "The handle and the keys move the gripper only inside the frame drawn on the table."
+)
+"""Shown while the participant's input is held past the reach (handle or keys). It says what
+the input can do, not what the arm can: at the reach's edge (the hard task) the robot's help
+carries the gripper past the frame, which "the arm cannot reach beyond" would deny."""
 TIME_WARNING_S = 10.0
 TIME_WARNING = "10 seconds left in this run."
 
