@@ -1,6 +1,6 @@
 """The paper's timing result, store by store and pooled: what issue 20.6 compares with the paper.
 
-    .venv/bin/python benchmarks/study_result.py STORE.db [STORE.db ...] [--json]
+    .venv/bin/python benchmarks/study_result.py STORE.db [STORE.db ...] [--charge] [--json]
 
 For each store (one simulated or real study of the paper's 2 x 2 x 2 design) it prints: the mean
 task time; the three main effects as differences of unweighted marginal means (s) with the
@@ -8,7 +8,9 @@ factorial ANOVA's F(1, 53) (``analysis.timing``, the report's model with covaria
 aggressiveness x correctness interaction F and its size in seconds (aggressive's cost when
 wrong minus its cost when right); the four situations' means (right/wrong x timid/aggressive);
 and per condition the success share, knocks and timeouts (``analysis.descriptives``). A last
-table pools every store's trials per condition. The paper's values are printed beside. No
+table pools every store's trials per condition. ``--charge`` adds, from the samples, who was in
+charge of each condition's runs: seconds with ``alpha > 0`` toward the wrong object and toward
+the target, seconds the wrong object was predicted. The paper's values are printed beside. No
 simulation here: run ``python -m study simulate`` first (commands in benchmarks/README.md).
 """
 
@@ -146,13 +148,50 @@ def markdown(results: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+def charge(stores: list[Path]) -> str:
+    """Per condition, mean seconds per run with the robot in charge (``alpha > 0``) toward a
+    wrong object and toward the target, and with a wrong object predicted (from the samples)."""
+    rows: dict[str, list[tuple[float, float, float]]] = {}
+    for db in stores:
+        tables = load_tables(db=db)
+        t = tables.trials
+        t = t[(t["phase"] == "task") & (t["status"] == "completed")]
+        s = tables.samples
+        if s is None or s.empty:
+            continue
+        for trial in t.itertuples():
+            mine = s[s["trial_id"] == trial.trial_id]
+            dt = float(np.median(np.diff(mine["t"]))) if len(mine) > 1 else 0.0
+            wrong = mine["predicted"].astype(str).to_numpy() != str(trial.target)
+            on = mine["alpha"].to_numpy() > 0
+            rows.setdefault(f"{trial.task} {trial.mode}", []).append(
+                (float((on & wrong).sum() * dt), float((on & ~wrong).sum() * dt), wrong.sum() * dt)
+            )
+    lines = [
+        "| condition | runs | in charge, wrong object (s) | in charge, target (s) | "
+        "wrong object predicted (s) |",
+        "| --- | --- | --- | --- | --- |",
+    ]
+    for cond in sorted(rows):
+        v = np.array(rows[cond])
+        lines.append(
+            f"| {cond} | {len(v)} | {v[:, 0].mean():.2f} | {v[:, 1].mean():.2f} | "
+            f"{v[:, 2].mean():.1f} |"
+        )
+    return "\n".join(lines)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("stores", nargs="+", type=Path)
     parser.add_argument("--json", action="store_true", help="also print one JSON line")
+    parser.add_argument("--charge", action="store_true", help="who was in charge, per condition")
     args = parser.parse_args()
     results = [one_store(db) for db in args.stores]
     print(markdown(results))
+    if args.charge:
+        print()
+        print(charge(args.stores))
     if args.json:
         print(json.dumps(results, default=lambda o: None if np.isnan(o) else o))
     return 0
