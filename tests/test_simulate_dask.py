@@ -43,7 +43,7 @@ from tests.test_simulate_resume import content, progress, reference_run
 pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[1]
-PARTICIPANTS = 8
+PARTICIPANTS = 4  # two per worker: enough to kill one mid-run and to interrupt between pairs
 SEED = 5
 
 

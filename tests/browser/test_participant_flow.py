@@ -85,11 +85,9 @@ def hold(page: Any, key: str, seconds: float, *, repeat_hz: float = 30.0) -> Non
 
 
 def _shot(page: Any, folder: Path, name: str) -> None:
-    """Save a small screenshot for the README (PNG with a 96-colour palette), without the
-    viser client's own software-WebGL notice."""
-    notice = page.locator(".mantine-Notification-root button")
-    for k in range(notice.count()):
-        notice.nth(k).click()
+    """Save a small screenshot for the README (PNG with a 96-colour palette). The viewer's
+    own notices (software WebGL) are the page's to hide (``study.server.page_head``): a
+    screenshot shows what the participant sees."""
     page.wait_for_timeout(300)
     t = time.monotonic()
     png = page.screenshot()
