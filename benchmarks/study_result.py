@@ -1,6 +1,6 @@
 """The paper's timing result, store by store and pooled: what issue 20.6 compares with the paper.
 
-    .venv/bin/python benchmarks/study_result.py STORE.db [STORE.db ...] [--charge] [--json]
+    .venv/bin/python benchmarks/study_result.py STORE.db [STORE.db ...] [--charge]
 
 For each store (one simulated or real study of the paper's 2 x 2 x 2 design) it prints: the mean
 task time; the three main effects as differences of unweighted marginal means (s) with the
@@ -10,7 +10,8 @@ wrong minus its cost when right); the four situations' means (right/wrong x timi
 and per condition the success share, knocks and timeouts (``analysis.descriptives``). A last
 table pools every store's trials per condition. ``--charge`` adds, from the samples, who was in
 charge of each condition's runs: seconds with ``alpha > 0`` toward the wrong object and toward
-the target, seconds the wrong object was predicted. The paper's values are printed beside. No
+the target, seconds the wrong object was predicted. The paper's values are printed beside; the
+last line is every store's figures as one JSON list. No
 simulation here: run ``python -m study simulate`` first (commands in benchmarks/README.md).
 """
 
@@ -105,7 +106,10 @@ def pooled(results: list[dict[str, Any]]) -> pd.DataFrame:
 
 
 def markdown(results: list[dict[str, Any]]) -> str:
-    names = [Path(r["store"]).parent.name or Path(r["store"]).stem for r in results]
+    paths = [Path(r["store"]) for r in results]
+    parents = [p.parent.name for p in paths]
+    shared = len(set(parents)) < len(parents)  # stores of one folder: name them by file
+    names = [p.stem if shared or not p.parent.name else p.parent.name for p in paths]
     lines = ["| measure | " + " | ".join(names) + " | paper |"]
     lines.append("| --- " * (len(results) + 2) + "|")
 
@@ -184,7 +188,6 @@ def charge(stores: list[Path]) -> str:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("stores", nargs="+", type=Path)
-    parser.add_argument("--json", action="store_true", help="also print one JSON line")
     parser.add_argument("--charge", action="store_true", help="who was in charge, per condition")
     args = parser.parse_args()
     results = [one_store(db) for db in args.stores]
@@ -192,8 +195,7 @@ def main() -> int:
     if args.charge:
         print()
         print(charge(args.stores))
-    if args.json:
-        print(json.dumps(results, default=lambda o: None if np.isnan(o) else o))
+    print(json.dumps(results, default=lambda o: None if np.isnan(o) else o))
     return 0
 
 
