@@ -1,9 +1,11 @@
-"""Descriptives first: per condition how many, how fast, how often successful, how many knocks.
+"""Descriptives first: per condition how many, how fast, how often successful, how many knocks,
+how many runs timed out.
 
 For every task and mode (and the unassisted practice runs) over the completed attempts:
 participants, runs, successes and the success rate; time to complete as mean, SD and median,
 twice -- over the successful runs only, and over all completed runs, where a failed run counts
-with the time until it ended (a timeout counts the whole limit); and objects knocked over.
+with the time until it ended (a timeout counts the whole limit); objects knocked over; and the
+failed runs by how they ended (timeouts, and the rest by outcome).
 
 Knocks come from the trials table's ``knocks`` column when the data have one, else from the
 samples: each ``knocked_over:<object>`` trial event (``app.trial.events``) is one knock.
@@ -24,6 +26,7 @@ KNOCK_EVENT = '"knocked_over:'
 MISSING = "–"
 """Shown for a value that is not defined (an SD of one run, a median of none)."""
 PRACTICE = "practice"
+TIMEOUT = "timeout"
 
 
 def knocks_per_trial(trials: pd.DataFrame, samples: pd.DataFrame | None) -> pd.Series:
@@ -61,7 +64,8 @@ def condition_descriptives(
     """One row per condition (practice first, then task by task in ``modes``' order):
     ``task``, ``mode``, ``participants``, ``runs``, ``successes``, ``success_rate``,
     ``time_ok_{n,mean,sd,median}`` (successful runs), ``time_all_{mean,sd,median}`` (all
-    completed runs), ``knocks``, ``knocks_per_run``."""
+    completed runs), ``knocks``, ``knocks_per_run``, ``timeouts`` and ``other_failures`` (the
+    failed runs that did not time out, as ``{outcome: runs}``)."""
     t = tables.trials
     done = t[t["status"] == "completed"].copy()
     if done.empty:
@@ -69,6 +73,11 @@ def condition_descriptives(
     done["knocks"] = done["trial_id"].map(knocks_per_trial(t, tables.samples)).fillna(0)
     done["ok"] = (
         done["success"].astype(bool) if "success" in done.columns else done["outcome"].eq("success")
+    )
+    done["outcome_"] = (
+        done["outcome"].astype(str)
+        if "outcome" in done.columns
+        else np.where(done["ok"], "success", "failed")
     )
     done["task"] = np.where(done["phase"] == "training", PRACTICE, done["task"])
     present = list(dict.fromkeys(done.loc[done["phase"] == "task", "mode"]))
@@ -79,6 +88,7 @@ def condition_descriptives(
     rows = []
     for (task, mode), g in done.groupby(["task", "mode"], sort=False):
         ok, every = _stats(g.loc[g["ok"], "duration_s"]), _stats(g["duration_s"])
+        failed = g.loc[~g["ok"], "outcome_"]
         rows.append(
             {
                 "task": task,
@@ -96,6 +106,8 @@ def condition_descriptives(
                 "time_all_median": every["median"],
                 "knocks": int(g["knocks"].sum()),
                 "knocks_per_run": float(g["knocks"].mean()),
+                "timeouts": int(failed.eq(TIMEOUT).sum()),
+                "other_failures": failed[failed.ne(TIMEOUT)].value_counts().sort_index().to_dict(),
             }
         )
     out = pd.DataFrame(rows)
@@ -141,16 +153,24 @@ def descriptive_section(tables: StudyTables, *, modes: Sequence[str] | None = No
             ],
             "all: median": d["time_all_median"].map(show),
             "knocks (per run)": [f"{r.knocks} ({r.knocks_per_run:.2f})" for r in d.itertuples()],
+            "timeouts": d["timeouts"],
+            "other failures": d["other_failures"].map(_failures),
         }
     )
     sec.tables.append(
         Table(
-            "Runs, success, time (s) and knocks per condition",
+            "Runs, success, time (s), knocks and timeouts per condition",
             frame,
-            "Knocks: objects knocked over (trial events knocked_over), all completed runs.",
+            "Knocks: objects knocked over (trial events knocked_over), all completed runs. "
+            "Timeouts: runs that reached the time limit; other failures: the other failed runs "
+            "by outcome.",
         )
     )
     return sec
+
+
+def _failures(counts: dict[str, int]) -> str:
+    return ", ".join(f"{k} {v}" for k, v in counts.items()) or "0"
 
 
 __all__ = ["condition_descriptives", "descriptive_section", "knocks_per_trial"]

@@ -61,10 +61,16 @@ def test_descriptives_label_which_runs_each_mean_includes() -> None:
     t = synthetic_tables(3, seed=1, with_samples=False)["trials"]
     t.loc[t.index[5], ["success", "outcome", "duration_s"]] = [False, "timeout", 120.0]
     failed = t.loc[t.index[5]]
+    same = t[(t.task == failed["task"]) & (t["mode"] == failed["mode"]) & (t.status == "completed")]
+    dropped = same.index[same.index != t.index[5]][0]
+    t.loc[dropped, ["success", "outcome"]] = [False, "dropped"]
+    same = t.loc[same.index]
     d = condition_descriptives(from_frames(t)).set_index(["task", "mode"])
     row = d.loc[(failed["task"], failed["mode"])]
-    same = t[(t.task == failed["task"]) & (t["mode"] == failed["mode"]) & (t.status == "completed")]
-    assert row["runs"] == len(same) and row["successes"] == len(same) - 1
+    assert row["runs"] == len(same) and row["successes"] == len(same) - 2
+    assert row["timeouts"] == 1 and row["other_failures"] == {"dropped": 1}
+    others = d.drop(index=(failed["task"], failed["mode"]))
+    assert (others["timeouts"] == 0).all()
     assert row["time_all_mean"] == pytest.approx(same["duration_s"].mean())
     assert row["time_ok_mean"] == pytest.approx(same.loc[same.success, "duration_s"].mean())
     assert d.index[0] == ("practice", "none")

@@ -166,6 +166,19 @@ def test_misjudged_depth_aims_beside_the_object() -> None:
     assert d == pytest.approx(p.grasp.miss_offset_m, abs=0.015)
 
 
+def test_a_misjudged_aim_the_gripper_cannot_reach_is_judged_again() -> None:
+    """The gripper stands at the object but, as at the reach's edge in Hard, never where the
+    user misjudged it to be: they look again instead of waiting for it until the time limit."""
+    p = person(grasp__early_grasp_p=0.0, grasp__miss_p=0.5, grasp__miss_offset_m=0.06)
+    u = user(p, seed=1)
+    there = Plant(alpha=lambda t: 1.0, pull=GOALS[0].copy(), grasp_ok_m=0.02)
+    ticks = there.run(u, seconds=20.0)
+    first = next(k for k in ticks if k.grasp)
+    assert u.attempts >= 2  # the first judgement missed; a later one did not
+    assert np.linalg.norm(first.ee - GOALS[0]) < p.grasp.grasp_radius_m
+    assert ticks[-1].grasp
+
+
 def adversary(start_s: float) -> Callable[[float], float]:
     """A robot that ignores the user from ``start_s`` on and heads for the box."""
     return lambda t: 1.0 if t >= start_s else 0.0

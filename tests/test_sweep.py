@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import tomllib
 from pathlib import Path
 from types import SimpleNamespace
@@ -34,6 +35,7 @@ from study.sweep import (
     timid,
     variant_text,
 )
+from study.sweep.grid import check_D
 from tests.protocol_copies import PAPER_PROTOCOL, short_protocol
 
 PAPER = PAPER_PROTOCOL.read_text(encoding="utf-8")
@@ -67,6 +69,29 @@ def test_a_protocol_without_an_inline_arbitration_is_refused() -> None:
     )
     with pytest.raises(SweepProtocolError, match="inline table"):
         variant_text(text, timid(0.3), saturation=0.7)
+
+
+def test_a_D_variant_changes_only_the_confidence_and_still_loads(tmp_path: Path) -> None:
+    text = variant_text(PAPER, timid(0.5).at(0.2), saturation=0.7)
+    assert text.count("\n") == PAPER.count("\n")
+    doc, paper = tomllib.loads(text), tomllib.loads(PAPER)
+    assert doc["confidence"] == {**paper["confidence"], "D": 0.2}
+    assert doc["modes"] == paper["modes"]  # the protocol's own modes, both
+    path = tmp_path / "v.toml"
+    path.write_text(text, encoding="utf-8")
+    assert dict(load_protocol(path).confidence)["D"] == 0.2
+    assert timid(0.5).at(0.2).label == "timid alpha_max=0.5 D=0.2"
+    assert timid(0.5).at(0.2) != timid(0.5)
+
+
+def test_a_D_sweep_needs_a_distance_confidence_and_positive_values() -> None:
+    text = PAPER.replace('kind = "distance"', 'kind = "probability"', 1)
+    text = re.sub(r"(?m)^D = .*\n", "", text, count=1)
+    with pytest.raises(SweepProtocolError, match="distance"):
+        variant_text(text, timid(0.5).at(0.3), saturation=0.7)
+    with pytest.raises(SweepGridError, match="D: 0 is out of range"):
+        check_D((0.3, 0.0))
+    assert check_D((0.4, 0.2, 0.4)) == (0.2, 0.4)
 
 
 def test_grid_values_are_checked_before_anything_runs() -> None:
@@ -135,6 +160,9 @@ def test_criteria_and_picks() -> None:
     assert choose(ms, "timid").setting == timid(0.3)  # least help that passes
     assert choose(ms, "aggressive").setting == aggressive(0.4, 0.9)  # most help that passes
     assert choose(ms[:1], "timid") is None
+    # another D's settings are evidence, never a pick (their help is on another scale)
+    ms.append(fake(aggressive(0.4, 0.9).at(0.2), True, 0.9))
+    assert choose(ms, "aggressive").setting == aggressive(0.4, 0.9)
 
 
 @pytest.mark.slow
@@ -159,6 +187,8 @@ def test_sweep_cli_on_a_two_worker_local_cluster(
         "0.6",
         "--aggressive-alpha-high",
         "0.9",
+        "--confidence-D",
+        "0.35",
         "--engine",
         "dask",
         "--workers",
@@ -169,18 +199,22 @@ def test_sweep_cli_on_a_two_worker_local_cluster(
     printed, err = capsys.readouterr()
     assert code == 0, err
     summary = json.loads(printed.strip().splitlines()[-1])
-    assert summary["settings"] == 4 and summary["errors"] == []
+    assert summary["settings"] == 6 and summary["errors"] == []
     assert "help" in printed and "passes" in printed  # the table
     evidence = json.loads((out / "sweep.json").read_text())
     assert evidence["criteria"] == Criteria().as_dict()
     assert evidence["today"] == summary["today"]
     with (out / "sweep.csv").open() as f:
         table = list(csv.DictReader(f))
-    assert [(r["mode"], r["alpha_max"], r["threshold"], r["alpha_high"]) for r in table] == [
-        ("timid", "0.3", "", ""),
-        ("aggressive", "", "0.6", "0.9"),
-        ("timid", "0.5", "", ""),
-        ("aggressive", "", "0.4", "0.9"),
+    assert [
+        (r["mode"], r["alpha_max"], r["threshold"], r["alpha_high"], r["D"]) for r in table
+    ] == [
+        ("timid", "0.3", "", "", ""),
+        ("aggressive", "", "0.6", "0.9", ""),
+        ("timid", "0.5", "", "", ""),
+        ("aggressive", "", "0.4", "0.9", ""),
+        ("timid", "0.5", "", "", "0.35"),  # the protocol's own modes at another D
+        ("aggressive", "", "0.4", "0.9", "0.35"),
     ]
     for row in table:  # two participants, two trials each in the judged cells
         assert (row["participants"], row["trials"]) == ("2", "4")
@@ -197,8 +231,13 @@ def test_sweep_cli_on_a_two_worker_local_cluster(
     assert stores == [
         "aggressive-threshold0.6-alpha_high0.9.db",
         "timid-alpha_max0.3.db",
+        "today-D0.35.db",
         "today.db",
     ]
+    variant = tomllib.loads(
+        (out / "protocols" / "protocol-timid-alpha_max0.5-D0.35.toml").read_text()
+    )
+    assert variant["confidence"]["D"] == 0.35
 
     # run again: every store is kept, nothing is simulated twice, same verdict
     code = dispatch("python -m study", "", COMMANDS, [*argv[:-5], "--no-progress"])

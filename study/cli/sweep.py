@@ -2,7 +2,8 @@
 
     python -m study sweep --out data/sweep [--participants 8] [--seed 1] \\
         [--timid-alpha-max 0.2 0.3 0.4 0.5 0.6] [--aggressive-threshold 0.2 0.4 0.6] \\
-        [--aggressive-alpha-high 0.7 0.9 1.0] [--min-hard-completion 0.8] \\
+        [--aggressive-alpha-high 0.7 0.9 1.0] [--confidence-D 0.2 0.28 0.4] \\
+        [--min-hard-completion 0.8] \\
         [--min-wrong-corrected 0.8] [--max-time-lost 10] \\
         [--engine local|dask] [--workers N] [--scheduler tcp://HOST:PORT]
 
@@ -10,6 +11,8 @@ Runs every setting (and the protocol's current ones) through the same simulated 
 judges each (``study.sweep.criteria``): timid = least help with hard-task completion at least
 ``--min-hard-completion``; aggressive = most help with wrong trials completed at least
 ``--min-wrong-corrected`` and at most ``--max-time-lost`` seconds lost to the wrong prediction.
+``--confidence-D`` runs the protocol's own two modes at each distance-confidence ``D`` too
+(``c = max(0, 1 - d / D)``), judged by the same criteria and never picked.
 Prints the table (stdout), writes ``sweep.csv``, ``sweep.json``, ``chosen.toml`` and
 ``sweep.png`` into ``--out`` (with the variant protocols and their stores: the same command run
 again continues where it stopped), and prints one JSON line last: the picks and the verdict on
@@ -70,6 +73,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         nargs="+",
         default=list(DEFAULT_AGGRESSIVE_ALPHA_HIGH),
     )
+    grid.add_argument(
+        "--confidence-D",
+        dest="confidence_D",
+        type=float_range(0.0, 10.0, above=True),
+        nargs="+",
+        default=[],
+        metavar="D",
+        help="m: the protocol's two modes at each D of the distance confidence",
+    )
     crit = parser.add_argument_group("criteria")
     crit.add_argument("--min-hard-completion", type=unit, default=DEFAULT_MIN_HARD_COMPLETION)
     crit.add_argument("--min-wrong-corrected", type=unit, default=DEFAULT_MIN_WRONG_CORRECTED)
@@ -110,6 +122,7 @@ def main(args: argparse.Namespace) -> int:
             scheduler=args.scheduler,
             population_path=args.population,
             progress=not args.no_progress,
+            confidence_D=tuple(args.confidence_D),
         )
         paths = write(result, args.out)
         print(table(result))

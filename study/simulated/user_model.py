@@ -34,7 +34,8 @@ approaches it anew.
 Grasp (``grasp`` is held True from the request on; trials react to its rising edge): closes
 when the seen gripper is within ``grasp_radius`` of ``a`` and slower than ``settle_speed``
 (or, on an impatient "early" attempt, as soon as it is within ``early_radius``, still moving;
-or once it stalls within ``stall_radius``). Once the object is
+or once it stalls within ``stall_radius``; a gripper stalled within ``stall_radius`` of the
+object itself but not of a misjudged aim makes them look again: a new attempt). Once the object is
 seen in the gripper (after at least ``close_wait``) they lift by ``lift_m`` (harmless where the
 trial lifts by itself); an empty gripper ``check_after`` after closing, or an object slipping
 out, makes them open, pause and reach again with a fresh plan.
@@ -386,10 +387,15 @@ class SimulatedUser:
                 self._best, self._best_t = dist, t
             settled = dist < g.grasp_radius_m and speed < g.settle_speed_m_s
             impatient = self._early and dist < g.early_radius_m  # closes while still moving
-            stalled = dist < g.stall_radius_m and t - self._best_t > g.stall_time_s
+            still = t - self._best_t > g.stall_time_s
+            stalled = dist < g.stall_radius_m and still
             if settled or impatient or stalled:
                 self.grasp_closed = True
                 self._enter(CLOSE, t)
+            elif still and norm(goal - ee) < g.stall_radius_m:
+                # stopped at the object but not where they aimed (a misjudged depth the
+                # gripper will not follow, e.g. past the reach): they look again
+                self._new_attempt(goal, t)
         elif self.phase == CLOSE:
             if grasped == target_name and since >= g.close_wait_s:
                 self._enter(LIFT, t)

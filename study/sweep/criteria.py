@@ -66,6 +66,7 @@ class Measure:
         return {
             "mode": self.setting.mode,
             **dict(self.setting.params),
+            "D": self.setting.D,
             "help": round(self.help, 4),
             "participants": self.participants,
             "trials": self.trials,
@@ -117,9 +118,9 @@ def _mean_success_s(trials: list[Any]) -> float:
 
 
 def choose(measures: list[Measure], mode: str) -> Measure | None:
-    """The paper's pick among passing settings: least help for timid, most for aggressive
-    (ties: the earlier setting in the grid); ``None`` when none passes."""
-    passing = [m for m in measures if m.setting.mode == mode and m.passes]
+    """The paper's pick among passing settings at the protocol's ``D``: least help for timid,
+    most for aggressive (ties: the earlier setting in the grid); ``None`` when none passes."""
+    passing = [m for m in measures if m.setting.mode == mode and m.passes and m.setting.D is None]
     if not passing:
         return None
     if mode == TIMID:

@@ -5,11 +5,15 @@ The paper (section 4) fixes two arbitration modes by two criteria (``study.sweep
 the protocol's ``saturation``; *aggressive* (``alpha = alpha_high`` once ``c >= threshold``,
 else 0) over ``threshold`` x ``alpha_high``. One setting changes one mode only: every other
 line of the protocol, the other mode included, stays as written, so the two searches do not
-mix.
+mix. A sweep of the distance confidence's ``D`` (``c = max(0, 1 - d / D)``, section 3.2) runs
+the protocol's own two modes at each ``D``: one setting per mode, both in one store, judged by
+the same criteria but never picked (help, the area under ``alpha(c)``, does not compare
+settings with different ``D``).
 
 A variant is the protocol's own TOML text with that mode's ``arbitration = { ... }`` line
-replaced (the protocol format keeps it on one line, an inline table), loaded and validated like
-any protocol; each variant runs into its own store.
+replaced (the protocol format keeps it on one line, an inline table), and for a ``D`` setting
+the ``D = ...`` line of ``[confidence]`` too, loaded and validated like any protocol; each
+variant runs into its own store.
 """
 
 from __future__ import annotations
@@ -38,14 +42,22 @@ class Setting:
 
     mode: str
     params: tuple[tuple[str, float], ...]
+    D: float | None = None
+    """The distance confidence's ``D`` the mode runs with; ``None``: the protocol's own."""
 
     @property
     def label(self) -> str:
-        return f"{self.mode} " + " ".join(f"{k}={v:g}" for k, v in self.params)
+        text = f"{self.mode} " + " ".join(f"{k}={v:g}" for k, v in self.params)
+        return text if self.D is None else f"{text} D={self.D:g}"
 
     @property
     def slug(self) -> str:
-        return f"{self.mode}-" + "-".join(f"{k}{v:g}" for k, v in self.params)
+        text = f"{self.mode}-" + "-".join(f"{k}{v:g}" for k, v in self.params)
+        return text if self.D is None else f"{text}-D{self.D:g}"
+
+    def at(self, D: float) -> Setting:
+        """The same arbitration under the distance confidence ``c = max(0, 1 - d / D)``."""
+        return Setting(self.mode, self.params, float(D))
 
     def value(self, key: str) -> float:
         return dict(self.params)[key]
@@ -126,8 +138,35 @@ def current_settings(text: str) -> tuple[Setting, Setting, float]:
     return current_timid, current_aggressive, saturation
 
 
+def check_D(values: tuple[float, ...]) -> tuple[float, ...]:
+    """The ``D`` values of a sweep, sorted and unique; each must be positive (metres)."""
+    bad = [v for v in values if not v > 0]
+    if bad:
+        raise SweepGridError(f"confidence D: {bad[0]:g} is out of range (D > 0, in metres)")
+    return tuple(sorted(set(values)))
+
+
+def protocol_D(text: str) -> float:
+    """The protocol's distance-confidence ``D`` (``[confidence] kind = "distance"``)."""
+    conf = tomllib.loads(text).get("confidence", {})
+    if not isinstance(conf, dict) or conf.get("kind") != "distance" or "D" not in conf:
+        raise SweepProtocolError(
+            'a sweep of D needs [confidence] kind = "distance" with D = ... in the protocol'
+        )
+    return float(conf["D"])
+
+
 def variant_text(text: str, setting: Setting, *, saturation: float) -> str:
-    """``text`` with ``[modes.<mode>]``'s arbitration line replaced by ``setting``."""
+    """``text`` with ``[modes.<mode>]``'s arbitration line replaced by ``setting`` (and
+    ``[confidence]``'s ``D`` line by ``setting.D``, when it has one)."""
+    if setting.D is not None:
+        protocol_D(text)
+        d_line = re.compile(r"(?m)^(\[confidence\][^\n]*\n(?:(?!\[)[^\n]*\n)*?D\s*=\s*)[^\s#]+")
+        text, n = d_line.subn(lambda m: m.group(1) + f"{setting.D:g}", text, count=1)
+        if n != 1:
+            raise SweepProtocolError(
+                "cannot find `D = ...` on its own line under [confidence]; write it so to sweep D"
+            )
     pattern = re.compile(
         rf"(?ms)^(\[modes\.{re.escape(setting.mode)}\][^\[]*?^arbitration\s*=\s*)\{{[^\n]*\}}"
     )

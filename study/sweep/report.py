@@ -3,7 +3,7 @@ protocol snippet.
 
 Files in the sweep's folder:
 
-- ``sweep.csv``: one row per setting (its parameters, help, participants, judged trials, rate,
+- ``sweep.csv``: one row per setting (its parameters, ``D`` when swept (empty: the protocol's), help, participants, judged trials, rate,
   time lost, passes);
 - ``sweep.json``: the same rows with the criteria, the seed and participants, the picks and
   the verdict on the protocol's current values;
@@ -30,6 +30,7 @@ COLUMNS = (
     "alpha_max",
     "threshold",
     "alpha_high",
+    "D",
     "help",
     "participants",
     "trials",
@@ -47,7 +48,7 @@ def table(result: SweepResult) -> str:
     """The evidence as a fixed-width table; ``*`` marks the protocol's current settings, ``>``
     the picks."""
     head = (
-        f"  {'mode':<10} {'alpha_max':>9} {'threshold':>9} {'alpha_high':>10} {'help':>6} "
+        f"  {'mode':<10} {'alpha_max':>9} {'threshold':>9} {'alpha_high':>10} {'D':>5} {'help':>6} "
         f"{'trials':>6} {'rate':>6} {'lost_s':>7}  passes"
     )
     lines = [head]
@@ -57,14 +58,15 @@ def table(result: SweepResult) -> str:
         mark += "*" if result.current[m.setting.mode] == m.setting else " "
         lines.append(
             f"{mark}{r['mode']:<10} {_f(r.get('alpha_max')):>9} {_f(r.get('threshold')):>9} "
-            f"{_f(r.get('alpha_high')):>10} {r['help']:>6.3f} {r['trials']:>6} "
+            f"{_f(r.get('alpha_high')):>10} {_f(r.get('D')):>5} {r['help']:>6.3f} {r['trials']:>6} "
             f"{r['rate']:>6.2f} {_f(r['time_lost_s']):>7}  {'yes' if r['passes'] else 'no'}"
         )
     c = result.criteria
     lines.append(
         f"rate: timid = hard-task completion (pass >= {c.min_hard_completion:g}); aggressive = "
         f"wrong trials completed (pass >= {c.min_wrong_corrected:g}, lost_s <= "
-        f"{c.max_time_lost_s:g}); help = area under alpha(c); * today's, > chosen"
+        f"{c.max_time_lost_s:g}); help = area under alpha(c); D: the confidence's (- the "
+        "protocol's; never chosen); * today's, > chosen"
     )
     return "\n".join(lines)
 
@@ -158,6 +160,8 @@ def figure(result: SweepResult, path: Path) -> None:
                 if mode == TIMID
                 else f"{m.setting.value('threshold'):g}/{m.setting.value('alpha_high'):g}"
             )
+            if m.setting.D is not None:
+                label += f" D={m.setting.D:g}"
             ax.annotate(
                 label, (m.help, m.rate), textcoords="offset points", xytext=(4, 4), fontsize=7
             )

@@ -5,8 +5,8 @@ Every setting sees the same simulated people (same ``seed``: common random numbe
 differences between settings are the arbitration's, not the draw's. The protocol's current
 settings are always in the grid, so every sweep also says whether today's values meet the
 criteria (both run in one store, ``today.db``: they are the protocol as written). Stores live
-in ``out/stores/<setting>.db``: a sweep run again with the same arguments
-keeps the settings already done and continues an interrupted one (``simulate(resume=True)``).
+in ``out/stores/<setting>.db`` (the protocol's two modes at another ``D``:
+``today-D<D>.db``): a sweep run again with the same arguments keeps the settings already done and continues an interrupted one (``simulate(resume=True)``).
 With ``engine="dask"`` all settings run on one cluster (one ``LocalCluster``, or the scheduler
 at ``scheduler``), connected once.
 """
@@ -27,7 +27,15 @@ from study.simulated.population import DEFAULT_POPULATION_PATH
 from study.store import Store
 from study.sweep.criteria import Criteria, Measure, choose, measure
 from study.sweep.errors import SweepError
-from study.sweep.grid import AGGRESSIVE, TIMID, Setting, current_settings, write_variant
+from study.sweep.grid import (
+    AGGRESSIVE,
+    TIMID,
+    Setting,
+    check_D,
+    current_settings,
+    protocol_D,
+    write_variant,
+)
 
 
 @dataclass(frozen=True)
@@ -77,9 +85,11 @@ def sweep(
     scheduler: str | None = None,
     population_path: Path = DEFAULT_POPULATION_PATH,
     progress: bool = True,
+    confidence_D: tuple[float, ...] = (),
 ) -> SweepResult:
     """Simulate ``participants`` people under every setting of ``grid`` (plus the protocol's
-    own settings) and judge each by ``criteria``; writes variants and stores under ``out``."""
+    own settings, and its two modes at every ``D`` of ``confidence_D``) and judge each by
+    ``criteria``; writes variants and stores under ``out``."""
 
     text = Path(protocol_path).read_text(encoding="utf-8")
     current_timid, current_aggressive, saturation = current_settings(text)
@@ -87,6 +97,11 @@ def sweep(
     for setting in (current_timid, current_aggressive):
         if setting not in settings:
             settings.append(setting)
+    if confidence_D:
+        own = protocol_D(text)
+        for D in check_D(confidence_D):
+            if own != D:
+                settings += [current_timid.at(D), current_aggressive.at(D)]
     (out / "protocols").mkdir(parents=True, exist_ok=True)
     (out / "stores").mkdir(parents=True, exist_ok=True)
     errors: list[str] = []
@@ -106,8 +121,8 @@ def sweep(
         current = {current_timid, current_aggressive}
         for setting in settings:
             db = _store(out, setting, current=current)
-            if setting in current and setting != current_timid:
-                bar.update(1)  # today's aggressive runs in the same store as today's timid
+            if _at_protocol_D(setting) in current and _at_protocol_D(setting) != current_timid:
+                bar.update(1)  # the protocol's aggressive runs in the store of its timid
                 continue
             variant = (
                 Path(protocol_path)
@@ -151,7 +166,16 @@ def sweep(
     )
 
 
+def _at_protocol_D(setting: Setting) -> Setting:
+    """``setting`` at the protocol's own ``D``."""
+    return Setting(setting.mode, setting.params)
+
+
 def _store(out: Path, setting: Setting, *, current: set[Setting]) -> Path:
     """Where ``setting``'s participants are stored: today's two settings are one protocol, the
-    one as written, so they share ``today.db``."""
-    return out / "stores" / ("today.db" if setting in current else f"{setting.slug}.db")
+    one as written, so they share ``today.db``; at another ``D`` they share ``today-D<D>.db``."""
+    if _at_protocol_D(setting) in current:
+        name = "today.db" if setting.D is None else f"today-D{setting.D:g}.db"
+    else:
+        name = f"{setting.slug}.db"
+    return out / "stores" / name
