@@ -81,7 +81,9 @@ def test_a_robot_pulling_elsewhere_carries_an_idle_relative_user_along(config) -
     ends = {}
     for mapping in ("absolute", "relative"):
         src = ParticipantInput(mapping=mapping)
-        trial = Trial(config("easy-wrong", "timid", on_knock="end"), src)
+        # D = 0.4 m: confident at the start (the shipped D keeps it unsure until the user moves)
+        confident = {"kind": "distance", "D": 0.4}
+        trial = Trial(config("easy-wrong", "timid", on_knock="end", confidence=confident), src)
         decoy = trial.scene.goals.positions[1 - trial.scene.target_index]
         start = np.linalg.norm(trial.poses().gripper - decoy)
         for _ in range(300):

@@ -141,7 +141,9 @@ def test_the_robot_holds_back_while_its_goal_lies_knocked_over(config) -> None:
     # Aggressive and told the goal (the bottle, near enough for it to take over at once): the
     # robot would drive the gripper to where the bottle must be stood up again. While it lies,
     # alpha is 0; once it stands, the robot takes over.
-    cfg = config("easy-right", "aggressive", time_limit_s=30)
+    # D = 0.4 m: confident at the start (the shipped D keeps it unsure until the user moves)
+    confident = {"kind": "distance", "D": 0.4}
+    cfg = config("easy-right", "aggressive", time_limit_s=30, confidence=confident)
     cfg = dataclasses.replace(cfg, scene=dataclasses.replace(cfg.scene, target="bottle"))
     trial = Trial(cfg, IdleInput())
     for _ in range(20):
