@@ -141,14 +141,15 @@ def _steer_to(page: Any, live: Any, goal: np.ndarray, axes: tuple[int, ...]) -> 
     ``axes``: a held key moves it at 0.1 m/s, a tap 8 mm; a loaded browser handles key events
     late, so aim short and correct, like anyone does."""
     for axis in axes:
-        for _ in range(12):
-            page.wait_for_timeout(400)
+        for attempt in range(24):
+            page.wait_for_timeout(400 if attempt < 6 else 700)  # later: let a late key land
             error = goal[axis] - float(live.run.trial.user_target[axis])
             if abs(error) < 0.006:
                 break
             key = KEYS[axis][0 if error > 0 else 1]
+            share = 0.7 if attempt < 6 else 0.4  # overshooting? aim shorter, as a person does
             page.keyboard.down(key)
-            page.wait_for_timeout(1000 * min(0.7 * abs(error) / 0.1, 3.0))
+            page.wait_for_timeout(1000 * min(share * abs(error) / 0.1, 3.0))
             page.keyboard.up(key)
     error = goal - np.asarray(live.run.trial.user_target, float)
     assert np.abs(error[list(axes)]).max() < 0.006, error
