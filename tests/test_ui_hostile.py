@@ -30,6 +30,7 @@ from study.server.firewall import Firewall
 from study.server.join import ALPHABET, CODE_LENGTH
 from study.server.server import JOIN_FAILED, JOIN_THROTTLED
 from tests import disk_full
+from tests.attacker import CAMERA, SUBPROTOCOL
 from tests.browser.harness import RunningServer, run_async, start_server, wait_until
 from tests.test_ui_malformed import AGREE, RawClient
 
@@ -501,21 +502,8 @@ def test_tabs_that_leave_at_once_leave_nothing_behind_and_never_hold_a_session(
     session for good)."""
     rs = start_server(tmp_path, server_kw={"kiosk": True, "port_firewall": roomy()})
     srv = rs.server
-    sub = [f"viser-v{viser.__version__}"]
-    camera = msgspec.msgpack.encode(
-        {
-            "type": "ViewerCameraMessage",
-            "wxyz": [1.0, 0.0, 0.0, 0.0],
-            "position": [-1.0, 0.0, 1.0],
-            "fov": 1.0,
-            "near": 0.01,
-            "far": 100.0,
-            "image_height": 600,
-            "image_width": 800,
-            "look_at": [0.45, 0.0, 0.15],
-            "up_direction": [0.0, 0.0, 1.0],
-        }
-    )
+    sub = [SUBPROTOCOL]
+    camera = CAMERA  # the first message a page sends
 
     async def hit_and_run() -> None:
         for _ in range(60):
