@@ -49,13 +49,13 @@ def _choose(page: Any, k: int, option: str) -> None:
     expect(box).to_have_value(option)
 
 
-def _skip_to_closing(rs: RunningServer, code: str) -> None:
-    """The experimenter skips each run and its questions until the closing questions (the
-    attention check between tasks is left to the participant)."""
+def _skip_to(rs: RunningServer, code: str, questionnaire: str) -> None:
+    """The experimenter skips each run and its questions until ``questionnaire`` is asked (the
+    attention check between tasks and the closing questions are left to the participant)."""
     live = rs.server.session(code)
     for _ in range(60):
         screen = live.session.screen()
-        if screen.phase == "questions" and screen.questionnaire in ("between_tasks", "closing"):
+        if screen.phase == "questions" and screen.questionnaire == questionnaire:
             return
         rs.server.act(code, "skip", reason="test: straight to the closing questions")
     raise AssertionError("never reached the closing questions")
@@ -103,13 +103,16 @@ def test_demographics_attention_comment_and_retention(
     }
 
     # The attention check after the second task (the runs skipped by the experimenter).
-    _skip_to_closing(study, code)
+    _skip_to(study, code, "between_tasks")
     page.get_by_text("please choose Somewhat").wait_for()
     _choose(page, 0, "Very much")  # a lapse: recorded as given
     page.get_by_role("button", name="Continue").click()
+    # The experimenter acts only once the answer has landed (a skip sent while the page's
+    # Continue is still on its way would skip the questions the participant just answered).
+    assert wait_until(lambda: any(a.item == "attention" for a in store.answers(participant="P01")))
 
     # Closing: a comment naming conditions, first too long, then shortened; then "No".
-    _skip_to_closing(study, code)
+    _skip_to(study, code, "closing")
     page.get_by_text("anything else you would like to tell us").wait_for()
     cont = page.get_by_role("button", name="Continue")
     comment = _field(page, 0)
