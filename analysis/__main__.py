@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from app.cli import dispatch
+from study.cli.arguments import dispatch
 
 COMMANDS = {
     "report": ("analysis.cli.report", "Write the HTML/Markdown report and results.json."),

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import sys
 
-from app.cli import dispatch
+from study.cli.arguments import dispatch
 
 COMMANDS = {
     "serve": ("study.cli.serve", "Start the study server (participant + experimenter views)."),

@@ -11,8 +11,8 @@ import pytest
 
 from analysis.errors import SourceError
 from analysis.load import from_export
-from app.cli import dispatch
 from study.__main__ import COMMANDS
+from study.cli.arguments import dispatch
 from study.protocol import load_protocol
 from study.session import open_store
 from tests.test_export import PAPER, build_store

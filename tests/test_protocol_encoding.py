@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from app.cli import dispatch
 from study.__main__ import COMMANDS
+from study.cli.arguments import dispatch
 from study.protocol import ProtocolError, load_protocol
 from study.simulated import DEFAULT_POPULATION_PATH, PopulationError, load_population
 

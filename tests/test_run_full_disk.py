@@ -15,9 +15,9 @@ from typing import Any
 
 import pytest
 
-from app.cli import dispatch
 from study.__main__ import COMMANDS
 from study.cli import run as run_cli
+from study.cli.arguments import dispatch
 from study.store import Store
 from tests.disk_full import cap
 

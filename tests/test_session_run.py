@@ -8,10 +8,10 @@ from pathlib import Path
 
 import pytest
 
-from app.cli import dispatch
 from app.trial import OUTCOMES
 from study.__main__ import COMMANDS
 from study.cli import run as run_cli
+from study.cli.arguments import dispatch
 from study.protocol import load_protocol
 from study.session import headless, open_store
 from study.store import Store

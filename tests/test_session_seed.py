@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from app.cli import dispatch
 from study.__main__ import COMMANDS
+from study.cli.arguments import dispatch
 from study.protocol import Protocol, load_protocol
 from study.schedule import ScheduleError
 from study.session import MAX_SEED, InvalidSeedError, Session, SessionError, open_store

@@ -27,8 +27,8 @@ from typing import Any
 import pytest
 from distributed import Client, LocalCluster
 
-from app.cli import dispatch
 from study.__main__ import COMMANDS
+from study.cli.arguments import dispatch
 from study.protocol import load_protocol
 from study.session import open_store
 from study.simulated import simulate

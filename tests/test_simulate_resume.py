@@ -22,8 +22,8 @@ from typing import Any
 
 import pytest
 
-from app.cli import dispatch
 from study.__main__ import COMMANDS
+from study.cli.arguments import dispatch
 from study.simulated import runner, simulate
 from study.store import Store
 from tests.disk_full import cap

@@ -19,8 +19,8 @@ from typing import Any
 
 import pytest
 
-from app.cli import dispatch
 from study.__main__ import COMMANDS
+from study.cli.arguments import dispatch
 from study.protocol import load_protocol
 from study.sweep import (
     Criteria,

@@ -20,7 +20,7 @@ from analysis.figures import power_figure, save
 from analysis.load import load_tables, task_cells
 from analysis.power import bootstrap_power, pilot_cells
 from analysis.report import _jsonable
-from app.cli import float_range, int_range, output_dir
+from study.cli.arguments import float_range, int_range, output_dir
 
 MAX_N = 10_000
 MAX_B = 100_000

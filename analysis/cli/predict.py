@@ -20,7 +20,7 @@ from analysis.cli.anova import read_csv
 from analysis.design import numeric_column, require_columns
 from analysis.errors import DataError, SchemaError
 from analysis.prediction_eval import make_predictor, replay
-from app.cli import float_range
+from study.cli.arguments import float_range
 
 COSTS = {"length": "length", "squared_velocity": "squared_velocity", "sqvel": "squared_velocity"}
 """``--cost`` values: the protocol format's names, plus the short ``sqvel``."""

@@ -13,7 +13,7 @@ from analysis.cli import fail, friendly, note
 from analysis.load import load_tables
 from analysis.protocol_info import DEFAULT_PROTOCOL, ROOT
 from analysis.report import write_report
-from app.cli import output_dir
+from study.cli.arguments import output_dir
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

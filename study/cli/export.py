@@ -16,7 +16,7 @@ import json
 import sys
 from pathlib import Path
 
-from app.cli import output_dir
+from study.cli.arguments import output_dir
 from study.codebook import codebook
 from study.export import (
     ExportError,

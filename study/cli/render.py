@@ -22,11 +22,11 @@ from typing import Any
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from app.cli import float_range, int_range, output_file, seed
 from app.files import check_input_file
 from app.robot.scene import build_scene
 from app.trial import load_records, records_from_samples
 from app.trial.video import render_live, replay
+from study.cli.arguments import float_range, int_range, output_file, seed
 from study.cli.trial import DEFAULT_PROTOCOL, INPUTS, make_input
 from study.protocol import protocol_from_store, trial_config_from_protocol
 from study.store import Store

@@ -21,7 +21,7 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from app.cli import int_range, seed
+from study.cli.arguments import int_range, seed
 from study.protocol import ProtocolError, load_protocol
 from study.protocol.preflight import check_scenes
 from study.schedule import ScheduleError

@@ -16,7 +16,7 @@ import json
 import sys
 from pathlib import Path
 
-from app.cli import output_file
+from study.cli.arguments import output_file
 from study.store import StoreError
 from study.store.salvage import salvage
 

@@ -15,7 +15,7 @@ import os
 import sys
 from pathlib import Path
 
-from app.cli import int_range
+from study.cli.arguments import int_range
 from study.protocol import ProtocolError, load_protocol
 from study.schedule import ScheduleError, schedule
 

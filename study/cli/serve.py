@@ -14,8 +14,8 @@ import threading
 from pathlib import Path
 from urllib.parse import urlsplit
 
-from app.cli import port as port_number
-from app.cli import rate_hz
+from study.cli.arguments import port as port_number
+from study.cli.arguments import rate_hz
 from study.protocol import ProtocolError, load_protocol
 from study.protocol.preflight import check_scenes
 from study.server import logs, realtime

@@ -32,7 +32,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from app.cli import int_range, scheduler_address, seed
+from study.cli.arguments import int_range, scheduler_address, seed
 from study.protocol import ProtocolError, load_protocol
 from study.protocol.preflight import check_scenes
 from study.simulated import SimulationError

@@ -27,7 +27,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from app.cli import float_range, int_range, output_dir, scheduler_address, seed
+from study.cli.arguments import float_range, int_range, output_dir, scheduler_address, seed
 from study.cli.simulate import DEFAULT_POPULATION, DEFAULT_PROTOCOL, MAX_WORKERS
 from study.protocol import ProtocolError, load_protocol
 from study.protocol.preflight import check_scenes

@@ -14,11 +14,11 @@ import sys
 import time
 from pathlib import Path
 
-from app.cli import float_range, output_file, seed
 from app.robot import build_scene
 from app.teleop import IdleInput, InputSource, ScriptedInput
 from app.trial import save_records
 from app.trial.trial import run_trial
+from study.cli.arguments import float_range, output_file, seed
 from study.protocol import trial_config_from_protocol
 
 DEFAULT_PROTOCOL = Path(__file__).resolve().parents[2] / "protocols" / "dragan2013.toml"
