@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 
-from study.cli.arguments import dispatch
+from analysis.errors import AnalysisError
+from study.cli.dispatch import dispatch
+from study.errors import StudyError
 
 COMMANDS = {
     "report": ("analysis.cli.report", "Write the HTML/Markdown report and results.json."),
@@ -13,5 +16,14 @@ COMMANDS = {
     "power": ("analysis.cli.power", "Power of the paper's hypotheses at several N from a pilot."),
 }
 
+EXPECTED = (AnalysisError, StudyError)
+"""The layer's error roots: said on one line (exit 2), never as a traceback."""
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``python -m analysis`` with ``argv`` (default: the process's arguments)."""
+    return dispatch("python -m analysis", __doc__ or "", COMMANDS, argv, expected=EXPECTED)
+
+
 if __name__ == "__main__":
-    sys.exit(dispatch("python -m analysis", __doc__ or "", COMMANDS, None))
+    sys.exit(main())

@@ -4,8 +4,10 @@ simulation, sweeps, export and salvage."""
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 
-from study.cli.arguments import dispatch
+from study.cli.dispatch import dispatch
+from study.errors import StudyError
 
 COMMANDS = {
     "serve": ("study.cli.serve", "Start the study server (participant + experimenter views)."),
@@ -23,5 +25,14 @@ COMMANDS = {
     "salvage": ("study.cli.salvage", "Copy what is readable of a damaged store into a new one."),
 }
 
+EXPECTED = (StudyError,)
+"""The layer's error roots: said on one line (exit 2), never as a traceback."""
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``python -m study`` with ``argv`` (default: the process's arguments)."""
+    return dispatch("python -m study", __doc__ or "", COMMANDS, argv, expected=EXPECTED)
+
+
 if __name__ == "__main__":
-    sys.exit(dispatch("python -m study", __doc__ or "", COMMANDS, None))
+    sys.exit(main())

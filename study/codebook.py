@@ -19,6 +19,7 @@ import pandas as pd
 
 from app.trial.accidents import ACCIDENT_MEASURES
 from app.trial.samples import SAMPLE_DOCS
+from study.errors import StudyError
 from study.protocol.questionnaire import ChoiceItem, NumberItem, TextItem
 
 if TYPE_CHECKING:
@@ -182,7 +183,7 @@ FIXED: dict[str, dict[str, tuple[str, str]]] = {
 }
 
 
-class CodebookError(ValueError):
+class CodebookError(StudyError, ValueError):
     """A table column has no codebook entry (add one here when adding a column)."""
 
 

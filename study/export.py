@@ -46,6 +46,7 @@ from app.trial.contacts import contact_totals
 from app.trial.events import TrialEvent, decode_events
 from app.trial.samples import SAMPLE_COLUMNS
 from study.codebook import write_codebook
+from study.errors import StudyError
 from study.protocol import (
     TRAINING_MODE,
     AttentionItem,
@@ -155,7 +156,7 @@ SESSION_COLUMNS = (
 )
 
 
-class ExportError(ValueError):
+class ExportError(StudyError, ValueError):
     """The store cannot be exported (missing, not a store, inconsistent rows)."""
 
 

@@ -21,11 +21,13 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from study.errors import StudyError
+
 if TYPE_CHECKING:
     from study.protocol import Protocol
 
 
-class ScheduleError(ValueError):
+class ScheduleError(StudyError, ValueError):
     """A schedule cannot be built from the given tasks, modes or enrollment history."""
 
 

@@ -19,7 +19,8 @@ from pathlib import Path
 import pytest
 
 from study.cli import serve
-from study.cli.arguments import OneLineParser, dispatch, non_negative_float, port, rate_hz
+from study.cli.arguments import non_negative_float, port, rate_hz
+from study.cli.dispatch import OneLineParser, dispatch
 from study.protocol import ProtocolSyntaxError, load_protocol, parse_protocol
 from study.protocol.loader import MAX_NESTING, nesting_depth
 

@@ -11,8 +11,7 @@ import pytest
 
 from analysis.errors import SourceError
 from analysis.load import from_export
-from study.__main__ import COMMANDS
-from study.cli.arguments import dispatch
+from study.__main__ import main as study_main
 from study.protocol import load_protocol
 from study.session import open_store
 from tests.test_export import PAPER, build_store
@@ -33,9 +32,7 @@ def stores(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
 
 
 def export(capsys: pytest.CaptureFixture[str], db: Path, out: Path, *extra: str) -> dict:
-    code = dispatch(
-        "python -m study", "", COMMANDS, ["export", "--db", str(db), "--out", str(out), *extra]
-    )
+    code = study_main(["export", "--db", str(db), "--out", str(out), *extra])
     stdout, stderr = capsys.readouterr()
     assert code == 0, stderr
     return json.loads(stdout.strip().splitlines()[-1])
@@ -87,9 +84,7 @@ def test_a_failed_export_leaves_the_folder_as_it_was(
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(pd.DataFrame, "to_parquet", disk_full)
-    code = dispatch(
-        "python -m study", "", COMMANDS, ["export", "--db", str(empty), "--out", str(out)]
-    )
+    code = study_main(["export", "--db", str(empty), "--out", str(out)])
     _, stderr = capsys.readouterr()
     assert code == 2 and "No space left" in stderr and "Traceback" not in stderr
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before

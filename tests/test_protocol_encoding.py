@@ -8,8 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from study.__main__ import COMMANDS
-from study.cli.arguments import dispatch
+from study.__main__ import main as study_main
 from study.protocol import ProtocolError, load_protocol
 from study.simulated import DEFAULT_POPULATION_PATH, PopulationError, load_population
 
@@ -51,10 +50,7 @@ def test_run_with_a_latin1_protocol_exits_2_without_a_traceback(
     path = tmp_path / "latin1.toml"
     latin1_copy(PAPER, path)
     db = tmp_path / "study.db"
-    code = dispatch(
-        "python -m study",
-        "",
-        COMMANDS,
+    code = study_main(
         ["run", "--protocol", str(path), "--db", str(db), "--participant", "P01"],
     )
     out, err = capsys.readouterr()

@@ -15,15 +15,14 @@ from typing import Any
 
 import pytest
 
-from study.__main__ import COMMANDS
+from study.__main__ import main as study_main
 from study.cli import run as run_cli
-from study.cli.arguments import dispatch
 from study.store import Store
 from tests.disk_full import cap
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, dict[str, Any], str]:
-    code = dispatch("python -m study", "", COMMANDS, list(argv))
+    code = study_main(list(argv))
     out, err = capsys.readouterr()
     lines = out.strip().splitlines()
     assert len(lines) == 1, out

@@ -9,9 +9,8 @@ from pathlib import Path
 import pytest
 
 from app.trial import OUTCOMES
-from study.__main__ import COMMANDS
+from study.__main__ import main as study_main
 from study.cli import run as run_cli
-from study.cli.arguments import dispatch
 from study.protocol import load_protocol
 from study.session import headless, open_store
 from study.store import Store
@@ -21,7 +20,7 @@ PROTOCOL = ROOT / "protocols" / "dragan2013.toml"
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, dict, str]:
-    code = dispatch("python -m study", "", COMMANDS, ["run", *argv])
+    code = study_main(["run", *argv])
     out, err = capsys.readouterr()
     return code, json.loads(out.strip().splitlines()[-1]), err
 

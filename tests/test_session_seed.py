@@ -8,8 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from study.__main__ import COMMANDS
-from study.cli.arguments import dispatch
+from study.__main__ import main as study_main
 from study.protocol import Protocol, load_protocol
 from study.schedule import ScheduleError
 from study.session import MAX_SEED, InvalidSeedError, Session, SessionError, open_store
@@ -26,7 +25,7 @@ def protocol() -> Protocol:
 
 def study(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
     try:
-        code = dispatch("python -m study", "", COMMANDS, list(argv))
+        code = study_main(list(argv))
     except SystemExit as exc:  # argparse refused the arguments
         code = int(exc.code or 0)
     out, err = capsys.readouterr()

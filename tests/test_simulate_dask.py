@@ -27,8 +27,7 @@ from typing import Any
 import pytest
 from distributed import Client, LocalCluster
 
-from study.__main__ import COMMANDS
-from study.cli.arguments import dispatch
+from study.__main__ import main as study_main
 from study.protocol import load_protocol
 from study.session import open_store
 from study.simulated import simulate
@@ -178,10 +177,7 @@ def test_an_unreachable_scheduler_is_named(
     protocol: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     address = f"tcp://127.0.0.1:{free_port()}"
-    code = dispatch(
-        "python -m study",
-        "",
-        COMMANDS,
+    code = study_main(
         [
             "simulate",
             "--protocol",

@@ -22,8 +22,7 @@ from typing import Any
 
 import pytest
 
-from study.__main__ import COMMANDS
-from study.cli.arguments import dispatch
+from study.__main__ import main as study_main
 from study.simulated import runner, simulate
 from study.store import Store
 from tests.disk_full import cap
@@ -122,7 +121,7 @@ def progress(db: Path) -> tuple[int, int]:
 
 
 def cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, dict[str, Any], str]:
-    code = dispatch("python -m study", "", COMMANDS, ["simulate", *argv])
+    code = study_main(["simulate", *argv])
     out, err = capsys.readouterr()
     lines = out.strip().splitlines()
     assert len(lines) == 1, out

@@ -19,8 +19,7 @@ from typing import Any
 
 import pytest
 
-from study.__main__ import COMMANDS
-from study.cli.arguments import dispatch
+from study.__main__ import main as study_main
 from study.protocol import load_protocol
 from study.sweep import (
     Criteria,
@@ -195,7 +194,7 @@ def test_sweep_cli_on_a_two_worker_local_cluster(
         "2",
         "--no-progress",
     ]
-    code = dispatch("python -m study", "", COMMANDS, argv)
+    code = study_main(argv)
     printed, err = capsys.readouterr()
     assert code == 0, err
     summary = json.loads(printed.strip().splitlines()[-1])
@@ -240,7 +239,7 @@ def test_sweep_cli_on_a_two_worker_local_cluster(
     assert variant["confidence"]["D"] == 0.35
 
     # run again: every store is kept, nothing is simulated twice, same verdict
-    code = dispatch("python -m study", "", COMMANDS, [*argv[:-5], "--no-progress"])
+    code = study_main([*argv[:-5], "--no-progress"])
     printed, err = capsys.readouterr()
     assert code == 0, err
     assert json.loads(printed.strip().splitlines()[-1])["today"] == summary["today"]

@@ -1,5 +1,5 @@
 """``python -m study COMMAND`` subcommands, one module each with ``add_arguments(parser)`` and
-``main(args) -> int`` (dispatched by ``study.cli.arguments.dispatch``, see ``study/__main__.py``):
+``main(args) -> int`` (dispatched by ``study.cli.dispatch``, see ``study/__main__.py``):
 
     serve      the study server: participant page on the LAN, experimenter console on 127.0.0.1
     trial      one headless trial, its outcome as JSON

@@ -1,79 +1,19 @@
-"""Subcommand dispatch shared by ``python -m study`` and ``python -m analysis``.
-
-Each subcommand lives in its own module exposing ``add_arguments(parser)`` and
-``main(args) -> int``; modules are imported only when their command runs, so ``--help`` stays
-fast and one broken command never hides the others.
-
-Every error a command line can cause is one line on stderr and exit code 2: argparse's own
-(a bad value names the flag; no usage block), and each command's typed errors. An exception
-no command expected is one line too (exit 1; ``STUDY_TRACEBACK=1`` shows where it came from),
-running out of memory is said as such, and Ctrl-C exits 130 without a traceback. The argument
-types below give every number a range and every path a kind (a file to read, a file or a
-folder to write).
+"""argparse types shared by ``python -m study`` and ``python -m analysis``: every number gets a
+range and every path a kind (a file to read, a file or a folder to write), so a bad value is
+refused at the command line with the flag's name, before anything runs.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib
 import math
 import os
 import re
-import sys
-import traceback
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable
 from pathlib import Path
 
 MAX_SEED = 2**63 - 1
 """Largest seed a store keeps (SQLite integers are 64-bit)."""
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """argparse, with each error on one line (``prog: error: ... (see --help)``), exit 2."""
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
-
-
-def dispatch(
-    prog: str, description: str, commands: Mapping[str, tuple[str, str]], argv: Sequence[str] | None
-) -> int:
-    """Parse ``argv`` and run the chosen command.
-
-    ``commands`` maps a command name to ``(module path, one-line help)``.
-    """
-    # the description is the package's module docstring: shown without its reST backticks
-    parser = OneLineParser(prog=prog, description=description.replace("``", ""))
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    args_list = list(sys.argv[1:] if argv is None else argv)
-    chosen = next((a for a in args_list if not a.startswith("-")), None)
-    for name, (module_path, help_text) in commands.items():
-        p = sub.add_parser(name, help=help_text, description=help_text)
-        if name == chosen:
-            importlib.import_module(module_path).add_arguments(p)
-    args = parser.parse_args(args_list)
-    module = importlib.import_module(commands[args.command][0])
-    try:
-        return int(module.main(args) or 0)
-    except KeyboardInterrupt:
-        print(f"{prog} {args.command}: interrupted", file=sys.stderr)
-        return 130
-    except MemoryError:
-        print(
-            f"{prog} {args.command}: error: out of memory (the input asks for too much)",
-            file=sys.stderr,
-        )
-        return 2
-    except Exception as exc:  # a command's own errors are handled by it; this is a bug
-        if os.environ.get("STUDY_TRACEBACK"):
-            traceback.print_exc()
-        text = " ".join(str(exc).split())[:300]
-        print(
-            f"{prog} {args.command}: unexpected error: {type(exc).__name__}: {text}"
-            " (a bug; STUDY_TRACEBACK=1 shows where)",
-            file=sys.stderr,
-        )
-        return 1
 
 
 def int_range(lo: int, hi: int, *, what: str = "a whole number") -> Callable[[str], int]:

@@ -19,14 +19,13 @@ from pathlib import Path
 from study.cli.arguments import output_dir
 from study.codebook import codebook
 from study.export import (
-    ExportError,
     export_metadata,
     resolve_protocol,
     tidy_tables,
     write_export,
 )
-from study.protocol import ProtocolError, load_protocol
-from study.store import Store, StoreError
+from study.protocol import load_protocol
+from study.store import Store
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -82,7 +81,7 @@ def main(args: argparse.Namespace) -> int:
             protocol_text=stored_text,
             formats=formats,
         )
-    except (StoreError, ProtocolError, ExportError, OSError) as e:
+    except OSError as e:  # the folder to write into (StudyErrors are said by the dispatcher)
         print(f"error: {e}", file=sys.stderr)
         return 2
     print(

@@ -12,13 +12,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
-from study.protocol import ProtocolError, protocol_from_store
+from study.protocol import protocol_from_store
 from study.retention import record_retention
 from study.session import open_store
-from study.store import Store, StoreError
+from study.store import Store
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -33,13 +32,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    try:
-        with Store.open_readonly(args.db) as store:
-            protocol = protocol_from_store(store)
-        with open_store(args.db, protocol) as store:
-            option = record_retention(store, protocol, args.participant, keep=args.keep == "yes")
-    except (StoreError, ProtocolError, OSError) as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+    with Store.open_readonly(args.db) as store:
+        protocol = protocol_from_store(store)
+    with open_store(args.db, protocol) as store:
+        option = record_retention(store, protocol, args.participant, keep=args.keep == "yes")
     print(json.dumps({"participant": args.participant, "recorded": option}))
     return 0

@@ -17,7 +17,6 @@ import sys
 from pathlib import Path
 
 from study.cli.arguments import output_file
-from study.store import StoreError
 from study.store.salvage import salvage
 
 
@@ -27,11 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    try:
-        report = salvage(args.db, args.out)
-    except StoreError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    report = salvage(args.db, args.out)
     lost = sum(len(t.lost_ranges) for t in report.tables.values())
     copied = sum(t.copied for t in report.tables.values())
     print(

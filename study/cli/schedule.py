@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 
 from study.cli.arguments import int_range
-from study.protocol import ProtocolError, load_protocol
+from study.protocol import load_protocol
 from study.schedule import ScheduleError, schedule
 
 DEFAULT_PROTOCOL = Path(__file__).resolve().parents[2] / "protocols" / "dragan2013.toml"
@@ -43,19 +43,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    try:
-        protocol = load_protocol(args.protocol)
-        participants = args.participants
+    protocol = load_protocol(args.protocol)
+    participants = args.participants
+    if participants is None:
+        participants = protocol.study.participants
         if participants is None:
-            participants = protocol.study.participants
-            if participants is None:
-                raise ScheduleError(
-                    f"{args.protocol} sets no study.participants; pass --participants N"
-                )
-        trials = schedule(protocol, participants=participants)
-    except (ProtocolError, ScheduleError) as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+            raise ScheduleError(
+                f"{args.protocol} sets no study.participants; pass --participants N"
+            )
+    trials = schedule(protocol, participants=participants)
     records = [{c: getattr(t, c) for c in COLUMNS} for t in trials]
     if args.format == "json":
         text = json.dumps(records, indent=1) + "\n"

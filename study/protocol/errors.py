@@ -8,8 +8,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from study.errors import StudyError
 
-class ProtocolError(ValueError):
+
+class ProtocolError(StudyError, ValueError):
     """A protocol file is not a valid study definition.
 
     Attributes:
@@ -58,11 +60,11 @@ class BlindingError(ProtocolError):
     """Participant-facing text names a condition (e.g. a mode or correctness level)."""
 
 
-class AnswerError(ValueError):
+class AnswerError(StudyError, ValueError):
     """An answer does not fit its item's scale (e.g. 8 on a 7-point item) or names no item."""
 
 
-class ConditionError(KeyError):
+class ConditionError(StudyError, KeyError):
     """A task, mode or instruction phase that the loaded protocol does not define."""
 
     def __str__(self) -> str:  # KeyError would quote the message

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from numbers import Integral
 
+from study.errors import StudyError
 from study.protocol import AnswerError
 
 
-class SessionError(RuntimeError):
+class SessionError(StudyError, RuntimeError):
     """Base class of session errors."""
 
 

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from study.errors import StudyError
 
-class StoreError(RuntimeError):
+
+class StoreError(StudyError, RuntimeError):
     """Base class: the store could not do what was asked; the stored data is untouched."""
 
 

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from study.errors import StudyError
 
-class SweepError(Exception):
+
+class SweepError(StudyError):
     """Base class of every error raised by ``study.sweep``."""
 
 
