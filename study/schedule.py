@@ -19,12 +19,20 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol as Structural
 
 from study.errors import StudyError
 
-if TYPE_CHECKING:
-    from study.protocol import Protocol
+
+class DesignSource(Structural):
+    """Anything that names its tasks and modes in order: a loaded protocol does (the schedule
+    needs nothing else from it, so it does not import the protocol package)."""
+
+    @property
+    def task_names(self) -> tuple[str, ...]: ...
+
+    @property
+    def mode_names(self) -> tuple[str, ...]: ...
 
 
 class ScheduleError(StudyError, ValueError):
@@ -83,7 +91,8 @@ class Design:
                 raise ScheduleError(f"Design: {label} must be distinct, got {names}")
 
     @classmethod
-    def from_protocol(cls, protocol: Protocol) -> Design:
+    def from_protocol(cls, protocol: DesignSource) -> Design:
+        """The design of a loaded protocol: its tasks and modes in their declared order."""
         return cls(tasks=protocol.task_names, modes=protocol.mode_names)
 
     @property
@@ -148,7 +157,7 @@ def participant_label(index: int, *, total: int) -> str:
 
 
 def schedule(
-    design: Design | Protocol, *, participants: int, rows: Sequence[int] | None = None
+    design: Design | DesignSource, *, participants: int, rows: Sequence[int] | None = None
 ) -> list[ScheduledTrial]:
     """The task trials of ``participants`` participants, enrolled in order, none withdrawn.
 
