@@ -9,7 +9,7 @@ and analysis) report such an *orphaned* trial as resuming would record it
 is not changed: the store may still be open in a live session elsewhere.
 
 A ``running`` trial is orphaned when no live process holds its participant's session lease
-(``study.store.lease.holder_is_live``): no lease row, a dead or recycled pid on this host, or on
+(``study.store.liveness.holder_is_live``): no lease row, a dead or recycled pid on this host, or on
 another host a heartbeat older than ``stale_after_s``.
 """
 
@@ -19,7 +19,7 @@ import sqlite3
 import time
 from dataclasses import dataclass
 
-from study.store import lease as lease_mod
+from study.store import liveness
 
 STALE_AFTER_S = 15.0
 """Heartbeat age after which another host's lease holder counts as dead (sessions beat every
@@ -50,7 +50,7 @@ def orphaned_trials(
     now = time.time()
     orphans: dict[int, Orphan] = {}
     for trial_id, pid, host, started, heartbeat_at in rows:
-        if pid is not None and lease_mod.holder_is_live(
+        if pid is not None and liveness.holder_is_live(
             pid=pid,
             host=host,
             started=started,
