@@ -15,7 +15,7 @@ from app.teleop import TeleopCommand, TrialObservation
 from app.trial import OUTCOMES, Trial, run_trial
 from app.trial.contacts import ContactLog
 from app.trial.events import EventKind, TrialEvent, encode
-from study.export import _with_event_totals
+from study.export.tables import _with_event_totals
 from study.protocol import trial_config_from_protocol
 
 

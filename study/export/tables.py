@@ -31,133 +31,41 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
-import tempfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
-import app
 from app.trial.accidents import ACCIDENT_MEASURES, accident_totals
 from app.trial.contacts import contact_totals
 from app.trial.events import TrialEvent, decode_events
 from app.trial.samples import SAMPLE_COLUMNS
-from study.codebook import write_codebook
-from study.errors import StudyError
 from study.protocol import (
     TRAINING_MODE,
     AttentionItem,
     ChoiceItem,
-    ProtocolError,
-    load_protocol,
-    protocol_from_store,
 )
-from study.retention import UNDER_WAY, retention_decisions
-from study.store import Store, now_iso
+from study.retention import retention_decisions
+from study.store import Store
 
 if TYPE_CHECKING:
     from study.protocol import Protocol
-
-TABLE_NAMES = ("trials", "samples", "ratings", "answers", "participants", "events", "sessions")
-DEFAULT_POINTS = 7
-
-TRIAL_COLUMNS = (
-    "participant",
-    "session_id",
-    "phase",
-    "schedule_row",
-    "position",
-    "task",
-    "difficulty",
-    "correctness",
-    "mode",
-    "run",
-    "attempt",
-    "status",
-    "outcome",
-    "success",
-    "duration_s",
-    "ticks",
-    "contacts",
-    "contact_impulse_ns",
-    *ACCIDENT_MEASURES,
-    "started_at",
-    "goal_names",
-    "goal_positions",
-    "target",
-    "training_time_s",
-    "baseline_rating",
-    "tasks_completed",
+from study.export.columns import (
+    ANSWER_COLUMNS,
+    DEFAULT_POINTS,
+    EVENT_COLUMNS,
+    PARTICIPANT_COLUMNS,
+    RATING_COLUMNS,
+    RECRUITMENT_COLUMNS,
+    SAMPLE_KEY,
+    SESSION_COLUMNS,
+    TRIAL_COLUMNS,
+    participant_item_column,
 )
-"""Fixed leading columns of ``trials``; Likert and preference columns and ``trial_id`` follow."""
-
-SAMPLE_KEY = ("trial_id", "participant", "tick")
-"""Leading columns of ``samples``; the store's sample columns (``app.trial.samples``) follow,
-``predicted`` as the goal's name and ``probabilities`` spread over ``prob_<k>``."""
-RATING_COLUMNS = (
-    "participant",
-    "session_id",
-    "phase",
-    "task",
-    "mode",
-    "run",
-    "item",
-    "value",
-    "answered_at",
-    "trial_id",
-)
-ANSWER_COLUMNS = (
-    "participant",
-    "session_id",
-    "questionnaire",
-    "item",
-    "kind",
-    "value",
-    "number",
-    "option",
-    "correct",
-    "answered_at",
-)
-PARTICIPANT_COLUMNS = (
-    "participant",
-    "session_id",
-    "schedule_row",
-    "status",
-    "enrolled_at",
-    "included",
-    "excluded_because",
-    "retention",
-    "attention_checks",
-    "attention_failures",
-)
-"""Fixed leading columns of ``participants``; one column per item asked once per participant
-(demographics, the comment: its answer) follows."""
-EVENT_COLUMNS = ("participant", "session_id", "at", "kind", "detail")
-RECRUITMENT_COLUMNS: dict[str, str] = {
-    "PROLIFIC_PID": "prolific_pid",
-    "STUDY_ID": "prolific_study_id",
-    "SESSION_ID": "prolific_session_id",
-    "pid": "pid",
-}
-"""An open link's URL parameters (``study.server.recruitment``) -> their ``sessions`` column."""
-SESSION_COLUMNS = (
-    "participant",
-    "session_id",
-    "schedule_row",
-    "status",
-    "enrolled_at",
-    "started_at",
-    "ended_at",
-    "source",
-    *RECRUITMENT_COLUMNS.values(),
-)
-
-
-class ExportError(StudyError, ValueError):
-    """The store cannot be exported (missing, not a store, inconsistent rows)."""
+from study.export.errors import ExportError
+from study.export.source import resolve_protocol
 
 
 def tidy_tables(
@@ -176,44 +84,6 @@ def tidy_tables(
         return _Exporter(store_or_path, protocol, search).tables()
     with Store.open_readonly(store_or_path) as store:
         return _Exporter(store, protocol, search).tables()
-
-
-def resolve_protocol(
-    store: Store, *, search: Sequence[Path] | None = None
-) -> tuple[Protocol | None, str]:
-    """The protocol ``store`` was run with and where it came from, in this order: the text the
-    store keeps (``"store"``); a protocol file with the same content hash (``"file <path>"``,
-    see ``find_protocol``); else ``None`` and why, in which case export infers the items from
-    the data (7-point scale, preference re-centred on ``aggressive`` or on the alphabetically
-    last of two modes)."""
-    try:
-        return protocol_from_store(store), "store"
-    except ProtocolError as exc:
-        why = str(exc)
-    found = find_protocol(store, search=search)
-    if found is not None:
-        return found, f"file {found.path}"
-    return None, f"{why}; no protocol file matches either, so item columns are inferred"
-
-
-def find_protocol(store: Store, *, search: Sequence[Path] | None = None) -> Protocol | None:
-    """The protocol file that wrote ``store`` (same study id and content hash), if one is found
-    as ``<dir>/<study id>.toml`` in ``search`` (default: ./protocols and the repository's)."""
-    dirs = (
-        search
-        if search is not None
-        else (Path("protocols"), Path(__file__).resolve().parents[1] / "protocols")
-    )
-    for d in dirs:
-        path = d / f"{store.meta.protocol_id}.toml"
-        if path.is_file():
-            try:
-                p = load_protocol(path)
-            except ProtocolError:
-                continue
-            if p.content_hash == store.meta.protocol_hash:
-                return p
-    return None
 
 
 class _Exporter:
@@ -536,12 +406,6 @@ def _goal_name(names: list[str], index: Any) -> Any:
     return names[k]
 
 
-def participant_item_column(item: str) -> str:
-    """The ``participants`` column of an item asked once (``item_<id>`` if the id is one of
-    the table's fixed column names)."""
-    return f"item_{item}" if item in PARTICIPANT_COLUMNS else item
-
-
 def _typed(
     df: pd.DataFrame,
     *,
@@ -565,143 +429,3 @@ def _typed(
             else:
                 df[c] = pd.to_numeric(values, errors="raise")
     return df
-
-
-EXPORT_FORMATS = ("csv", "parquet")
-"""Table file formats an export can write, as ``<table>.<format>``."""
-
-EXPORT_EXTRAS = ("codebook.csv", "codebook.md", "metadata.json", "protocol.toml")
-"""The other files an export writes beside the tables."""
-
-
-def _check_formats(formats: Sequence[str]) -> tuple[str, ...]:
-    unknown = [f for f in formats if f not in EXPORT_FORMATS]
-    if unknown or not formats:
-        raise ExportError(
-            f"export formats must be one or both of {', '.join(EXPORT_FORMATS)}, got"
-            f" {list(formats)}"
-        )
-    return tuple(dict.fromkeys(formats))
-
-
-def _write_table_files(
-    tables: Mapping[str, pd.DataFrame], out_dir: Path, formats: tuple[str, ...]
-) -> list[Path]:
-    written: list[Path] = []
-    for name, df in tables.items():
-        if "csv" in formats:
-            path = out_dir / f"{name}.csv"
-            df.to_csv(path, index=False)
-            written.append(path)
-        if "parquet" in formats:
-            path = out_dir / f"{name}.parquet"
-            df.to_parquet(path, index=False)
-            written.append(path)
-    return written
-
-
-def stale_export_files(
-    out: str | os.PathLike[str], *, formats: Sequence[str], protocol_text: bool = True
-) -> list[Path]:
-    """Files of an earlier export in ``out`` that an export of ``formats`` would not overwrite:
-    ``<table>.<format>`` of the other formats (and ``protocol.toml`` when this export writes
-    none). Only names an export writes are considered; other files are never listed."""
-    out_dir = Path(out)
-    others = [f for f in EXPORT_FORMATS if f not in formats]
-    stale = [out_dir / f"{name}.{f}" for name in TABLE_NAMES for f in others]
-    if not protocol_text:
-        stale.append(out_dir / "protocol.toml")
-    return [p for p in stale if p.is_file()]
-
-
-def write_export(
-    out: str | os.PathLike[str],
-    tables: Mapping[str, pd.DataFrame],
-    *,
-    codebook: pd.DataFrame,
-    metadata: Mapping[str, Any],
-    protocol_text: str | None,
-    formats: Sequence[str] = EXPORT_FORMATS,
-) -> list[Path]:
-    """Write a whole export into ``out``: the tables in ``formats``, ``codebook.csv``/``.md``,
-    ``protocol.toml`` (when ``protocol_text`` is given) and ``metadata.json`` (``metadata`` plus
-    ``formats``, the table formats written). Returns the paths written.
-
-    Everything is first written into a hidden folder inside ``out`` and then moved in, with
-    ``metadata.json`` last, so a failed export leaves ``out`` as it was. Files of an earlier
-    export that this one does not replace (tables of another format, a ``protocol.toml``) are
-    removed; files an export does not write are left alone."""
-    formats = _check_formats(formats)
-    out_dir = Path(out)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=".export-", dir=out_dir))
-    try:
-        staged = _write_table_files(tables, staging, formats)
-        staged += write_codebook(codebook, staging)
-        if protocol_text is not None:
-            path = staging / "protocol.toml"
-            path.write_text(protocol_text, encoding="utf-8")
-            staged.append(path)
-        meta_staged = staging / "metadata.json"
-        meta = {**metadata, "formats": list(formats)}
-        meta_staged.write_text(json.dumps(meta, indent=1) + "\n")
-        # the old metadata goes first: a folder without it is never mistaken for a whole export
-        (out_dir / "metadata.json").unlink(missing_ok=True)
-        written = []
-        for path in staged:
-            os.replace(path, out_dir / path.name)
-            written.append(out_dir / path.name)
-        for path in stale_export_files(
-            out_dir, formats=formats, protocol_text=protocol_text is not None
-        ):
-            path.unlink()
-        os.replace(meta_staged, out_dir / "metadata.json")
-        written.append(out_dir / "metadata.json")
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
-    return written
-
-
-def excluded_participants(tables: Mapping[str, pd.DataFrame]) -> dict[str, str]:
-    """``{participant: why}`` for everyone left out of the tables (``participants``)."""
-    p = tables.get("participants")
-    if p is None or p.empty:
-        return {}
-    out = p[~p["included"].astype(bool)]
-    return dict(zip(out["participant"], out["excluded_because"].astype(str), strict=True))
-
-
-def retention_pending(tables: Mapping[str, pd.DataFrame]) -> list[str]:
-    """Included participants whose session has not reached the retention question yet."""
-    p = tables.get("participants")
-    if p is None or p.empty:
-        return []
-    under_way = p["included"].astype(bool) & p["status"].isin(UNDER_WAY) & p["retention"].isna()
-    return [str(x) for x in p.loc[under_way, "participant"]]
-
-
-def export_metadata(
-    store: Store, tables: Mapping[str, pd.DataFrame], *, protocol: Protocol | None
-) -> dict[str, Any]:
-    """Provenance written beside the tables as ``metadata.json``: which store, protocol (id,
-    version, content hash, whether the store keeps its text) and software produced them, how
-    many rows each table has, ``orphaned_trials``: trials left running by a process that
-    died, exported as interrupted (resuming their sessions records that in the store), and
-    ``excluded_participants``: who was left out and why (data retention), and
-    ``retention_pending``: who was exported while their session is still under way.
-    ``write_export`` adds ``formats``, the table file formats it wrote."""
-    return {
-        "store": str(store.path),
-        "store_schema": store.meta.version,
-        "protocol_id": store.meta.protocol_id,
-        "protocol_version": store.meta.protocol_version,
-        "protocol_hash": store.meta.protocol_hash,
-        "protocol_file": str(protocol.path) if protocol is not None else None,
-        "protocol_stored": store.protocol_text() is not None,
-        "software_version": app.__version__,
-        "exported_at": now_iso(),
-        "rows": {name: len(df) for name, df in tables.items()},
-        "orphaned_trials": store.orphaned_trials(),
-        "excluded_participants": excluded_participants(tables),
-        "retention_pending": retention_pending(tables),
-    }
