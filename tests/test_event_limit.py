@@ -19,7 +19,7 @@ from study.protocol import Protocol, load_protocol
 from study.session import Session, open_store
 from study.session.event_limit import DEFAULT_BURST, DEFAULT_RATE_PER_S, EventLimiter
 from study.store import Store
-from tests.test_session import enrol, to_step
+from tests.support.sessions import enrol, to_step
 
 PROTOCOL = Path(__file__).resolve().parents[1] / "protocols" / "dragan2013.toml"
 

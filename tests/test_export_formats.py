@@ -14,7 +14,7 @@ from analysis.load import from_export
 from study.__main__ import main as study_main
 from study.protocol import load_protocol
 from study.session import open_store
-from tests.test_export import PAPER, build_store
+from tests.support.exports import PAPER, build_store
 
 TABLES = ("trials", "samples", "ratings", "answers", "participants", "events")
 

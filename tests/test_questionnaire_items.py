@@ -34,8 +34,8 @@ from study.session.headless import run_headless
 from study.simulated import load_population
 from study.simulated.participant import SimulatedParticipant
 from tests.protocol_copies import PAPER_PROTOCOL
-from tests.test_session import enrol, finish_run, to_step, valid_answers
-from tests.test_simulated_participant import lived, screen
+from tests.support.sessions import enrol, finish_run, to_step, valid_answers
+from tests.support.simulated_people import lived, screen
 
 TEXT = PAPER_PROTOCOL.read_text(encoding="utf-8")
 

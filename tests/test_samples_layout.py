@@ -18,7 +18,7 @@ from study.export import tidy_tables
 from study.protocol import trial_config_from_protocol
 from study.session.sample_writer import sample_row
 from study.store import Store
-from tests.test_store import enrol, new_trial, open_store
+from tests.support.stores import enrol, new_trial, open_store
 
 ROOT = Path(__file__).resolve().parents[1]
 

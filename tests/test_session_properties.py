@@ -20,7 +20,7 @@ from study.session.answers import ScriptedAnswers
 from study.session.errors import SessionError
 from study.session.headless import run_headless
 from study.store import TABLES, Store, StoreError
-from tests.test_session import stub_factory, valid_answers
+from tests.support.sessions import stub_factory, valid_answers
 
 ROOT = Path(__file__).resolve().parents[1]
 PROTOCOL = load_protocol(ROOT / "protocols" / "dragan2013.toml")

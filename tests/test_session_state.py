@@ -12,7 +12,7 @@ from study.protocol import Protocol, parse_protocol
 from study.session import EXPERIMENTER_ACTIONS, Session, SessionStateError, open_store
 from study.store import Store
 from tests.protocol_copies import ratings_only
-from tests.test_session import PROTOCOL_PATH, enrol, finish_run, to_step
+from tests.support.sessions import PROTOCOL_PATH, enrol, finish_run, to_step
 
 
 @pytest.fixture(scope="module")

@@ -37,7 +37,7 @@ from study.simulated.population import DEFAULT_POPULATION_PATH
 from study.simulated.runner import plan_jobs
 from study.store import Store, StoreError
 from tests.protocol_copies import short_protocol
-from tests.test_simulate_resume import content, progress, reference_run
+from tests.support.simulated_runs import content, progress, reference_run
 
 pytestmark = pytest.mark.slow
 

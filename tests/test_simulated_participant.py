@@ -3,38 +3,13 @@
 from __future__ import annotations
 
 from pathlib import Path
-from types import SimpleNamespace
 
 import pytest
 
-from study.protocol import LikertItem, Scale
-from study.session import Progress, Screen, TrialSummary
-from study.simulated import SimulatedUser, SimulationRunError, load_population
-from study.simulated.interface import InterfaceUser
+from study.simulated import SimulationRunError, load_population
 from study.simulated.participant import SimulatedParticipant
 from study.simulated.runner import participant_id, plan_jobs, session_seed
-
-ANCHORS = tuple(str(k) for k in range(1, 8))
-CONFIG = SimpleNamespace(extra={"input_mapping": "absolute"})  # what the factory reads of it
-
-
-def screen(questionnaire: str, *items: str) -> Screen:
-    return Screen(
-        phase="questions",
-        title="Questions",
-        text="",
-        progress=Progress(1, 11),
-        items=tuple(LikertItem(i, i, Scale("agree7", ANCHORS)) for i in items),
-        actions=("answer",),
-        questionnaire=questionnaire,
-    )
-
-
-def lived(person: SimulatedParticipant, *, duration: float, success: bool = True) -> None:
-    user = person(config=CONFIG, seed=1)  # type: ignore[arg-type]
-    assert isinstance(user, InterfaceUser) and isinstance(user.user, SimulatedUser)
-    summary = TrialSummary(1, "success" if success else "timeout", success, duration, 100)
-    person.observe(summary, time_limit_s=120.0)
+from tests.support.simulated_people import CONFIG, lived, screen
 
 
 def participant() -> SimulatedParticipant:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import sqlite3
 import subprocess
 import sys
@@ -14,8 +13,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.trial import TickRecord
-from app.trial.events import EventKind, TrialEvent
 from study.session.sample_writer import MAX_FLUSH_INTERVAL_S, SampleWriter, sample_row
 from study.store import (
     SAMPLE_COLUMNS,
@@ -31,60 +28,9 @@ from study.store import (
     StoreError,
     UnknownParticipantError,
 )
+from tests.support.stores import HASH, enrol, new_trial, open_store, tick
 
 ROOT = Path(__file__).resolve().parents[1]
-HASH = hashlib.sha256(b"protocol").hexdigest()
-
-
-def open_store(path: Path, **kw: object) -> Store:
-    return Store.open(path, protocol_id="demo", protocol_hash=HASH, protocol_version="1", **kw)
-
-
-def enrol(store: Store, participant: str = "P01") -> int:
-    with store.transaction() as tx:
-        return tx.enrol(
-            participant,
-            schedule_row=0,
-            assignments=[(1, "easy-right", "first", "timid"), (2, "easy-right", "second", "aggr")],
-            seed=7,
-            demographics={"age": 31, "gender": "f"},
-        )
-
-
-def tick(i: int) -> TickRecord:
-    v = np.arange(7, dtype=float) + i
-    return TickRecord(
-        tick=i,
-        t=i * 0.01,
-        q=v,
-        u=v + 0.1,
-        p=v + 0.2,
-        command=v + 0.3,
-        alpha=0.5,
-        confidence=0.25,
-        probabilities=np.array([0.2, 0.8]),
-        predicted=1,
-        user_target=np.array([0.5, 0.1, 0.2]),
-        ee=np.array([0.4, 0.0, 0.3]),
-        gripper=0.0,
-        events=(TrialEvent(EventKind.GRASP_REQUESTED),) if i == 3 else (),
-    )
-
-
-def new_trial(store: Store, session_id: int, *, step: int = 1, attempt: int = 1) -> int:
-    with store.transaction() as tx:
-        return tx.insert_trial(
-            session_id=session_id,
-            participant="P01",
-            step=step,
-            trial_number=1,
-            phase="training",
-            mode="none",
-            attempt=attempt,
-            seed=1,
-            goal_names=["mug"],
-            goal_positions=[[0.5, 0, 0]],
-        )
 
 
 def test_create_reopen_and_read_back(tmp_path: Path) -> None:

@@ -23,7 +23,7 @@ import pytest
 from study.session.sample_writer import sample_row
 from study.store import NotAStoreError, Store, StoreDamagedError
 from study.store.salvage import salvage
-from tests.test_store import enrol, new_trial, open_store, tick
+from tests.support.stores import enrol, new_trial, open_store, tick
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = 4096

@@ -30,7 +30,7 @@ from study.store import (
     StoreWriteError,
 )
 from tests.disk_full import cap, uncap
-from tests.test_store import enrol, new_trial, open_store, tick
+from tests.support.stores import enrol, new_trial, open_store, tick
 
 NOBODY = 65534
 

@@ -14,7 +14,7 @@ from app.trial.events import EventKind, TrialEvent, TrialEventError, decode, enc
 from study.export import tidy_tables
 from study.session.sample_writer import sample_row
 from study.store import SAMPLE_COLUMNS, Store
-from tests.test_store import enrol, new_trial, open_store
+from tests.support.stores import enrol, new_trial, open_store
 
 TODAY = (
     "paused",

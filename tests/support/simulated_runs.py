@@ -1,0 +1,86 @@
+"""A reference simulated run and what a store holds, for the resume and Dask tests (a resumed or
+distributed run must store what an uninterrupted local run stores)."""
+
+from __future__ import annotations
+
+import hashlib
+import sqlite3
+from pathlib import Path
+from typing import Any
+
+from study.simulated import simulate
+from study.store import Store
+
+
+def reference_run(protocol: Path, folder: Path, *, participants: int, seed: int) -> Path:
+    """An uninterrupted simulation in ``folder``: the data every other run must reproduce."""
+    db = folder / "sim.db"
+    report = simulate(
+        protocol_path=protocol, db=db, participants=participants, seed=seed, progress=False
+    )
+    assert report.errors == [] and report.error is None
+    return db
+
+
+def content(db: Path) -> dict[str, Any]:
+    """Everything a run writes, keyed by participant and step, without timestamps and ids."""
+    with Store.open_readonly(db) as store:
+        assert store.integrity_check() == "ok"
+        key = {t.trial_id: (t.participant, t.step, t.attempt) for t in store.trials()}
+        samples = store.samples()
+        digests = {}
+        for trial_id, rows in samples.groupby("trial_id"):
+            values = rows.drop(columns=["trial_id"]).to_csv(index=False)
+            digests[key[int(trial_id)]] = hashlib.sha256(values.encode()).hexdigest()
+        return {
+            "participants": [(p.participant, p.schedule_row) for p in store.participants()],
+            "demographics": {
+                p.participant: store.demographics(p.participant) for p in store.participants()
+            },
+            "sessions": sorted(
+                (s.participant, s.status, s.cursor, s.seed) for s in store.sessions()
+            ),
+            "trials": sorted(
+                (
+                    t.participant,
+                    t.step,
+                    t.attempt,
+                    t.task,
+                    t.mode,
+                    t.run,
+                    t.seed,
+                    t.status,
+                    t.outcome,
+                    t.success,
+                    t.duration_s,
+                    t.ticks,
+                    t.target,
+                )
+                for t in store.trials()
+            ),
+            "samples": digests,
+            "ratings": sorted(
+                (r.participant, r.step, r.item, r.value, key.get(r.trial_id))
+                for r in store.ratings()
+            ),
+            "events": sorted(
+                (e.participant or "", e.kind) for e in store.events() if e.kind != "close"
+            ),
+        }
+
+
+def progress(db: Path) -> tuple[int, int]:
+    """(trial rows, completed sessions) as another process sees the file; (0, 0) before it
+    has a schema."""
+    try:
+        conn = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=5)
+        try:
+            trials = conn.execute("SELECT count(*) FROM trials").fetchone()[0]
+            done = conn.execute(
+                "SELECT count(*) FROM sessions WHERE status = 'completed'"
+            ).fetchone()[0]
+        finally:
+            conn.close()
+    except sqlite3.Error:
+        return 0, 0
+    return int(trials), int(done)
