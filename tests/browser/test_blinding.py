@@ -20,7 +20,7 @@ import pytest
 from study.server.blinding import iter_strings
 from study.server.viser_vocabulary import FIELD_VALUES
 from tests.browser.harness import FrameLog, start_server, wait_until
-from tests.browser.test_participant_flow import _connect, _without_client_warning, join
+from tests.browser.page import connect_page, join, without_client_warning
 from tests.protocol_copies import STUDY_PROTOCOLS
 
 pytestmark = pytest.mark.browser
@@ -62,7 +62,7 @@ def test_no_frame_names_a_condition_of_the_served_protocol(
         page = context.new_page()
         frames = FrameLog().attach(page)
         seen: list[str] = []
-        _connect(page, rs.url)
+        connect_page(page, rs.url)
         code = srv.enrol("P01")
         join(page, code, then=None)
         srv.act(code, "start")
@@ -89,7 +89,7 @@ def test_no_frame_names_a_condition_of_the_served_protocol(
         assert len(strings) > 100 and any("Run finished" in s for s in strings)
         raw = frames.raw_bytes()  # every frame, decompressed, with its binary buffers
         settings = set().union(*FIELD_VALUES.values())
-        text = "\n".join(_without_client_warning(s) for s in seen).lower()
+        text = "\n".join(without_client_warning(s) for s in seen).lower()
         for word in words:
             assert not [s for s in strings if word in s.lower()], f"{word!r} in a frame"
             if word not in settings:

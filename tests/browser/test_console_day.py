@@ -25,7 +25,7 @@ from playwright.sync_api import expect
 from study.server.live import session_factory
 from study.server.server import StudyServer
 from tests.browser.harness import RunningServer, start_server, wait_until
-from tests.browser.test_participant_flow import AGREE, _connect, _shot, join, text_input
+from tests.browser.page import AGREE, connect_page, join, screenshot, text_input
 
 pytestmark = pytest.mark.browser
 
@@ -98,7 +98,7 @@ def test_a_day_of_two_sessions_from_the_console(
     srv, store = study.server, study.store
     console = context.new_page()
     console.set_viewport_size({"width": 1366, "height": 1400})
-    _connect(console, study.console_url)
+    connect_page(console, study.console_url)
     console.get_by_text("Participants completed: 0").wait_for()
 
     code1 = _enrol(console, "P01")
@@ -106,7 +106,7 @@ def test_a_day_of_two_sessions_from_the_console(
     console.get_by_text("Session time not started").wait_for()
 
     page = context.new_page()
-    _connect(page, study.url)
+    connect_page(page, study.url)
     join(page, code1, then=None)
     console.get_by_role("button", name="Start", exact=True).click()
     page.get_by_role("button", name=AGREE).click()
@@ -139,7 +139,7 @@ def test_a_day_of_two_sessions_from_the_console(
     assert line is not None and re.fullmatch(
         r"Condition: task: \S+ \(\w+, \w+\), mode \w+, first run, attempt 1", line[0]
     ), line
-    _shot(console, screenshots, "console-01-paused")
+    screenshot(console, screenshots, "console-01-paused")
     console.get_by_role("button", name="Resume", exact=True).click()
     assert wait_until(lambda: "resumed" in _timeline(console))
     assert wait_until(lambda: "Run finished" in body_text(page), timeout=3 * TIME_LIMIT_S)
@@ -165,7 +165,7 @@ def test_a_day_of_two_sessions_from_the_console(
         lambda: condition not in _progress(console), timeout=10
     )  # redone: not counted
     console.get_by_text(re.compile(r"Next participant: schedule row 1")).wait_for()
-    _shot(console, screenshots, "console-02-redo")
+    screenshot(console, screenshots, "console-02-redo")
 
     # the second participant: nothing of P01 shows, and End is final and asks first
     assert wait_until(lambda: srv.console.plotted)  # P01's last run
@@ -203,7 +203,7 @@ def test_a_day_of_two_sessions_from_the_console(
     console.get_by_text("0 of 3 places taken").wait_for()
     assert "PROLIFIC_PID={{%PROLIFIC_PID%}}" in body_text(console)
     assert "Condition: none: the session is ended" in body_text(console)
-    _shot(console, screenshots, "console-03-ended")
+    screenshot(console, screenshots, "console-03-ended")
 
     # the server goes down; a new one on the same store offers P01's session for reopening
     srv.stop()
@@ -217,7 +217,7 @@ def test_a_day_of_two_sessions_from_the_console(
     try:
         fresh = context.new_page()
         fresh.set_viewport_size({"width": 1366, "height": 1400})
-        _connect(fresh, f"http://127.0.0.1:{again.experimenter_port}")
+        connect_page(fresh, f"http://127.0.0.1:{again.experimenter_port}")
         reopen = fresh.get_by_role("button", name="Reopen session")
         expect(reopen).to_be_enabled()
         fresh.get_by_role("combobox").nth(1).click()  # the "Interrupted" list

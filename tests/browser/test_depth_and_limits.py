@@ -29,11 +29,20 @@ from tests.browser.harness import (
     FrameLog,
     RunningServer,
     decode_frame,
-    project,
     start_server,
     wait_until,
 )
-from tests.browser.test_participant_flow import AGREE, _connect, _settle, _shot, hold, join
+from tests.browser.page import (
+    AGREE,
+    connect_page,
+    hold,
+    join,
+    page_pixel,
+    pixels_per_m,
+    screenshot,
+    settle_frames,
+    wait_camera_still,
+)
 
 pytestmark = pytest.mark.browser
 
@@ -41,36 +50,6 @@ OFFSET = np.array([0.0, 0.0, HANDLE_OFFSET_M])
 AXES = {"x": 0, "y": 1, "z": 2}
 KEYS = {0: ("w", "s"), 1: ("a", "d"), 2: ("r", "f")}
 CLOCK = re.compile(r"Time left: (\d+):(\d\d)")
-
-
-def _screen(page: Any, camera: Any, point: np.ndarray) -> np.ndarray:
-    """Page pixel (CSS) of world ``point``: the camera's image scaled to the canvas on the page
-    (viser lowers the canvas resolution when frames are slow)."""
-    x, y = project(camera, point)
-    box = page.locator("canvas").first.bounding_box()
-    return np.array(
-        [
-            box["x"] + x * box["width"] / camera.image_width,
-            box["y"] + y * box["height"] / camera.image_height,
-        ]
-    )
-
-
-def _pixels_per_m(page: Any, camera: Any, point: np.ndarray) -> float:
-    """Page pixels per metre across the line of sight at ``point``."""
-    rot = np.asarray(camera.wxyz)
-    w, x, y, z = rot
-    r = np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-    depth = float((r.T @ (np.asarray(point) - np.asarray(camera.position)))[2])
-    box = page.locator("canvas").first.bounding_box()
-    f = (box["height"] / 2) / np.tan(camera.fov / 2)
-    return f / depth
 
 
 def _press_drag(page: Any, start: np.ndarray, end: np.ndarray, *, steps: int = 10) -> None:
@@ -93,24 +72,11 @@ def _arrow(page: Any, live: Any, axis: int) -> tuple[np.ndarray, np.ndarray]:
     cam = live.page.client.camera
     origin = np.asarray(live.page._gizmo.position, float)
     e = np.eye(3)[axis]
-    o = _screen(page, cam, origin)
-    length_m = HANDLE_PX / _pixels_per_m(page, cam, origin)
-    tip = _screen(page, cam, origin + length_m * e)
+    o = page_pixel(page, cam, origin)
+    length_m = HANDLE_PX / pixels_per_m(page, cam, origin)
+    tip = page_pixel(page, cam, origin + length_m * e)
     direction = (tip - o) / np.linalg.norm(tip - o)
     return o + 0.8 * (tip - o), direction
-
-
-def _camera_still(live: Any) -> None:
-    """Wait until the tab has reported the same camera pose for half a second (the task view
-    is set from the server; the tab reports where its camera is)."""
-    last = None
-    for _ in range(40):
-        cam = live.page.client.camera
-        now = (*np.round(cam.position, 4), *np.round(cam.wxyz, 4))
-        if now == last:
-            return
-        last = now
-        time.sleep(0.5)
 
 
 def _gripper(live: Any) -> np.ndarray:
@@ -173,21 +139,21 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     live = srv.session(code)
     page = wide.new_page()
     frames = FrameLog().attach(page)
-    _connect(page, study.url)
+    connect_page(page, study.url)
     join(page, code)
     page.get_by_role("button", name=AGREE).click()
     page.get_by_role("button", name="Start").wait_for()
-    _settle(page)
+    settle_frames(page)
     page.get_by_role("button", name="Start").click()
     page.get_by_role("button", name="Close the gripper (G)").wait_for()
     assert wait_until(lambda: live.run is not None and live.scene_view is not None)
     run = live.run
     scene = run.trial.scene
-    _settle(page)
-    _camera_still(live)
+    settle_frames(page)
+    wait_camera_still(live)
     first = _clock(page)
     assert 200 <= first <= 240, first
-    _shot(page, screenshots, "11-depth-start")
+    screenshot(page, screenshots, "11-depth-start")
 
     # The handle floats over the gripper, its arrows pointing up the screen: not over the mug.
     cam = live.page.client.camera
@@ -199,7 +165,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     for name, axis in AXES.items():
         grab, direction = _arrow(page, live, axis)
         g0 = _gripper(live)
-        s0 = _screen(page, cam, g0)
+        s0 = page_pixel(page, cam, g0)
         _press_drag(page, grab, grab + 90 * direction)
         page.mouse.up()
         assert wait_until(lambda: live.page.dragging is False, timeout=5)
@@ -209,8 +175,8 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
         along = float(moved[axis])
         assert abs(along) > 0.03, (name, moved)
         assert abs(along) > 0.8 * float(np.linalg.norm(moved)), (name, moved)
-        on_screen = _screen(page, cam, g1) - s0
-        across = float(np.linalg.norm(on_screen)) / (abs(along) * _pixels_per_m(page, cam, g1))
+        on_screen = page_pixel(page, cam, g1) - s0
+        across = float(np.linalg.norm(on_screen)) / (abs(along) * pixels_per_m(page, cam, g1))
         print(
             f"axis {name}: gripper moved {moved.round(3)} m, {on_screen.round(1)} px ({across:.2f})"
         )
@@ -247,7 +213,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     goal = grasp_position(scene.spec.objects[scene.target_index])  # TCP 3 cm below its top
     _steer_to(page, live, goal, (0, 1))
     page.wait_for_timeout(1000)
-    _shot(page, screenshots, "12-depth-mid-reach")
+    screenshot(page, screenshots, "12-depth-mid-reach")
     top = live.view.inset.camera
     assert isinstance(top, TopDownCamera)
     last = Image.open(io.BytesIO(_inset_frames(frames, uuid)[-1][1]))
@@ -262,7 +228,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     notice.first.wait_for(timeout=10_000)
     assert live.page.dragging
     assert float(run.trial.user_target[0]) == pytest.approx(scene.reach.hi[0], abs=1e-6)
-    _shot(page, screenshots, "13-depth-past-the-reach")
+    screenshot(page, screenshots, "13-depth-past-the-reach")
     page.mouse.up()
     assert wait_until(lambda: not notice.first.is_visible(), timeout=10)
     back = np.asarray(live.page._gizmo.position, float) - OFFSET
@@ -280,13 +246,13 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     page.wait_for_timeout(1200)
     g = _gripper(live)
     assert float(np.linalg.norm(g[:2] - goal[:2])) < 0.02, g
-    mug = _screen(page, cam, goal)
-    origin = _screen(page, cam, np.asarray(live.page._gizmo.position, float))
+    mug = page_pixel(page, cam, goal)
+    origin = page_pixel(page, cam, np.asarray(live.page._gizmo.position, float))
     assert origin[1] < mug[1] - 30, "the handle sits above the mug on the screen"
     for axis in range(3):
         _, d = _arrow(page, live, axis)
         assert d[1] < 0.1, f"arrow {axis} points up or across the screen, away from the mug"
-    _shot(page, screenshots, "14-depth-at-the-grasp")
+    screenshot(page, screenshots, "14-depth-at-the-grasp")
     hold(page, "g", 0.2)
     page.get_by_text("Run finished").wait_for(timeout=30_000)
     page.get_by_text(f"You lifted the {scene.target}.").first.wait_for()
@@ -301,15 +267,15 @@ def test_a_run_that_ends_while_the_handle_is_held_says_why(tmp_path: Path, wide:
         srv.act(code, "start")
         live = srv.session(code)
         page = wide.new_page()
-        _connect(page, rs.url)
+        connect_page(page, rs.url)
         join(page, code)
         page.get_by_role("button", name=AGREE).click()
         page.get_by_role("button", name="Start").wait_for()
-        _settle(page)
+        settle_frames(page)
         page.get_by_role("button", name="Start").click()
         page.get_by_role("button", name="Close the gripper (G)").wait_for()
         assert wait_until(lambda: live.run is not None and live.page._gizmo is not None)
-        _camera_still(live)  # the scene was drawn on the ready screen already
+        wait_camera_still(live)  # the scene was drawn on the ready screen already
 
         # Grab the up arrow and keep moving it slowly until the time is up; the countdown runs.
         grab, direction = _arrow(page, live, 2)

@@ -19,14 +19,14 @@ import pytest
 
 from study.server.intent_cue import OPACITY_MAX, RING_COLOR, RING_NODE
 from tests.browser.harness import FrameLog, RunningServer, start_server, wait_until
-from tests.browser.test_participant_flow import (
+from tests.browser.page import (
     AGREE,
-    _answer_all,
-    _connect,
-    _settle,
-    _shot,
+    answer_all,
+    connect_page,
     hold,
     join,
+    screenshot,
+    settle_frames,
 )
 
 pytestmark = pytest.mark.browser
@@ -58,7 +58,7 @@ def _ring(page: Any) -> dict[str, Any] | None:
 def _next_run(page: Any, live: Any) -> Any:
     """From the ready screen: start the run, wait for its first frames, return the run."""
     page.get_by_role("button", name="Start").wait_for()
-    _settle(page)
+    settle_frames(page)
     page.get_by_role("button", name="Start").click()
     page.get_by_role("button", name="Close the gripper (G)").wait_for()
     assert wait_until(lambda: live.run is not None and not live.run.over)
@@ -71,7 +71,7 @@ def _finish_run(page: Any) -> None:
     page.get_by_text("Run finished").wait_for(timeout=30_000)
     page.get_by_role("button", name="Continue").click()
     page.get_by_text("Your answer: none yet").first.wait_for(timeout=30_000)
-    _answer_all(page, 3, 4)
+    answer_all(page, 3, 4)
 
 
 def test_intent_ring_shown_only_in_the_mode_that_shows_it(
@@ -80,7 +80,7 @@ def test_intent_ring_shown_only_in_the_mode_that_shows_it(
     srv = study.server
     page = context.new_page()
     frames = FrameLog().attach(page)
-    _connect(page, study.url)
+    connect_page(page, study.url)
     code = srv.enrol("P01")
     srv.act(code, "start")
     join(page, code)
@@ -118,7 +118,7 @@ def test_intent_ring_shown_only_in_the_mode_that_shows_it(
     assert tuple(ring["color"]) == RING_COLOR
     radius = ring["scale"][0]
     assert 0.05 < radius < 0.08  # a band around the box's 3.5 cm footprint, not a dot
-    _shot(page, screenshots, "06-intent-ring")
+    screenshot(page, screenshots, "06-intent-ring")
     _finish_run(page)
 
     # Blinding: no factor level, task or mode name on the page or in any websocket frame.

@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from tests.browser.harness import RunningServer, start_server, wait_until
-from tests.browser.test_participant_flow import AGREE, _connect, _shot, join, text_input
+from tests.browser.page import AGREE, connect_page, join, screenshot, text_input
 
 pytestmark = pytest.mark.browser
 
@@ -34,7 +34,7 @@ def test_console_enrols_and_participant_joins_by_code(
 ) -> None:
     srv = study.server
     console = context.new_page()
-    _connect(console, study.console_url)
+    connect_page(console, study.console_url)
     text_input(console, "Participant ID").fill("P01")
     console.get_by_role("button", name="Enrol and open session").click()
     status = console.get_by_text(re.compile(r"Session for P01: join code"))
@@ -49,9 +49,9 @@ def test_console_enrols_and_participant_joins_by_code(
     srv.act(other, "start")
 
     page = context.new_page()
-    _connect(page, study.url)
+    connect_page(page, study.url)
     text_input(page, "Join code").wait_for()
-    _shot(page, screenshots, "00-join-code")
+    screenshot(page, screenshots, "00-join-code")
     join(page, "ACDEFH" if code != "ACDEFH" else "HFEDCA", then=None)  # no such code
     page.get_by_text("That code did not work").wait_for()
     join(page, code)

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from tests.browser.harness import RunningServer, start_server, wait_until
-from tests.browser.test_participant_flow import _connect, _settle, join
+from tests.browser.page import connect_page, join, settle_frames
 
 pytestmark = pytest.mark.browser
 
@@ -41,12 +41,12 @@ def test_a_lost_key_release_is_repaired_by_the_next_state(
     srv.act(code, "start")
     live = srv.session(code)
     page = context.new_page()
-    _connect(page, study.url)
+    connect_page(page, study.url)
     join(page, code)
     page.get_by_role("button", name="I have read this and agree to take part").click()
     page.get_by_role("button", name="Start").click()
     assert wait_until(lambda: live.control_loop is not None, timeout=60)
-    _settle(page)
+    settle_frames(page)
 
     screen = srv.firewall.screen
     keys_uuid = live.page._keys._impl.uuid  # the hidden element the page's key state goes to

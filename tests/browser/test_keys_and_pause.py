@@ -21,7 +21,7 @@ import pytest
 from app.teleop.keyboard import KEY_SPEED_M_S
 from study.server.participant import HANDLE_OFFSET_M
 from tests.browser.harness import RunningServer, start_server, wait_until
-from tests.browser.test_participant_flow import AGREE, _connect, _settle, _shot, hold, join
+from tests.browser.page import AGREE, connect_page, hold, join, screenshot, settle_frames
 
 pytestmark = pytest.mark.browser
 
@@ -80,7 +80,7 @@ def test_keys_steer_the_arm_never_the_camera_and_a_pause_freezes_them(
     srv.act(code, "start")
     live = srv.session(code)
     page = context.new_page()
-    _connect(page, study.url)
+    connect_page(page, study.url)
     page.get_by_text("Please type the join code").wait_for()
     _keys_leave_the_camera_alone(page, None, seconds=0.5)  # join screen, nothing bound yet
     join(page, code)
@@ -88,13 +88,13 @@ def test_keys_steer_the_arm_never_the_camera_and_a_pause_freezes_them(
     _keys_leave_the_camera_alone(page, updates)  # consent
     page.get_by_role("button", name=AGREE).click()
     page.get_by_role("button", name="Start").wait_for()
-    _settle(page)
+    settle_frames(page)
     _keys_leave_the_camera_alone(page, updates)  # ready
     page.get_by_role("button", name="Start").click()
     page.get_by_role("button", name="Close the gripper (G)").wait_for()
     assert wait_until(lambda: live.run is not None and live.scene_view is not None)
     run = live.run
-    _settle(page)
+    settle_frames(page)
 
     # Trial: each steering key moves the target along its axis at the key speed.
     for key, (axis, sign) in STEERING.items():
@@ -113,7 +113,7 @@ def test_keys_steer_the_arm_never_the_camera_and_a_pause_freezes_them(
     for key in ("q", "e", "ArrowUp", "ArrowLeft"):  # camera keys that steer nothing
         hold(page, key, 0.5)
     assert np.allclose(run.trial.user_target, target, atol=1e-6)
-    _shot(page, screenshots, "04c-trial-after-keys")
+    screenshot(page, screenshots, "04c-trial-after-keys")
 
     # A mouse orbit moves the camera; V brings the task view back.
     task_view = _camera(page)
@@ -130,7 +130,7 @@ def test_keys_steer_the_arm_never_the_camera_and_a_pause_freezes_them(
     page.wait_for_timeout(400)
     srv.act(code, "pause")
     page.get_by_text("Please wait").first.wait_for()
-    _shot(page, screenshots, "06b-paused-by-experimenter")
+    screenshot(page, screenshots, "06b-paused-by-experimenter")
     paused_at = np.array(run.trial.user_target, float)
     _keys_leave_the_camera_alone(page, updates, seconds=0.4)  # includes G
     for key in ("w", "r", "r", "r"):

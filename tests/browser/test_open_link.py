@@ -20,7 +20,7 @@ import pytest
 
 from study.server.blinding import iter_strings
 from tests.browser.harness import FrameLog, RunningServer, start_server, wait_until
-from tests.browser.test_participant_flow import AGREE, _connect, _shot
+from tests.browser.page import AGREE, connect_page, screenshot
 from tests.protocol_copies import with_completion
 
 pytestmark = pytest.mark.browser
@@ -61,7 +61,7 @@ def test_participants_from_a_panel_join_by_the_open_link(
     prolific = f"PROLIFIC_PID={PID}&STUDY_ID={STUDY}&SESSION_ID=abc123"
     first = context.new_page()
     frames = FrameLog().attach(first)
-    _connect(first, _link(online, prolific))
+    connect_page(first, _link(online, prolific))
     first.get_by_role("button", name=AGREE).wait_for()  # no join code, started by itself
     assert "join code" not in _body(first)
     assert store.session("L0001").status == "running"
@@ -74,9 +74,9 @@ def test_participants_from_a_panel_join_by_the_open_link(
     live = next(s for s in srv.sessions() if s.participant == "L0001")
 
     second = context.new_page()  # the same ID in another tab: told, not taken over
-    _connect(second, _link(online, prolific))
+    connect_page(second, _link(online, prolific))
     second.get_by_text("already open in another tab").wait_for()
-    _shot(second, screenshots, "link-01-second-tab")
+    screenshot(second, screenshots, "link-01-second-tab")
     assert live.page is not None and live.page.client is not None
     held_by = live.page.client.client_id
     second.wait_for_timeout(1500)
@@ -90,16 +90,16 @@ def test_participants_from_a_panel_join_by_the_open_link(
 
     marked = context.new_page()  # a generic pid holding a condition word
     marked_frames = FrameLog().attach(marked)
-    _connect(marked, _link(online, "pid=timid42"))
+    connect_page(marked, _link(online, "pid=timid42"))
     marked.get_by_role("button", name=AGREE).wait_for()
     assert store.session("L0002").status == "running"
 
     full = context.new_page()
-    _connect(full, _link(online, "PROLIFIC_PID=aaaaaaaaaaaaaaaaaaaaaaaa"))
+    connect_page(full, _link(online, "PROLIFIC_PID=aaaaaaaaaaaaaaaaaaaaaaaa"))
     full.get_by_text("not taking new participants").wait_for()
     assert not store.has_participant("L0003")
     unfilled = context.new_page()
-    _connect(unfilled, _link(online, "PROLIFIC_PID={{%PROLIFIC_PID%}}"))
+    connect_page(unfilled, _link(online, "PROLIFIC_PID={{%PROLIFIC_PID%}}"))
     unfilled.get_by_text("This link is missing").wait_for()
     assert srv.link().used == 2
 
@@ -117,13 +117,13 @@ def test_participants_from_a_panel_join_by_the_open_link(
     context.route("https://panel.example.org/**", panel)
     first.get_by_role("button", name="Finish").click()
     first.get_by_text("Your completion code is C0DE1234").wait_for()
-    _shot(first, screenshots, "link-02-completion-code")
+    screenshot(first, screenshots, "link-02-completion-code")
     first.get_by_text("Submission received").wait_for(timeout=30_000)  # by itself, in 8 s
     assert visited == [f"{PANEL}?cc=C0DE1234&who={PID}"]
     assert store.session("L0001").status == "completed"
 
     again = context.new_page()  # the link once more: the code again, no new session
-    _connect(again, _link(online, prolific))
+    connect_page(again, _link(online, prolific))
     again.get_by_text("Your completion code is C0DE1234").wait_for()
     assert [p.participant for p in store.participants()] == ["L0001", "L0002"]
 

@@ -21,7 +21,7 @@ from playwright.sync_api import expect
 
 from study.server.page_script import HIDDEN_NOTICES
 from tests.browser.harness import start_server, wait_until
-from tests.browser.test_participant_flow import AGREE, _connect, _shot, text_input
+from tests.browser.page import AGREE, connect_page, screenshot, text_input
 
 pytestmark = pytest.mark.browser
 
@@ -106,7 +106,7 @@ def test_enter_joins_no_viewer_notice_panel_stays_and_practice_items_fit(
         colours = dict(page.evaluate(FILLED))
         assert colours["[5]"] != colours["4"], colours
         assert colours["4"] == colours["6"], colours
-        _shot(page, screenshots, "15-practice-items-chosen")
+        screenshot(page, screenshots, "15-practice-items-chosen")
         page.get_by_role("button", name="3", exact=True).nth(1).click()  # the next row
         page.get_by_text("Your answer: 3").first.wait_for()
         marked = page.locator("button[data-study-chosen]").all_inner_texts()
@@ -114,7 +114,7 @@ def test_enter_joins_no_viewer_notice_panel_stays_and_practice_items_fit(
 
         # A participant whose practice runs are all skipped is not asked about them.
         other = wide.new_page()
-        _connect(other, rs.url)
+        connect_page(other, rs.url)
         code2 = srv.enrol("P02")
         srv.act(code2, "start")
         _join_with_enter(other, code2)

@@ -20,7 +20,7 @@ from playwright.sync_api import expect
 
 from study.export import tidy_tables
 from tests.browser.harness import FrameLog, RunningServer, start_server, wait_until
-from tests.browser.test_participant_flow import AGREE, _connect, _shot, join
+from tests.browser.page import AGREE, connect_page, join, screenshot
 
 pytestmark = pytest.mark.browser
 
@@ -68,7 +68,7 @@ def test_demographics_attention_comment_and_retention(
     words = study.protocol.condition_words
     page = context.new_page()
     frames = FrameLog().attach(page)
-    _connect(page, study.url)
+    connect_page(page, study.url)
     code = srv.enrol("P01")
     join(page, code, then=None)
     srv.act(code, "start")
@@ -89,7 +89,7 @@ def test_demographics_attention_comment_and_retention(
     hours.fill("")
     page.keyboard.type("7,5", delay=30)
     page.get_by_text("Your answer: 7.5 hours per week").wait_for()
-    _shot(page, screenshots, "05a-about-you")
+    screenshot(page, screenshots, "05a-about-you")
     expect(cont).to_be_enabled()
     cont.click()
     page.get_by_role("button", name="Start").wait_for()
@@ -123,7 +123,7 @@ def test_demographics_attention_comment_and_retention(
     expect(cont).to_be_disabled()
     comment.fill(COMMENT * 2)
     page.get_by_text(f"{len((COMMENT * 2).strip())} of 1000 characters.").wait_for()
-    _shot(page, screenshots, "05b-closing")
+    screenshot(page, screenshots, "05b-closing")
     expect(cont).to_be_enabled()
     cont.click()
     page.get_by_role("button", name="Finish").wait_for()

@@ -12,7 +12,7 @@ import pytest
 
 from study.server.participant import HANDLE_OFFSET_M
 from tests.browser.harness import drag, project, start_server, wait_until
-from tests.browser.test_participant_flow import AGREE, _connect, _settle, _shot, join
+from tests.browser.page import AGREE, connect_page, join, screenshot, settle_frames
 from tests.protocol_copies import relative_copy
 
 pytestmark = pytest.mark.browser
@@ -28,13 +28,13 @@ def test_a_released_handle_returns_to_the_gripper(
         srv = study.server
         assert study.protocol.control.input_mapping == "relative"
         page = context.new_page()
-        _connect(page, study.url)
+        connect_page(page, study.url)
         code = srv.enrol("P01")
         join(page, code, then=None)
         srv.act(code, "start")
         page.get_by_role("button", name=AGREE).click()
         page.get_by_role("button", name="Start").wait_for()
-        _settle(page)
+        settle_frames(page)
         page.get_by_role("button", name="Start").click()
         page.get_by_role("button", name="Close the gripper (G)").wait_for()
         live = srv.session(code)
@@ -60,6 +60,6 @@ def test_a_released_handle_returns_to_the_gripper(
 
         assert wait_until(handle_on_gripper, timeout=10)
         assert trial.poses().gripper[2] > floor - 0.01  # stopped at the reach, not below
-        _shot(page, screenshots, "relative-released")
+        screenshot(page, screenshots, "relative-released")
     finally:
         study.stop()

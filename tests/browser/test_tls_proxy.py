@@ -27,7 +27,7 @@ import pytest
 
 from study.server.forwarded import trusted_networks
 from tests.browser.harness import RunningServer, start_server, wait_until
-from tests.browser.test_participant_flow import AGREE, _shot, hold
+from tests.browser.page import AGREE, hold, screenshot
 
 pytestmark = pytest.mark.browser
 
@@ -228,7 +228,7 @@ def test_a_participant_behind_the_tls_proxy_at_150_ms(
         )
         print(f"key press to the target moving: {time.monotonic() - t1:.2f} s")
         hold(page, "w", 1.5)
-        _shot(page, screenshots, "proxy-01-trial-at-150ms")
+        screenshot(page, screenshots, "proxy-01-trial-at-150ms")
         moved = np.array(live.run.trial.user_target, float) - before
         assert np.linalg.norm(moved) > 0.03, moved  # the held key steered the arm
         page.wait_for_timeout(1000)  # the release travels 75 ms and more

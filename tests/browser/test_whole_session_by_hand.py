@@ -46,8 +46,17 @@ from study.protocol import load_protocol
 from study.server.live.texts import AT_REACH_LIMIT
 from study.server.participant import HANDLE_PX, INSET_SIZE
 from tests.browser.harness import FrameLog, RunningServer, start_server, wait_until
-from tests.browser.test_depth_and_limits import _camera_still, _pixels_per_m, _screen
-from tests.browser.test_participant_flow import AGREE, _connect, _settle, _shot, hold, join
+from tests.browser.page import (
+    AGREE,
+    connect_page,
+    hold,
+    join,
+    page_pixel,
+    pixels_per_m,
+    screenshot,
+    settle_frames,
+    wait_camera_still,
+)
 from tests.protocol_copies import PAPER_PROTOCOL, each_target_once
 
 pytestmark = pytest.mark.browser
@@ -114,7 +123,7 @@ class Person:
 
     def shot(self, label: str) -> None:
         self.mark(label)
-        _shot(self.page, self.shots, f"{self.name}-{label}", colors=256)
+        screenshot(self.page, self.shots, f"{self.name}-{label}", colors=256)
 
     # -- where things are -------------------------------------------------------------------
     @property
@@ -135,7 +144,7 @@ class Person:
         return np.asarray(grasp_position(scene.spec.objects[scene.target_index]), float)
 
     def screen(self, point: np.ndarray) -> np.ndarray:
-        return _screen(self.page, self.live.page.client.camera, point)
+        return page_pixel(self.page, self.live.page.client.camera, point)
 
     def clock(self) -> int:
         m = CLOCK.search(self.read())
@@ -148,13 +157,13 @@ class Person:
         target's name. Checks the countdown starts at the time limit."""
         self.page.get_by_role("button", name="Start").wait_for()
         self.mark("ready")
-        _settle(self.page)
+        settle_frames(self.page)
         press_start()
         self.page.get_by_role("button", name="Close the gripper (G)").wait_for()
         assert wait_until(lambda: self.run is not None and not self.run.over)
         assert wait_until(lambda: self.live.page._gizmo is not None)
         self.mark("run started")
-        _camera_still(self.live)
+        wait_camera_still(self.live)
         self.clock_at_start = left = self.clock()
         assert TIME_LIMIT_S - 15 <= left <= TIME_LIMIT_S, left
         return self.run.trial.scene.target
@@ -254,7 +263,7 @@ def _grab(page: Any, at: np.ndarray) -> None:
 def _arm_length_m(person: Person) -> float:
     """The handle's arrow length in metres at the handle (it is drawn HANDLE_PX long)."""
     cam = person.live.page.client.camera
-    return HANDLE_PX / _pixels_per_m(person.page, cam, person.handle())
+    return HANDLE_PX / pixels_per_m(person.page, cam, person.handle())
 
 
 def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
@@ -393,7 +402,7 @@ def test_a_whole_session_with_the_mouse_alone(
     page = wide.new_page()
     frames = FrameLog().attach(page)
     t0 = time.monotonic()
-    _connect(page, study.url)
+    connect_page(page, study.url)
     join(page, code)  # typed: the one code the experimenter hands over
     me = Person(study, page, code, screenshots, "mouse")
     me.read()
@@ -576,7 +585,7 @@ def test_a_whole_session_with_the_keys_alone(
     page = wide.new_page()
     frames = FrameLog().attach(page)
     t0 = time.monotonic()
-    _connect(page, study.url)
+    connect_page(page, study.url)
     page.get_by_text("Please type the join code").wait_for()
     _focus(page, lambda f: f["tag"] == "INPUT")
     page.keyboard.type(code.lower(), delay=40)

@@ -1,0 +1,155 @@
+"""What a participant does in a page, for the browser tests: open the page (reloading once if it
+never connects), join with a code, press and hold keys with auto-repeat, wait for frames to
+settle, save a screenshot; and where a world point lands on the page (pixels, pixels per metre)."""
+
+from __future__ import annotations
+
+import io
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PIL import Image
+from playwright.sync_api import expect
+
+from tests.browser.harness import (
+    project,
+)
+
+AGREE = "I have read this and agree to take part"
+
+
+def connect_page(page: Any, url: str) -> None:
+    """Open ``url`` and wait for viser's "Connected". A page still not connected after 30 s is
+    reloaded once, as a person would; what it showed is printed (seen about once in 850 tests
+    on a loaded machine; not yet explained), and a second failure fails the test with it."""
+    page.goto(url)
+    try:
+        page.get_by_text("Connected").first.wait_for(timeout=30_000)
+        return
+    except Exception:
+        shown = page.inner_text("body")[:300]
+        print(f"not connected after 30 s, reloading; the page showed: {shown!r}")
+    page.reload()
+    try:
+        page.get_by_text("Connected").first.wait_for(timeout=30_000)
+    except Exception as exc:
+        shown = page.inner_text("body")[:300]
+        raise AssertionError(f"not connected after a reload; the page showed: {shown!r}") from exc
+
+
+def text_input(page: Any, label: str) -> Any:
+    """viser's text input next to ``label`` (its <label for> does not name the input)."""
+    return page.locator(
+        f"xpath=//label[text()='{label}']/ancestor::div[contains(@class, 'mantine-Flex-root')][1]"
+        "//input"
+    )
+
+
+def join(page: Any, code: str, *, then: str | None = AGREE) -> None:
+    """Type the join code as a participant would and wait for the button ``then``."""
+    page.get_by_text("Please type the join code").wait_for()
+    field = text_input(page, "Join code")
+    field.click()
+    field.fill("")
+    page.keyboard.type(code.lower(), delay=40)  # typed into the field: no key reaches the arm
+    page.get_by_role("button", name="Join").click()
+    if then is not None:
+        page.get_by_role("button", name=then).wait_for()
+
+
+def hold(page: Any, key: str, seconds: float, *, repeat_hz: float = 30.0) -> None:
+    """Hold ``key`` for ``seconds`` with auto-repeat, as a keyboard does."""
+    page.keyboard.down(key)
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        page.wait_for_timeout(1000 / repeat_hz)
+        page.keyboard.down(key)  # a repeat: KeyboardEvent.repeat is true
+    page.keyboard.up(key)
+
+
+def screenshot(page: Any, folder: Path, name: str, *, colors: int = 96) -> None:
+    """Save a small screenshot for the README (PNG with a ``colors`` palette). The viewer's
+    own notices (software WebGL) are the page's to hide (``study.server.page_head``): a
+    screenshot shows what the participant sees. 96 colours merge the box's orange with the
+    table's in the view from above (the box looks hollow): 256 keep it."""
+    page.wait_for_timeout(300)
+    t = time.monotonic()
+    png = page.screenshot()
+    print(f"screenshot {name}: {time.monotonic() - t:.1f} s")
+    image = Image.open(io.BytesIO(png)).convert("RGB")
+    image.quantize(colors=colors, method=Image.Quantize.MEDIANCUT).save(
+        folder / f"{name}.png", optimize=True
+    )
+
+
+def settle_frames(page: Any, *, rounds: int = 2) -> None:
+    """Wait until the browser draws frames quickly again (each screenshot waits for a frame)."""
+    for _ in range(rounds):
+        t = time.monotonic()
+        page.screenshot()
+        print(f"settle frame: {time.monotonic() - t:.1f} s")
+
+
+def without_client_warning(text: str) -> str:
+    """The page text minus the viser client's own software-rendering notice ("... check that
+    hardware acceleration is enabled ..."), which the browser bundle shows by itself when WebGL
+    runs in software; the server never sends it (the websocket check below covers that)."""
+    lines = text.splitlines()
+    return "\n".join(ln for ln in lines if "WebGL" not in ln and "hardware acceleration" not in ln)
+
+
+def page_pixel(page: Any, camera: Any, point: np.ndarray) -> np.ndarray:
+    """Page pixel (CSS) of world ``point``: the camera's image scaled to the canvas on the page
+    (viser lowers the canvas resolution when frames are slow)."""
+    x, y = project(camera, point)
+    box = page.locator("canvas").first.bounding_box()
+    return np.array(
+        [
+            box["x"] + x * box["width"] / camera.image_width,
+            box["y"] + y * box["height"] / camera.image_height,
+        ]
+    )
+
+
+def pixels_per_m(page: Any, camera: Any, point: np.ndarray) -> float:
+    """Page pixels per metre across the line of sight at ``point``."""
+    rot = np.asarray(camera.wxyz)
+    w, x, y, z = rot
+    r = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+    depth = float((r.T @ (np.asarray(point) - np.asarray(camera.position)))[2])
+    box = page.locator("canvas").first.bounding_box()
+    f = (box["height"] / 2) / np.tan(camera.fov / 2)
+    return f / depth
+
+
+def wait_camera_still(live: Any) -> None:
+    """Wait until the tab has reported the same camera pose for half a second (the task view
+    is set from the server; the tab reports where its camera is)."""
+    last = None
+    for _ in range(40):
+        cam = live.page.client.camera
+        now = (*np.round(cam.position, 4), *np.round(cam.wxyz, 4))
+        if now == last:
+            return
+        last = now
+        time.sleep(0.5)
+
+
+def answer_all(page: Any, n_items: int, value: int) -> None:
+    """Click ``value`` on each of the ``n_items`` rows, checking Continue waits for all."""
+    cont = page.get_by_role("button", name="Continue")
+    expect(cont).to_be_disabled()
+    for k in range(n_items):
+        page.get_by_role("button", name=str(value), exact=True).first.click()
+        page.get_by_text(f"Your answer: {value}").nth(k).wait_for()
+    expect(page.get_by_role("button", name=f"[{value}]", exact=True)).to_have_count(n_items)
+    expect(cont).to_be_enabled()
+    cont.click()
