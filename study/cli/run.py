@@ -18,18 +18,20 @@ import json
 import signal
 import sys
 import traceback
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from study.cli.arguments import int_range, seed
-from study.protocol import ProtocolError, load_protocol
+from study.errors import StudyError
+from study.protocol import load_protocol
 from study.protocol.preflight import check_scenes
-from study.schedule import ScheduleError
-from study.session import Session, SessionError, TrialSummary, open_store
+from study.session import Session, TrialSummary, open_store
 from study.session.answers import ScriptedAnswers
 from study.session.headless import report as make_report
 from study.session.headless import run_headless
-from study.store import StoreError
+from study.store import Store, StoreError
 
 DEFAULT_PROTOCOL = Path(__file__).resolve().parents[2] / "protocols" / "dragan2013.toml"
 
@@ -98,52 +100,34 @@ def _depth(value: Any) -> int:
     return 0
 
 
+@dataclass
+class _Opened:
+    """What ``main`` opened, to close whatever happens."""
+
+    store: Store | None = None
+    session: Session | None = None
+
+
+def _raise_interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def main(args: argparse.Namespace) -> int:
     result: dict[str, Any] = {"participant": args.participant}
-    session = None
-    store = None
-
-    def on_term(signum: int, frame: object) -> None:
-        raise KeyboardInterrupt
-
-    previous = signal.signal(signal.SIGTERM, on_term)
+    opened = _Opened()
+    previous = signal.signal(signal.SIGTERM, _raise_interrupt)
     code = 1
     try:
-        protocol = load_protocol(args.protocol)
-        check_scenes(protocol)  # every scene builds, before anything is written
-        if args.resume and not args.db.is_file():
-            # opening would create an empty store as a side effect of a mistyped path
-            raise StoreError(
-                f"no store at {args.db}; --resume needs the store the session started in"
-            )
-        store = open_store(args.db, protocol, synchronous=args.synchronous)
-        if args.resume:
-            session = Session.reopen(store, protocol, args.participant)
-        else:
-            session = Session.enrol(
-                store,
-                protocol,
-                args.participant,
-                seed=args.seed,
-                demographics=args.demographics,
-                schedule_row=args.schedule_row,
-            )
-        answers = ScriptedAnswers(seed=session.seed)
-
-        def log(summary: TrialSummary | None) -> None:
-            if summary is None:
-                print(f"{args.participant}: trial aborted", file=sys.stderr)
-                return
-            print(
-                f"{args.participant}: trial {summary.trial_id}: {summary.outcome} after "
-                f"{summary.duration_s:.2f} s ({summary.ticks} ticks)",
-                file=sys.stderr,
-            )
-
-        report = run_headless(session, answerer=answers, realtime=args.realtime, on_trial=log)
+        session = _open(args, opened)
+        report = run_headless(
+            session,
+            answerer=ScriptedAnswers(seed=session.seed),
+            realtime=args.realtime,
+            on_trial=_trial_logger(args.participant),
+        )
         result = report.as_dict()
         code = 0
-    except (ProtocolError, StoreError, SessionError, ScheduleError) as exc:
+    except StudyError as exc:
         print(f"error: {exc}", file=sys.stderr)
         result.update(status="error", error=str(exc))
         code = 2
@@ -162,19 +146,65 @@ def main(args: argparse.Namespace) -> int:
         code = 1
     finally:
         signal.signal(signal.SIGTERM, previous)
-        if session is not None:
-            if "trials_completed" not in result:
-                result = {**make_report(session).as_dict(), **result}
-                result.setdefault("status", session.status)
-            try:
-                session.close()
-            except StoreError as exc:  # a full or read-only disk: closed, but not recorded
-                if str(exc) != result.get("error"):
-                    print(f"error: {exc}", file=sys.stderr)
-                result.setdefault("error", str(exc))
-                result["status"] = "error"
-                code = code or 2
-        if store is not None:
-            store.close()
+        result, code = _close(opened, result, code)
     print(json.dumps(result))
     return code
+
+
+def _open(args: argparse.Namespace, opened: _Opened) -> Session:
+    """Load and check the protocol, open the store, enrol (or reopen) the participant."""
+    protocol = load_protocol(args.protocol)
+    check_scenes(protocol)  # every scene builds, before anything is written
+    if args.resume and not args.db.is_file():
+        # opening would create an empty store as a side effect of a mistyped path
+        raise StoreError(f"no store at {args.db}; --resume needs the store the session started in")
+    opened.store = open_store(args.db, protocol, synchronous=args.synchronous)
+    if args.resume:
+        opened.session = Session.reopen(opened.store, protocol, args.participant)
+    else:
+        opened.session = Session.enrol(
+            opened.store,
+            protocol,
+            args.participant,
+            seed=args.seed,
+            demographics=args.demographics,
+            schedule_row=args.schedule_row,
+        )
+    return opened.session
+
+
+def _trial_logger(participant: str) -> Callable[[TrialSummary | None], None]:
+    """One line on stderr per finished trial."""
+
+    def log(summary: TrialSummary | None) -> None:
+        if summary is None:
+            print(f"{participant}: trial aborted", file=sys.stderr)
+            return
+        print(
+            f"{participant}: trial {summary.trial_id}: {summary.outcome} after "
+            f"{summary.duration_s:.2f} s ({summary.ticks} ticks)",
+            file=sys.stderr,
+        )
+
+    return log
+
+
+def _close(opened: _Opened, result: dict[str, Any], code: int) -> tuple[dict[str, Any], int]:
+    """Close the session and the store; the result gains the session's report if the run did
+    not finish, and the error if closing could not record itself (a full or read-only disk)."""
+    session = opened.session
+    if session is not None:
+        if "trials_completed" not in result:
+            result = {**make_report(session).as_dict(), **result}
+            result.setdefault("status", session.status)
+        try:
+            session.close()
+        except StoreError as exc:  # a full or read-only disk: closed, but not recorded
+            if str(exc) != result.get("error"):
+                print(f"error: {exc}", file=sys.stderr)
+            result.setdefault("error", str(exc))
+            result["status"] = "error"
+            code = code or 2
+    if opened.store is not None:
+        opened.store.close()
+    return result, code

@@ -124,19 +124,7 @@ def nesting_depth(text: str, *, stop_above: int | None = None) -> tuple[int, int
             i = n if end < 0 else end
             continue
         elif c in "\"'":
-            quote = c * 3 if text.startswith(c * 3, i) else c
-            j = i + len(quote)
-            while j < n and not text.startswith(quote, j):
-                if c == '"' and text[j] == "\\":
-                    j += 1  # skip the escaped character
-                elif text[j] == "\n":
-                    if len(quote) == 1:
-                        break  # an unterminated one-line string: let the parser report it
-                    line += 1
-                j += 1
-            while len(quote) == 3 and text.startswith(c, j + 3):  # """a"""" ends in a quote
-                j += 1
-            i = j + len(quote)
+            i, line = _past_string(text, i, line)
             continue
         elif c in "[{":
             depth += 1
@@ -148,6 +136,26 @@ def nesting_depth(text: str, *, stop_above: int | None = None) -> tuple[int, int
             depth = max(depth - 1, 0)
         i += 1
     return deepest, deepest_line
+
+
+def _past_string(text: str, i: int, line: int) -> tuple[int, int]:
+    """The index just past the TOML string opening at ``text[i]`` (one-line or triple-quoted,
+    basic or literal) and the line count after it; an unterminated one-line string ends at its
+    line's end, for the parser to report."""
+    c, n = text[i], len(text)
+    quote = c * 3 if text.startswith(c * 3, i) else c
+    j = i + len(quote)
+    while j < n and not text.startswith(quote, j):
+        if c == '"' and text[j] == "\\":
+            j += 1  # skip the escaped character
+        elif text[j] == "\n":
+            if len(quote) == 1:
+                break
+            line += 1
+        j += 1
+    while len(quote) == 3 and text.startswith(c, j + 3):  # """a"""" ends in a quote
+        j += 1
+    return j + len(quote), line
 
 
 def _check_nesting(text: str, path: str | Path) -> None:
