@@ -28,53 +28,72 @@ MAX_RENDER_HZ = 60.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
+    _study_arguments(parser)
+    _network_arguments(parser)
+    _online_arguments(parser)
+    _operation_arguments(parser)
+
+
+def _study_arguments(parser: argparse.ArgumentParser) -> None:
+    """What runs: the protocol and the store."""
+    group = parser.add_argument_group("study")
+    group.add_argument(
         "--protocol",
         type=Path,
         default=Path("protocols/dragan2013.toml"),
         help="study protocol (TOML); default: %(default)s",
     )
-    parser.add_argument(
+    group.add_argument(
         "--db", type=Path, default=Path("data/study.db"), help="study store; default: %(default)s"
     )
-    parser.add_argument(
+
+
+def _network_arguments(parser: argparse.ArgumentParser) -> None:
+    """Where the two views listen, how often the scene updates, one machine or many."""
+    group = parser.add_argument_group("network")
+    group.add_argument(
         "--host",
         type=host_address,
         default="0.0.0.0",
         help="participant view address (LAN): an IP address of this machine, or 0.0.0.0 for"
         " all; default: %(default)s",
     )
-    parser.add_argument(
+    group.add_argument(
         "--port",
         type=port_number,
         default=8080,
         help="participant view port, 1-65535 (0: any free port); default: %(default)s",
     )
-    parser.add_argument(
+    group.add_argument(
         "--experimenter-port",
         type=port_number,
         default=8081,
         help="experimenter view port (always bound to 127.0.0.1), 1-65535 (0: any free port); "
         "default: %(default)s",
     )
-    parser.add_argument(
+    group.add_argument(
         "--render-hz",
         type=rate_hz(MAX_RENDER_HZ),
         default=MAX_RENDER_HZ,
         help="scene updates per second, above 0 and at most %(default)g (viser sends at most "
         "one pose update per 1/60 s)",
     )
-    parser.add_argument(
+    group.add_argument(
         "--kiosk",
         action="store_true",
         help="one participant machine at a time: a tab joins the one open session without a code",
     )
-    parser.add_argument(
+    group.add_argument(
         "--share",
         action="store_true",
         help="allow viser's public share link (off by default: a study is never published)",
     )
-    parser.add_argument(
+
+
+def _online_arguments(parser: argparse.ArgumentParser) -> None:
+    """Online studies: the open-enrolment link and a TLS proxy in front."""
+    group = parser.add_argument_group("online studies")
+    group.add_argument(
         "--open-link",
         type=places,
         default=0,
@@ -83,7 +102,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         " whose URL carries PROLIFIC_PID or pid gets a session without a join code); default:"
         " off (the console turns it on and off)",
     )
-    parser.add_argument(
+    group.add_argument(
         "--trusted-proxy",
         action="append",
         default=[],
@@ -92,14 +111,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         " under the client address it appends to X-Forwarded-For, and the Origin check accepts"
         " the host name it forwards",
     )
-    parser.add_argument(
+    group.add_argument(
         "--public-url",
         default=None,
         metavar="URL",
         help="the participants' address as they reach it behind the proxy (e.g."
         " https://study.example.org), printed and shown with the open link",
     )
-    parser.add_argument(
+
+
+def _operation_arguments(parser: argparse.ArgumentParser) -> None:
+    """The log, the scheduling priority."""
+    group = parser.add_argument_group("operation")
+    group.add_argument(
         "--log",
         type=Path,
         default=None,
@@ -107,7 +131,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         f" {(logs.BACKUPS + 1) * logs.MAX_BYTES // 2**20} MB in {logs.BACKUPS + 1} files);"
         " default: serve.log beside the store",
     )
-    parser.add_argument(
+    group.add_argument(
         "--priority",
         type=nice_value,
         default=-10,
@@ -116,7 +140,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         " machine; below 0 needs the right to raise priority, see README); default:"
         " %(default)s",
     )
-    parser.add_argument("--verbose", action="store_true", help="log viser connections")
+    group.add_argument("--verbose", action="store_true", help="log viser connections")
 
 
 def places(text: str) -> int:
