@@ -17,9 +17,10 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from itertools import groupby
 from typing import Literal
 
-from study.protocol import TRAINING_MODE, Item, Protocol
+from study.protocol import TRAINING_MODE, Item, Protocol, Questionnaire
 from study.store import AssignmentRecord
 
 StepKind = Literal["consent", "trial", "questions", "debrief"]
@@ -88,28 +89,56 @@ class Plan:
 
 
 def build_plan(protocol: Protocol, assignments: Sequence[AssignmentRecord]) -> Plan:
-    """The plan for a participant whose task runs are ``assignments`` (ordered by position)."""
+    """The plan for a participant whose task runs are ``assignments`` (ordered by position):
+    consent, questions before training, the practice runs and their questions, each task's
+    runs (each run followed by its questions, the task by its own), questions between tasks,
+    closing questions, debrief."""
     q = protocol.questionnaire
-    steps: list[Step] = []
+    steps = _Steps()
+    steps.add("consent", "session")
+    if q.before_training:
+        steps.add("questions", "session", questionnaire="before_training", items=q.before_training)
+    _training(steps, protocol)
+    between = dict(q.between_tasks)
+    rows = sorted(assignments, key=lambda a: a.position)
+    for task_number, (task, runs) in enumerate(groupby(rows, key=lambda a: a.task), start=1):
+        _task(steps, q, task, list(runs), task_number=task_number)
+        if task_number in between:
+            steps.add(
+                "questions", "session", questionnaire="between_tasks", items=between[task_number]
+            )
+    if q.closing:
+        steps.add("questions", "session", questionnaire="closing", items=q.closing)
+    steps.add("debrief", "session")
+    return Plan(steps=tuple(steps.steps), n_trials=steps.trials, n_tasks=steps.tasks)
 
-    def add(kind: StepKind, phase: str, **kw: object) -> Step:
-        step = Step(len(steps), kind, phase, **kw)  # type: ignore[arg-type]
-        steps.append(step)
+
+class _Steps:
+    """The plan's steps as they are added, numbered in order; counts trials and tasks."""
+
+    def __init__(self) -> None:
+        self.steps: list[Step] = []
+        self.trials = 0
+        self.tasks = 0
+
+    def add(self, kind: StepKind, phase: str, **kw: object) -> Step:
+        if kind == "trial":
+            self.trials += 1
+            kw["trial_number"] = self.trials
+        step = Step(len(self.steps), kind, phase, **kw)  # type: ignore[arg-type]
+        self.steps.append(step)
         return step
 
-    add("consent", "session")
-    if q.before_training:
-        add("questions", "session", questionnaire="before_training", items=q.before_training)
-    between = dict(q.between_tasks)
-    trial_number = 0
-    training = protocol.training.runs
-    practice = []
-    for _ in range(training):
-        trial_number += 1
-        step = add("trial", "training", task=None, mode=TRAINING_MODE, trial_number=trial_number)
-        practice.append(step.index)
-    if training and q.after_training:
-        add(
+
+def _training(steps: _Steps, protocol: Protocol) -> None:
+    """The practice runs and, after them, the after-training questions about them."""
+    q = protocol.questionnaire
+    practice = [
+        steps.add("trial", "training", task=None, mode=TRAINING_MODE).index
+        for _ in range(protocol.training.runs)
+    ]
+    if practice and q.after_training:
+        steps.add(
             "questions",
             "training",
             mode=TRAINING_MODE,
@@ -117,54 +146,36 @@ def build_plan(protocol: Protocol, assignments: Sequence[AssignmentRecord]) -> P
             items=tuple(q.after_training),
             task_steps=tuple(practice),
         )
-    rows = sorted(assignments, key=lambda a: a.position)
-    task_number = 0
-    i = 0
-    while i < len(rows):
-        task = rows[i].task
-        task_number += 1
-        runs = []
-        while i < len(rows) and rows[i].task == task:
-            a = rows[i]
-            trial_number += 1
-            trial = add(
-                "trial",
-                "task",
-                task=task,
-                mode=a.mode,
-                run=a.run,
-                position=a.position,
-                trial_number=trial_number,
-                task_number=task_number,
-            )
-            runs.append(trial.index)
-            if q.after_run:
-                add(
-                    "questions",
-                    "task",
-                    task=task,
-                    mode=a.mode,
-                    run=a.run,
-                    position=a.position,
-                    task_number=task_number,
-                    questionnaire="after_run",
-                    items=tuple(q.after_run),
-                    rates_step=trial.index,
-                )
-            i += 1
-        if q.after_task:
-            add(
+
+
+def _task(
+    steps: _Steps, q: Questionnaire, task: str, runs: list[AssignmentRecord], *, task_number: int
+) -> None:
+    """One task's consecutive runs, each followed by the after-run questions, then the
+    after-task questions about all of them."""
+    steps.tasks = task_number
+    trial_steps = []
+    for a in runs:
+        where = {"task": task, "mode": a.mode, "run": a.run, "position": a.position}
+        trial = steps.add("trial", "task", **where, task_number=task_number)
+        trial_steps.append(trial.index)
+        if q.after_run:
+            steps.add(
                 "questions",
                 "task",
-                task=task,
+                **where,
                 task_number=task_number,
-                questionnaire="after_task",
-                items=tuple(q.after_task),
-                task_steps=tuple(runs),
+                questionnaire="after_run",
+                items=tuple(q.after_run),
+                rates_step=trial.index,
             )
-        if task_number in between:
-            add("questions", "session", questionnaire="between_tasks", items=between[task_number])
-    if q.closing:
-        add("questions", "session", questionnaire="closing", items=q.closing)
-    add("debrief", "session")
-    return Plan(steps=tuple(steps), n_trials=trial_number, n_tasks=task_number)
+    if q.after_task:
+        steps.add(
+            "questions",
+            "task",
+            task=task,
+            task_number=task_number,
+            questionnaire="after_task",
+            items=tuple(q.after_task),
+            task_steps=tuple(trial_steps),
+        )
