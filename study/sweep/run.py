@@ -21,7 +21,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from study.simulated import simulate
+from study.simulated import SimulationReport, simulate
 from study.simulated.dask_engine import connect
 from study.simulated.population import DEFAULT_POPULATION_PATH
 from study.store import Store
@@ -93,15 +93,8 @@ def sweep(
 
     text = Path(protocol_path).read_text(encoding="utf-8")
     current_timid, current_aggressive, saturation = current_settings(text)
-    settings = list(grid)
-    for setting in (current_timid, current_aggressive):
-        if setting not in settings:
-            settings.append(setting)
-    if confidence_D:
-        own = protocol_D(text)
-        for D in check_D(confidence_D):
-            if own != D:
-                settings += [current_timid.at(D), current_aggressive.at(D)]
+    current = {current_timid, current_aggressive}
+    settings = _settings(text, grid, current=(current_timid, current_aggressive), D=confidence_D)
     (out / "protocols").mkdir(parents=True, exist_ok=True)
     (out / "stores").mkdir(parents=True, exist_ok=True)
     errors: list[str] = []
@@ -118,7 +111,6 @@ def sweep(
                 disable=not progress,
             )
         )
-        current = {current_timid, current_aggressive}
         for setting in settings:
             db = _store(out, setting, current=current)
             if _at_protocol_D(setting) in current and _at_protocol_D(setting) != current_timid:
@@ -141,17 +133,11 @@ def sweep(
                 engine=engine,
                 client=client,
             )
-            if report.error is not None:
-                raise SweepError(
-                    f"{setting.label}: the store took no more writes ({report.error}); fix it "
-                    "and run the same sweep again to continue"
-                )
-            errors += [f"{setting.label}: {e}" for e in report.errors]
+            errors += _errors(setting, report)
             bar.update(1)
     measures = []
     for setting in settings:
-        db = _store(out, setting, current={current_timid, current_aggressive})
-        with Store.open_readonly(db) as store:
+        with Store.open_readonly(_store(out, setting, current=current)) as store:
             measures.append(measure(store, setting, saturation=saturation, criteria=criteria))
     return SweepResult(
         measures=measures,
@@ -164,6 +150,32 @@ def sweep(
         chosen={mode: choose(measures, mode) for mode in (TIMID, AGGRESSIVE)},
         errors=errors,
     )
+
+
+def _settings(
+    text: str, grid: list[Setting], *, current: tuple[Setting, Setting], D: tuple[float, ...]
+) -> list[Setting]:
+    """The grid, then the protocol's own two settings if the grid lacks them, then those two
+    at every confidence ``D`` other than the protocol's own."""
+    settings = list(grid)
+    settings += [c for c in current if c not in settings]
+    if D:
+        own = protocol_D(text)
+        for d in check_D(D):
+            if own != d:
+                settings += [c.at(d) for c in current]
+    return settings
+
+
+def _errors(setting: Setting, report: SimulationReport) -> list[str]:
+    """The participants' errors of one setting's run, each named by the setting; a store that
+    took no more writes stops the sweep (``SweepError``: run it again to continue)."""
+    if report.error is not None:
+        raise SweepError(
+            f"{setting.label}: the store took no more writes ({report.error}); fix it "
+            "and run the same sweep again to continue"
+        )
+    return [f"{setting.label}: {e}" for e in report.errors]
 
 
 def _at_protocol_D(setting: Setting) -> Setting:
