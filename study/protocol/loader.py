@@ -36,7 +36,7 @@ from study.protocol.errors import (
 from study.protocol.fields import Table, join_key
 from study.protocol.items import read_questionnaire
 from study.protocol.model import INTENT_DISPLAYS, Control, Mode, StudyInfo, Task, Training
-from study.protocol.participant import check_blinding, read_texts
+from study.protocol.participant_texts import check_blinding, read_texts
 from study.protocol.protocol import TRAINING_MODE, Protocol
 from study.schedule import Design
 

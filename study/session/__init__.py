@@ -77,7 +77,7 @@ from study.session.errors import (
     SessionStateError,
     UnknownItemError,
 )
-from study.session.experimenter import check_reason
+from study.session.experimenter_actions import check_reason
 from study.session.screen import Overview, Progress, Screen
 from study.session.session import Session
 from study.session.state import FINAL_STATUSES, PauseCause

@@ -16,7 +16,7 @@ from typing import Any, Protocol
 
 from app.teleop import ScriptedInput
 from app.trial import TrialConfig
-from study.session.participant import trial_seed
+from study.session.participant_actions import trial_seed
 from study.session.screen import Screen
 from study.session.session import Session
 from study.session.trial_run import TrialRun, TrialSummary

@@ -21,11 +21,11 @@ from typing import Any, Self
 from app.trial import Trial, TrialConfig
 from study.protocol import Protocol
 from study.session.closing import close_session
-from study.session.experimenter import ExperimenterActions
+from study.session.experimenter_actions import ExperimenterActions
 from study.session.lease_keeper import LeaseKeeper
 from study.session.ledger import Ledger, SessionInfo
 from study.session.opening import check_reopenable, enrol_participant
-from study.session.participant import ParticipantActions
+from study.session.participant_actions import ParticipantActions
 from study.session.plan import Plan, build_plan
 from study.session.sample_writer import DEFAULT_FLUSH_INTERVAL_S, SampleWriter, WriterStats
 from study.session.screen import Overview, Phase, Screen
