@@ -1,7 +1,7 @@
 """One simulated participant: who to simulate (:class:`ParticipantJob`), their whole session
 driven to the end through the real session engine (:func:`run_participant`) and how it went
-(:class:`ParticipantResult`). Used by the local runner (:mod:`study.simulated.runner`) and by
-the Dask engine's tasks (:mod:`study.simulated.dask_engine`) alike.
+(:class:`ParticipantResult`). Used by the local engine (:mod:`study.simulated.local_engine`)
+and by the Dask engine's tasks (:mod:`study.simulated.dask_engine`) alike.
 """
 
 from __future__ import annotations
