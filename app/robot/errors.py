@@ -21,3 +21,7 @@ class UnreachableError(SceneError):
     def __init__(self, message: str, *, object_name: str) -> None:
         super().__init__(message)
         self.object_name = object_name
+
+
+class PhysicsError(RobotError):
+    """The physics diverged or was given a command it cannot take."""

@@ -39,9 +39,10 @@ from app.blending import (
     policy_from_config,
     predictor_from_config,
 )
+from app.robot.errors import PhysicsError
 from app.robot.kinematics import Kinematics
 from app.robot.scene import Scene, build_scene
-from app.robot.simulation import BodyPoses, Simulation, SimulationError
+from app.robot.simulation import BodyPoses, Simulation
 from app.teleop.ik_step import IKStep
 from app.teleop.types import InputSource, TeleopCommand, TrialObservation
 from app.trial.accidents import Accidents
@@ -274,7 +275,7 @@ class Trial:
                     gripper_closed=self._phase in ("closing", "lifting"),
                     substeps=self._substeps,
                 )
-            except SimulationError as exc:  # pragma: no cover - guarded by clipping
+            except PhysicsError as exc:  # pragma: no cover - guarded by clipping
                 events.append(TrialEvent(EventKind.PHYSICS_ERROR, text=str(exc)))
                 self.ticks += 1
                 self._q = self.sim.q

@@ -34,7 +34,7 @@ from study.session.trial_run import TrialSummary
 
 
 @dataclass(frozen=True)
-class RunExperience:
+class ScriptedRun:
     """One run as the participant lived it."""
 
     success: bool
@@ -52,12 +52,12 @@ class ScriptedAnswers:
     def __init__(self, *, seed: int = 0, noise: int = 1) -> None:
         self.rng = np.random.default_rng(seed)
         self.noise = noise
-        self.runs: list[RunExperience] = []
+        self.runs: list[ScriptedRun] = []
 
     def observe(self, summary: TrialSummary | None, *, time_limit_s: float) -> None:
         """Remember a finished run (``None``: aborted, not experienced to the end)."""
         if summary is not None:
-            self.runs.append(RunExperience(summary.success, summary.duration_s, time_limit_s))
+            self.runs.append(ScriptedRun(summary.success, summary.duration_s, time_limit_s))
 
     def answer(self, screen: Screen) -> dict[str, Answer]:
         """Answers to every item on ``screen``."""

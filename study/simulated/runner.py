@@ -112,7 +112,7 @@ def session_seed(index: int, *, seed: int) -> int:
 
 
 @dataclass(frozen=True)
-class Plan:
+class SimulationPlan:
     """What a run (or a resumed run) does: ``jobs`` to simulate (``redo``: IDs among them to
     delete first) and ``kept``: participants already completed, with their session ids."""
 
@@ -127,7 +127,9 @@ def plan_jobs(store: Store, *, n: int, seed: int, first: int = 0) -> list[Partic
     return plan_run(store, n=n, seed=seed, first=first).jobs
 
 
-def plan_run(store: Store, *, n: int, seed: int, first: int = 0, resume: bool = False) -> Plan:
+def plan_run(
+    store: Store, *, n: int, seed: int, first: int = 0, resume: bool = False
+) -> SimulationPlan:
     """Participants ``first .. first + n - 1``: IDs, seeds and design rows continuing the store's
     enrolment history in index order.
 
@@ -153,7 +155,7 @@ def plan_run(store: Store, *, n: int, seed: int, first: int = 0, resume: bool = 
     entries = [
         Enrollment(p, withdrawn=status == "withdrawn", row=row) for p, row, status in history[:cut]
     ]
-    plan = Plan(jobs=[])
+    plan = SimulationPlan(jobs=[])
     for index, pid in zip(range(first, first + n), ids, strict=True):
         row = next_row(entries)
         entries.append(Enrollment(pid, withdrawn=False, row=row))
