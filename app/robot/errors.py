@@ -2,13 +2,19 @@
 
 from __future__ import annotations
 
+from app.errors import AppError
 
-class RobotError(Exception):
+
+class RobotError(AppError):
     """Base class of every error raised by ``app.robot``."""
 
 
 class ModelNotFoundError(RobotError, FileNotFoundError):
     """The Panda model files are not installed where ``example-robot-data`` puts them."""
+
+
+class ModelMismatchError(RobotError, RuntimeError):
+    """The installed robot model is not the one the platform was built for (other joints)."""
 
 
 class SceneError(RobotError, ValueError):

@@ -48,6 +48,7 @@ from app.teleop.types import InputSource, TeleopCommand, TrialObservation
 from app.trial.accidents import Accidents
 from app.trial.config import TrialConfig
 from app.trial.contacts import ContactLog
+from app.trial.errors import TrialConfigError
 from app.trial.events import EventKind, TrialEvent
 from app.trial.records import TickRecord, TrialResult
 
@@ -510,7 +511,7 @@ def _blender(config: TrialConfig, scene: Scene, kinematics: Kinematics) -> Polic
             arm=scene.arm_model(kinematics),
         )
     if space != "workspace":
-        raise ValueError(
+        raise TrialConfigError(
             "prediction.space: the trial predicts from the user's target, use 'workspace'"
         )
     return PolicyBlender(
