@@ -16,7 +16,6 @@ from typing import TYPE_CHECKING
 
 from study.session import Session
 from study.session.headless import run_headless
-from study.simulated.participant import SimulatedParticipant
 from study.simulated.population import load_population
 from study.store import StoreWriteError
 
@@ -68,8 +67,9 @@ def run_participant(
     """Enrol ``job``'s participant and drive their whole session to the end."""
 
     start = time.perf_counter()
-    params = load_population(population_path).draw(job.index, seed=seed)
-    person = SimulatedParticipant(params)
+    population = load_population(population_path)
+    params = population.draw(job.index, seed=seed)
+    person = population.model.participant(params)
     session = Session.enrol(
         store,
         protocol,
