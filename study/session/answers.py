@@ -105,4 +105,8 @@ def profile_answer(item: Item, rng: np.random.Generator, *, lapse: float = 0.0) 
         return round(value) if item.whole else round(value, 2)
     if isinstance(item, TextItem):
         return None if item.optional else "No comment."
-    raise TypeError(f"no scripted answer for a {type(item).__name__}")
+    sample = getattr(item, "sample", None)  # a registered kind's own (study.protocol.item_kinds)
+    if sample is not None:
+        answer: Answer = sample(rng)
+        return answer
+    raise TypeError(f"no scripted answer for a {type(item).__name__}: give it sample(rng)")
