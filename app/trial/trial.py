@@ -123,6 +123,11 @@ class Trial:
         return self._paused
 
     @property
+    def blend(self) -> BlendTick:
+        """What the blender gave at the last tick it ran (as applied; see ``BlendTick``)."""
+        return self._blend
+
+    @property
     def success(self) -> bool:
         return self.outcome == "success"
 

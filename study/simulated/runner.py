@@ -50,6 +50,7 @@ from study.simulated.local_engine import run_local
 from study.simulated.population import DEFAULT_POPULATION_PATH, load_population
 
 if TYPE_CHECKING:
+    from study.protocol import Protocol
     from study.store import Store
 
 
@@ -220,25 +221,19 @@ def simulate(
     A store that takes no more writes stops the run: the report's ``error`` says why, and the
     participants finished before it are in ``results``."""
 
-    if participants < 1:
-        raise SimulationRunError(f"participants must be at least 1, got {participants}")
-    if workers < 1:
-        raise SimulationRunError(f"workers must be at least 1, got {workers}")
-    if engine not in ENGINES:
-        raise SimulationRunError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
-    if (scheduler is not None or client is not None) and engine != "dask":
-        raise SimulationRunError("--scheduler needs --engine dask (the local engine has none)")
-    for name, value in (("seed", seed), ("first", first)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-            raise SimulationRunError(f"{name} must be an integer >= 0, got {value!r}")
+    _check_arguments(
+        participants=participants,
+        workers=workers,
+        engine=engine,
+        remote=scheduler is not None or client is not None,
+        seed=seed,
+        first=first,
+    )
     start = time.perf_counter()
     population_path = Path(population_path)
     load_population(population_path)  # fail early, in the parent, on a bad population file
     protocol = load_protocol(protocol_path)
-    if resume and not Path(db).is_file():
-        raise SimulationRunError(f"no store at {db}; --resume continues a run in its store")
-    Path(db).parent.mkdir(parents=True, exist_ok=True)
-    store = open_store(db, protocol, synchronous=synchronous)
+    store = _store(db, protocol, resume=resume, synchronous=synchronous)
     results: list[ParticipantResult] = []
     fault: str | None = None
     try:
@@ -246,26 +241,11 @@ def simulate(
         for pid in plan.redo:
             store.discard_participant(pid)
         results += [result_from_store(job, store, sid, 0.0, None) for job, sid in plan.kept]
-        jobs = plan.jobs
-        per_person = protocol.training.runs + len(protocol.tasks) * len(protocol.modes)
-        if engine == "dask" and jobs:
-            fault = run_on_dask(
-                jobs,
+        if plan.jobs:
+            fault = _run_jobs(
+                plan.jobs,
                 results,
-                store=store,
-                protocol_path=Path(protocol_path),
-                population_path=population_path,
-                seed=seed,
-                workers=workers,
-                scheduler=scheduler,
-                trials_each=per_person,
-                progress=progress,
-                client=client,
-            )
-        elif jobs:
-            fault = run_local(
-                jobs,
-                results,
+                engine=engine,
                 store=store,
                 protocol=protocol,
                 workers=workers,
@@ -275,11 +255,111 @@ def simulate(
                 seed=seed,
                 synchronous=synchronous,
                 progress=progress,
-                trials_each=per_person,
+                scheduler=scheduler,
+                client=client,
                 desc=f"simulate {participants} participants",
             )
     finally:
         store.close()
+    return _report(
+        results,
+        plan,
+        wall_s=time.perf_counter() - start,
+        workers=workers,
+        db=str(db),
+        seed=seed,
+        fault=fault,
+    )
+
+
+def _run_jobs(
+    jobs: list[ParticipantJob],
+    results: list[ParticipantResult],
+    *,
+    engine: str,
+    store: Store,
+    protocol: Protocol,
+    workers: int,
+    protocol_path: Path,
+    db: Path,
+    population_path: Path,
+    seed: int,
+    synchronous: str,
+    progress: bool,
+    scheduler: str | None,
+    client: Any,
+    desc: str,
+) -> str | None:
+    """``jobs`` on ``engine``, appending to ``results``; the store fault that stopped the run,
+    else ``None``."""
+    per_person = protocol.training.runs + len(protocol.tasks) * len(protocol.modes)
+    if engine == "dask":
+        return run_on_dask(
+            jobs,
+            results,
+            store=store,
+            protocol_path=protocol_path,
+            population_path=population_path,
+            seed=seed,
+            workers=workers,
+            scheduler=scheduler,
+            trials_each=per_person,
+            progress=progress,
+            client=client,
+        )
+    return run_local(
+        jobs,
+        results,
+        store=store,
+        protocol=protocol,
+        workers=workers,
+        protocol_path=protocol_path,
+        db=db,
+        population_path=population_path,
+        seed=seed,
+        synchronous=synchronous,
+        progress=progress,
+        trials_each=per_person,
+        desc=desc,
+    )
+
+
+def _store(db: str | Path, protocol: Protocol, *, resume: bool, synchronous: str) -> Store:
+    """The store to simulate into (its folder made; ``resume``: it must exist)."""
+    if resume and not Path(db).is_file():
+        raise SimulationRunError(f"no store at {db}; --resume continues a run in its store")
+    Path(db).parent.mkdir(parents=True, exist_ok=True)
+    return open_store(db, protocol, synchronous=synchronous)
+
+
+def _check_arguments(
+    *, participants: int, workers: int, engine: str, remote: bool, seed: int, first: int
+) -> None:
+    """Refuse arguments ``simulate`` cannot run with, before any file is touched."""
+    if participants < 1:
+        raise SimulationRunError(f"participants must be at least 1, got {participants}")
+    if workers < 1:
+        raise SimulationRunError(f"workers must be at least 1, got {workers}")
+    if engine not in ENGINES:
+        raise SimulationRunError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if remote and engine != "dask":
+        raise SimulationRunError("--scheduler needs --engine dask (the local engine has none)")
+    for name, value in (("seed", seed), ("first", first)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise SimulationRunError(f"{name} must be an integer >= 0, got {value!r}")
+
+
+def _report(
+    results: list[ParticipantResult],
+    plan: SimulationPlan,
+    *,
+    wall_s: float,
+    workers: int,
+    db: str,
+    seed: int,
+    fault: str | None,
+) -> SimulationReport:
+    """The run's report: ``results`` in participant order, their trials, ratings and outcomes."""
     results.sort(key=lambda r: r.index)
     outcomes: Counter[str] = Counter()
     for r in results:
@@ -288,9 +368,9 @@ def simulate(
         participants=len(results),
         trials=sum(r.trial_rows for r in results),
         ratings=sum(r.ratings for r in results),
-        wall_s=time.perf_counter() - start,
+        wall_s=wall_s,
         workers=workers,
-        db=str(db),
+        db=db,
         seed=seed,
         outcomes=dict(outcomes),
         sim_s=sum(r.sim_s for r in results),
