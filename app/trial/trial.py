@@ -27,29 +27,19 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Mapping
 
 import numpy as np
 
-from app.blending import (
-    NoAssistance,
-    PolicyBlender,
-    arbitration_from_config,
-    confidence_from_config,
-    moved_goals,
-    policy_from_config,
-    predictor_from_config,
-)
+from app.blending import moved_goals
 from app.robot.errors import PhysicsError
-from app.robot.kinematics import Kinematics
 from app.robot.scene import Scene, build_scene
 from app.robot.simulation import BodyPoses, Simulation
 from app.teleop.ik_step import IKStep
 from app.teleop.types import InputSource, TeleopCommand, TrialObservation
 from app.trial.accidents import Accidents
+from app.trial.build_blender import build_blender
 from app.trial.config import TrialConfig
 from app.trial.contacts import ContactLog
-from app.trial.errors import TrialConfigError
 from app.trial.events import EventKind, TrialEvent
 from app.trial.records import BlendTick, TickRecord, TrialResult
 from app.trial.tasks import LiftTask, Task
@@ -81,7 +71,7 @@ class Trial:
         kin = self.scene.arm.kinematics.copy()
         self.kinematics = kin
         self.ik = IKStep(kin, rate_hz=config.rate_hz, posture=self.scene.start_q)
-        self.blender = _blender(config, self.scene, kin)
+        self.blender = build_blender(config, self.scene, kin)
         self.blender.reset(self.scene.start_ee)
         self._lock = threading.RLock()
         self._paused = False
@@ -421,51 +411,6 @@ class Trial:
         )
         self.records.append(rec)
         return rec
-
-
-def _blender(config: TrialConfig, scene: Scene, kinematics: Kinematics) -> PolicyBlender:
-    goals = scene.goals
-    prediction = config.prediction
-    space = "workspace"
-    if isinstance(prediction, Mapping):
-        space = str(prediction.get("space", "workspace"))
-        prediction = predictor_from_config(
-            dict(prediction),
-            points=goals,
-            where="prediction",
-            target=scene.target_index,
-            rate_hz=config.rate_hz,
-        )
-    confidence = config.confidence
-    if isinstance(confidence, Mapping):
-        confidence = confidence_from_config(dict(confidence), where="confidence")
-    arbitration = config.arbitration
-    if arbitration is None:
-        arbitration = NoAssistance()
-    elif isinstance(arbitration, Mapping):
-        arbitration = arbitration_from_config(
-            dict(arbitration), where="arbitration", rate_hz=config.rate_hz
-        )
-    policy = config.policy
-    if isinstance(policy, Mapping):
-        policy = policy_from_config(
-            dict(policy),
-            rate_hz=config.rate_hz,
-            where="policy",
-            arm=scene.arm_model(kinematics),
-        )
-    if space != "workspace":
-        raise TrialConfigError(
-            "prediction.space: the trial predicts from the user's target, use 'workspace'"
-        )
-    return PolicyBlender(
-        goals=goals,
-        predictor=prediction,
-        confidence=confidence,
-        arbitration=arbitration,
-        policy=policy,
-        space="workspace",
-    )
 
 
 def run_trial(
