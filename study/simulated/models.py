@@ -15,7 +15,10 @@ session loop drives (``study.session.headless.run_headless``)::
 
 A population file names its model in its ``[population]`` table (``model = "straight"``; the
 default is ``"interface"``, :mod:`study.simulated.participant`'s model of a person on the page's
-gizmo or keys). A new model is that one declaration and one :func:`register` call.
+gizmo or keys). A new model is that one declaration and one :func:`register` call. Worker
+processes and Dask workers import their own registry: a model registered only in the parent
+(a script, a test) runs with ``workers=1`` on the local engine; for more, register it in a
+module the workers import too.
 """
 
 from __future__ import annotations
