@@ -6,6 +6,8 @@ Subpackages:
     app.teleop    input devices -> the user's next configuration U, interface reach
     app.trial     one trial: input -> blending -> robot, headless or paced
 
+Every error ``app`` raises derives from ``app.errors.AppError``.
+
 ``app`` imports nothing from ``study`` or ``analysis``: the study server, protocols and the
 store live in ``study``.
 """

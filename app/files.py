@@ -14,10 +14,12 @@ import os
 import stat
 from pathlib import Path
 
+from app.errors import AppError
+
 MiB = 2**20
 
 
-class InputFileError(ValueError):
+class InputFileError(AppError, ValueError):
     """An input file is missing, not a regular file, too large, or unreadable.
 
     ``problem`` says what, after the file's name ("does not exist", "is a folder, not a

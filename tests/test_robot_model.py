@@ -11,8 +11,9 @@ import pytest
 
 from app.robot import ModelNotFoundError, SceneSpec, UnreachableError, assets
 from app.robot.arm import load_arm
+from app.robot.errors import PhysicsError
 from app.robot.scene import build_scene
-from app.robot.simulation import Simulation, SimulationError
+from app.robot.simulation import Simulation
 
 
 @pytest.fixture(scope="module")
@@ -144,7 +145,7 @@ def test_servos_track_a_command_and_refuse_nan(scenes) -> None:
     assert np.abs(sim.q - goal).max() < 2e-3
     assert np.linalg.norm(sim.ee - scene.goals.positions[1]) < 3e-3
     before = sim.data.qpos.copy()
-    with pytest.raises(SimulationError, match="finite"):
+    with pytest.raises(PhysicsError, match="finite"):
         sim.step(np.full(7, np.nan), gripper_closed=False, substeps=5)
     assert np.array_equal(sim.data.qpos, before)
     assert np.all(np.isfinite(sim.data.qpos))

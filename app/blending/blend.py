@@ -225,15 +225,7 @@ class PolicyBlender:
             raise InvalidInputError("reset(start_x) must be called before step(Q, U)")
         q = np.asarray(Q, dtype=np.float64)
         u = np.asarray(U, dtype=np.float64)
-        dof = self.dof
-        if dof is None:
-            if q.ndim != 1:
-                raise InvalidInputError(f"Q: expected a 1-D configuration, got shape {q.shape}")
-            dof = self.dof = q.shape[0]
-        if q.shape != (dof,):
-            raise InvalidInputError(f"Q: expected shape ({dof},), got {q.shape}")
-        if u.shape != (dof,):
-            raise InvalidInputError(f"U: expected shape ({dof},), got {u.shape}")
+        dof = self._dof(q, u)
         if x is None:
             x = u if self.feature is None else np.asarray(self.feature(u), dtype=np.float64)
         else:
@@ -261,18 +253,7 @@ class PolicyBlender:
         if not 0.0 <= c <= 1.0:
             raise BlendingError(f"confidence: returned {c!r}, outside [0, 1]")
         p = self.policy.step(q, self._targets[i])
-        ps = np.asarray(p, dtype=np.float64).tolist()
-        if len(ps) != dof:
-            raise BlendingError(f"policy: returned P of {len(ps)} values, the robot has {dof}")
-        # the velocities P - Q and U - Q in scalars (seven numbers: cheaper than arrays)
-        pv = list(map(sub, ps, qs))
-        uv = list(map(sub, us, qs))
-        pp = sum(map(mul, pv, pv))
-        if not math.isfinite(pp) and not np.isfinite(p).all():  # NaN/inf in P make pp so
-            raise BlendingError(f"policy: returned a non-finite P {p!r}")
-        nn = math.sqrt(pp * sum(map(mul, uv, uv)))
-        agreement = sum(map(mul, pv, uv)) / nn if nn > 0.0 else 0.0
-        agreement = 1.0 if agreement > 1.0 else (-1.0 if agreement < -1.0 else agreement)
+        agreement = _agreement(p, qs, us, dof)
         arb = self.arbitration
         if isinstance(arb, StatefulArbitration):
             alpha = float(arb.update(TickSignals(c, agreement, motion, i, b)))
@@ -286,6 +267,20 @@ class PolicyBlender:
         probs = pred.probabilities.copy()
         return BlendRecord(cmd, p, alpha, c, distance, probs, i, agreement, float(b[i]), motion)
 
+    def _dof(self, q: np.ndarray, u: np.ndarray) -> int:
+        """The robot's degrees of freedom (from the first ``Q`` seen), ``Q`` and ``U`` checked
+        against it."""
+        dof = self.dof
+        if dof is None:
+            if q.ndim != 1:
+                raise InvalidInputError(f"Q: expected a 1-D configuration, got shape {q.shape}")
+            dof = self.dof = q.shape[0]
+        if q.shape != (dof,):
+            raise InvalidInputError(f"Q: expected shape ({dof},), got {q.shape}")
+        if u.shape != (dof,):
+            raise InvalidInputError(f"U: expected shape ({dof},), got {u.shape}")
+        return dof
+
     def _motion_agreement(self, robot_x: Any, i: int) -> float:
         d = self.rationality.direction
         if d is None:
@@ -293,3 +288,20 @@ class PolicyBlender:
         heading = self._points[i] - np.asarray(robot_x, dtype=np.float64)
         n = math.sqrt(float(heading.dot(heading)))
         return float(d.dot(heading)) / n if n > 0.0 else 0.0
+
+
+def _agreement(p: Any, qs: list[float], us: list[float], dof: int) -> float:
+    """Cosine of ``P - Q`` and ``U - Q`` (0 when either is zero), after checking that the
+    policy's ``P`` has ``dof`` finite values."""
+    ps = np.asarray(p, dtype=np.float64).tolist()
+    if len(ps) != dof:
+        raise BlendingError(f"policy: returned P of {len(ps)} values, the robot has {dof}")
+    # the velocities P - Q and U - Q in scalars (seven numbers: cheaper than arrays)
+    pv = list(map(sub, ps, qs))
+    uv = list(map(sub, us, qs))
+    pp = sum(map(mul, pv, pv))
+    if not math.isfinite(pp) and not np.isfinite(p).all():  # NaN/inf in P make pp so
+        raise BlendingError(f"policy: returned a non-finite P {p!r}")
+    nn = math.sqrt(pp * sum(map(mul, uv, uv)))
+    agreement = sum(map(mul, pv, uv)) / nn if nn > 0.0 else 0.0
+    return 1.0 if agreement > 1.0 else (-1.0 if agreement < -1.0 else agreement)

@@ -1,15 +1,17 @@
 """Typed errors of the blending formalism.
 
-Every error is a ``ValueError`` (so generic callers can catch it) and names the argument or
+Every error is an ``app.errors.AppError`` and a ``ValueError`` (so generic callers can catch it) and names the argument or
 configuration key that was wrong, what was wrong with it, and what to do about it.
 """
 
 from __future__ import annotations
 
+from app.errors import AppError
+
 __all__ = ["BlendingError", "ConfigError", "InvalidArbitrationError", "InvalidInputError"]
 
 
-class BlendingError(ValueError):
+class BlendingError(AppError, ValueError):
     """Base class of every error raised by :mod:`app.blending`."""
 
 

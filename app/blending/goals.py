@@ -61,58 +61,17 @@ class GoalSet:
         standoffs: Any | None = None,
         envelopes: Any | None = None,
     ) -> None:
-        names_t = tuple(names)
-        if not names_t:
-            raise InvalidInputError("names: the goal set is empty; give at least one goal")
-        if not all(isinstance(n, str) and n for n in names_t):
-            raise InvalidInputError(f"names: every name must be a non-empty string, got {names_t}")
-        if len(set(names_t)) != len(names_t):
-            raise InvalidInputError(f"names: goal names must be distinct, got {names_t}")
+        names_t = _names(names)
         n = len(names_t)
         pos = as_points(positions, name="positions", dim=3)
-        if pos.shape[0] != n:
-            raise InvalidInputError(
-                f"positions: expected {n} rows (one per name), got shape {pos.shape}"
-            )
-        ori = None
-        if orientations is not None:
-            ori = as_finite_array(orientations, name="orientations", ndim=2, dim=4)
-            if ori.shape[0] != n:
-                raise InvalidInputError(
-                    f"orientations: expected {n} rows (one per name), got shape {ori.shape}"
-                )
-            norms = np.linalg.norm(ori, axis=1)
-            if (np.abs(norms - 1.0) > 1e-6).any():
-                raise InvalidInputError(
-                    f"orientations: quaternions must have unit norm, got norms {norms.tolist()}"
-                )
+        _rows("positions", pos, n)
+        ori = None if orientations is None else _orientations(orientations, n)
         cfg = None
         if configurations is not None:
             cfg = as_points(configurations, name="configurations")
-            if cfg.shape[0] != n:
-                raise InvalidInputError(
-                    f"configurations: expected {n} rows (one per name), got shape {cfg.shape}"
-                )
-        off = None
-        if standoffs is not None:
-            if ori is None:
-                raise InvalidInputError(
-                    "standoffs: a pre-grasp standoff runs along the approach axis; give the"
-                    " goals' orientations too"
-                )
-            off = as_finite_array(standoffs, name="standoffs", ndim=1)
-            if off.shape[0] != n or not (off > 0.0).all():
-                raise InvalidInputError(
-                    f"standoffs: expected {n} distances > 0 (one per name), got {off.tolist()}"
-                )
-        env = None
-        if envelopes is not None:
-            env = as_finite_array(envelopes, name="envelopes", ndim=2, dim=3)
-            if env.shape[0] != n or not (env[:, 0] > 0.0).all() or not (env[:, 2] > 0.0).all():
-                raise InvalidInputError(
-                    f"envelopes: expected {n} rows of {ENVELOPE_COLUMNS} with radius and"
-                    f" half_width > 0, got {env.tolist()}"
-                )
+            _rows("configurations", cfg, n)
+        off = None if standoffs is None else _standoffs(standoffs, n, oriented=ori is not None)
+        env = None if envelopes is None else _envelopes(envelopes, n)
         for arr in (pos, ori, cfg, off, env):
             if arr is not None:
                 arr.setflags(write=False)
@@ -173,3 +132,57 @@ def quaternion_matrix(wxyz: Any) -> np.ndarray:
             [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
         ]
     )
+
+
+def _names(names: Sequence[str]) -> tuple[str, ...]:
+    names_t = tuple(names)
+    if not names_t:
+        raise InvalidInputError("names: the goal set is empty; give at least one goal")
+    if not all(isinstance(n, str) and n for n in names_t):
+        raise InvalidInputError(f"names: every name must be a non-empty string, got {names_t}")
+    if len(set(names_t)) != len(names_t):
+        raise InvalidInputError(f"names: goal names must be distinct, got {names_t}")
+    return names_t
+
+
+def _rows(name: str, arr: np.ndarray, n: int) -> None:
+    if arr.shape[0] != n:
+        raise InvalidInputError(f"{name}: expected {n} rows (one per name), got shape {arr.shape}")
+
+
+def _orientations(orientations: Any, n: int) -> np.ndarray:
+    """``(n, 4)`` unit quaternions."""
+    ori = as_finite_array(orientations, name="orientations", ndim=2, dim=4)
+    _rows("orientations", ori, n)
+    norms = np.linalg.norm(ori, axis=1)
+    if (np.abs(norms - 1.0) > 1e-6).any():
+        raise InvalidInputError(
+            f"orientations: quaternions must have unit norm, got norms {norms.tolist()}"
+        )
+    return ori
+
+
+def _standoffs(standoffs: Any, n: int, *, oriented: bool) -> np.ndarray:
+    """``(n,)`` distances > 0 along the approach axis (which needs the orientations)."""
+    if not oriented:
+        raise InvalidInputError(
+            "standoffs: a pre-grasp standoff runs along the approach axis; give the"
+            " goals' orientations too"
+        )
+    off = as_finite_array(standoffs, name="standoffs", ndim=1)
+    if off.shape[0] != n or not (off > 0.0).all():
+        raise InvalidInputError(
+            f"standoffs: expected {n} distances > 0 (one per name), got {off.tolist()}"
+        )
+    return off
+
+
+def _envelopes(envelopes: Any, n: int) -> np.ndarray:
+    """``(n, 3)`` rows of ``ENVELOPE_COLUMNS`` with radius and half-width > 0."""
+    env = as_finite_array(envelopes, name="envelopes", ndim=2, dim=3)
+    if env.shape[0] != n or not (env[:, 0] > 0.0).all() or not (env[:, 2] > 0.0).all():
+        raise InvalidInputError(
+            f"envelopes: expected {n} rows of {ENVELOPE_COLUMNS} with radius and"
+            f" half_width > 0, got {env.tolist()}"
+        )
+    return env

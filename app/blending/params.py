@@ -14,6 +14,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from app.errors import AppError
+
 __all__ = [
     "POSITIVE",
     "UNIT",
@@ -29,7 +31,7 @@ __all__ = [
 ]
 
 
-class ParamProblem(Exception):
+class ParamProblem(AppError):
     """A parameter value is wrong (``category`` ``type`` or ``value``); caught by :func:`check`."""
 
     def __init__(self, category: str, problem: str) -> None:

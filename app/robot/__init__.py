@@ -15,24 +15,25 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 from app.robot.arm import Arm, load_arm
 from app.robot.errors import (
     ModelNotFoundError,
+    PhysicsError,
     RobotError,
     SceneError,
     UnreachableError,
 )
 from app.robot.scene import Scene, build_scene
 from app.robot.scene_spec import SceneSpec
-from app.robot.simulation import BodyPoses, Simulation, SimulationError
+from app.robot.simulation import BodyPoses, Simulation
 
 __all__ = [
     "Arm",
     "BodyPoses",
     "ModelNotFoundError",
+    "PhysicsError",
     "RobotError",
     "Scene",
     "SceneError",
     "SceneSpec",
     "Simulation",
-    "SimulationError",
     "UnreachableError",
     "build_scene",
     "load_arm",

@@ -21,6 +21,7 @@ import mujoco
 import numpy as np
 
 from app.robot.assets import panda_urdf
+from app.robot.errors import ModelMismatchError
 from app.robot.kinematics import FINGER_JOINTS, Kinematics
 
 ARM_JOINTS = tuple(f"panda_joint{i}" for i in range(1, 8))
@@ -80,7 +81,9 @@ def load_arm() -> Arm:
     urdf = panda_urdf()
     kin = Kinematics(urdf)
     if kin.joint_names != ARM_JOINTS:
-        raise RuntimeError(f"unexpected Panda joints {kin.joint_names}; expected {ARM_JOINTS}")
+        raise ModelMismatchError(
+            f"unexpected Panda joints {kin.joint_names}; expected {ARM_JOINTS}"
+        )
     return Arm(
         urdf=urdf,
         kinematics=kin,

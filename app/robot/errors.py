@@ -2,13 +2,19 @@
 
 from __future__ import annotations
 
+from app.errors import AppError
 
-class RobotError(Exception):
+
+class RobotError(AppError):
     """Base class of every error raised by ``app.robot``."""
 
 
 class ModelNotFoundError(RobotError, FileNotFoundError):
     """The Panda model files are not installed where ``example-robot-data`` puts them."""
+
+
+class ModelMismatchError(RobotError, RuntimeError):
+    """The installed robot model is not the one the platform was built for (other joints)."""
 
 
 class SceneError(RobotError, ValueError):
@@ -21,3 +27,7 @@ class UnreachableError(SceneError):
     def __init__(self, message: str, *, object_name: str) -> None:
         super().__init__(message)
         self.object_name = object_name
+
+
+class PhysicsError(RobotError):
+    """The physics diverged or was given a command it cannot take."""

@@ -16,6 +16,7 @@ import numpy as np
 
 from app.blending.policy_grasp import HandLayer
 from app.robot.arm import ARM_JOINTS, LOW_LINKS
+from app.robot.errors import SceneError
 
 TURNING_LINK = "panda_link6"
 """The collision link before the last joint."""
@@ -49,7 +50,7 @@ def hand_layers(
         else:
             layers.append(_layer(local, turns=body == TURNING_LINK))
     if not finger_points:  # pragma: no cover - the Panda has fingers
-        raise ValueError("hand_layers: the model has no colliding finger geoms")
+        raise SceneError("hand_layers: the model has no colliding finger geoms")
     return (_layer(np.vstack(finger_points), turns=False), *layers)
 
 

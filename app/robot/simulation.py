@@ -32,7 +32,7 @@ from app.robot.arm import (
     OBJECT_CONTYPE,
     OBJECT_GRIP_BIT,
 )
-from app.robot.errors import RobotError
+from app.robot.errors import PhysicsError
 from app.robot.scene import Scene
 
 _BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
@@ -58,10 +58,6 @@ class BodyPoses:
     """(3,) the TCP position."""
 
 
-class SimulationError(RobotError):
-    """The physics diverged or was given a command it cannot take."""
-
-
 class Simulation:
     """One trial's physics state for ``scene`` at timestep ``physics_dt``."""
 
@@ -69,7 +65,7 @@ class Simulation:
         self.scene = scene
         self.contacts = scene.spec.contacts
         if self.contacts not in CONTACT_MODES:  # pragma: no cover - SceneSpec checks it
-            raise SimulationError(f"contacts: one of {CONTACT_MODES}, got {self.contacts!r}")
+            raise PhysicsError(f"contacts: one of {CONTACT_MODES}, got {self.contacts!r}")
         # The compiled model is shared by every trial of the scene: this trial changes its own
         # copy (timestep, finger-object contacts). Copying costs well under a millisecond.
         self.model = copy.copy(scene.model)
@@ -86,7 +82,7 @@ class Simulation:
         self._any_live = False
         self._open = min(scene.spec.gripper_open, GRIPPER_MAX)
         if scene.gripper_actuator_id != 7:  # pragma: no cover - fixed by Arm.spec()
-            raise SimulationError("the gripper actuator must be ctrl[7]")
+            raise PhysicsError("the gripper actuator must be ctrl[7]")
         self._object_dofs = np.concatenate(
             [np.arange(6) + self.model.body_dofadr[b] for b in scene.object_body_ids]
         )
@@ -162,7 +158,7 @@ class Simulation:
         if type(command) is not np.ndarray or command.dtype != np.float64:
             command = np.asarray(command, dtype=float)
         if command.shape != (7,) or not math.isfinite(sum(command.tolist())):
-            raise SimulationError(f"command must be 7 finite joint angles, got {command!r}")
+            raise PhysicsError(f"command must be 7 finite joint angles, got {command!r}")
         data = self.data
         span = substeps * self._dt
         target = self._ctrl_arm  # written in place: clip(command, lower, upper)
@@ -187,7 +183,7 @@ class Simulation:
         mujoco.mj_kinematics(model, data)  # poses of the new qpos, not the last step's
         # MuJoCo resets a diverging simulation (bad acceleration) to time 0: catch that too.
         if not math.isfinite(self._qpos_arm[0]) or data.time < expected - 1e-9:
-            raise SimulationError("physics diverged (non-finite state); the trial cannot go on")
+            raise PhysicsError("physics diverged (non-finite state); the trial cannot go on")
 
     @property
     def grip_contacts(self) -> bool:

@@ -235,35 +235,102 @@ def task_view(
         )
     fov = math.radians(fov_deg)
     probe = _probe(scene, reach_fractions)
-    centre = task_centre(scene)
+    grid = _Grid(
+        fov=fov, aspect=aspect, usable=usable_width, margin=margin, factors=distance_factors
+    )
     frame_pts = _frame_points(scene, probe, context_m=context_m, headroom_m=headroom_m)
-    candidates: list[_Candidate] = []
-    for el in elevations_deg:
-        for az in azimuths_deg:
-            d_fit = _fit_distance(
-                frame_pts, centre, az, el, fov=fov, aspect=aspect, usable=usable_width, m=margin
-            )
-            if d_fit is None:
-                continue
-            for k, factor in enumerate(distance_factors):
-                d = d_fit * factor
-                look = _look_at(centre, az, el, d, fov=fov, aspect=aspect, usable=usable_width)
-                pos = look + d * _direction(az, el)
-                legibility = axis_legibility(pos, az, el, probe.tcp_points)
-                candidates.append(_Candidate(az, el, look, pos, d, k, legibility))
+    candidates = _candidates(
+        probe, frame_pts, task_centre(scene), grid, azimuths_deg, elevations_deg
+    )
     if not candidates:
         raise TaskViewError(
             f"scene {scene.name!r}: no viewpoint keeps every object and the gripper inside the"
             f" left {usable_width:.0%} of a {fov_deg:.0f} deg view; widen fov_deg or usable_width"
         )
+    chosen = _choose(
+        scene,
+        probe,
+        candidates,
+        min_visible=min_visible,
+        tie_tolerance=tie_tolerance,
+        min_axis_share=min_axis_share,
+        min_axis_angle_deg=min_axis_angle_deg,
+    )
+    return view_at(
+        chosen.look,
+        distance=chosen.d,
+        azimuth_deg=chosen.az,
+        elevation_deg=chosen.el,
+        fov_rad=fov,
+        visible_fraction=_worst_visible(chosen, probe),
+        legibility=chosen.legibility,
+    )
 
-    def nearest_default(c: _Candidate) -> tuple[float, int]:
-        return (math.hypot(c.az - DEFAULT_AZIMUTH_DEG, c.el - DEFAULT_ELEVATION_DEG), c.k)
+
+@dataclass(frozen=True)
+class _Grid:
+    """The camera's optics and the frame it must fill, and the distances tried per direction."""
+
+    fov: float
+    aspect: float
+    usable: float
+    margin: float
+    factors: tuple[float, ...]
+
+
+def _candidates(
+    probe: _Probe,
+    frame_pts: np.ndarray,
+    centre: np.ndarray,
+    grid: _Grid,
+    azimuths_deg: tuple[float, ...],
+    elevations_deg: tuple[float, ...],
+) -> list[_Candidate]:
+    """Every direction of the grid where the frame points fit, at each distance factor."""
+    candidates: list[_Candidate] = []
+    fov, aspect, usable = grid.fov, grid.aspect, grid.usable
+    for el in elevations_deg:
+        for az in azimuths_deg:
+            d_fit = _fit_distance(
+                frame_pts, centre, az, el, fov=fov, aspect=aspect, usable=usable, m=grid.margin
+            )
+            if d_fit is None:
+                continue
+            for k, factor in enumerate(grid.factors):
+                d = d_fit * factor
+                look = _look_at(centre, az, el, d, fov=fov, aspect=aspect, usable=usable)
+                pos = look + d * _direction(az, el)
+                legibility = axis_legibility(pos, az, el, probe.tcp_points)
+                candidates.append(_Candidate(az, el, look, pos, d, k, legibility))
+    return candidates
+
+
+def _nearest_default(c: _Candidate) -> tuple[float, int]:
+    return (math.hypot(c.az - DEFAULT_AZIMUTH_DEG, c.el - DEFAULT_ELEVATION_DEG), c.k)
+
+
+def _worst_visible(c: _Candidate, probe: _Probe) -> float:
+    """The least visible object's fraction from ``c`` (ray cast once, then remembered)."""
+    if c.visible is None:
+        c.visible = float(probe.fractions(c.pos).min())
+    return c.visible
+
+
+def _choose(
+    scene: Scene,
+    probe: _Probe,
+    candidates: list[_Candidate],
+    *,
+    min_visible: float,
+    tie_tolerance: float,
+    min_axis_share: float,
+    min_axis_angle_deg: float,
+) -> _Candidate:
+    """Among legible views showing every object, the best shown (ties: nearest the default
+    direction); if none, the most legible of those showing every object."""
 
     def worst_visible(c: _Candidate) -> float:
-        if c.visible is None:
-            c.visible = float(probe.fractions(c.pos).min())
-        return c.visible
+        return _worst_visible(c, probe)
 
     legible = [
         c
@@ -273,38 +340,26 @@ def task_view(
     best = max((worst_visible(c) for c in legible), default=-1.0)
     if best >= min_visible:
         near = [c for c in legible if worst_visible(c) >= best - tie_tolerance]
-        chosen = min(near, key=nearest_default)
-    else:
-        # no legible view shows every object: the most legible of those that do
-        seen = [c for c in candidates if worst_visible(c) >= min_visible]
-        if not seen:
-            c = max(candidates, key=worst_visible)
-            raise TaskViewError(
-                f"scene {scene.name!r}: the best viewpoint (azimuth {c.az:.0f}, elevation"
-                f" {c.el:.0f} deg) leaves only {worst_visible(c):.0%} of some object visible"
-                f" (need {min_visible:.0%}); move the objects apart or away from the arm's"
-                " reach, or widen the azimuth/elevation grid"
-            )
+        return min(near, key=_nearest_default)
+    # no legible view shows every object: the most legible of those that do
+    seen = [c for c in candidates if worst_visible(c) >= min_visible]
+    if not seen:
+        c = max(candidates, key=worst_visible)
+        raise TaskViewError(
+            f"scene {scene.name!r}: the best viewpoint (azimuth {c.az:.0f}, elevation"
+            f" {c.el:.0f} deg) leaves only {worst_visible(c):.0%} of some object visible"
+            f" (need {min_visible:.0%}); move the objects apart or away from the arm's"
+            " reach, or widen the azimuth/elevation grid"
+        )
 
-        def score(c: _Candidate) -> float:
-            return min(
-                min(c.legibility.shares) / max(min_axis_share, 1e-9),
-                c.legibility.min_angle_deg / max(min_axis_angle_deg, 1e-9),
-            )
+    def score(c: _Candidate) -> float:
+        return min(
+            min(c.legibility.shares) / max(min_axis_share, 1e-9),
+            c.legibility.min_angle_deg / max(min_axis_angle_deg, 1e-9),
+        )
 
-        top = max(score(c) for c in seen)
-        chosen = min((c for c in seen if score(c) >= top - 0.02), key=nearest_default)
-    look, d, az, el, legibility = chosen.look, chosen.d, chosen.az, chosen.el, chosen.legibility
-    worst = worst_visible(chosen)
-    return view_at(
-        look,
-        distance=d,
-        azimuth_deg=az,
-        elevation_deg=el,
-        fov_rad=fov,
-        visible_fraction=worst,
-        legibility=legibility,
-    )
+    top = max(score(c) for c in seen)
+    return min((c for c in seen if score(c) >= top - 0.02), key=_nearest_default)
 
 
 @dataclass(eq=False)

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from app.errors import AppError
 
-class TeleopError(ValueError):
+
+class TeleopError(AppError, ValueError):
     """Base class of every error raised by ``app.teleop``."""
 
 

@@ -42,6 +42,7 @@ from collections import deque
 
 import numpy as np
 
+from app.errors import AppError
 from app.teleop.errors import TeleopError
 from app.teleop.gizmo import GizmoInput, checked_position
 from app.teleop.ik_step import GAIN_PER_S
@@ -55,7 +56,7 @@ HANDLE_STEP_M = 0.001
 """In the relative mapping the handle is redrawn on the gripper once it is this far off."""
 
 
-class InputFrozen(RuntimeError):
+class InputFrozen(AppError, RuntimeError):
     """An input arrived while the trial is paused; it was not applied."""
 
 

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.teleop.errors import InvalidTargetError
+from app.teleop.errors import InvalidTargetError, TeleopError
 
 
 @dataclass(frozen=True)
@@ -23,11 +23,11 @@ class ReachRegion:
         lo = np.asarray(self.lo, dtype=float).reshape(-1)
         hi = np.asarray(self.hi, dtype=float).reshape(-1)
         if lo.shape != (3,) or hi.shape != (3,):
-            raise ValueError(
+            raise TeleopError(
                 f"ReachRegion: lo and hi must be 3-vectors, got {lo.shape}, {hi.shape}"
             )
         if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(lo < hi)):
-            raise ValueError(f"ReachRegion: need finite lo < hi on every axis, got {lo}, {hi}")
+            raise TeleopError(f"ReachRegion: need finite lo < hi on every axis, got {lo}, {hi}")
         object.__setattr__(self, "lo", lo)
         object.__setattr__(self, "hi", hi)
 

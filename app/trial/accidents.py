@@ -36,6 +36,7 @@ import numpy as np
 
 from app.robot.simulation import Simulation
 from app.trial.config import ON_KNOCK
+from app.trial.errors import TrialConfigError
 from app.trial.events import EventKind, TrialEvent
 
 TILT_RAD = 0.7
@@ -66,7 +67,7 @@ class Accidents:
 
     def __init__(self, sim: Simulation, names: Sequence[str], *, on_knock: str = "reset") -> None:
         if on_knock not in ON_KNOCK:
-            raise ValueError(f"on_knock: one of {ON_KNOCK}, got {on_knock!r}")
+            raise TrialConfigError(f"on_knock: one of {ON_KNOCK}, got {on_knock!r}")
         self.sim = sim
         self.names = tuple(names)
         self.reset_objects = on_knock == "reset"

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from app.errors import AppError
 
-class TrialError(Exception):
+
+class TrialError(AppError):
     """Base class of every error raised by ``app.trial``."""
 
 

@@ -3,8 +3,9 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -26,6 +27,21 @@ lifted), ``dropped`` (a held object fell out of the gripper or would not come up
 off the table) -- these two only under ``on_knock = "end"``, and ``dropped`` too: under
 ``"reset"`` the run goes on --, ``timeout``, ``aborted`` (the experimenter) and
 ``interrupted`` (the participant was lost)."""
+
+
+class BlendTick(NamedTuple):
+    """What a trial keeps of the blender's last tick (``app.blending.BlendRecord``): what the
+    input sources see (``alpha``, ``predicted``) and the tick records carry. ``alpha`` as
+    applied (0 while the robot holds back for a lying goal); ``probabilities``: ``P(G | xi)``;
+    ``predicted``: index of G* (-1 before the first blend). Named and immutable, and as cheap
+    per tick as the plain tuple it replaces (a ``NamedTuple``: the control tick makes one)."""
+
+    alpha: float
+    confidence: float
+    probabilities: np.ndarray
+    predicted: int
+    motion_agreement: float = 0.0
+    rationality: float = math.nan
 
 
 @dataclass(frozen=True, slots=True)

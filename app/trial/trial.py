@@ -3,9 +3,10 @@
 Each ``tick()`` asks the input source for a target, clamps it to the reach region, turns it
 into ``U`` with a velocity-limited IK step, blends ``U`` with the policy's ``P`` (prediction
 from the user target, confidence ``c = max(0, 1 - d / D)``, arbitration ``alpha(c)``), servos
-the arm to ``(1 - alpha) U + alpha P`` and advances the physics. A grasp request closes the
-gripper in physics; holding an object, the arm lifts it by itself; the trial succeeds when the
-target is ``lift_height_m`` above its rest height. Outcomes (``app.trial.records.OUTCOMES``):
+the arm to ``(1 - alpha) U + alpha P`` and advances the physics. What the ticks mean is the
+trial's task (``app.trial.tasks``; by default :class:`~app.trial.tasks.lift.LiftTask`): a grasp
+request closes the gripper in physics; holding an object, the arm lifts it by itself; the trial
+succeeds when the target is ``lift_height_m`` above its rest height. Outcomes (``app.trial.records.OUTCOMES``):
 ``success``, ``wrong_object``, ``timeout``, ``aborted`` and ``interrupted``; and the
 accidents, each with its own event: a held object that falls out of the gripper (``dropped``),
 an object knocked over (``knocked_over``) or pushed off the table (``pushed_off``). Under
@@ -26,42 +27,30 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Mapping
 
 import numpy as np
 
-from app.blending import (
-    NoAssistance,
-    PolicyBlender,
-    arbitration_from_config,
-    confidence_from_config,
-    moved_goals,
-    policy_from_config,
-    predictor_from_config,
-)
-from app.robot.kinematics import Kinematics
+from app.blending import moved_goals
+from app.robot.errors import PhysicsError
 from app.robot.scene import Scene, build_scene
-from app.robot.simulation import BodyPoses, Simulation, SimulationError
+from app.robot.simulation import BodyPoses, Simulation
 from app.teleop.ik_step import IKStep
 from app.teleop.types import InputSource, TeleopCommand, TrialObservation
 from app.trial.accidents import Accidents
+from app.trial.build_blender import build_blender
 from app.trial.config import TrialConfig
 from app.trial.contacts import ContactLog
 from app.trial.events import EventKind, TrialEvent
-from app.trial.records import TickRecord, TrialResult
+from app.trial.records import BlendTick, TickRecord, TrialResult
+from app.trial.tasks import LiftTask, Task
 
-CLOSE_S = 0.4  # gripper closing time before judging the grasp
-REOPEN_S = 0.4  # after a missed grasp, time the gripper takes to open again
-LIFT_TIMEOUT_S = 3.0  # the automatic lift must reach the height within this time
-LIFT_SPEED = 0.1  # m/s, automatic lift
-DROP_S = 0.15  # contact lost this long while lifting = dropped
 FAR_OUTSIDE_M = 0.5  # a raw target this far outside the reach region is logged as such
-WAKE_M = 0.15  # a grasp wakes the objects within this horizontal distance of the gripper
 GOAL_MOVED_M = 0.005  # a goal follows its object once the object has moved this far from it
 
 
 class Trial:
-    """A trial drivable tick by tick (``tick()``) or to the end (``run_trial``)."""
+    """A trial drivable tick by tick (``tick()``) or to the end (``run_trial``); ``task``: what
+    the ticks mean (a fresh :class:`~app.trial.tasks.lift.LiftTask` when ``None``)."""
 
     def __init__(
         self,
@@ -70,6 +59,7 @@ class Trial:
         *,
         seed: int = 0,
         scene: Scene | None = None,
+        task: Task | None = None,
     ) -> None:
         self.config = config
         self._dt = config.dt
@@ -81,20 +71,14 @@ class Trial:
         kin = self.scene.arm.kinematics.copy()
         self.kinematics = kin
         self.ik = IKStep(kin, rate_hz=config.rate_hz, posture=self.scene.start_q)
-        self.blender = _blender(config, self.scene, kin)
+        self.blender = build_blender(config, self.scene, kin)
         self.blender.reset(self.scene.start_ee)
         self._lock = threading.RLock()
         self._paused = False
         self._pause_events: list[TrialEvent] = []
         self.ticks = 0
         self.outcome: str | None = None
-        self._phase = "reach"
-        self._phase_t = 0.0
         self._grasp_prev = False
-        self._hold_q = self.scene.start_q.copy()
-        self._lift_target = np.zeros(3)
-        self._held: int | None = None
-        self._lost_t: float | None = None
         self.contacts = ContactLog(self.scene.object_names)
         self.accidents = Accidents(self.sim, self.scene.object_names, on_knock=config.on_knock)
         n = len(self.scene.goals)
@@ -108,9 +92,11 @@ class Trial:
         self._ee = self.sim.ee
         self._object_positions = self.sim.object_positions()
         self._grasp_points = self.scene.goals.positions
-        self._last = (0.0, 0.0, np.full(n, 1.0 / n), -1, 0.0, math.nan)
+        self._blend = BlendTick(0.0, 0.0, np.full(n, 1.0 / n), -1, 0.0, math.nan)
         self.records: list[TickRecord] = []
         self.events: list[tuple[float, TrialEvent]] = []
+        self.task: Task = LiftTask() if task is None else task
+        self.task.start(self)
 
     # ---- state -------------------------------------------------------------------------
     @property
@@ -125,6 +111,11 @@ class Trial:
     @property
     def paused(self) -> bool:
         return self._paused
+
+    @property
+    def blend(self) -> BlendTick:
+        """What the blender gave at the last tick it ran (as applied; see ``BlendTick``)."""
+        return self._blend
 
     @property
     def success(self) -> bool:
@@ -163,20 +154,20 @@ class Trial:
             return self._observation()
 
     def _observation(self) -> TrialObservation:
-        alpha, _, _, predicted, _, _ = self._last
-        held = self._held
+        blend = self._blend
+        held = self.task.held
         return TrialObservation(
             t=self.t,
             q=self._q.copy(),
             ee=self._ee.copy(),
-            gripper_closed=self._phase in ("closing", "lifting"),
+            gripper_closed=self.task.gripper_closed,
             user_target=self.user_target.copy(),
             reach=self.scene.reach,
             goal_names=self.scene.goals.names,
             goal_positions=self.blender.goals.positions,
             target_index=self.scene.target_index,
-            alpha=alpha,
-            predicted=predicted,
+            alpha=blend.alpha,
+            predicted=blend.predicted,
             grasped=None if held is None else self.scene.object_names[held],
             rate_hz=self.config.rate_hz,
             object_positions=self._object_positions,
@@ -261,7 +252,7 @@ class Trial:
             events: list[TrialEvent] = self._pause_events
             self._pause_events = []
             q = self._q
-            if self.sim.objects_live and self._phase == "reach" and self.ticks % 10 == 0:
+            if self.sim.objects_live and self.task.reaching and self.ticks % 10 == 0:
                 self._follow_objects(events)
             cmd = self._ask_input(events)
             self._set_user_target(cmd, events)
@@ -271,10 +262,10 @@ class Trial:
             try:
                 self.sim.step(
                     command,
-                    gripper_closed=self._phase in ("closing", "lifting"),
+                    gripper_closed=self.task.gripper_closed,
                     substeps=self._substeps,
                 )
-            except SimulationError as exc:  # pragma: no cover - guarded by clipping
+            except PhysicsError as exc:  # pragma: no cover - guarded by clipping
                 events.append(TrialEvent(EventKind.PHYSICS_ERROR, text=str(exc)))
                 self.ticks += 1
                 self._q = self.sim.q
@@ -290,8 +281,8 @@ class Trial:
                     self.contacts.update(
                         self.sim.arm_contacts(),
                         dt=self._dt,
-                        grasping=self._phase in ("closing", "lifting"),
-                        held=self._held,
+                        grasping=self.task.gripper_closed,
+                        held=self.task.held,
                     )
                 )
             self._judge(events)
@@ -343,112 +334,57 @@ class Trial:
     def _control(
         self, q: np.ndarray, request: bool, events: list[TrialEvent]
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        t = self.t
-        if self._phase == "reach":
-            if request:
-                self._enter("closing", events, TrialEvent(EventKind.GRASP_REQUESTED))
-                if self.sim.contacts == "grasp":  # wake what the fingers can reach
-                    near = self.sim.objects_near(self.sim.ee, WAKE_M)
-                    self.sim.set_grip_contacts(True, only=near)
-                self._hold_q = q
-                return q, q, q
-            u = self.ik(q, self.user_target)
-            rec = self.blender.step(q, u, x=self.user_input, robot_x=self._ee)
-            alpha, command = rec.alpha, rec.command
-            if self.accidents.lying(rec.predicted):  # its goal lies, to be stood up where the
-                alpha, command = 0.0, u  # robot would take the gripper: it holds back meanwhile
-            self._last = (
-                alpha,
-                rec.confidence,
-                rec.probabilities,
-                rec.predicted,
-                rec.motion_agreement,
-                rec.rationality,
-            )
-            return u, rec.P, command
-        if self._phase == "lifting":
-            cmd = self.ik(q, self._lift_target, max_speed=LIFT_SPEED)
-            return cmd, cmd, cmd
-        if self._phase == "reopening" and t - self._phase_t >= REOPEN_S:
-            if self.sim.objects_at_rest():  # untouched: "grasp" rests them again
-                if self.sim.contacts == "grasp":
-                    self.sim.set_grip_contacts(False)
-            else:  # disturbed objects stay physical (they may be moving or tipped)
-                events.append(TrialEvent(EventKind.OBJECTS_DISTURBED))
-            self._enter("reach", events)
-        return self._hold_q, self._hold_q, self._hold_q
-
-    def _enter(self, phase: str, events: list[TrialEvent], event: TrialEvent | None = None) -> None:
-        self._phase = phase
-        self._phase_t = self.t
-        if event is not None:
-            events.append(event)
+        """``(U, P, command)`` this tick: the task's command when it drives the arm, else the
+        user's ``U`` blended with the policy's ``P``."""
+        held = self.task.control(q, self.t, request=request, events=events)
+        if held is not None:
+            return held, held, held
+        u = self.ik(q, self.user_target)
+        rec = self.blender.step(q, u, x=self.user_input, robot_x=self._ee)
+        alpha, command = rec.alpha, rec.command
+        if self.accidents.lying(rec.predicted):  # its goal lies, to be stood up where the
+            alpha, command = 0.0, u  # robot would take the gripper: it holds back meanwhile
+        self._blend = BlendTick(
+            alpha,
+            rec.confidence,
+            rec.probabilities,
+            rec.predicted,
+            rec.motion_agreement,
+            rec.rationality,
+        )
+        return u, rec.P, command
 
     def _judge(self, events: list[TrialEvent]) -> None:
-        check_objects = self.ticks % 10 == 0
-        if self._phase == "reach" and not check_objects:
-            return  # nothing to judge while reaching, except now and then the objects
-        t = self.t
-        names = self.scene.object_names
-        if self._phase == "closing" and t - self._phase_t >= CLOSE_S:
-            held = self.sim.held_object()
-            if held is None:
-                self._enter("reopening", events, TrialEvent(EventKind.GRASP_MISSED))
-            else:
-                self._held = held
-                self._lost_t = None
-                self._lift_target = self.sim.ee + np.array(
-                    [0.0, 0.0, self.config.lift_height_m + 0.03]
-                )
-                self._enter("lifting", events, TrialEvent(EventKind.GRASPED, obj=names[held]))
-        elif self._phase == "lifting" and self._held is not None:
-            i = self._held
-            if self.sim.held_object() == i:
-                self._lost_t = None
-            elif self._lost_t is None:
-                self._lost_t = t
-            height = float(self.sim.object_heights()[i])
-            if height >= self.config.lift_height_m and self._lost_t is None:
-                events.append(TrialEvent(EventKind.LIFTED, obj=names[i]))
-                self._finish("success" if i == self.scene.target_index else "wrong_object", events)
-            elif self._lost_t is not None and t - self._lost_t >= DROP_S:
-                self._lost(TrialEvent(EventKind.DROPPED, obj=names[i]), events)
-            elif t - self._phase_t >= LIFT_TIMEOUT_S:
-                self._lost(TrialEvent(EventKind.LIFT_FAILED, obj=names[i]), events)
-        if check_objects and not self.done:
-            held = self._held if self._phase in ("closing", "lifting") else None
-            found, outcome = self.accidents.check(t, held=held)
+        """The task's verdict, then every tenth tick the objects (knocked, fallen, stood up)."""
+        outcome = self.task.judge(self.t, events)
+        if outcome is not None:
+            self._finish(outcome, events)
+            return
+        if self.ticks % 10 == 0:
+            task = self.task
+            held = task.held if task.gripper_closed else None
+            found, outcome = self.accidents.check(self.t, held=held)
             if found:
                 events.extend(found)
                 self._objects_moved()  # an object stood up again is seen where it stands
             if outcome is not None:
                 self._finish(outcome, events)
 
-    def _lost(self, event: TrialEvent, events: list[TrialEvent]) -> None:
-        """The held object fell out of the gripper (or would not come up): the run ends as
-        ``dropped`` under ``on_knock = "end"``; under ``"reset"`` the gripper opens and the
-        user may reach again (the object, if it lies, is stood up like any knocked object)."""
-        events.append(event)
-        if self.config.on_knock == "end":
-            self._finish("dropped", events)
-            return
-        self._held = None
-        self._lost_t = None
-        self._enter("reopening", events)
-
     def _finish(self, outcome: str, events: list[TrialEvent]) -> None:
         if outcome == "timeout":
             events.append(TrialEvent(EventKind.TIMEOUT))
         self.outcome = outcome
-        self._phase = "done"
+        self.task.stop()
         events.extend(self.contacts.close())
         events.append(TrialEvent(EventKind.OUTCOME, text=outcome))
 
     def _record(
         self, u: np.ndarray, p: np.ndarray, command: np.ndarray, events: list[TrialEvent]
     ) -> TickRecord:
-        alpha, confidence, probabilities, predicted, motion, rationality = self._last
-        if self._phase != "reach":
+        blend = self._blend
+        if self.task.reaching:
+            alpha, motion, rationality = blend.alpha, blend.motion_agreement, blend.rationality
+        else:
             alpha, motion, rationality = 0.0, 0.0, math.nan
         t = self.t
         if events:
@@ -463,9 +399,9 @@ class Trial:
             p=p,
             command=command,
             alpha=float(alpha),
-            confidence=float(confidence),
-            probabilities=probabilities,
-            predicted=int(predicted),
+            confidence=float(blend.confidence),
+            probabilities=blend.probabilities,
+            predicted=int(blend.predicted),
             user_target=self.user_input,
             ee=self._ee,
             gripper=self.sim.gripper_opening,
@@ -477,51 +413,6 @@ class Trial:
         return rec
 
 
-def _blender(config: TrialConfig, scene: Scene, kinematics: Kinematics) -> PolicyBlender:
-    goals = scene.goals
-    prediction = config.prediction
-    space = "workspace"
-    if isinstance(prediction, Mapping):
-        space = str(prediction.get("space", "workspace"))
-        prediction = predictor_from_config(
-            dict(prediction),
-            points=goals,
-            where="prediction",
-            target=scene.target_index,
-            rate_hz=config.rate_hz,
-        )
-    confidence = config.confidence
-    if isinstance(confidence, Mapping):
-        confidence = confidence_from_config(dict(confidence), where="confidence")
-    arbitration = config.arbitration
-    if arbitration is None:
-        arbitration = NoAssistance()
-    elif isinstance(arbitration, Mapping):
-        arbitration = arbitration_from_config(
-            dict(arbitration), where="arbitration", rate_hz=config.rate_hz
-        )
-    policy = config.policy
-    if isinstance(policy, Mapping):
-        policy = policy_from_config(
-            dict(policy),
-            rate_hz=config.rate_hz,
-            where="policy",
-            arm=scene.arm_model(kinematics),
-        )
-    if space != "workspace":
-        raise ValueError(
-            "prediction.space: the trial predicts from the user's target, use 'workspace'"
-        )
-    return PolicyBlender(
-        goals=goals,
-        predictor=prediction,
-        confidence=confidence,
-        arbitration=arbitration,
-        policy=policy,
-        space="workspace",
-    )
-
-
 def run_trial(
     config: TrialConfig,
     input_source: InputSource,
@@ -529,6 +420,7 @@ def run_trial(
     seed: int = 0,
     realtime: bool = False,
     scene: Scene | None = None,
+    task: Task | None = None,
 ) -> TrialResult:
     """Run one trial to its end, as fast as possible or paced to wall-clock time."""
-    return Trial(config, input_source, seed=seed, scene=scene).run(realtime=realtime)
+    return Trial(config, input_source, seed=seed, scene=scene, task=task).run(realtime=realtime)

@@ -19,6 +19,7 @@ import numpy as np
 from app.robot.scene import Scene
 from app.teleop.types import InputSource
 from app.trial.config import TrialConfig
+from app.trial.errors import TrialError
 from app.trial.events import EventKind
 from app.trial.records import TickRecord, TrialResult
 from app.trial.trial import Trial
@@ -26,7 +27,7 @@ from app.trial.trial import Trial
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 
-class VideoError(RuntimeError):
+class VideoError(TrialError, RuntimeError):
     """The video could not be written (no OpenGL context, codec missing, bad path)."""
 
 

@@ -19,18 +19,21 @@ Per kind: ``likert`` takes ``scale``; ``choice`` ``options``; ``attention`` also
 data; asked in ``closing``, at most one such item); ``number`` ``minimum``, ``maximum``,
 ``unit`` and ``whole`` (default true); ``text`` ``max_length`` (default 1000). Every kind but
 Likert takes ``optional`` (default false, true for text). An item asked once per participant
-(any kind but Likert) may appear in one moment only.
+(any kind but Likert) may appear in one moment only. Each kind is one registered
+:class:`~study.protocol.item_kinds.ItemKind` (its keys and its reader): the built-in ones are
+registered here, a new one by :func:`~study.protocol.item_kinds.register_item_kind`.
 """
 
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from types import MappingProxyType
 
 from study.protocol.errors import ScaleMismatchError, UndefinedReferenceError
 from study.protocol.fields import Table, each, join_key
+from study.protocol.item_kinds import ItemKind, item_kind, item_kinds, register_item_kind
 from study.protocol.questionnaire import (
-    ITEM_KINDS,
     ONCE_PHASES,
     RUN_PHASES,
     AttentionItem,
@@ -49,14 +52,6 @@ MAX_OPTIONS = 20
 MAX_TEXT_LENGTH = 2000
 """Longest free-text answer a protocol may allow (the page sends it in one message)."""
 DEFAULT_TEXT_LENGTH = 1000
-_KEYS = {
-    "likert": ("type", "prompt", "scale"),
-    "choice": ("type", "prompt", "options", "optional"),
-    "attention": ("type", "prompt", "options", "optional", "correct"),
-    "retention": ("type", "prompt", "options", "optional", "keep"),
-    "number": ("type", "prompt", "minimum", "maximum", "unit", "whole", "optional"),
-    "text": ("type", "prompt", "max_length", "optional"),
-}
 
 
 def read_questionnaire(t: Table, *, n_modes: int, n_tasks: int) -> Questionnaire:
@@ -120,60 +115,98 @@ def _scales(t: Table, points: int) -> dict[str, Scale]:
 
 
 def _item(item_id: str, sub: Table, scales: dict[str, Scale]) -> Item:
-    kind = sub.choice("type", ITEM_KINDS, "likert")
-    sub.only(*_KEYS[kind])
-    prompt = sub.string("prompt")
-    if kind == "likert":
-        scale_name = sub.string("scale")
-        if scale_name not in scales:
-            raise UndefinedReferenceError(
-                f"scale {scale_name!r} is not defined in questionnaire.scales"
-                f" ({', '.join(scales) or 'none'})",
-                file=sub.file,
-                key=sub.where("scale"),
-            )
-        return LikertItem(id=item_id, prompt=prompt, scale=scales[scale_name])
-    if kind == "number":
-        low = sub.number("minimum")
-        high = sub.number("maximum")
-        whole = sub.boolean("whole", True)
-        if high <= low:
-            raise sub.value_error("maximum", f"must be above minimum ({low:g}), got {high:g}")
-        if whole and (low != int(low) or high != int(high)):
-            raise sub.value_error("minimum", "a whole-number item needs whole-number bounds")
-        return NumberItem(
-            id=item_id,
-            prompt=prompt,
-            minimum=low,
-            maximum=high,
-            unit=sub.string("unit", "", nonempty=False).strip(),
-            whole=whole,
-            optional=sub.boolean("optional", False),
+    kind = item_kind(sub.choice("type", tuple(item_kinds()), "likert"))
+    sub.only("type", "prompt", *kind.keys)
+    item: Item = kind.read(item_id, sub.string("prompt"), sub, scales)
+    return item
+
+
+def _likert(item_id: str, prompt: str, sub: Table, scales: Mapping[str, Scale]) -> LikertItem:
+    scale_name = sub.string("scale")
+    if scale_name not in scales:
+        raise UndefinedReferenceError(
+            f"scale {scale_name!r} is not defined in questionnaire.scales"
+            f" ({', '.join(scales) or 'none'})",
+            file=sub.file,
+            key=sub.where("scale"),
         )
-    if kind == "text":
-        return TextItem(
-            id=item_id,
-            prompt=prompt,
-            max_length=sub.integer(
-                "max_length", DEFAULT_TEXT_LENGTH, minimum=1, maximum=MAX_TEXT_LENGTH
-            ),
-            optional=sub.boolean("optional", True),
-        )
+    return LikertItem(id=item_id, prompt=prompt, scale=scales[scale_name])
+
+
+def _number(item_id: str, prompt: str, sub: Table, scales: Mapping[str, Scale]) -> NumberItem:
+    low = sub.number("minimum")
+    high = sub.number("maximum")
+    whole = sub.boolean("whole", True)
+    if high <= low:
+        raise sub.value_error("maximum", f"must be above minimum ({low:g}), got {high:g}")
+    if whole and (low != int(low) or high != int(high)):
+        raise sub.value_error("minimum", "a whole-number item needs whole-number bounds")
+    return NumberItem(
+        id=item_id,
+        prompt=prompt,
+        minimum=low,
+        maximum=high,
+        unit=sub.string("unit", "", nonempty=False).strip(),
+        whole=whole,
+        optional=sub.boolean("optional", False),
+    )
+
+
+def _text(item_id: str, prompt: str, sub: Table, scales: Mapping[str, Scale]) -> TextItem:
+    return TextItem(
+        id=item_id,
+        prompt=prompt,
+        max_length=sub.integer(
+            "max_length", DEFAULT_TEXT_LENGTH, minimum=1, maximum=MAX_TEXT_LENGTH
+        ),
+        optional=sub.boolean("optional", True),
+    )
+
+
+def _options(sub: Table) -> tuple[tuple[str, ...], bool]:
+    """A choice's ``options`` (2 to ``MAX_OPTIONS``, unique) and ``optional``."""
     options = sub.strings("options", unique=True)
     if not 2 <= len(options) <= MAX_OPTIONS:
         raise sub.value_error("options", f"give 2 to {MAX_OPTIONS} options, got {len(options)}")
-    optional = sub.boolean("optional", False)
-    if kind == "choice":
-        return ChoiceItem(id=item_id, prompt=prompt, options=options, optional=optional)
-    key = "correct" if kind == "attention" else "keep"
+    return options, sub.boolean("optional", False)
+
+
+def _marked(sub: Table, key: str, options: tuple[str, ...]) -> str:
+    """The option ``key`` marks (``correct``, ``keep``): one of ``options``."""
     marked = sub.string(key)
     if marked not in options:
         raise sub.value_error(key, f"{marked!r} is not one of the item's options")
-    if kind == "attention":
-        return AttentionItem(
-            id=item_id, prompt=prompt, options=options, optional=optional, correct=marked
-        )
-    return RetentionItem(id=item_id, prompt=prompt, options=options, optional=optional, keep=marked)
+    return marked
+
+
+def _choice(item_id: str, prompt: str, sub: Table, scales: Mapping[str, Scale]) -> ChoiceItem:
+    options, optional = _options(sub)
+    return ChoiceItem(id=item_id, prompt=prompt, options=options, optional=optional)
+
+
+def _attention(item_id: str, prompt: str, sub: Table, scales: Mapping[str, Scale]) -> AttentionItem:
+    options, optional = _options(sub)
+    correct = _marked(sub, "correct", options)
+    return AttentionItem(
+        id=item_id, prompt=prompt, options=options, optional=optional, correct=correct
+    )
+
+
+def _retention(item_id: str, prompt: str, sub: Table, scales: Mapping[str, Scale]) -> RetentionItem:
+    options, optional = _options(sub)
+    keep = _marked(sub, "keep", options)
+    return RetentionItem(id=item_id, prompt=prompt, options=options, optional=optional, keep=keep)
+
+
+for _kind in (
+    ItemKind("likert", ("scale",), _likert, "a rating on a named scale (the default)"),
+    ItemKind("choice", ("options", "optional"), _choice, "one of the options"),
+    ItemKind("attention", ("options", "optional", "correct"), _attention, "an attention check"),
+    ItemKind("retention", ("options", "optional", "keep"), _retention, "keep the data?"),
+    ItemKind("number", ("minimum", "maximum", "unit", "whole", "optional"), _number, "a number"),
+    ItemKind("text", ("max_length", "optional"), _text, "free text"),
+):
+    register_item_kind(_kind)
 
 
 def _asked(t: Table, phase: str, items: dict[str, Item], *, key: str = "") -> tuple[Item, ...]:

@@ -12,6 +12,9 @@ Item kinds (``type`` in the protocol; each checks its own answers with ``check``
   ``whole``), with an optional ``unit`` shown beside the field.
 - :class:`TextItem` (``text``): free text of at most ``max_length`` characters.
 
+Each kind is registered with its reader in :mod:`study.protocol.item_kinds` (the built-in ones
+by :mod:`study.protocol.items`); a new kind is one class like these and one registration.
+
 Every kind but Likert may be ``optional``: an empty answer is then recorded as "left empty"
 (``None``). A refused answer raises :class:`AnswerError` naming the item and what it accepts,
 never quoting what was typed: a participant's text is data, and an error message may reach
@@ -41,7 +44,6 @@ RUN_PHASES = ("after_training", "after_run", "after_task")
 ONCE_PHASES = ("before_training", "between_tasks", "closing")
 """Questionnaire moments asked once per participant: items of any kind."""
 PHASES = ("before_training", *RUN_PHASES, "between_tasks", "closing")
-ITEM_KINDS = ("likert", "choice", "attention", "retention", "number", "text")
 MAX_NUMBER_CHARS = 32
 """Longest text accepted as a number answer (digits, sign, one decimal mark)."""
 _CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")

@@ -49,8 +49,8 @@ def add_answer_field(
         _number(page, item, current=current, report=report)
     elif isinstance(item, TextItem):
         _text(page, item, current=current, report=report)
-    else:  # pragma: no cover - Likert items are drawn by the page itself
-        raise TypeError(f"no answer field for a {type(item).__name__}")
+    else:  # a registered kind (study.protocol.item_kinds): typed, checked by the item itself
+        _typed(page, item, current=current, report=report)
 
 
 def _choice(
@@ -140,3 +140,26 @@ def _text(
 
 
 __all__ = ["CHOOSE", "add_answer_field"]
+
+
+def _typed(
+    page: ParticipantPage, item: Item, *, current: Callable[[], bool], report: Report
+) -> None:
+    """Any other kind: a one-line text field whose every change the item's ``check`` reads
+    (what it refuses is marked, never echoed)."""
+    field = page.client.gui.add_text("Answer", initial_value="")
+    page._handles.append(field)
+    note = page._md("You may leave it empty." if getattr(item, "optional", False) else "")
+
+    @field.on_update
+    async def _(_: object) -> None:
+        if not current():
+            return
+        try:
+            value = item.check(str(field.value))
+        except AnswerError:
+            note.content = "**Please check your answer.**"
+            report(item.id, None, False)
+            return
+        note.content = ""
+        report(item.id, value, True)

@@ -34,7 +34,7 @@ from study.session.trial_run import TrialSummary
 
 
 @dataclass(frozen=True)
-class RunExperience:
+class ScriptedRun:
     """One run as the participant lived it."""
 
     success: bool
@@ -52,12 +52,12 @@ class ScriptedAnswers:
     def __init__(self, *, seed: int = 0, noise: int = 1) -> None:
         self.rng = np.random.default_rng(seed)
         self.noise = noise
-        self.runs: list[RunExperience] = []
+        self.runs: list[ScriptedRun] = []
 
     def observe(self, summary: TrialSummary | None, *, time_limit_s: float) -> None:
         """Remember a finished run (``None``: aborted, not experienced to the end)."""
         if summary is not None:
-            self.runs.append(RunExperience(summary.success, summary.duration_s, time_limit_s))
+            self.runs.append(ScriptedRun(summary.success, summary.duration_s, time_limit_s))
 
     def answer(self, screen: Screen) -> dict[str, Answer]:
         """Answers to every item on ``screen``."""
@@ -105,4 +105,8 @@ def profile_answer(item: Item, rng: np.random.Generator, *, lapse: float = 0.0) 
         return round(value) if item.whole else round(value, 2)
     if isinstance(item, TextItem):
         return None if item.optional else "No comment."
-    raise TypeError(f"no scripted answer for a {type(item).__name__}")
+    sample = getattr(item, "sample", None)  # a registered kind's own (study.protocol.item_kinds)
+    if sample is not None:
+        answer: Answer = sample(rng)
+        return answer
+    raise TypeError(f"no scripted answer for a {type(item).__name__}: give it sample(rng)")

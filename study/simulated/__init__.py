@@ -1,6 +1,9 @@
 """Simulated participants: population parameters, the user model, questionnaire answers, and a
 runner that drives them through the real session engine.
 
+- :class:`~study.simulated.models.UserModel`: a simulated-user model, one declaration registered
+  in :mod:`study.simulated.models` and named by a population file (default ``interface``: the
+  classes below).
 - :func:`load_population` / :class:`Population`: parameter distributions (protocols/population.toml)
   and seeded per-participant draws (:class:`ParticipantParams`).
 - :class:`SimulatedUser`: an ``app.teleop.InputSource`` for one trial (goal-directed minimum-jerk
@@ -18,6 +21,7 @@ runner that drives them through the real session engine.
 
 from study.simulated.errors import PopulationError, SimulationError, SimulationRunError
 from study.simulated.experience import RunExperience
+from study.simulated.models import UserModel
 from study.simulated.participant import SimulatedParticipant
 from study.simulated.population import (
     DEFAULT_POPULATION_PATH,
@@ -42,6 +46,7 @@ __all__ = [
     "SimulationError",
     "SimulationReport",
     "SimulationRunError",
+    "UserModel",
     "load_population",
     "participant_rng",
     "simulate",

@@ -5,8 +5,10 @@ Every message names what was wrong (a file, a key path, a value) and what to do 
 
 from __future__ import annotations
 
+from study.errors import StudyError
 
-class SimulationError(Exception):
+
+class SimulationError(StudyError):
     """Base class of every error raised by ``study.simulated``."""
 
 

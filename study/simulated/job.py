@@ -1,7 +1,7 @@
 """One simulated participant: who to simulate (:class:`ParticipantJob`), their whole session
 driven to the end through the real session engine (:func:`run_participant`) and how it went
-(:class:`ParticipantResult`). Used by the local runner (:mod:`study.simulated.runner`) and by
-the Dask engine's tasks (:mod:`study.simulated.dask_engine`) alike.
+(:class:`ParticipantResult`). Used by the local engine (:mod:`study.simulated.local_engine`)
+and by the Dask engine's tasks (:mod:`study.simulated.dask_engine`) alike.
 """
 
 from __future__ import annotations
@@ -16,7 +16,6 @@ from typing import TYPE_CHECKING
 
 from study.session import Session
 from study.session.headless import run_headless
-from study.simulated.participant import SimulatedParticipant
 from study.simulated.population import load_population
 from study.store import StoreWriteError
 
@@ -68,8 +67,9 @@ def run_participant(
     """Enrol ``job``'s participant and drive their whole session to the end."""
 
     start = time.perf_counter()
-    params = load_population(population_path).draw(job.index, seed=seed)
-    person = SimulatedParticipant(params)
+    population = load_population(population_path)
+    params = population.draw(job.index, seed=seed)
+    person = population.model.participant(params)
     session = Session.enrol(
         store,
         protocol,

@@ -15,6 +15,9 @@ last two runs (1 = the first run). Items asked once (demographics, attention che
 the data-retention question) get ``study.session.answers.profile_answer``'s seeded answers from
 a stream of their own, so adding them to a protocol leaves every rating as it was; a Likert item
 among them rates every run so far.
+
+This is the default simulated-user model, ``interface`` (:data:`INTERFACE_MODEL`, registered in
+:mod:`study.simulated.models`).
 """
 
 from __future__ import annotations
@@ -29,7 +32,8 @@ from study.session.answers import profile_answer
 from study.simulated.errors import SimulationRunError
 from study.simulated.experience import RunExperience
 from study.simulated.interface import InterfaceUser
-from study.simulated.population import ParticipantParams, participant_rng
+from study.simulated.models import UserModel, register
+from study.simulated.population import INTERFACE_SECTIONS, ParticipantParams, participant_rng
 from study.simulated.questionnaire import QuestionnaireModel
 from study.simulated.trust import Trust
 
@@ -130,3 +134,16 @@ class SimulatedParticipant:
         self._trained = True
         self.training_runs = self.runs[: len(self.runs) - keep_last]
         self.questionnaire.observe_training(self.training_runs)
+
+
+INTERFACE_MODEL = register(
+    UserModel(
+        name="interface",
+        doc="a person on the page's gizmo or keys: goal-directed minimum-jerk movement, reaction"
+        " delay, surprise, trust, questionnaire answers from the runs' experience",
+        sections=INTERFACE_SECTIONS,
+        params=ParticipantParams,
+        participant=SimulatedParticipant,
+    )
+)
+"""The default simulated-user model."""

@@ -1,9 +1,11 @@
 """A population of simulated participants: parameter distributions and per-participant draws.
 
-A population file (``protocols/population.toml``) has seven tables, ``[motor]``, ``[reaction]``,
-``[surprise]``, ``[trust]``, ``[grasp]``, ``[questionnaire]`` and ``[interface]``; each key is one
-parameter of :class:`ParticipantParams`
-and holds a distribution (see :mod:`study.simulated.distributions`). Participant ``i`` of a run
+A population file (``protocols/population.toml``) names its simulated-user model in its
+``[population]`` table (``model = "..."``, default ``"interface"``: :mod:`study.simulated.models`)
+and gives one table per parameter group of that model; each key is one parameter and holds a
+distribution (see :mod:`study.simulated.distributions`). The default model's groups are seven
+tables, ``[motor]``, ``[reaction]``, ``[surprise]``, ``[trust]``, ``[grasp]``, ``[questionnaire]``
+and ``[interface]``, the fields of :class:`ParticipantParams`. Participant ``i`` of a run
 with seed ``s`` is drawn from ``Generator(PCG64(SeedSequence([s, i])))``: the same participant
 gets the same parameters whatever the number of participants or workers.
 """
@@ -23,6 +25,7 @@ from app.files import InputFileError, read_bytes_file
 from study.protocol.loader import MAX_NESTING, nesting_depth
 from study.simulated.distributions import Distribution
 from study.simulated.errors import PopulationError
+from study.simulated.models import DEFAULT_MODEL, UserModel, get_model
 
 DEFAULT_POPULATION_PATH = Path(__file__).resolve().parents[2] / "protocols" / "population.toml"
 MAX_POPULATION_BYTES = 2**20
@@ -156,7 +159,7 @@ class ParticipantParams:
     interface: InterfaceParams
 
 
-_SECTIONS: dict[str, type] = {
+INTERFACE_SECTIONS: dict[str, type] = {
     "motor": MotorParams,
     "reaction": ReactionParams,
     "surprise": SurpriseParams,
@@ -165,25 +168,34 @@ _SECTIONS: dict[str, type] = {
     "questionnaire": QuestionnaireParams,
     "interface": InterfaceParams,
 }
+"""The parameter groups of the default model (``interface``): one population table each."""
 
 
 @dataclass(frozen=True)
 class Population:
-    """Distributions of every parameter, by section and name."""
+    """Distributions of every parameter of the simulated-user ``model``, by section and name."""
 
     distributions: Mapping[str, Mapping[str, Distribution]]
     source: str = "<dict>"
+    model_name: str = DEFAULT_MODEL
+
+    @property
+    def model(self) -> UserModel:
+        """The simulated-user model this population's people follow."""
+        return get_model(self.model_name)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, source: str = "<dict>") -> Population:
         """Validate a parsed population table; every error names ``source`` and the key path."""
-        unknown = sorted(set(data) - set(_SECTIONS) - {"population"})
+        model = _model(data, source)
+        unknown = sorted(set(data) - set(model.sections) - {"population"})
         if unknown:
             raise PopulationError(
-                f"{source}: unknown table(s) {unknown}; expected {sorted(_SECTIONS)}"
+                f"{source}: unknown table(s) {unknown}; the {model.name!r} model expects"
+                f" {sorted(model.sections)}"
             )
         out: dict[str, dict[str, Distribution]] = {}
-        for section, kind in _SECTIONS.items():
+        for section, kind in model.sections.items():
             table = data.get(section)
             if not isinstance(table, Mapping):
                 raise PopulationError(f"{source}: missing table [{section}]")
@@ -203,29 +215,41 @@ class Population:
                 n: Distribution.from_config(table[n], where=f"{source}: {section}.{n}")
                 for n in names
             }
-        return cls(distributions=out, source=source)
+        return cls(distributions=out, source=source, model_name=model.name)
 
-    def draw(self, index: int, *, seed: int) -> ParticipantParams:
-        """Participant ``index``'s parameters under run seed ``seed`` (independent of n)."""
+    def draw(self, index: int, *, seed: int) -> Any:
+        """Participant ``index``'s parameters under run seed ``seed`` (independent of n); for the
+        default model a :class:`ParticipantParams`."""
         if index < 0:
             raise PopulationError(f"participant index must be >= 0, got {index}")
         rng = participant_rng(index, seed=seed)
+        model = self.model
         sections = {
             section: kind(**{n: d.sample(rng) for n, d in self.distributions[section].items()})
-            for section, kind in _SECTIONS.items()
+            for section, kind in model.sections.items()
         }
-        return ParticipantParams(index=index, seed=seed, **sections)
+        return model.params(index=index, seed=seed, **sections)
 
-    def typical(self, *, index: int = 0, seed: int = 0) -> ParticipantParams:
+    def typical(self, *, index: int = 0, seed: int = 0) -> Any:
         """A participant with every parameter at its distribution's centre (for tests, demos)."""
+        model = self.model
         sections = {
             section: kind(**{n: d.typical for n, d in self.distributions[section].items()})
-            for section, kind in _SECTIONS.items()
+            for section, kind in model.sections.items()
         }
-        return ParticipantParams(index=index, seed=seed, **sections)
+        return model.params(index=index, seed=seed, **sections)
 
-    def draw_many(self, n: int, *, seed: int) -> list[ParticipantParams]:
+    def draw_many(self, n: int, *, seed: int) -> list[Any]:
         return [self.draw(i, seed=seed) for i in range(n)]
+
+
+def _model(data: Mapping[str, Any], source: str) -> UserModel:
+    """The model the ``[population]`` table names (``model = "..."``), else the default."""
+    meta = data.get("population")
+    name = meta.get("model", DEFAULT_MODEL) if isinstance(meta, Mapping) else DEFAULT_MODEL
+    if not isinstance(name, str):
+        raise PopulationError(f"{source}: population.model must be a model's name, got {name!r}")
+    return get_model(name, where=f"{source}: population.model")
 
 
 def participant_rng(index: int, *, seed: int, stream: int = 0) -> np.random.Generator:

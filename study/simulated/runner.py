@@ -22,25 +22,19 @@ A store that stops taking writes (full disk, read-only: ``StoreWriteError``) end
 no further participant is started, the report carries the error, and ``resume`` continues once
 the disk is fixed.
 
-Workers (``workers > 1``): processes (``spawn``), each opening its own connection to the same
-SQLite WAL store. The store serialises writers with ``BEGIN IMMEDIATE`` and a busy timeout, and
-samples are batched by each session's ``SampleWriter``, so concurrent sessions are safe.
+Engines: the local one (this process or spawned worker processes sharing the store,
+:mod:`study.simulated.local_engine`) and the Dask one (:mod:`study.simulated.dask_engine`).
 """
 
 from __future__ import annotations
 
-import multiprocessing as mp
-import queue
-import sys
 import time
 from collections import Counter
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from tqdm import tqdm
 
 from study.protocol import load_protocol
 from study.schedule import Enrollment, next_row
@@ -51,10 +45,9 @@ from study.simulated.job import (
     ParticipantJob,
     ParticipantResult,
     result_from_store,
-    run_participant,
 )
+from study.simulated.local_engine import run_local
 from study.simulated.population import DEFAULT_POPULATION_PATH, load_population
-from study.store import StoreWriteError
 
 if TYPE_CHECKING:
     from study.protocol import Protocol
@@ -120,7 +113,7 @@ def session_seed(index: int, *, seed: int) -> int:
 
 
 @dataclass(frozen=True)
-class Plan:
+class SimulationPlan:
     """What a run (or a resumed run) does: ``jobs`` to simulate (``redo``: IDs among them to
     delete first) and ``kept``: participants already completed, with their session ids."""
 
@@ -135,7 +128,9 @@ def plan_jobs(store: Store, *, n: int, seed: int, first: int = 0) -> list[Partic
     return plan_run(store, n=n, seed=seed, first=first).jobs
 
 
-def plan_run(store: Store, *, n: int, seed: int, first: int = 0, resume: bool = False) -> Plan:
+def plan_run(
+    store: Store, *, n: int, seed: int, first: int = 0, resume: bool = False
+) -> SimulationPlan:
     """Participants ``first .. first + n - 1``: IDs, seeds and design rows continuing the store's
     enrolment history in index order.
 
@@ -161,7 +156,7 @@ def plan_run(store: Store, *, n: int, seed: int, first: int = 0, resume: bool = 
     entries = [
         Enrollment(p, withdrawn=status == "withdrawn", row=row) for p, row, status in history[:cut]
     ]
-    plan = Plan(jobs=[])
+    plan = SimulationPlan(jobs=[])
     for index, pid in zip(range(first, first + n), ids, strict=True):
         row = next_row(entries)
         entries.append(Enrollment(pid, withdrawn=False, row=row))
@@ -196,36 +191,6 @@ def _check_resumable(store: Store, job: ParticipantJob, *, stored_row: int) -> N
         )
 
 
-# ---- worker processes ----------------------------------------------------------------------
-_worker: dict[str, Any] = {}
-
-
-def _init_worker(
-    protocol_path: str, db: str, population_path: str, seed: int, synchronous: str, progress: Any
-) -> None:
-
-    protocol = load_protocol(protocol_path)
-    _worker.update(
-        protocol=protocol,
-        store=open_store(db, protocol, synchronous=synchronous, verify=False),  # checked
-        population_path=Path(population_path),
-        seed=seed,
-        progress=progress,
-    )
-
-
-def _run_in_worker(job: ParticipantJob) -> ParticipantResult:
-    progress = _worker["progress"]
-    return run_participant(
-        job,
-        store=_worker["store"],
-        protocol=_worker["protocol"],
-        population_path=_worker["population_path"],
-        seed=_worker["seed"],
-        on_trial=lambda: progress.put(1),
-    )
-
-
 # ---- the whole study ---------------------------------------------------------------------
 def simulate(
     *,
@@ -256,25 +221,19 @@ def simulate(
     A store that takes no more writes stops the run: the report's ``error`` says why, and the
     participants finished before it are in ``results``."""
 
-    if participants < 1:
-        raise SimulationRunError(f"participants must be at least 1, got {participants}")
-    if workers < 1:
-        raise SimulationRunError(f"workers must be at least 1, got {workers}")
-    if engine not in ENGINES:
-        raise SimulationRunError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
-    if (scheduler is not None or client is not None) and engine != "dask":
-        raise SimulationRunError("--scheduler needs --engine dask (the local engine has none)")
-    for name, value in (("seed", seed), ("first", first)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-            raise SimulationRunError(f"{name} must be an integer >= 0, got {value!r}")
+    _check_arguments(
+        participants=participants,
+        workers=workers,
+        engine=engine,
+        remote=scheduler is not None or client is not None,
+        seed=seed,
+        first=first,
+    )
     start = time.perf_counter()
     population_path = Path(population_path)
     load_population(population_path)  # fail early, in the parent, on a bad population file
     protocol = load_protocol(protocol_path)
-    if resume and not Path(db).is_file():
-        raise SimulationRunError(f"no store at {db}; --resume continues a run in its store")
-    Path(db).parent.mkdir(parents=True, exist_ok=True)
-    store = open_store(db, protocol, synchronous=synchronous)
+    store = _store(db, protocol, resume=resume, synchronous=synchronous)
     results: list[ParticipantResult] = []
     fault: str | None = None
     try:
@@ -282,26 +241,11 @@ def simulate(
         for pid in plan.redo:
             store.discard_participant(pid)
         results += [result_from_store(job, store, sid, 0.0, None) for job, sid in plan.kept]
-        jobs = plan.jobs
-        per_person = protocol.training.runs + len(protocol.tasks) * len(protocol.modes)
-        if engine == "dask" and jobs:
-            fault = run_on_dask(
-                jobs,
+        if plan.jobs:
+            fault = _run_jobs(
+                plan.jobs,
                 results,
-                store=store,
-                protocol_path=Path(protocol_path),
-                population_path=population_path,
-                seed=seed,
-                workers=workers,
-                scheduler=scheduler,
-                trials_each=per_person,
-                progress=progress,
-                client=client,
-            )
-        elif jobs:
-            fault = _run_local(
-                jobs,
-                results,
+                engine=engine,
                 store=store,
                 protocol=protocol,
                 workers=workers,
@@ -311,37 +255,28 @@ def simulate(
                 seed=seed,
                 synchronous=synchronous,
                 progress=progress,
-                trials_each=per_person,
+                scheduler=scheduler,
+                client=client,
                 desc=f"simulate {participants} participants",
             )
     finally:
         store.close()
-    results.sort(key=lambda r: r.index)
-    outcomes: Counter[str] = Counter()
-    for r in results:
-        outcomes.update(r.outcomes)
-    return SimulationReport(
-        participants=len(results),
-        trials=sum(r.trial_rows for r in results),
-        ratings=sum(r.ratings for r in results),
+    return _report(
+        results,
+        plan,
         wall_s=time.perf_counter() - start,
         workers=workers,
         db=str(db),
         seed=seed,
-        outcomes=dict(outcomes),
-        sim_s=sum(r.sim_s for r in results),
-        errors=[r.error for r in results if r.error],
-        results=results,
-        error=fault,
-        kept=[job.participant for job, _ in plan.kept],
-        redone=list(plan.redo),
+        fault=fault,
     )
 
 
-def _run_local(
+def _run_jobs(
     jobs: list[ParticipantJob],
     results: list[ParticipantResult],
     *,
+    engine: str,
     store: Store,
     protocol: Protocol,
     workers: int,
@@ -351,112 +286,97 @@ def _run_local(
     seed: int,
     synchronous: str,
     progress: bool,
-    trials_each: int,
+    scheduler: str | None,
+    client: Any,
     desc: str,
 ) -> str | None:
-    """The local engine: ``jobs`` in this process, or in ``workers`` processes writing the same
-    store; returns the store fault that stopped the run, else ``None``."""
-
-    fault: str | None = None
-    # overall: participants done; below it the trials, of the participant running in this
-    # process, or of all of them with worker processes (their ticks arrive without a name)
-    people = tqdm(
-        total=len(jobs),
-        unit="participant",
+    """``jobs`` on ``engine``, appending to ``results``; the store fault that stopped the run,
+    else ``None``."""
+    per_person = protocol.training.runs + len(protocol.tasks) * len(protocol.modes)
+    if engine == "dask":
+        return run_on_dask(
+            jobs,
+            results,
+            store=store,
+            protocol_path=protocol_path,
+            population_path=population_path,
+            seed=seed,
+            workers=workers,
+            scheduler=scheduler,
+            trials_each=per_person,
+            progress=progress,
+            client=client,
+        )
+    return run_local(
+        jobs,
+        results,
+        store=store,
+        protocol=protocol,
+        workers=workers,
+        protocol_path=protocol_path,
+        db=db,
+        population_path=population_path,
+        seed=seed,
+        synchronous=synchronous,
+        progress=progress,
+        trials_each=per_person,
         desc=desc,
-        file=sys.stderr,
-        disable=not progress,
-        position=0,
     )
-    bar = tqdm(
-        total=(len(jobs) if workers > 1 else 1) * trials_each,
-        unit="trial",
-        desc="  trials",
-        file=sys.stderr,
-        disable=not progress,
-        position=1,
-        leave=False,
-    )
-    with people, bar:
-        if workers > 1:
-            return _run_pool(
-                jobs,
-                results,
-                workers=workers,
-                protocol_path=protocol_path,
-                db=db,
-                population_path=population_path,
-                seed=seed,
-                synchronous=synchronous,
-                bar=bar,
-                people=people,
-            )
-        try:
-            for job in jobs:
-                bar.reset()
-                bar.set_description(f"  {job.participant}")
-                results.append(
-                    run_participant(
-                        job,
-                        store=store,
-                        protocol=protocol,
-                        population_path=population_path,
-                        seed=seed,
-                        on_trial=lambda: bar.update(1),
-                    )
-                )
-                people.update(1)
-        except StoreWriteError as exc:
-            fault = str(exc)
-    return fault
 
 
-def _run_pool(
-    jobs: list[ParticipantJob],
+def _store(db: str | Path, protocol: Protocol, *, resume: bool, synchronous: str) -> Store:
+    """The store to simulate into (its folder made; ``resume``: it must exist)."""
+    if resume and not Path(db).is_file():
+        raise SimulationRunError(f"no store at {db}; --resume continues a run in its store")
+    Path(db).parent.mkdir(parents=True, exist_ok=True)
+    return open_store(db, protocol, synchronous=synchronous)
+
+
+def _check_arguments(
+    *, participants: int, workers: int, engine: str, remote: bool, seed: int, first: int
+) -> None:
+    """Refuse arguments ``simulate`` cannot run with, before any file is touched."""
+    if participants < 1:
+        raise SimulationRunError(f"participants must be at least 1, got {participants}")
+    if workers < 1:
+        raise SimulationRunError(f"workers must be at least 1, got {workers}")
+    if engine not in ENGINES:
+        raise SimulationRunError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if remote and engine != "dask":
+        raise SimulationRunError("--scheduler needs --engine dask (the local engine has none)")
+    for name, value in (("seed", seed), ("first", first)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise SimulationRunError(f"{name} must be an integer >= 0, got {value!r}")
+
+
+def _report(
     results: list[ParticipantResult],
+    plan: SimulationPlan,
     *,
+    wall_s: float,
     workers: int,
-    protocol_path: Path,
-    db: Path,
-    population_path: Path,
+    db: str,
     seed: int,
-    synchronous: str,
-    bar: Any,
-    people: Any,
-) -> str | None:
-    """Run ``jobs`` in worker processes, appending to ``results``; returns the store fault that
-    stopped the run (queued participants are then not started), else ``None``."""
-
-    ctx = mp.get_context("spawn")
-    ticks = ctx.Queue()
-    fault: str | None = None
-    with ProcessPoolExecutor(
-        max_workers=min(workers, len(jobs)),
-        mp_context=ctx,
-        initializer=_init_worker,
-        initargs=(str(protocol_path), str(db), str(population_path), seed, synchronous, ticks),
-    ) as pool:
-        pending: set[Future[ParticipantResult]] = {pool.submit(_run_in_worker, j) for j in jobs}
-        while pending:
-            done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
-            _drain(ticks, bar)
-            for future in done:
-                if future.cancelled():
-                    continue
-                try:
-                    results.append(future.result())
-                    people.update(1)
-                except StoreWriteError as exc:
-                    fault = fault or str(exc)
-                    for other in pending:
-                        other.cancel()
-        _drain(ticks, bar)
-    return fault
-
-
-def _drain(ticks: Any, bar: Any) -> None:
-    while True:
-        try:
-            bar.update(ticks.get_nowait())
-        except queue.Empty:
-            return
+    fault: str | None,
+) -> SimulationReport:
+    """The run's report: ``results`` in participant order, their trials, ratings and outcomes."""
+    results.sort(key=lambda r: r.index)
+    outcomes: Counter[str] = Counter()
+    for r in results:
+        outcomes.update(r.outcomes)
+    return SimulationReport(
+        participants=len(results),
+        trials=sum(r.trial_rows for r in results),
+        ratings=sum(r.ratings for r in results),
+        wall_s=wall_s,
+        workers=workers,
+        db=db,
+        seed=seed,
+        outcomes=dict(outcomes),
+        sim_s=sum(r.sim_s for r in results),
+        errors=[r.error for r in results if r.error],
+        results=results,
+        error=fault,
+        kept=[job.participant for job, _ in plan.kept],
+        redone=list(plan.redo),
+    )

@@ -151,7 +151,6 @@ class SimulatedUser:
         )
         seen = self._view.seen()
         self.seen_handle = seen.own
-        m = self.params.motor
         target_name = obs.goal_names[obs.target_index]
         self._perceive(obs, dt, seen)
         if not self.stopped:
@@ -167,61 +166,93 @@ class SimulatedUser:
 
         self.log.add(t=obs.t, input_velocity=seen.own_velocity, robot_velocity=seen.velocity)
         if self.phase != WAIT:
-            err, err_size, lag = self._seen_error(seen.plan, seen.ee, seen.velocity)
-            trust = self.trust
-            self.reaction.update(
-                dt=dt,
-                velocity=seen.velocity,
-                ee=seen.ee,
-                aim=self._aim,
-                own_target=seen.own,
-                commanded=seen.follow,
-                deviation=self._overridden(seen.follow, seen.ee, seen.velocity),
-                trust=trust.level,
-                fight_gain=trust.fight_gain,
-            )
-            trust.observe(
-                dt,
-                opposed=self.reaction.opposed,
-                ee=seen.ee,
-                handle=seen.own,
-                others=np.delete(np.asarray(obs.grasp_points, float), obs.target_index, axis=0),
-                knocks=obs.knocks,
-            )
-            rho = self.reaction.relax
-            wait = min(max(1.0 - (lag - m.feedback_deadzone_m) / m.wait_lag_m, 0.0), 1.0)
-            blend = 1.0 - math.exp(-dt / m.follow_lag_s)
-            if self.goal_level:  # the interface moves the handle; the gripper should trail it
-                self._model = self._model + blend * (own - self._model)
-            if not self.stopped:  # a stopped hand holds still: no plan, no corrections
-                if self.goal_level:
-                    self._r = self._aim
-                else:
-                    self._phi = min(1.0, self._phi + dt * (1.0 - rho) * wait / self._plan_t)
-                    self._r = self._r0 + (self._aim - self._r0) * minimum_jerk(self._phi)
-                    self._model = self._model + blend * (clamp_box(self._r, lo, hi) - self._model)
-                if err_size > m.feedback_deadzone_m:
-                    k = min(
-                        m.max_gain_per_s,
-                        m.feedback_gain_per_s * (1.0 + self.reaction.fight) * (1.0 - rho),
-                    )
-                    self._c = self._c + dt * k * (1.0 - m.feedback_deadzone_m / err_size) * err
-                self._c = self._c * math.exp(-dt / m.correction_leak_s)
-                hand = self._r + self._c + self.reaction.push_offset()
-                if self.goal_level and self.phase == REACH and not self._lined_up(obs.t, seen.ee):
-                    hand[2] = max(hand[2], own[2])  # line up above the object before going down
-                clamped = clamp_box(hand, lo, hi)
-                self._c = self._c + (clamped - hand)  # anti-windup: the gizmo stops at the reach
-                self._hand = clamped
-            elif self._waiting:  # out of the way: above where the object stood
-                stood = float(obs.goal_positions[obs.target_index][2])
-                rise = max(stood, float(goal[2])) + self.params.grasp.lift_m
-                self._hand[2] = min(max(self._hand[2], rise), hi[2])
-            shown = own if self.goal_level else self._hand  # the input the robot was given
-            self._follow = self._follow + blend * (shown - self._follow)
+            self._react(obs, dt, seen, own=own, goal=goal)
         scale = 1.0 + self.params.reaction.careless_noise_gain * self.reaction.relax
         target = clamp_box(self._hand + self.noise.step(dt, scale=scale), lo, hi)
         return TeleopCommand(target=target, grasp=self.grasp_closed)
+
+    def _react(
+        self, obs: TrialObservation, dt: float, seen: Seen, *, own: np.ndarray, goal: np.ndarray
+    ) -> None:
+        """Reaching or carrying: react to the robot (opposition, relaxing, trust), then move the
+        hand along the plan with corrections (``_steer``) or hold it (stopped, waiting)."""
+        m = self.params.motor
+        hi = obs.reach.hi
+        err, err_size, lag = self._seen_error(seen.plan, seen.ee, seen.velocity)
+        trust = self.trust
+        self.reaction.update(
+            dt=dt,
+            velocity=seen.velocity,
+            ee=seen.ee,
+            aim=self._aim,
+            own_target=seen.own,
+            commanded=seen.follow,
+            deviation=self._overridden(seen.follow, seen.ee, seen.velocity),
+            trust=trust.level,
+            fight_gain=trust.fight_gain,
+        )
+        trust.observe(
+            dt,
+            opposed=self.reaction.opposed,
+            ee=seen.ee,
+            handle=seen.own,
+            others=np.delete(np.asarray(obs.grasp_points, float), obs.target_index, axis=0),
+            knocks=obs.knocks,
+        )
+        rho = self.reaction.relax
+        wait = min(max(1.0 - (lag - m.feedback_deadzone_m) / m.wait_lag_m, 0.0), 1.0)
+        blend = 1.0 - math.exp(-dt / m.follow_lag_s)
+        if self.goal_level:  # the interface moves the handle; the gripper should trail it
+            self._model = self._model + blend * (own - self._model)
+        if not self.stopped:  # a stopped hand holds still: no plan, no corrections
+            self._steer(
+                obs, dt, seen, own=own, err=err, err_size=err_size, rho=rho, wait=wait, blend=blend
+            )
+        elif self._waiting:  # out of the way: above where the object stood
+            stood = float(obs.goal_positions[obs.target_index][2])
+            rise = max(stood, float(goal[2])) + self.params.grasp.lift_m
+            self._hand[2] = min(max(self._hand[2], rise), hi[2])
+        shown = own if self.goal_level else self._hand  # the input the robot was given
+        self._follow = self._follow + blend * (shown - self._follow)
+
+    def _steer(
+        self,
+        obs: TrialObservation,
+        dt: float,
+        seen: Seen,
+        *,
+        own: np.ndarray,
+        err: np.ndarray,
+        err_size: float,
+        rho: float,
+        wait: float,
+        blend: float,
+    ) -> None:
+        """The hand this tick: the plan ``r`` (minimum-jerk, slowed by relaxing and waiting; the
+        aim itself at goal level) plus the correction ``c`` (``dc/dt = k (1 - dz/|e|) e`` outside
+        the dead zone, leaking back), lined up above the object first, clamped to the reach
+        (anti-windup)."""
+        m = self.params.motor
+        lo, hi = obs.reach.lo, obs.reach.hi
+        if self.goal_level:
+            self._r = self._aim
+        else:
+            self._phi = min(1.0, self._phi + dt * (1.0 - rho) * wait / self._plan_t)
+            self._r = self._r0 + (self._aim - self._r0) * minimum_jerk(self._phi)
+            self._model = self._model + blend * (clamp_box(self._r, lo, hi) - self._model)
+        if err_size > m.feedback_deadzone_m:
+            k = min(
+                m.max_gain_per_s,
+                m.feedback_gain_per_s * (1.0 + self.reaction.fight) * (1.0 - rho),
+            )
+            self._c = self._c + dt * k * (1.0 - m.feedback_deadzone_m / err_size) * err
+        self._c = self._c * math.exp(-dt / m.correction_leak_s)
+        hand = self._r + self._c + self.reaction.push_offset()
+        if self.goal_level and self.phase == REACH and not self._lined_up(obs.t, seen.ee):
+            hand[2] = max(hand[2], own[2])  # line up above the object before going down
+        clamped = clamp_box(hand, lo, hi)
+        self._c = self._c + (clamped - hand)  # anti-windup: the gizmo stops at the reach
+        self._hand = clamped
 
     def _perceive(self, obs: TrialObservation, dt: float, seen: Seen) -> None:
         """Surprise and waiting: whether the user's input holds still this tick. A surprise
