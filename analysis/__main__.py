@@ -6,6 +6,7 @@ import sys
 from collections.abc import Sequence
 
 from analysis.errors import AnalysisError
+from app.errors import AppError
 from study.cli.dispatch import dispatch
 from study.errors import StudyError
 
@@ -16,7 +17,7 @@ COMMANDS = {
     "power": ("analysis.cli.power", "Power of the paper's hypotheses at several N from a pilot."),
 }
 
-EXPECTED = (AnalysisError, StudyError)
+EXPECTED = (AnalysisError, StudyError, AppError)
 """The layer's error roots: said on one line (exit 2), never as a traceback."""
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 
+from app.errors import AppError
 from study.cli.dispatch import dispatch
 from study.errors import StudyError
 
@@ -25,7 +26,7 @@ COMMANDS = {
     "salvage": ("study.cli.salvage", "Copy what is readable of a damaged store into a new one."),
 }
 
-EXPECTED = (StudyError,)
+EXPECTED = (StudyError, AppError)
 """The layer's error roots: said on one line (exit 2), never as a traceback."""
 
 

@@ -20,6 +20,13 @@ import sys
 import traceback
 from collections.abc import Mapping, Sequence
 
+from study.errors import StudyError
+
+
+class UsageError(StudyError, ValueError):
+    """Options that do not go together, or a value argparse cannot check alone (``--store``
+    without ``--trial-id``); said like argparse's own errors, on one line."""
+
 
 class OneLineParser(argparse.ArgumentParser):
     """argparse, with each error on one line (``prog: error: ... (see --help)``), exit 2."""

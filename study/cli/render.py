@@ -22,14 +22,15 @@ from typing import Any
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from app.files import check_input_file
+from app.files import InputFileError, check_input_file
 from app.robot.scene import build_scene
 from app.trial import load_records, records_from_samples
 from app.trial.video import render_live, replay
 from study.cli.arguments import float_range, int_range, output_file, seed
+from study.cli.dispatch import UsageError
 from study.cli.trial import DEFAULT_PROTOCOL, INPUTS, make_input
-from study.protocol import protocol_from_store, trial_config_from_protocol
-from study.store import Store
+from study.protocol import ProtocolError, protocol_from_store, trial_config_from_protocol
+from study.store import Store, StoreError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -61,7 +62,7 @@ def _stored_config(store: Any, task: str, fallback: Path) -> Any:
     """The scene the trial ran in: from the protocol the store keeps, else ``fallback``."""
     try:
         protocol = protocol_from_store(store)
-    except ValueError:  # an older store without the protocol's text
+    except ProtocolError:  # an older store without the protocol's text
         return trial_config_from_protocol(fallback, task, "none")
     return protocol.config_for(task, "none")
 
@@ -72,14 +73,15 @@ MAX_RECORDS_BYTES = 512 * 2**20
 
 def _records(path: Path) -> tuple[dict[str, Any], Any]:
     """What ``trial --save`` wrote at ``path`` (a regular file of bounded size), else
-    ``ValueError`` naming the file."""
+    ``InputFileError`` naming the file."""
     check_input_file(path, max_bytes=MAX_RECORDS_BYTES, what="records file")
     try:
         return load_records(path)
     except Exception as exc:  # numpy and zipfile raise many kinds for a file of another kind
-        raise ValueError(
-            f"{path} is not a records file written by `python -m study trial --save`"
-            f" ({type(exc).__name__})"
+        raise InputFileError(
+            "records file",
+            path,
+            f"is not one written by `python -m study trial --save` ({type(exc).__name__})",
         ) from None
 
 
@@ -92,14 +94,14 @@ def main(args: argparse.Namespace) -> int:
         build_scene(config.scene)  # reachable and compiling, before anything is written
         if args.store is not None:
             if args.trial_id is None:
-                raise ValueError("--store needs --trial-id")
+                raise UsageError("--store needs --trial-id")
             store = Store.open_readonly(args.store)
             row = store.trial(args.trial_id)
             task = row.task if row.phase != "training" and row.task else "training"
             config = _stored_config(store, task, args.protocol)
             records = records_from_samples(store.samples(args.trial_id))
             if not records:
-                raise ValueError(f"trial {args.trial_id} has no samples in {args.store}")
+                raise StoreError(f"trial {args.trial_id} has no samples in {args.store}")
             frames = replay(
                 build_scene(config.scene), records, args.out, rate_hz=config.rate_hz, **size
             )
@@ -114,7 +116,7 @@ def main(args: argparse.Namespace) -> int:
             source = make_input(args.input, seed=args.seed, speed=0.15, noise=0.002)
             result, frames = render_live(config, source, args.out, seed=args.seed, **size)
             summary = result.summary()
-    except (ValueError, KeyError, OSError, RuntimeError) as exc:  # incl. VideoError, StoreError
+    except OSError as exc:  # a file the options name (Study/AppErrors: said by the dispatcher)
         print(f"error: {exc}", file=sys.stderr)
         return 2
     summary.update(video=str(args.out), frames=frames)

@@ -33,11 +33,10 @@ from pathlib import Path
 from typing import Any
 
 from study.cli.arguments import int_range, scheduler_address, seed
-from study.protocol import ProtocolError, load_protocol
+from study.errors import StudyError
+from study.protocol import load_protocol
 from study.protocol.preflight import check_scenes
-from study.simulated import SimulationError
 from study.simulated.runner import simulate
-from study.store import StoreError
 
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_PROTOCOL = ROOT / "protocols" / "dragan2013.toml"
@@ -124,7 +123,7 @@ def main(args: argparse.Namespace) -> int:
         if report.error is not None:
             print(f"error: {report.error}", file=sys.stderr)
         code = 2 if report.errors or report.error is not None else 0
-    except (ProtocolError, StoreError, SimulationError) as exc:
+    except StudyError as exc:
         print(f"error: {exc}", file=sys.stderr)
         result = {"participants": 0, "trials": 0, "ratings": 0, "wall_s": 0.0, "error": str(exc)}
         code = 2

@@ -29,11 +29,10 @@ from typing import Any
 
 from study.cli.arguments import float_range, int_range, output_dir, scheduler_address, seed
 from study.cli.simulate import DEFAULT_POPULATION, DEFAULT_PROTOCOL, MAX_WORKERS
-from study.protocol import ProtocolError, load_protocol
+from study.errors import StudyError
+from study.protocol import load_protocol
 from study.protocol.preflight import check_scenes
-from study.simulated import SimulationError
-from study.store import StoreError
-from study.sweep import Criteria, SweepError, make_grid, sweep
+from study.sweep import Criteria, make_grid, sweep
 from study.sweep.criteria import (
     DEFAULT_MAX_TIME_LOST_S,
     DEFAULT_MIN_HARD_COMPLETION,
@@ -139,7 +138,7 @@ def main(args: argparse.Namespace) -> int:
             "errors": list(result.errors),
         }
         code = 2 if result.errors else 0
-    except (ProtocolError, StoreError, SimulationError, SweepError) as exc:
+    except StudyError as exc:
         print(f"error: {exc}", file=sys.stderr)
         summary = {"error": str(exc)}
         code = 2

@@ -19,6 +19,7 @@ from app.teleop import IdleInput, InputSource, ScriptedInput
 from app.trial import save_records
 from app.trial.trial import run_trial
 from study.cli.arguments import float_range, output_file, seed
+from study.cli.dispatch import UsageError
 from study.protocol import trial_config_from_protocol
 
 DEFAULT_PROTOCOL = Path(__file__).resolve().parents[2] / "protocols" / "dragan2013.toml"
@@ -55,7 +56,7 @@ def make_input(name: str, *, seed: int, speed: float, noise: float) -> InputSour
         return ScriptedInput(seed=seed, speed=speed, noise=noise)
     if name == "idle":
         return IdleInput()
-    raise ValueError(f"--input: one of {INPUTS}, got {name!r}")
+    raise UsageError(f"--input: one of {INPUTS}, got {name!r}")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -65,7 +66,7 @@ def main(args: argparse.Namespace) -> int:
         )
         source = make_input(args.input, seed=args.seed, speed=args.speed, noise=args.noise)
         build_scene(config.scene)  # reachable and compiling, before the trial starts
-    except (ValueError, KeyError, OSError) as exc:
+    except OSError as exc:  # a file the options name (Study/AppErrors: said by the dispatcher)
         print(f"error: {exc}", file=sys.stderr)
         return 2
     wall = time.perf_counter()
