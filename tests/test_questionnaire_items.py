@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 from analysis.load import from_store
-from analysis.report import _data_section
+from analysis.report.write import _data_section
 from analysis.results import analyse
 from study.export import export_metadata, tidy_tables
 from study.protocol import (

@@ -19,7 +19,7 @@ from analysis.cli import fail, friendly, note
 from analysis.figures import power_figure, save
 from analysis.load import load_tables, task_cells
 from analysis.power import bootstrap_power, pilot_cells
-from analysis.report import _jsonable
+from analysis.report.write import _jsonable
 from app.cli import float_range, int_range, output_dir
 
 MAX_N = 10_000

@@ -56,7 +56,7 @@ from analysis.render import (
 from analysis.results import ASSUMES, StudyResults, analyse, form_pairs
 from analysis.timing import FACTORS, LEVELS
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @dataclass(frozen=True)
