@@ -35,7 +35,8 @@ from analysis.prediction_eval import (
     prediction_rm_anova,
 )
 from analysis.rmcorr import rm_corr_table
-from analysis.statistics_rows import ASSUMES, FORMS, STAT_COLUMNS, anova_rows, stat_row
+from analysis.sections import statistics_rows
+from analysis.statistics_rows import ASSUMES, FORMS, STAT_COLUMNS
 from analysis.study_results import StudyResults, is_paper_design, is_paper_predictors
 from analysis.timing import summarise, timing_analysis
 
@@ -53,132 +54,7 @@ def statistics_table(res: StudyResults) -> pd.DataFrame:
     The paper's value is given only where the design (and, for prediction, the predictors)
     match the paper's and an F test has the paper's numerator df; elsewhere it is empty.
     """
-    rows: list[dict[str, Any]] = []
-    if res.timing is not None:
-        t = res.timing
-        rows += anova_rows(
-            "timing_ancova",
-            t.ancova.table,
-            f"factorial ANOVA with covariates (OLS, type {t.ancova.ss_type} SS)",
-            "OLS, residual df = N - parameters",
-        )
-        rows.append(
-            stat_row(
-                "timing_ancova",
-                "R^2",
-                "coefficient of determination",
-                np.nan,
-                None,
-                t.ancova.r2,
-                np.nan,
-            )
-        )
-        if t.mixed is not None:
-            rows += anova_rows(
-                "timing_mixed",
-                t.mixed.table,
-                "linear mixed model with covariates (type III Wald F)",
-            )
-        rows += anova_rows(
-            "timing_rm",
-            t.rm.table,
-            "repeated-measures ANOVA",
-            "univariate RM ANOVA, error df = df_E (n - 1); GG/HF corrections",
-        )
-        for r in t.main_effects.itertuples():
-            rows.append(
-                stat_row(
-                    "timing_effects",
-                    r.effect,
-                    f"mean difference {r.contrast} (s)",
-                    np.nan,
-                    None,
-                    r.mean_diff,
-                    np.nan,
-                )
-            )
-        rows.append(
-            stat_row(
-                "timing_mean",
-                "duration_s",
-                "mean time per task (s)",
-                np.nan,
-                None,
-                float(t.cells["duration_s"].mean()),
-                np.nan,
-            )
-        )
-        for r in t.comparisons.itertuples():
-            rows.append(
-                stat_row(
-                    r.analysis,
-                    r.comparison,
-                    "paired t (Bonferroni)",
-                    r.df,
-                    None,
-                    r.t,
-                    r.p,
-                    es=r.d_z,
-                    es_name="Cohen's d_z",
-                    p_bonf=r.p_bonf,
-                    ci=(r.ci_low, r.ci_high),
-                    method=f"paired t on {r.n} pairs, Bonferroni over {r.m}",
-                    ci_level="95% CI of the mean difference, unadjusted; "
-                    f"ci_*_bonf: Bonferroni-adjusted (m = {r.m})",
-                    ci_low_bonf=r.ci_low_bonf,
-                    ci_high_bonf=r.ci_high_bonf,
-                )
-            )
-    for analysis, table, test in (
-        ("preference", res.correlations, "Pearson r"),
-        ("preference_rmcorr", res.rm_correlations, "repeated-measures r"),
-    ):
-        if table is None:
-            continue
-        for r in table.itertuples():
-            name = r.versus if r.measure == "preference_aggressive" else r.measure
-            rows.append(
-                stat_row(
-                    analysis,
-                    name,
-                    test,
-                    r.df,
-                    None,
-                    r.r,
-                    r.p,
-                    es=r.r,
-                    es_name="r",
-                    ci=(r.ci_low, r.ci_high),
-                    method=f"{test} on {r.n} pairs"
-                    + (f" from {r.n_subjects} participants" if hasattr(r, "n_subjects") else ""),
-                    ci_level="95% CI by Fisher's z",
-                )
-            )
-    if res.prediction is not None:
-        rows += anova_rows(
-            "prediction_anova",
-            res.prediction.table,
-            f"factorial ANOVA (OLS, type {res.prediction.ss_type} SS)",
-            "OLS, residual df = N - cells",
-        )
-        rows.append(
-            stat_row(
-                "prediction_anova",
-                "R^2",
-                "coefficient of determination",
-                np.nan,
-                None,
-                res.prediction.r2,
-                np.nan,
-            )
-        )
-    if res.prediction_rm is not None:
-        rows += anova_rows(
-            "prediction_rm",
-            res.prediction_rm.table,
-            "repeated-measures ANOVA (participant x condition x predictor)",
-            "univariate RM ANOVA on participant means, error df = df_E (n - 1)",
-        )
+    rows = statistics_rows(res)
     comparable = res.paper_comparable
     for r in rows:
         family = (
