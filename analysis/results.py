@@ -42,6 +42,7 @@ from analysis.timing import summarise, timing_analysis
 
 
 def _paper_df1(df: object) -> float | None:
+    """The numerator df of a published df text ("1, 53" -> 1.0); ``None`` if it has none."""
     try:
         return float(str(df).split(",")[0])
     except ValueError:
