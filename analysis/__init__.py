@@ -7,6 +7,7 @@ matplotlib and statsmodels, measured with ``-X importtime``; the loader costs pa
     from analysis import load_tables, task_cells     tidy tables from a store or an export
     from analysis.results import analyse             every test of the paper, both forms
     from analysis.report import write_report         report.html, report.md, results.json
+    from analysis.sections import SECTIONS           the report's sections, in order
     from analysis.rm_anova import rm_anova           repeated-measures ANOVA (GG/HF, Mauchly)
     from analysis.mixed import mixed_anova           random-intercept mixed model, type III F
     from analysis.anova import factorial_anova, covariate_anova

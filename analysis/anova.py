@@ -95,6 +95,10 @@ def _sse(x: np.ndarray, y: np.ndarray) -> float:
     return float(r @ r)
 
 
+Part = tuple[str, tuple[int, ...] | None, np.ndarray]
+"""A model term: its name, its factor indices (``None`` for a covariate), its columns."""
+
+
 def factorial_anova(
     data: pd.DataFrame,
     *,
@@ -105,6 +109,42 @@ def factorial_anova(
 ) -> FactorialAnovaResult:
     """Fit the full factorial model with covariates and test every effect (see module doc)."""
     factors, covariates = list(factors), list(covariates)
+    _check_roles(dv, factors, covariates, ss_type)
+    require_columns(data, [dv, *factors, *covariates])
+    d, y, cov_values, notes = _complete_rows(data, dv, factors, covariates)
+    n = len(y)
+    levels, blocks = factor_blocks(d, factors)
+    _require_every_cell(d, factors, levels)
+    parts: list[Part] = [(effect_name(factors, t), t, blocks[t]) for t in effect_terms(factors)]
+    parts += [(c, None, col) for c, col in _covariate_columns(cov_values).items()]
+    x_full = np.column_stack([np.ones(n)] + [p[2] for p in parts])
+    p_cols = x_full.shape[1]
+    df_resid = n - p_cols
+    if df_resid <= 0:
+        raise DesignError(
+            f"{n} observations cannot fit {p_cols} parameters (cells + covariates); "
+            "collect more data or use fewer covariates"
+        )
+    _require_full_rank(x_full, parts, covariates)
+    sse = _sse(x_full, y)
+    sst = float(((y - y.mean()) ** 2).sum())
+    rows = _effect_rows(parts, y, sse=sse, df_resid=df_resid, ss_type=ss_type)
+    r2 = 1.0 - sse / sst if sst > 0 else np.nan
+    r2_adj = 1.0 - (1.0 - r2) * (n - 1) / df_resid
+    return FactorialAnovaResult(
+        table=pd.DataFrame(rows, columns=COLUMNS),
+        r2=float(r2),
+        r2_adj=float(r2_adj),
+        df_resid=df_resid,
+        sse=sse,
+        n=n,
+        ss_type=ss_type,
+        levels=levels,
+        notes=tuple(notes),
+    )
+
+
+def _check_roles(dv: str, factors: list[str], covariates: list[str], ss_type: int) -> None:
     if ss_type not in (2, 3):
         raise DesignError(f"ss_type must be 2 or 3, got {ss_type!r}")
     if not factors:
@@ -116,7 +156,13 @@ def factorial_anova(
             f"column(s) {', '.join(map(repr, dupes))} given in two roles; "
             "each role needs its own column"
         )
-    require_columns(data, names)
+
+
+def _complete_rows(
+    data: pd.DataFrame, dv: str, factors: list[str], covariates: list[str]
+) -> tuple[pd.DataFrame, np.ndarray, dict[str, np.ndarray], list[str]]:
+    """The rows with the dependent variable, every covariate and every factor present: the
+    data, ``y``, each covariate's values, and a note on the rows left out."""
     y = numeric_column(data, dv).to_numpy()
     notes: list[str] = []
     keep = ~np.isnan(y)
@@ -129,10 +175,12 @@ def factorial_anova(
         keep &= data[f].notna().to_numpy()
     if not keep.all():
         notes.append(f"{int((~keep).sum())} row(s) with missing values were left out")
-    d = data.loc[keep]
-    y = y[keep]
-    n = len(y)
-    levels, blocks = factor_blocks(d, factors)
+    return data.loc[keep], y[keep], {c: v[keep] for c, v in cov_values.items()}, notes
+
+
+def _require_every_cell(
+    d: pd.DataFrame, factors: list[str], levels: dict[str, tuple[str, ...]]
+) -> None:
     observed = set(d[factors].astype(str).drop_duplicates().itertuples(index=False, name=None))
     empty = [c for c in itertools.product(*levels.values()) if c not in observed]
     if empty:
@@ -143,46 +191,49 @@ def factorial_anova(
             f"{len(empty)} cell(s) of the factorial design have no data: {listed}. "
             "Every combination of factor levels needs observations."
         )
-    terms = effect_terms(factors)
-    for c in covariates:
-        v = cov_values[c][keep]
+
+
+def _covariate_columns(cov_values: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Each covariate centred, as one column; a constant covariate raises DesignError."""
+    for c, v in cov_values.items():
         if np.ptp(v) == 0:
             raise DesignError(
                 f"covariate {c!r} is constant ({v[0]:g}); it cannot be estimated - "
                 "drop it from the covariates"
             )
-    cov_cols = {c: (cov_values[c][keep] - cov_values[c][keep].mean())[:, None] for c in covariates}
-    parts: list[tuple[str, tuple[int, ...] | None, np.ndarray]] = [
-        (effect_name(factors, t), t, blocks[t]) for t in terms
-    ] + [(c, None, cov_cols[c]) for c in covariates]
-    x_full = np.column_stack([np.ones(n)] + [p[2] for p in parts])
-    p_cols = x_full.shape[1]
-    df_resid = n - p_cols
-    if df_resid <= 0:
-        raise DesignError(
-            f"{n} observations cannot fit {p_cols} parameters (cells + covariates); "
-            "collect more data or use fewer covariates"
-        )
+    return {c: (v - v.mean())[:, None] for c, v in cov_values.items()}
+
+
+def _require_full_rank(x_full: np.ndarray, parts: list[Part], covariates: list[str]) -> None:
+    """DesignError naming the covariates that are linear in the rest, if the design is
+    rank-deficient."""
+    n, p_cols = x_full.shape
     rank = np.linalg.matrix_rank(x_full)
-    if rank < p_cols:
-        culprits = []
-        for c in covariates:
-            others = np.column_stack([np.ones(n)] + [p[2] for p in parts if p[0] != c])
-            if np.linalg.matrix_rank(others) == rank:
-                culprits.append(c)
-        what = (
-            f"covariate(s) {', '.join(map(repr, culprits))} are"
-            if culprits
-            else "the design columns are"
-        )
-        raise DesignError(
-            f"{what} linearly dependent on the factors or other covariates "
-            "(e.g. constant within every cell); drop them from the covariates"
-        )
-    sse = _sse(x_full, y)
-    sst = float(((y - y.mean()) ** 2).sum())
+    if rank == p_cols:
+        return
+    culprits = []
+    for c in covariates:
+        others = np.column_stack([np.ones(n)] + [p[2] for p in parts if p[0] != c])
+        if np.linalg.matrix_rank(others) == rank:
+            culprits.append(c)
+    what = (
+        f"covariate(s) {', '.join(map(repr, culprits))} are"
+        if culprits
+        else "the design columns are"
+    )
+    raise DesignError(
+        f"{what} linearly dependent on the factors or other covariates "
+        "(e.g. constant within every cell); drop them from the covariates"
+    )
+
+
+def _effect_rows(
+    parts: list[Part], y: np.ndarray, *, sse: float, df_resid: int, ss_type: int
+) -> list[dict[str, float | str]]:
+    """One F test per term: type III (or II) SS against the full model's SSE."""
+    n = len(y)
     mse = sse / df_resid
-    rows = []
+    rows: list[dict[str, float | str]] = []
     for name, term, block in parts:
         if ss_type == 3 or term is None:
             reduced = [p[2] for p in parts if p[0] != name]
@@ -205,19 +256,7 @@ def factorial_anova(
                 "SS": ss,
             }
         )
-    r2 = 1.0 - sse / sst if sst > 0 else np.nan
-    r2_adj = 1.0 - (1.0 - r2) * (n - 1) / df_resid
-    return FactorialAnovaResult(
-        table=pd.DataFrame(rows, columns=COLUMNS),
-        r2=float(r2),
-        r2_adj=float(r2_adj),
-        df_resid=df_resid,
-        sse=sse,
-        n=n,
-        ss_type=ss_type,
-        levels=levels,
-        notes=tuple(notes),
-    )
+    return rows
 
 
 def covariate_anova(

@@ -96,6 +96,52 @@ def cell_means(
 ) -> CellData:
     """Average ``dv`` per subject and cell of the ``within`` factors, checking the design."""
     within = list(within)
+    _check_roles(dv, subject, within)
+    require_columns(data, [dv, subject, *within])
+    notes: list[str] = []
+    df = _coded(data, dv=dv, subject=subject, within=within)
+    _require_within_subjects(df, within)  # before rows with a missing value are left out
+    if df["_y"].isna().any():
+        n_nan = int(df["_y"].isna().sum())
+        notes.append(f"{n_nan} row(s) with a missing {dv!r} were left out")
+        df = df[df["_y"].notna()]
+    levels = tuple(_levels(data[f]) for f in within)
+    for f, lv in zip(within, levels, strict=True):
+        if len(lv) < 2:
+            raise DesignError(
+                f"factor {f!r} has {len(lv)} level{'s' if len(lv) != 1 else ''} "
+                f"({', '.join(lv) or 'none'}); "
+                "a factor needs at least two levels - drop it from the design"
+            )
+    subjects, means, counts = _cell_table(df, levels, dv=dv, notes=notes)
+    lacking = np.isnan(means)
+    if lacking.any():
+        missing = _missing_cells(lacking, subjects, within, levels)
+        if not drop_incomplete:
+            raise _incomplete(missing, len(subjects), notes)
+        keep = ~lacking.any(axis=1)
+        notes.append(
+            f"dropped {len(missing)} subject(s) with missing cells: {', '.join(list(missing)[:MAX_LISTED])}"
+            + (" ..." if len(missing) > MAX_LISTED else "")
+        )
+        means, counts = means[keep], counts[keep]
+        subjects = [s for s, k in zip(subjects, keep, strict=True) if k]
+    if len(subjects) < 2:
+        raise DesignError(
+            f"only {len(subjects)} subject(s) with complete data; a repeated-measures "
+            "analysis needs at least two"
+        )
+    return CellData(
+        subjects=tuple(subjects),
+        factors=tuple(within),
+        levels=levels,
+        values=means,
+        counts=counts,
+        notes=tuple(notes),
+    )
+
+
+def _check_roles(dv: str, subject: str, within: list[str]) -> None:
     if not within:
         raise DesignError("no within-subject factor given; name at least one factor column")
     names = [dv, subject, *within]
@@ -105,8 +151,11 @@ def cell_means(
             f"column(s) {', '.join(map(repr, dupes))} used twice among the dependent variable, "
             "subject and factors; each role needs its own column"
         )
-    require_columns(data, names)
-    notes: list[str] = []
+
+
+def _coded(data: pd.DataFrame, *, dv: str, subject: str, within: list[str]) -> pd.DataFrame:
+    """Columns ``_s`` (subject), ``_y`` (dv as float) and ``_f0..`` (factor levels as text);
+    an empty factor or subject cell raises DesignError."""
     y = numeric_column(data, dv)
     df = pd.DataFrame({"_s": data[subject].astype(str), "_y": y})
     for i, f in enumerate(within):
@@ -122,7 +171,12 @@ def cell_means(
             f"subject column {subject!r} is empty in {int(data[subject].isna().sum())} row(s); "
             "every row needs a subject id"
         )
-    for i, f in enumerate(within):  # before rows with a missing value are left out
+    return df
+
+
+def _require_within_subjects(df: pd.DataFrame, within: list[str]) -> None:
+    """DesignError for a factor that varies only between subjects."""
+    for i, f in enumerate(within):
         per_subject = df.groupby("_s", sort=False)[f"_f{i}"].nunique()
         if df[f"_f{i}"].nunique() > 1 and (per_subject <= 1).all():
             raise DesignError(
@@ -130,19 +184,14 @@ def cell_means(
                 "is a between-subjects factor; this repeated-measures analysis takes "
                 "within-subject factors only - drop it from --within"
             )
-    if df["_y"].isna().any():
-        n_nan = int(df["_y"].isna().sum())
-        notes.append(f"{n_nan} row(s) with a missing {dv!r} were left out")
-        df = df[df["_y"].notna()]
-    levels = tuple(_levels(data[f]) for f in within)
-    for f, lv in zip(within, levels, strict=True):
-        if len(lv) < 2:
-            raise DesignError(
-                f"factor {f!r} has {len(lv)} level{'s' if len(lv) != 1 else ''} "
-                f"({', '.join(lv) or 'none'}); "
-                "a factor needs at least two levels - drop it from the design"
-            )
-    keys = ["_s", *[f"_f{i}" for i in range(len(within))]]
+
+
+def _cell_table(
+    df: pd.DataFrame, levels: tuple[tuple[str, ...], ...], *, dv: str, notes: list[str]
+) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """Subjects (first-seen order), ``(subjects, cells)`` means (NaN: no data) and row counts;
+    a note on ``notes`` when a subject-cell had more than one row."""
+    keys = ["_s", *[f"_f{i}" for i in range(len(levels))]]
     agg = df.groupby(keys, sort=False)["_y"].agg(["mean", "count"])
     repeated = agg["count"] > 1
     if repeated.any():
@@ -150,54 +199,42 @@ def cell_means(
             f"{int(repeated.sum())} subject-cell combination(s) had more than one row "
             f"(up to {int(agg['count'].max())}); {dv!r} was averaged within each"
         )
-    subjects_all = list(dict.fromkeys(df["_s"]))
-    full = pd.MultiIndex.from_product([subjects_all, *levels], names=keys)
+    subjects = list(dict.fromkeys(df["_s"]))
+    full = pd.MultiIndex.from_product([subjects, *levels], names=keys)
     agg = agg.reindex(full)
     n_cells = int(np.prod([len(lv) for lv in levels]))
-    means = agg["mean"].to_numpy().reshape(len(subjects_all), n_cells)
-    counts = agg["count"].fillna(0).to_numpy().reshape(len(subjects_all), n_cells).astype(int)
-    lacking = np.isnan(means)
-    if lacking.any():
-        cells = [
-            " & ".join(f"{f}={v}" for f, v in zip(within, c, strict=True))
-            for c in itertools.product(*levels)
-        ]
-        missing = {
-            subjects_all[i]: [cells[j] for j in np.flatnonzero(lacking[i])]
-            for i in np.flatnonzero(lacking.any(axis=1))
-        }
-        if not drop_incomplete:
-            listed = "; ".join(
-                f"{s} lacks {', '.join(c)}" for s, c in list(missing.items())[:MAX_LISTED]
-            )
-            more = f" (and {len(missing) - MAX_LISTED} more)" if len(missing) > MAX_LISTED else ""
-            raise DesignError(
-                f"the design is incomplete: {len(missing)} of {len(subjects_all)} subject(s) lack "
-                f"cells - {listed}{more}"
-                + (f" ({'; '.join(notes)})" if notes else "")
-                + ". Collect the missing data, or drop these subjects "
-                "(--drop-incomplete / drop_incomplete=True)",
-                missing=missing,
-            )
-        keep = ~lacking.any(axis=1)
-        notes.append(
-            f"dropped {len(missing)} subject(s) with missing cells: {', '.join(list(missing)[:MAX_LISTED])}"
-            + (" ..." if len(missing) > MAX_LISTED else "")
-        )
-        means, counts = means[keep], counts[keep]
-        subjects_all = [s for s, k in zip(subjects_all, keep, strict=True) if k]
-    if len(subjects_all) < 2:
-        raise DesignError(
-            f"only {len(subjects_all)} subject(s) with complete data; a repeated-measures "
-            "analysis needs at least two"
-        )
-    return CellData(
-        subjects=tuple(subjects_all),
-        factors=tuple(within),
-        levels=levels,
-        values=means,
-        counts=counts,
-        notes=tuple(notes),
+    means = agg["mean"].to_numpy().reshape(len(subjects), n_cells)
+    counts = agg["count"].fillna(0).to_numpy().reshape(len(subjects), n_cells).astype(int)
+    return subjects, means, counts
+
+
+def _missing_cells(
+    lacking: np.ndarray,
+    subjects: list[str],
+    within: list[str],
+    levels: tuple[tuple[str, ...], ...],
+) -> dict[str, list[str]]:
+    """Each incomplete subject and the cells (``f=v & ...``) it lacks."""
+    cells = [
+        " & ".join(f"{f}={v}" for f, v in zip(within, c, strict=True))
+        for c in itertools.product(*levels)
+    ]
+    return {
+        subjects[i]: [cells[j] for j in np.flatnonzero(lacking[i])]
+        for i in np.flatnonzero(lacking.any(axis=1))
+    }
+
+
+def _incomplete(missing: dict[str, list[str]], n_subjects: int, notes: list[str]) -> DesignError:
+    listed = "; ".join(f"{s} lacks {', '.join(c)}" for s, c in list(missing.items())[:MAX_LISTED])
+    more = f" (and {len(missing) - MAX_LISTED} more)" if len(missing) > MAX_LISTED else ""
+    return DesignError(
+        f"the design is incomplete: {len(missing)} of {n_subjects} subject(s) lack "
+        f"cells - {listed}{more}"
+        + (f" ({'; '.join(notes)})" if notes else "")
+        + ". Collect the missing data, or drop these subjects "
+        "(--drop-incomplete / drop_incomplete=True)",
+        missing=missing,
     )
 
 

@@ -201,7 +201,7 @@ def _export_metadata(directory: Path) -> dict[str, Any]:
         return {}
     try:
         meta = json.loads(f.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as e:
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
         raise SourceError(
             f"cannot read {f}: {e}; export the store again (`python -m study "
             "export`) or remove the file"
@@ -301,7 +301,7 @@ def _export_protocol_hash(directory: Path) -> str | None:
     for f in sorted(directory.glob("*.json")):
         try:
             meta = json.loads(f.read_text())
-        except (OSError, ValueError):
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError):  # not an export's metadata
             continue
         if isinstance(meta, dict):
             for key in ("protocol_hash", "content_hash"):

@@ -279,15 +279,9 @@ def mixed_anova(
     if not factors and not covariates:
         raise DesignError("no factor or covariate given; name at least one")
     require_columns(data, names)
-    y = numeric_column(data, dv).to_numpy()
-    keep = ~np.isnan(y) & data[subject].notna().to_numpy()
-    for c in covariates:
-        keep &= ~np.isnan(numeric_column(data, c).to_numpy())
-    for f in factors:
-        keep &= data[f].notna().to_numpy()
-    notes = [] if keep.all() else [f"{int((~keep).sum())} row(s) with missing values were left out"]
-    d = data.loc[keep].reset_index(drop=True)
-    y = y[keep]
+    d, y, notes = _complete_rows(
+        data, dv=dv, subject=subject, factors=factors, covariates=covariates
+    )
     subjects, groups = np.unique(d[subject].astype(str).to_numpy(), return_inverse=True)
     if len(subjects) < 3:
         raise DesignError(
@@ -308,24 +302,91 @@ def mixed_anova(
         a, dcov = _boundary_derivatives(stats, theta, cov)
     else:
         a, dcov = _theta_covariance(stats, theta), _cov_gradient(stats, theta)
-    rows = []
-    for name, sl in spans:
-        lmat = np.eye(p)[sl]
-        lb = lmat @ b
+    fit = _Fit(b=b, cov=cov, dcov=dcov, a=a)
+    contrasts = _contrasts(levels, spans, n_terms=len(effect_terms(factors)), p=p)
+    return MixedModelResult(
+        table=pd.DataFrame([fit.f_test(name, sl) for name, sl in spans], columns=COLUMNS),
+        estimates=pd.DataFrame(
+            [fit.estimate(t, c, v) for t, c, v in contrasts], columns=ESTIMATE_COLUMNS
+        ),
+        var_subject=float(theta[0]),
+        var_resid=float(theta[1]),
+        n=len(y),
+        n_subjects=len(subjects),
+        levels=levels,
+        notes=tuple(notes + fit_notes),
+    )
+
+
+def _complete_rows(
+    data: pd.DataFrame, *, dv: str, subject: str, factors: list[str], covariates: list[str]
+) -> tuple[pd.DataFrame, np.ndarray, list[str]]:
+    """The rows with every value present (renumbered), their ``y``, and a note on the rest."""
+    y = numeric_column(data, dv).to_numpy()
+    keep = ~np.isnan(y) & data[subject].notna().to_numpy()
+    for c in covariates:
+        keep &= ~np.isnan(numeric_column(data, c).to_numpy())
+    for f in factors:
+        keep &= data[f].notna().to_numpy()
+    notes = [] if keep.all() else [f"{int((~keep).sum())} row(s) with missing values were left out"]
+    return data.loc[keep].reset_index(drop=True), y[keep], notes
+
+
+@dataclass(frozen=True)
+class _Fit:
+    """The fixed effects ``b``, their covariance, its gradient in the variances and the
+    variances' covariance ``a``: what a Wald test with Satterthwaite df needs."""
+
+    b: np.ndarray
+    cov: np.ndarray
+    dcov: np.ndarray
+    a: np.ndarray
+
+    def f_test(self, name: str, sl: slice) -> dict[str, float | str]:
+        """Wald F of the coefficients ``sl`` (one effect) on Satterthwaite df."""
+        lmat = np.eye(len(self.b))[sl]
+        lb = lmat @ self.b
         q = lmat.shape[0]
-        f = float(lb @ np.linalg.solve(lmat @ cov @ lmat.T, lb) / q)
-        df2 = satterthwaite_df(lmat, cov, dcov, a)
-        rows.append(
-            {
-                "effect": name,
-                "df1": float(q),
-                "df2": df2,
-                "F": f,
-                "p": float(special.fdtrc(q, df2, f)),
-                "np2": f * q / (f * q + df2),
-                "method": f"LMM random intercept, {DF_METHOD} df",
-            }
-        )
+        f = float(lb @ np.linalg.solve(lmat @ self.cov @ lmat.T, lb) / q)
+        df2 = satterthwaite_df(lmat, self.cov, self.dcov, self.a)
+        return {
+            "effect": name,
+            "df1": float(q),
+            "df2": df2,
+            "F": f,
+            "p": float(special.fdtrc(q, df2, f)),
+            "np2": f * q / (f * q + df2),
+            "method": f"LMM random intercept, {DF_METHOD} df",
+        }
+
+    def estimate(self, term: str, contrast: str, v: np.ndarray) -> dict[str, float | str]:
+        """The contrast ``v @ b`` with its SE, Satterthwaite t and 95% CI."""
+        e, se = float(v @ self.b), float(np.sqrt(v @ self.cov @ v))
+        df = satterthwaite_df(v[None, :], self.cov, self.dcov, self.a)
+        t = e / se if se > 0 else np.nan
+        half = float(special.stdtrit(df, 0.975) * se)
+        return {
+            "term": term,
+            "contrast": contrast,
+            "estimate": e,
+            "se": se,
+            "df": df,
+            "t": t,
+            "p": float(2 * special.stdtr(df, -abs(t))),
+            "ci_low": e - half,
+            "ci_high": e + half,
+        }
+
+
+def _contrasts(
+    levels: dict[str, tuple[str, ...]],
+    spans: list[tuple[str, slice]],
+    *,
+    n_terms: int,
+    p: int,
+) -> list[tuple[str, str, np.ndarray]]:
+    """Each factor level minus the first (differences of unweighted marginal means under the
+    sum-to-zero coding), then each covariate's slope, as coefficient vectors."""
     est = []
     for i, (f, lv) in enumerate(levels.items()):
         sl = spans[i][1]
@@ -341,36 +402,8 @@ def mixed_anova(
 
         for j in range(1, k):
             est.append((f, f"{lv[j]} - {lv[0]}", level_vector(j) - level_vector(0)))
-    for name, sl in spans[len(effect_terms(factors)) :]:
+    for name, sl in spans[n_terms:]:
         v = np.zeros(p)
         v[sl] = 1.0
         est.append((name, "slope", v))
-    erows = []
-    for term, contrast, v in est:
-        e, se = float(v @ b), float(np.sqrt(v @ cov @ v))
-        df = satterthwaite_df(v[None, :], cov, dcov, a)
-        t = e / se if se > 0 else np.nan
-        half = float(special.stdtrit(df, 0.975) * se)
-        erows.append(
-            {
-                "term": term,
-                "contrast": contrast,
-                "estimate": e,
-                "se": se,
-                "df": df,
-                "t": t,
-                "p": float(2 * special.stdtr(df, -abs(t))),
-                "ci_low": e - half,
-                "ci_high": e + half,
-            }
-        )
-    return MixedModelResult(
-        table=pd.DataFrame(rows, columns=COLUMNS),
-        estimates=pd.DataFrame(erows, columns=ESTIMATE_COLUMNS),
-        var_subject=float(theta[0]),
-        var_resid=float(theta[1]),
-        n=len(y),
-        n_subjects=len(subjects),
-        levels=levels,
-        notes=tuple(notes + fit_notes),
-    )
+    return est

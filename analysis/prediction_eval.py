@@ -261,7 +261,7 @@ def goal_moves(rows: list[tuple[int, Any]], names: Sequence[str], tid: Any) -> G
             if event.kind is EventKind.GOAL_MOVED
         ]
         return GoalMoves.from_moves(moves, names)
-    except (BlendingError, TrialEventError, ValueError) as e:
+    except (BlendingError, TrialEventError) as e:
         raise SchemaError(f"trial {tid}: a goal_moved event cannot be read: {e}") from e
 
 

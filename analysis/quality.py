@@ -50,7 +50,7 @@ def _detail(value: Any) -> dict[str, Any]:
         return value
     try:
         out = json.loads(str(value))
-    except (TypeError, ValueError):
+    except json.JSONDecodeError:  # a detail that is not JSON (hand-made tables): no fields
         return {}
     return out if isinstance(out, dict) else {}
 

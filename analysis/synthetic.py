@@ -11,6 +11,8 @@ nearer (wrong) object and then to the farther target. No real participant is inv
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -77,146 +79,199 @@ def synthetic_tables(
 ) -> dict[str, pd.DataFrame]:
     """Tables ``trials``, ``samples``, ``ratings``, ``events`` of a simulated study."""
     rng = np.random.default_rng(seed)
-    trials, samples, ratings, events = [], [], [], []
-    trial_id = 0
-    task_names = list(TASKS)
+    study = _Study(rate_hz=rate_hz, with_samples=with_samples)
     for p in range(n_participants):
-        pid = f"P{p + 1:02d}"
-        session = f"S{p + 1:02d}"
-        skill = float(rng.normal(40.0, 8.0))
-        person = float(rng.normal(0.0, 5.0))
-        baseline = float(np.clip(np.round(rng.normal(4.0, 1.0) * 3) / 3, 1, 7))
-        row = p % 4
-        training = [max(10.0, skill + rng.normal(0, 4)) for _ in range(3)]
-        for k, d in enumerate(training):
-            trial_id += 1
-            trials.append(
-                {
-                    "participant": pid,
-                    "session_id": session,
-                    "phase": "training",
-                    "schedule_row": row,
-                    "position": np.nan,
-                    "task": "training",
-                    "difficulty": "",
-                    "correctness": "",
-                    "mode": "none",
-                    "attempt": 1,
-                    "status": "completed",
-                    "outcome": "success",
-                    "success": True,
-                    "duration_s": d,
-                    "started_at": f"2026-11-22T10:{k:02d}:00Z",
-                    "goal_names": json.dumps(["mug"]),
-                    "goal_positions": json.dumps([[0.5, -0.25, 0.05]]),
-                    "target": "mug",
-                    "trial_id": trial_id,
-                }
-            )
-        order = [task_names[i] for i in WILLIAMS_4[row]]
-        first_mode = "timid" if p % 2 == 0 else "aggressive"
-        position = 0
-        for ti, task in enumerate(order):
-            dif, cor = TASKS[task]
-            modes = [first_mode, "aggressive" if first_mode == "timid" else "timid"]
-            if ti % 2:
-                modes.reverse()
-            durations = {}
-            ids = {}
-            for run, mode in enumerate(modes):
-                position += 1
-                trial_id += 1
-                dur = _duration(rng, skill, dif, cor, mode, position - 1, person)
-                durations[mode] = dur
-                ids[mode] = trial_id
-                names, pos = GOALS[dif]
-                trials.append(
-                    {
-                        "participant": pid,
-                        "session_id": session,
-                        "phase": "task",
-                        "schedule_row": row,
-                        "position": position,
-                        "task": task,
-                        "difficulty": dif,
-                        "correctness": cor,
-                        "mode": mode,
-                        "attempt": 1,
-                        "status": "completed",
-                        "outcome": "success",
-                        "success": True,
-                        "duration_s": dur,
-                        "started_at": f"2026-11-22T11:{position:02d}:00Z",
-                        "goal_names": json.dumps(list(names)),
-                        "goal_positions": json.dumps([list(x) for x in pos]),
-                        "target": TARGET,
-                        "trial_id": trial_id,
-                        "run": "first" if run == 0 else "second",
-                    }
-                )
-                if with_samples:
-                    samples.append(
-                        _samples(rng, trial_id, pid, np.array(pos), names, dur, rate_hz, mode)
-                    )
-            gap = durations["timid"] - durations["aggressive"]
-            pref = int(np.clip(np.round(gap / 6.0 + rng.normal(0, 0.7)), -3, 3))
-            second = modes[1]
-            raw = 4 + pref if second == "aggressive" else 4 - pref
-            mean_t = (durations["timid"] + durations["aggressive"]) / 2
-            for rec in trials[-2:]:
-                rec["preference"] = raw
-                rec["preference_aggressive"] = pref
-                for item, scale in (("helpful", 7.0), ("matched", 8.0), ("teammate", 7.5)):
-                    v = 4 + (mean_t - rec["duration_s"]) / scale + rng.normal(0, 0.6)
-                    rec[item] = int(np.clip(np.round(v), 1, 7))
-                    ratings.append(
-                        {
-                            "participant": pid,
-                            "session_id": session,
-                            "phase": "task",
-                            "task": task,
-                            "mode": rec["mode"],
-                            "run": rec["run"],
-                            "item": item,
-                            "value": rec[item],
-                            "answered_at": rec["started_at"],
-                        }
-                    )
-            ratings.append(
-                {
-                    "participant": pid,
-                    "session_id": session,
-                    "phase": "task",
-                    "task": task,
-                    "mode": None,
-                    "run": None,
-                    "item": "preference",
-                    "value": raw,
-                    "answered_at": trials[-1]["started_at"],
-                }
-            )
-        for rec in trials:
-            if rec["participant"] == pid:
-                rec["training_time_s"] = float(np.mean(training))
-                rec["baseline_rating"] = baseline
-                rec["tasks_completed"] = int(rec["position"]) - 1 if rec["phase"] == "task" else 0
-        events.append(
-            {
-                "participant": pid,
-                "session_id": session,
-                "at": "2026-11-22T10:00:00Z",
-                "kind": "consent",
-                "detail": json.dumps({"accepted": True}),
-            }
-        )
-    trials_df = pd.DataFrame(trials).drop(columns=["run"])
-    samples_df = pd.concat(samples, ignore_index=True) if samples else pd.DataFrame()
+        _participant(rng, study, p)
+    trials_df = pd.DataFrame(study.trials).drop(columns=["run"])
+    samples_df = pd.concat(study.samples, ignore_index=True) if study.samples else pd.DataFrame()
     return {
         "trials": trials_df,
         "samples": samples_df,
-        "ratings": pd.DataFrame(ratings),
-        "events": pd.DataFrame(events),
+        "ratings": pd.DataFrame(study.ratings),
+        "events": pd.DataFrame(study.events),
     }
+
+
+@dataclass
+class _Study:
+    """The rows written so far (records in the order the tables list them) and the last
+    trial id."""
+
+    rate_hz: float
+    with_samples: bool
+    trials: list[dict[str, Any]] = field(default_factory=list)
+    samples: list[pd.DataFrame] = field(default_factory=list)
+    ratings: list[dict[str, Any]] = field(default_factory=list)
+    events: list[dict[str, Any]] = field(default_factory=list)
+    trial_id: int = 0
+
+    def next_trial_id(self) -> int:
+        self.trial_id += 1
+        return self.trial_id
+
+
+@dataclass(frozen=True)
+class _Person:
+    pid: str
+    session: str
+    row: int  # the Williams-square row of the task order
+    skill: float
+    person: float  # the participant's own offset of every duration
+
+
+def _participant(rng: np.random.Generator, study: _Study, p: int) -> None:
+    """Participant ``p``'s training runs, task runs, answers, covariates and consent."""
+    first = len(study.trials)
+    who = _Person(
+        pid=f"P{p + 1:02d}",
+        session=f"S{p + 1:02d}",
+        row=p % 4,
+        skill=float(rng.normal(40.0, 8.0)),
+        person=float(rng.normal(0.0, 5.0)),
+    )
+    baseline = float(np.clip(np.round(rng.normal(4.0, 1.0) * 3) / 3, 1, 7))
+    training = [max(10.0, who.skill + rng.normal(0, 4)) for _ in range(3)]
+    for k, d in enumerate(training):
+        study.trials.append(_training_trial(study.next_trial_id(), who, k, d))
+    task_names = list(TASKS)
+    order = [task_names[i] for i in WILLIAMS_4[who.row]]
+    first_mode = "timid" if p % 2 == 0 else "aggressive"
+    position = 0
+    for ti, task in enumerate(order):
+        modes = [first_mode, "aggressive" if first_mode == "timid" else "timid"]
+        if ti % 2:
+            modes.reverse()
+        durations = {}
+        for run, mode in enumerate(modes):
+            position += 1
+            durations[mode] = _task_run(rng, study, who, task, mode, position, first=run == 0)
+        _answers(rng, study, who, task, modes, durations)
+    for rec in study.trials[first:]:
+        rec["training_time_s"] = float(np.mean(training))
+        rec["baseline_rating"] = baseline
+        rec["tasks_completed"] = int(rec["position"]) - 1 if rec["phase"] == "task" else 0
+    study.events.append(
+        {
+            "participant": who.pid,
+            "session_id": who.session,
+            "at": "2026-11-22T10:00:00Z",
+            "kind": "consent",
+            "detail": json.dumps({"accepted": True}),
+        }
+    )
+
+
+def _training_trial(trial_id: int, who: _Person, k: int, duration: float) -> dict[str, Any]:
+    return {
+        "participant": who.pid,
+        "session_id": who.session,
+        "phase": "training",
+        "schedule_row": who.row,
+        "position": np.nan,
+        "task": "training",
+        "difficulty": "",
+        "correctness": "",
+        "mode": "none",
+        "attempt": 1,
+        "status": "completed",
+        "outcome": "success",
+        "success": True,
+        "duration_s": duration,
+        "started_at": f"2026-11-22T10:{k:02d}:00Z",
+        "goal_names": json.dumps(["mug"]),
+        "goal_positions": json.dumps([[0.5, -0.25, 0.05]]),
+        "target": "mug",
+        "trial_id": trial_id,
+    }
+
+
+def _task_run(
+    rng: np.random.Generator,
+    study: _Study,
+    who: _Person,
+    task: str,
+    mode: str,
+    position: int,
+    *,
+    first: bool,
+) -> float:
+    """One task run at ``position`` (its trial row, and its samples if asked); its duration."""
+    dif, cor = TASKS[task]
+    trial_id = study.next_trial_id()
+    dur = _duration(rng, who.skill, dif, cor, mode, position - 1, who.person)
+    names, pos = GOALS[dif]
+    study.trials.append(
+        {
+            "participant": who.pid,
+            "session_id": who.session,
+            "phase": "task",
+            "schedule_row": who.row,
+            "position": position,
+            "task": task,
+            "difficulty": dif,
+            "correctness": cor,
+            "mode": mode,
+            "attempt": 1,
+            "status": "completed",
+            "outcome": "success",
+            "success": True,
+            "duration_s": dur,
+            "started_at": f"2026-11-22T11:{position:02d}:00Z",
+            "goal_names": json.dumps(list(names)),
+            "goal_positions": json.dumps([list(x) for x in pos]),
+            "target": TARGET,
+            "trial_id": trial_id,
+            "run": "first" if first else "second",
+        }
+    )
+    if study.with_samples:
+        study.samples.append(
+            _samples(rng, trial_id, who.pid, np.array(pos), names, dur, study.rate_hz, mode)
+        )
+    return dur
+
+
+def _answers(
+    rng: np.random.Generator,
+    study: _Study,
+    who: _Person,
+    task: str,
+    modes: list[str],
+    durations: dict[str, float],
+) -> None:
+    """The preference between the task's two runs and each run's ratings, which follow the
+    durations; written on the two trial rows and as rating rows."""
+    gap = durations["timid"] - durations["aggressive"]
+    pref = int(np.clip(np.round(gap / 6.0 + rng.normal(0, 0.7)), -3, 3))
+    raw = 4 + pref if modes[1] == "aggressive" else 4 - pref
+    mean_t = (durations["timid"] + durations["aggressive"]) / 2
+    answer = {"participant": who.pid, "session_id": who.session, "phase": "task", "task": task}
+    for rec in study.trials[-2:]:
+        rec["preference"] = raw
+        rec["preference_aggressive"] = pref
+        for item, scale in (("helpful", 7.0), ("matched", 8.0), ("teammate", 7.5)):
+            v = 4 + (mean_t - rec["duration_s"]) / scale + rng.normal(0, 0.6)
+            rec[item] = int(np.clip(np.round(v), 1, 7))
+            study.ratings.append(
+                {
+                    **answer,
+                    "mode": rec["mode"],
+                    "run": rec["run"],
+                    "item": item,
+                    "value": rec[item],
+                    "answered_at": rec["started_at"],
+                }
+            )
+    study.ratings.append(
+        {
+            **answer,
+            "mode": None,
+            "run": None,
+            "item": "preference",
+            "value": raw,
+            "answered_at": study.trials[-1]["started_at"],
+        }
+    )
 
 
 def _samples(

@@ -226,7 +226,7 @@ def timing_analysis(
             data, dv="duration_s", subject="participant", factors=factors, covariates=covs
         )
         notes += [f"mixed model: {n}" for n in mixed.notes]
-    except (AnalysisError, np.linalg.LinAlgError, ValueError) as e:  # a failed fit stays a note
+    except (AnalysisError, np.linalg.LinAlgError) as e:  # a failed fit (or singular) stays a note
         notes.append(f"mixed model skipped: {e}")
     marg = []
     for f in factors:

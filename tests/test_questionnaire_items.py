@@ -11,8 +11,8 @@ from typing import Any
 import pytest
 
 from analysis.load import from_store
-from analysis.report import _data_section
 from analysis.results import analyse
+from analysis.sections.data import data_section
 from study.export import export_metadata, tidy_tables
 from study.protocol import (
     AnswerError,
@@ -258,7 +258,7 @@ def test_a_declined_or_missing_retention_answer_leaves_the_participant_out(
     analysed = from_store(tmp_path / "s.db")
     assert set(analysed.trials["participant"]) == {"P01", "P04"}
     assert any("P02" in n and "declined" in n for n in analysed.notes)
-    data = _data_section(analyse(analysed, predictors={}), analysed, successful_only=False)
+    data = data_section(analyse(analysed, predictors={}), analysed, successful_only=False)
     assert data.paragraphs[0].startswith("4 participant(s) enrolled, 2 included; left out: P02")
     assert "session still under way: P04" in data.paragraphs[0]
 

@@ -18,7 +18,10 @@ def fail(message: str) -> int:
 
 
 def friendly(main: Callable[..., int]) -> Callable[..., int]:
-    """Turn the analysis' typed errors and unreadable files into a message and exit code 2."""
+    """Each command's one catch: the analysis' errors (:class:`AnalysisError`, the root of
+    every error it raises on purpose) as one line and exit code 2. What the operating system
+    refuses beyond them (a file gone between check and read, an output folder not writable,
+    a full disk) gets one line too; anything else is a bug and keeps its traceback."""
 
     @wraps(main)
     def wrapper(args: object) -> int:

@@ -82,7 +82,7 @@ def read_csv(path: str) -> pd.DataFrame:
         check_input_file(path, max_bytes=MAX_CSV_BYTES, what="CSV file")
     except InputFileError as e:
         if not e.path.exists():  # the commands' own wording for a missing file
-            raise FileNotFoundError(2, "No such file", str(path)) from None
+            raise SourceError(f"file not found: {path}. Check the path.") from None
         raise SourceError(str(e)) from None
     try:
         return pd.read_csv(path)

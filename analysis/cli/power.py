@@ -19,7 +19,7 @@ from analysis.cli import fail, friendly, note
 from analysis.figures import power_figure, save
 from analysis.load import load_tables, task_cells
 from analysis.power import bootstrap_power, pilot_cells
-from analysis.report import _jsonable
+from analysis.report.document import jsonable
 from study.cli.arguments import float_range, int_range, output_dir
 
 MAX_N = 10_000
@@ -105,7 +105,7 @@ def main(args: argparse.Namespace) -> int:
         "notes": [*notes, *res.notes],
     }
     (out / "power.json").write_text(
-        json.dumps(_jsonable(doc), indent=1, allow_nan=False), encoding="utf-8"
+        json.dumps(jsonable(doc), indent=1, allow_nan=False), encoding="utf-8"
     )
     for n in doc["notes"]:
         note(n)

@@ -1,0 +1,12 @@
+"""Section "Ratings by condition" (:mod:`analysis.ratings`), with Fig. 8's ratings."""
+
+from __future__ import annotations
+
+from analysis.ratings import ratings_section
+from analysis.render import Section
+from analysis.sections.context import ReportContext
+
+
+def section(ctx: ReportContext) -> Section | None:
+    figures = [ctx.figures[k] for k in ("fig8_ratings",) if k in ctx.figures]
+    return ratings_section(ctx.tables, modes=ctx.modes, figures=figures)
