@@ -20,6 +20,8 @@ import pandas as pd
 
 from analysis.design import require_columns
 from analysis.errors import SchemaError, SourceError
+from app.errors import AppError
+from study.errors import StudyError
 from study.store import Store
 
 TABLES = ("trials", "samples", "ratings", "answers", "participants", "events")
@@ -165,7 +167,7 @@ def from_store(path: str | Path) -> StudyTables:
 
     try:
         tables = tidy_tables(p)
-    except Exception as e:  # the store's own typed errors say what is wrong
+    except (StudyError, AppError) as e:  # the store's own typed errors say what is wrong
         raise SourceError(f"cannot read the study store {p}: {e}") from e
     missing = [t for t in ("trials",) if t not in tables]
     if missing:
@@ -186,7 +188,7 @@ def _store_protocol_hash(path: Path) -> str | None:
     try:
         with Store.open_readonly(path) as store:
             return str(store.meta.protocol_hash)
-    except Exception:  # the hash is informative; the data were already read
+    except StudyError:  # the hash is informative; the data were already read
         return None
 
 
@@ -235,7 +237,7 @@ def _read_table(
         if f.exists():
             try:
                 return FORMATS[suffix](f), f
-            except Exception as e:
+            except Exception as e:  # pandas and pyarrow raise many kinds for a damaged file
                 raise SourceError(f"cannot read {f}: {e}") from e
     return None
 

@@ -16,6 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from analysis.errors import SourceError
+from app.errors import AppError
+from study.errors import StudyError
 from study.store import Store
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -91,7 +93,7 @@ def _stored_info(source: Path) -> tuple[ProtocolInfo | None, str | None]:
     try:
         with Store.open_readonly(source) as store:
             proto = protocol_from_store(store)
-    except Exception as e:  # no stored text (old store), altered text, or no longer valid
+    except (StudyError, AppError) as e:  # no stored text (old store), altered, no longer valid
         return None, f"the protocol stored with the data was not used: {e}"
     return _info(proto, path=f"{source} (stored protocol)"), None
 
@@ -136,6 +138,6 @@ def _file_info(path: str | Path) -> ProtocolInfo:
 
     try:
         proto = load_protocol(p)
-    except Exception as e:  # the protocol's typed errors name file, key and problem
+    except (StudyError, AppError) as e:  # typed errors name file, key and problem
         raise SourceError(f"cannot load the protocol {p}: {e}") from e
     return _info(proto, path=str(p))
