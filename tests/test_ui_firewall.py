@@ -13,7 +13,7 @@ from viser.infra import _infra
 from viser.infra._async_message_buffer import AsyncMessageBuffer
 from viser.infra._messages import Message
 
-from study.server import blinding, firewall
+from study.server import blinding_guard, firewall
 from study.server.firewall import MAX_MESSAGE_BYTES, Firewall
 from study.server.firewall.rules import MAX_GUI_TEXT
 from study.server.firewall.shares import AcceptGate, FairShares
@@ -123,19 +123,19 @@ def test_the_viser_internals_the_firewall_relies_on_are_where_it_expects() -> No
 
 
 def test_the_viser_internals_the_blinding_guard_patches_are_where_it_expects() -> None:
-    """Each hook of study.server.blinding.PATCHED_HOOKS exists with the signature the wrapper
+    """Each hook of study.server.blinding_guard.PATCHED_HOOKS exists with the signature the wrapper
     forwards, and the server keeps its event loop where install() reads it."""
     hooks = {
         "viser.infra._async_message_buffer.AsyncMessageBuffer.push": (
-            blinding._ORIGINAL_PUSH,
+            blinding_guard._ORIGINAL_PUSH,
             ["self", "message"],
         ),
         "viser.infra._messages.Message.as_serializable_dict": (
-            blinding._ORIGINAL_SERIALIZE,
+            blinding_guard._ORIGINAL_SERIALIZE,
             ["self", "binary_buffers"],
         ),
     }
-    assert set(hooks) == set(blinding.PATCHED_HOOKS)
+    assert set(hooks) == set(blinding_guard.PATCHED_HOOKS)
     assert AsyncMessageBuffer.__module__ == "viser.infra._async_message_buffer"
     assert Message.__module__ == "viser.infra._messages"
     for name, (original, params) in hooks.items():
@@ -144,13 +144,13 @@ def test_the_viser_internals_the_blinding_guard_patches_are_where_it_expects() -
     try:
         loop = server._websock_server._background_event_loop
         assert isinstance(loop, asyncio.AbstractEventLoop)
-        guard = blinding.install(server, words=("hard",))
-        assert AsyncMessageBuffer.push is blinding._guarded_push
-        assert Message.as_serializable_dict is blinding._guarded_serialize
+        guard = blinding_guard.install(server, words=("hard",))
+        assert AsyncMessageBuffer.push is blinding_guard._guarded_push
+        assert Message.as_serializable_dict is blinding_guard._guarded_serialize
         server.gui.add_markdown("a hard one")
         assert guard.checked >= 1 and guard.blocked == 1
     finally:
-        blinding.uninstall(server)
+        blinding_guard.uninstall(server)
         server.stop()
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     try:

@@ -1,6 +1,6 @@
 """The participant page's fields for questionnaire items other than Likert ratings.
 
-:meth:`study.server.participant.ParticipantPage.show_questions` draws Likert items itself and
+:meth:`study.server.participant_page.ParticipantPage.show_questions` draws Likert items itself and
 every other kind here, one field per item under its prompt:
 
 - choice, attention and retention items: a dropdown whose first entry, :data:`CHOOSE`, means
@@ -12,7 +12,7 @@ every other kind here, one field per item under its prompt:
   sent back to the page: it is data, and the page must not receive condition words, which a
   participant may well type. (viser queues an echo of each typed value for the typing tab's
   own connection, which never sends it: the blinding guard drops such echoes unread,
-  ``study.server.blinding``.)
+  ``study.server.blinding_guard``.)
 
 Each field reports ``(item id, value or None, valid)`` through ``report``; the page enables
 Continue once every required item has a valid answer and nothing typed is invalid. The
@@ -26,10 +26,10 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from study.protocol import AnswerError, ChoiceItem, Item, NumberItem, TextItem
-from study.server.blinding import check_text
+from study.server.blinding_guard import check_text
 
 if TYPE_CHECKING:
-    from study.server.participant import ParticipantPage
+    from study.server.participant_page import ParticipantPage
 
 CHOOSE = "(choose an answer)"
 """The dropdown's first entry: no answer chosen yet."""

@@ -26,7 +26,7 @@ import threading
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from study.server.participant import ParticipantPage
+from study.server.participant_page import ParticipantPage
 
 PARAMS: dict[str, str] = {"PROLIFIC_PID": "P", "STUDY_ID": "S", "SESSION_ID": "E", "pid": "p"}
 """URL parameters read, and the one-letter key each travels under."""

@@ -40,8 +40,8 @@ from pathlib import Path
 import viser
 
 from study.protocol.blinding import find_words
-from study.server import blinding, firewall, logs, realtime
-from study.server.experimenter import (
+from study.server import blinding_guard, firewall, logs, realtime
+from study.server.console_page import (
     ExperimenterConsole,
     LinkState,
     SessionDetail,
@@ -62,10 +62,10 @@ from study.server.live.texts import (
 )
 from study.server.open_link import LinkClosed, OpenLink
 from study.server.page_head import PageHead
+from study.server.page_scene import frame_task
 from study.server.page_script import page_script
-from study.server.participant import ParticipantPage
+from study.server.participant_page import ParticipantPage
 from study.server.recruitment import LinkError, Recruitment, link_script, parse_ids, read_link
-from study.server.scene import frame_task
 from study.session import EXPERIMENTER_ACTIONS, FINAL_STATUSES
 
 LOGGER = logging.getLogger("study.server.server")
@@ -152,7 +152,7 @@ class StudyServer:
         self.firewall.page_filter = PageHead()  # viser's own notices hidden from the first paint
         with firewall.hardened_serve(self.firewall):
             self.participant = viser.ViserServer(host=host, port=port, verbose=verbose)
-        self.guard = blinding.install(self.participant, words=condition_words)
+        self.guard = blinding_guard.install(self.participant, words=condition_words)
         _check_page_is_blind(self.guard.words)
         firewall.install(self.participant, self.firewall)
         self.participant.gui.configure_theme(
@@ -214,7 +214,7 @@ class StudyServer:
             sessions = list(self._sessions.values())
         for live in sessions:
             live.close()
-        blinding.uninstall(self.participant)
+        blinding_guard.uninstall(self.participant)
         firewall.uninstall(self.participant)
         firewall.uninstall(self.experimenter)
         self.participant.stop()

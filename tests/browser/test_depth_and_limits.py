@@ -24,7 +24,7 @@ from PIL import Image
 from app.robot.scene import grasp_position
 from study.server.inset import TopDownCamera
 from study.server.live.texts import AT_REACH_LIMIT, TIME_WARNING
-from study.server.participant import HANDLE_OFFSET_M, HANDLE_PX
+from study.server.participant_page import HANDLE_OFFSET_M, HANDLE_PX
 from tests.browser.harness import (
     FrameLog,
     RunningServer,

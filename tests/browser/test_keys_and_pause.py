@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from app.teleop.keyboard import KEY_SPEED_M_S
-from study.server.participant import HANDLE_OFFSET_M
+from study.server.participant_page import HANDLE_OFFSET_M
 from tests.browser.harness import RunningServer, start_server, wait_until
 from tests.browser.test_participant_flow import AGREE, _connect, _settle, _shot, hold, join
 

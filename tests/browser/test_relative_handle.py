@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from study.server.participant import HANDLE_OFFSET_M
+from study.server.participant_page import HANDLE_OFFSET_M
 from tests.browser.harness import drag, project, start_server, wait_until
 from tests.browser.test_participant_flow import AGREE, _connect, _settle, _shot, join
 from tests.protocol_copies import relative_copy

@@ -44,7 +44,7 @@ from playwright.sync_api import expect
 from app.robot.scene import grasp_position
 from study.protocol import load_protocol
 from study.server.live.texts import AT_REACH_LIMIT
-from study.server.participant import HANDLE_PX, INSET_SIZE
+from study.server.participant_page import HANDLE_PX, INSET_SIZE
 from tests.browser.harness import FrameLog, RunningServer, start_server, wait_until
 from tests.browser.test_depth_and_limits import _camera_still, _pixels_per_m, _screen
 from tests.browser.test_participant_flow import AGREE, _connect, _settle, _shot, hold, join

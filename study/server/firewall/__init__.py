@@ -17,7 +17,7 @@ that, in parts:
 """
 
 from study.server.firewall.hooks import hardened_serve, install, remote_host, uninstall
-from study.server.firewall.policy import REJOIN_COOKIE, Firewall
+from study.server.firewall.port import REJOIN_COOKIE, Firewall
 from study.server.firewall.rules import (
     LOOPBACK_NAMES,
     MAX_MESSAGE_BYTES,

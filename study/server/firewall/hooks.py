@@ -29,7 +29,7 @@ from study.server.firewall.notes import OncePerMinute
 from study.server.firewall.rules import ConnectionFlood
 
 if TYPE_CHECKING:
-    from study.server.firewall.policy import Firewall
+    from study.server.firewall.port import Firewall
 
 _WEBSOCKETS_LINES = OncePerMinute()
 _FIREWALLS: dict[int, Firewall] = {}

@@ -18,7 +18,7 @@ from study.server.live.texts import (
     WAITING_TEXT,
     end_screen,
 )
-from study.server.participant import ParticipantPage
+from study.server.participant_page import ParticipantPage
 from study.server.recruitment import redirect_script
 from study.session import PauseCause, Screen
 

@@ -2,7 +2,7 @@
 
 The page only shows and asks; it decides nothing. The server's session controller calls
 ``show_*`` to change the screen and receives answers through the callbacks it passes. Every
-string shown goes through :func:`study.server.blinding.check_text` first (a condition word raises),
+string shown goes through :func:`study.server.blinding_guard.check_text` first (a condition word raises),
 and the blinding guard checks every message again on the wire. Callbacks of a screen that is
 no longer shown are ignored, so a late click can never answer the next screen.
 
@@ -34,7 +34,7 @@ from viser import _messages as viser_messages
 
 from study.protocol import Item, LikertItem
 from study.server.answer_fields import add_answer_field
-from study.server.blinding import check_text
+from study.server.blinding_guard import check_text
 from study.server.firewall import MAX_POSITION_M
 from study.server.page_script import ARROW_KEYCODES, MAX_KEY_MESSAGE, STEERING_CODES, page_script
 

@@ -3,7 +3,7 @@
 The words are those of the protocol the server runs (:attr:`study.protocol.Protocol.
 condition_words`: every factor level, task and mode name, plus a fixed list), given to
 :func:`install`. Our own code checks each text where it hands it to viser (:func:`check_text`,
-used by :mod:`study.server.participant`); this guard then checks what viser actually sends,
+used by :mod:`study.server.participant_page`); this guard then checks what viser actually sends,
 which also covers what viser echoes back (text a tab typed) and names in the 3-D scene.
 
 viser has no public hook on outgoing messages, so the guard wraps two private ones
