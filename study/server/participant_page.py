@@ -30,9 +30,9 @@ from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 import viser
-from viser import _messages as viser_messages
 
 from study.protocol import Item, LikertItem
+from study.server import viser_door
 from study.server.answer_fields import add_answer_field
 from study.server.blinding_guard import check_text
 from study.server.firewall import MAX_POSITION_M
@@ -137,13 +137,12 @@ class ParticipantPage:
         self._keys = client.gui.add_text("keys", initial_value="", visible=False)
         self._keys.on_update(self._on_key_state)
         client.gui.set_panel_label(self.title)
-        self.run_script(page_script(keys_uuid=self._keys._impl.uuid, title=self.title))
+        keys_uuid = viser_door.element_uuid(self._keys)
+        self.run_script(page_script(keys_uuid=keys_uuid, title=self.title))
 
     def run_script(self, source: str) -> None:
         """Run ``source`` (JavaScript) in this tab once (checked for condition words too)."""
-        self.client._websock_connection.queue_message(
-            viser_messages.RunJavascriptMessage(source=check_text(source, words=self.words))
-        )
+        viser_door.run_javascript(self.client, check_text(source, words=self.words))
 
     async def _on_key_state(self, _event: object) -> None:
         """A new key state from the page script (async: in arrival order, never reordered)."""
@@ -477,7 +476,7 @@ class ParticipantPage:
         words by :mod:`study.server.inset` (viser would otherwise re-encode the array)."""
         with self._lock:
             if self._inset is not None:
-                self._inset._data = jpeg
+                viser_door.set_image_bytes(self._inset, jpeg)
 
     # -- teleoperation -----------------------------------------------------------------------
     def add_gizmo(
