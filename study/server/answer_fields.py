@@ -1,8 +1,10 @@
-"""The participant page's fields for questionnaire items other than Likert ratings.
+"""The participant page's fields for questionnaire items.
 
-:meth:`study.server.participant_page.ParticipantPage.show_questions` draws Likert items itself and
-every other kind here, one field per item under its prompt:
+:meth:`study.server.participant_page.ParticipantPage.show_questions` draws each item's prompt
+and its field here, one field per item under its prompt:
 
+- Likert items: a row of buttons 1..points (the chosen one relabelled ``[k]``, drawn filled by
+  the page script) and a line that says the answer with its anchor;
 - choice, attention and retention items: a dropdown whose first entry, :data:`CHOOSE`, means
   "not answered yet" (no option is preselected: a default would be an answer nobody gave);
 - number items: a text field (empty until typed: a number input would start at some value),
@@ -25,8 +27,9 @@ import asyncio
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from study.protocol import AnswerError, ChoiceItem, Item, NumberItem, TextItem
+from study.protocol import AnswerError, ChoiceItem, Item, LikertItem, NumberItem, TextItem
 from study.server.blinding_guard import check_text
+from study.server.page_inputs import InputRejected, parse_answer
 
 if TYPE_CHECKING:
     from study.server.participant_page import ParticipantPage
@@ -43,14 +46,42 @@ def add_answer_field(
 ) -> None:
     """Draw ``item``'s field on ``page`` (its prompt is drawn already); ``current()`` says the
     screen is still shown (a late update from an old screen is ignored)."""
-    if isinstance(item, ChoiceItem):
+    if isinstance(item, LikertItem):
+        _likert(page, item, current=current, report=report)
+    elif isinstance(item, ChoiceItem):
         _choice(page, item, current=current, report=report)
     elif isinstance(item, NumberItem):
         _number(page, item, current=current, report=report)
     elif isinstance(item, TextItem):
         _text(page, item, current=current, report=report)
-    else:  # pragma: no cover - Likert items are drawn by the page itself
+    else:  # pragma: no cover - every item kind of study.protocol has its field
         raise TypeError(f"no answer field for a {type(item).__name__}")
+
+
+def _likert(
+    page: ParticipantPage, item: LikertItem, *, current: Callable[[], bool], report: Report
+) -> None:
+    """A row of buttons 1..points; the chosen one reads ``[k]`` and the line under the row
+    says the answer with its anchor."""
+    plain = tuple(str(k) for k in range(1, item.points + 1))
+    group = page.client.gui.add_button_group(" ", plain)
+    page._handles.append(group)
+    chosen = page._md("Your answer: none yet")
+
+    def on_click(_: object) -> None:
+        if not current():
+            return
+        try:
+            answer = parse_answer(str(group.value).strip("[] "), points=item.points)
+        except InputRejected as exc:
+            page.reject(str(exc))
+            return
+        marked = [f"[{o}]" if int(o) == answer else o for o in plain]
+        group.options = tuple(marked)  # the chosen button reads [k]
+        chosen.content = f"Your answer: **{answer}** ({item.anchors[answer - 1]})"
+        report(item.id, answer, True)
+
+    group.on_click(on_click)
 
 
 def _choice(

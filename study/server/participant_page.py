@@ -22,7 +22,6 @@ import asyncio
 import contextlib
 import logging
 import math
-import re
 import threading
 import time
 from collections import deque
@@ -35,8 +34,12 @@ from study.protocol import Item, LikertItem
 from study.server import viser_door
 from study.server.answer_fields import add_answer_field
 from study.server.blinding_guard import check_text
-from study.server.firewall import MAX_POSITION_M
-from study.server.page_script import ARROW_KEYCODES, MAX_KEY_MESSAGE, STEERING_CODES, page_script
+from study.server.page_inputs import (
+    InputRejected,
+    parse_key_state,
+    parse_position,
+)
+from study.server.page_script import page_script
 
 LOGGER = logging.getLogger("study.server.participant")
 
@@ -58,48 +61,6 @@ HANDLE_LINE_PX = 5.0
 INSET_SIZE = (320, 240)
 """Width and height (pixels) of the view from above on the trial screen."""
 DECLINE = "I do not wish to take part"
-KEY_LETTERS = frozenset(STEERING_CODES.values()) | frozenset(ARROW_KEYCODES.values())
-_KEY_STATE = re.compile(r"([0-9]{1,12}) ([a-z]*)", re.ASCII)
-
-
-class InputRejected(ValueError):
-    """A message from the browser was malformed (NaN pose, unknown answer); it was ignored."""
-
-
-def parse_answer(value: object, *, points: int) -> int:
-    """The integer answer 1..points in ``value`` (a button label), else :class:`InputRejected`."""
-    try:
-        answer = int(str(value))
-    except ValueError:
-        raise InputRejected(f"answer {value!r} is not a number 1..{points}") from None
-    if not 1 <= answer <= points:
-        raise InputRejected(f"answer {answer} is outside 1..{points}")
-    return answer
-
-
-def parse_position(position: object) -> np.ndarray:
-    """A finite 3-vector within ``MAX_POSITION_M`` of the origin, else :class:`InputRejected`
-    (whose message is short: never the whole payload)."""
-    try:
-        p = np.asarray(position, dtype=float).reshape(-1)
-    except (TypeError, ValueError, OverflowError):
-        raise InputRejected("gizmo position is not numeric") from None
-    if p.shape != (3,):
-        raise InputRejected(f"gizmo position has {p.size} values, not 3")
-    if not np.all(np.isfinite(p)) or float(np.max(np.abs(p))) > MAX_POSITION_M:
-        raise InputRejected(f"gizmo position is not finite or beyond {MAX_POSITION_M:g} m")
-    return p
-
-
-def parse_key_state(value: object) -> tuple[int, frozenset[str]]:
-    """``"<seq> <letters>"`` -> (seq, held keys), else :class:`InputRejected`."""
-    text = str(value)
-    if len(text) > MAX_KEY_MESSAGE:
-        raise InputRejected(f"key state of {len(text)} characters")
-    match = _KEY_STATE.fullmatch(text)
-    if match is None or not set(match[2]) <= KEY_LETTERS:
-        raise InputRejected("key state is not '<number> <keys>'")
-    return int(match[1]), frozenset(match[2])
 
 
 class ParticipantPage:
@@ -354,7 +315,7 @@ class ParticipantPage:
         progress: str | None,
         on_submit: Callable[[dict[str, object]], None],
     ) -> int:
-        """Likert items as 1..7 button rows with their anchors, every other kind as its field
+        """Each item's prompt (a Likert item's with its anchors) and its field
         (:mod:`study.server.answer_fields`); Continue needs every required answer, valid."""
         with self._lock:
             screen = self._new_screen("questions:" + heading)
@@ -378,34 +339,11 @@ class ParticipantPage:
                     submit.disabled = not complete()
 
             for item in items:
-                if not isinstance(item, LikertItem):
-                    self._md(f"**{item.prompt}**")
-                    add_answer_field(
-                        self, item, current=lambda: self._current(screen), report=report
-                    )
-                    continue
-                self._md(f"**{item.prompt}**\n\n{item.anchor_text()}")
-                plain = tuple(str(k) for k in range(1, item.points + 1))
-                group = self.client.gui.add_button_group(" ", plain)
-                self._handles.append(group)
-                chosen = self._md("Your answer: none yet")
-
-                def on_click(
-                    event: object, item: LikertItem = item, group=group, chosen=chosen, plain=plain
-                ) -> None:
-                    if not self._current(screen):
-                        return
-                    try:
-                        answer = parse_answer(str(group.value).strip("[] "), points=item.points)
-                    except InputRejected as exc:
-                        self.reject(str(exc))
-                        return
-                    marked = [f"[{o}]" if int(o) == answer else o for o in plain]
-                    group.options = tuple(marked)  # the chosen button reads [k]
-                    chosen.content = f"Your answer: **{answer}** ({item.anchors[answer - 1]})"
-                    report(item.id, answer, True)
-
-                group.on_click(on_click)
+                prompt = f"**{item.prompt}**"
+                if isinstance(item, LikertItem):
+                    prompt += f"\n\n{item.anchor_text()}"
+                self._md(prompt)
+                add_answer_field(self, item, current=lambda: self._current(screen), report=report)
             submit = self._button("Continue", disabled=not complete())
 
             @submit.on_click

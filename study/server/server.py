@@ -36,13 +36,8 @@ from pathlib import Path
 
 from study.protocol.blinding import find_words
 from study.server import blinding_guard, firewall, logs, realtime
-from study.server.console_page import (
-    ExperimenterConsole,
-    LinkState,
-    SessionDetail,
-    SessionSummary,
-    StudyProgress,
-)
+from study.server.console_model import LinkState, SessionDetail, SessionSummary, StudyProgress
+from study.server.console_page import ExperimenterConsole
 from study.server.firewall import LOOPBACK_NAMES
 from study.server.forwarded import Network
 from study.server.join import JoinThrottle, new_join_code, new_token

@@ -22,6 +22,7 @@ import pytest
 from PIL import Image
 
 from app.robot.scene import grasp_position
+from study.server import viser_door
 from study.server.inset import TopDownCamera
 from study.server.live.texts import AT_REACH_LIMIT, TIME_WARNING
 from study.server.participant_page import HANDLE_OFFSET_M, HANDLE_PX
@@ -221,7 +222,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     # The view from above is redrawn while the arm moves (keys held for seconds): the server
     # makes 10 pictures a second or more, and the page gets them (viser merges two pictures
     # queued within one send window, so a loaded machine shows fewer, the newest each time).
-    uuid = live.page._inset._impl.uuid
+    uuid = viser_door.element_uuid(live.page._inset)
     inset = live.view.inset
     before = len(_inset_frames(frames, uuid))
     t0 = time.monotonic()
