@@ -1,4 +1,5 @@
-"""The participant's page: one screen at a time in the viser panel, plus the teleop gizmo.
+"""The participant's page: one screen at a time in the viser panel, plus the teleop handle
+(:mod:`study.server.page_handle`).
 
 The page only shows and asks; it decides nothing. The server's session controller calls
 ``show_*`` to change the screen and receives answers through the callbacks it passes. Every
@@ -34,10 +35,10 @@ from study.protocol import Item, LikertItem
 from study.server import viser_door
 from study.server.answer_fields import add_answer_field
 from study.server.blinding_guard import check_text
+from study.server.page_handle import TeleopHandle
 from study.server.page_inputs import (
     InputRejected,
     parse_key_state,
-    parse_position,
 )
 from study.server.page_script import page_script
 
@@ -51,13 +52,6 @@ KEY_HELP = (
     "lifts it. The picture shows the table from above. Drag the background to "
     "look around, scroll to zoom; **V** brings back the starting view."
 )
-HANDLE_OFFSET_M = 0.12
-"""The handle floats this far above the point the gripper is sent to (a thin stem joins them),
-so that near a grasp it never covers the object; its arrows point away from the task camera
-(``app.robot.task_view`` keeps the camera behind the robot), upward on the screen."""
-HANDLE_PX = 150.0
-"""Length of the handle's arrows on the screen (pixels, whatever the zoom)."""
-HANDLE_LINE_PX = 5.0
 INSET_SIZE = (320, 240)
 """Width and height (pixels) of the view from above on the trial screen."""
 DECLINE = "I do not wish to take part"
@@ -74,11 +68,9 @@ class ParticipantPage:
         self.screen = 0
         self.screen_name = "none"
         self._lock = threading.RLock()
+        self.handle = TeleopHandle(client, lock=self._lock, reject=self.reject)
+        """The teleoperation handle on the tab's scene."""
         self._handles: list[object] = []
-        self._gizmo: viser.TransformControlsHandle | None = None
-        self._stem: list[object] = []
-        self.dragging = False
-        """True while the participant holds the handle with the mouse."""
         self._clock: viser.GuiMarkdownHandle | None = None
         self._clock_text = ""
         self._inset: viser.GuiImageHandle | None = None
@@ -416,7 +408,12 @@ class ParticipantPage:
             if self._inset is not None:
                 viser_door.set_image_bytes(self._inset, jpeg)
 
-    # -- teleoperation -----------------------------------------------------------------------
+    # -- teleoperation (the handle: ``study.server.page_handle``) ----------------------------
+    @property
+    def dragging(self) -> bool:
+        """True while the participant holds the handle with the mouse."""
+        return self.handle.dragging
+
     def add_gizmo(
         self,
         position: np.ndarray,
@@ -424,76 +421,18 @@ class ParticipantPage:
         on_target: Callable[[np.ndarray], None],
         on_release: Callable[[], None] | None = None,
     ) -> viser.TransformControlsHandle:
-        """The transform handle, :data:`HANDLE_OFFSET_M` above the target ``position``, with a
-        stem down to it; every pose update sends the target (the handle's position minus the
-        offset) to ``on_target``, and letting go of it calls ``on_release``."""
-        offset = np.array([0.0, 0.0, HANDLE_OFFSET_M])
-        with self._lock:
-            self.remove_gizmo()
-            gizmo = self.client.scene.add_transform_controls(
-                "/handle",
-                scale=HANDLE_PX,
-                fixed=True,
-                line_width=HANDLE_LINE_PX,
-                disable_rotations=True,
-                depth_test=False,
-                opacity=0.9,
-                position=tuple(np.asarray(position, float) + offset),
-            )
-            self._gizmo = gizmo
-            # children move with the handle in the browser while it is dragged
-            self._stem = [
-                self.client.scene.add_cylinder(
-                    "/handle/stem",
-                    radius=0.0025,
-                    height=HANDLE_OFFSET_M,
-                    color=(60, 60, 70),
-                    position=(0.0, 0.0, -HANDLE_OFFSET_M / 2),
-                ),
-                self.client.scene.add_icosphere(
-                    "/handle/tip", radius=0.006, color=(60, 60, 70), position=tuple(-offset)
-                ),
-            ]
-
-        # async: runs on viser's event loop in arrival order (thread-pool callbacks may run
-        # out of order, and a stale pose must never overwrite a newer one); ``on_target`` only
-        # takes a lock. A rejection (notice + store event) and a release go to a worker thread.
-        @gizmo.on_update
-        async def _(event: viser.TransformControlsEvent) -> None:
-            phase = getattr(event, "phase", "update")
-            if phase != "update":
-                self.dragging = phase == "start"
-                if phase == "end" and on_release is not None:
-                    asyncio.get_running_loop().run_in_executor(None, on_release)
-                return  # the same pose as the update before it
-            try:
-                on_target(parse_position(gizmo.position) - offset)
-            except InputRejected as exc:
-                asyncio.get_running_loop().run_in_executor(None, self.reject, str(exc), False)
-
-        return gizmo
+        """The handle over the target ``position`` (:meth:`TeleopHandle.add`)."""
+        return self.handle.add(position, on_target=on_target, on_release=on_release)
 
     def move_gizmo(self, position: np.ndarray) -> None:
         """Put the handle over the target ``position``."""
-        with self._lock:
-            if self._gizmo is not None:
-                self._gizmo.position = tuple(
-                    np.asarray(position, float) + np.array([0.0, 0.0, HANDLE_OFFSET_M])
-                )
+        self.handle.move(position)
 
     def show_gizmo(self, visible: bool) -> None:
-        with self._lock:
-            if self._gizmo is not None:
-                self._gizmo.visible = visible
+        self.handle.show(visible)
 
     def remove_gizmo(self) -> None:
-        with self._lock:
-            self.dragging = False
-            for h in [*self._stem, self._gizmo]:
-                if h is not None:
-                    with contextlib.suppress(Exception):
-                        h.remove()  # type: ignore[attr-defined]
-            self._gizmo, self._stem = None, []
+        self.handle.remove()
 
 
 def clock_text(seconds: float) -> str:

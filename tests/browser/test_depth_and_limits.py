@@ -25,7 +25,7 @@ from app.robot.scene import grasp_position
 from study.server import viser_door
 from study.server.inset import TopDownCamera
 from study.server.live.texts import AT_REACH_LIMIT, TIME_WARNING
-from study.server.participant_page import HANDLE_OFFSET_M, HANDLE_PX
+from study.server.page_handle import HANDLE_OFFSET_M, HANDLE_PX
 from tests.browser.harness import (
     FrameLog,
     RunningServer,
@@ -92,7 +92,7 @@ def _arrow(page: Any, live: Any, axis: int) -> tuple[np.ndarray, np.ndarray]:
     """Where to grab the handle's ``axis`` arrow (CSS pixels, 80 % along it) and the arrow's
     direction on the screen (unit)."""
     cam = live.page.client.camera
-    origin = np.asarray(live.page._gizmo.position, float)
+    origin = np.asarray(live.page.handle.gizmo.position, float)
     e = np.eye(3)[axis]
     o = _screen(page, cam, origin)
     length_m = HANDLE_PX / _pixels_per_m(page, cam, origin)
@@ -192,7 +192,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
 
     # The handle floats over the gripper, its arrows pointing up the screen: not over the mug.
     cam = live.page.client.camera
-    handle = np.asarray(live.page._gizmo.position, float)
+    handle = np.asarray(live.page.handle.gizmo.position, float)
     assert np.allclose(handle - OFFSET, run.trial.user_target, atol=1e-3)
 
     # Each arrow, dragged 90 px along itself, moves the gripper across the screen that way,
@@ -266,7 +266,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     _shot(page, screenshots, "13-depth-past-the-reach")
     page.mouse.up()
     assert wait_until(lambda: not notice.first.is_visible(), timeout=10)
-    back = np.asarray(live.page._gizmo.position, float) - OFFSET
+    back = np.asarray(live.page.handle.gizmo.position, float) - OFFSET
     assert scene.reach.contains(back, tol=1e-6), "the handle came back inside the reach"
     # W held at the far edge pushes past it too: the same notice while the key is down
     page.keyboard.down("w")
@@ -282,7 +282,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     g = _gripper(live)
     assert float(np.linalg.norm(g[:2] - goal[:2])) < 0.02, g
     mug = _screen(page, cam, goal)
-    origin = _screen(page, cam, np.asarray(live.page._gizmo.position, float))
+    origin = _screen(page, cam, np.asarray(live.page.handle.gizmo.position, float))
     assert origin[1] < mug[1] - 30, "the handle sits above the mug on the screen"
     for axis in range(3):
         _, d = _arrow(page, live, axis)
@@ -309,7 +309,7 @@ def test_a_run_that_ends_while_the_handle_is_held_says_why(tmp_path: Path, wide:
         _settle(page)
         page.get_by_role("button", name="Start").click()
         page.get_by_role("button", name="Close the gripper (G)").wait_for()
-        assert wait_until(lambda: live.run is not None and live.page._gizmo is not None)
+        assert wait_until(lambda: live.run is not None and live.page.handle.gizmo is not None)
         _camera_still(live)  # the scene was drawn on the ready screen already
 
         # Grab the up arrow and keep moving it slowly until the time is up; the countdown runs.

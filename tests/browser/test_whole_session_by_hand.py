@@ -44,7 +44,8 @@ from playwright.sync_api import expect
 from app.robot.scene import grasp_position
 from study.protocol import load_protocol
 from study.server.live.texts import AT_REACH_LIMIT
-from study.server.participant_page import HANDLE_PX, INSET_SIZE
+from study.server.page_handle import HANDLE_PX
+from study.server.participant_page import INSET_SIZE
 from tests.browser.harness import FrameLog, RunningServer, start_server, wait_until
 from tests.browser.test_depth_and_limits import _camera_still, _pixels_per_m, _screen
 from tests.browser.test_participant_flow import AGREE, _connect, _settle, _shot, hold, join
@@ -122,7 +123,7 @@ class Person:
         return self.live.run
 
     def handle(self) -> np.ndarray:
-        return np.asarray(self.live.page._gizmo.position, float)
+        return np.asarray(self.live.page.handle.gizmo.position, float)
 
     def target(self) -> np.ndarray:
         return np.asarray(self.run.trial.user_target, float)
@@ -152,7 +153,7 @@ class Person:
         press_start()
         self.page.get_by_role("button", name="Close the gripper (G)").wait_for()
         assert wait_until(lambda: self.run is not None and not self.run.over)
-        assert wait_until(lambda: self.live.page._gizmo is not None)
+        assert wait_until(lambda: self.live.page.handle.gizmo is not None)
         self.mark("run started")
         _camera_still(self.live)
         self.clock_at_start = left = self.clock()
