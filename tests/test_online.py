@@ -16,7 +16,7 @@ from websockets.datastructures import Headers
 from study.cli.serve import public_url
 from study.export import tidy_tables
 from study.protocol import BlindingError, ProtocolValueError, load_protocol
-from study.server.firewall import Firewall
+from study.server.firewall import Firewall, FirewallConfig
 from study.server.forwarded import accepted_hosts, client_address, trusted_networks
 from study.server.live.texts import CLOSE_TEXT, end_screen
 from study.server.open_link import LinkClosed, OpenLink
@@ -180,15 +180,15 @@ def test_the_origin_check_accepts_the_public_host_only_from_the_proxy() -> None:
         [("X-Forwarded-Host", "a," * 2000 + "study.example.org"), ("Forwarded", "host=evil")]
     )
     assert "evil" not in accepted_hosts("127.0.0.1", padded, trusted=PROXY)
-    fw = Firewall(trusted_proxies=PROXY)
+    fw = Firewall(FirewallConfig(trusted_proxies=PROXY))
 
     def request(origin: str) -> SimpleNamespace:
         offered = ("Sec-WebSocket-Protocol", f"viser-v{viser.__version__}")
         return SimpleNamespace(headers=Headers([*h.raw_items(), ("Origin", origin), offered]))
 
     conn = SimpleNamespace(remote_address=("127.0.0.1", 5000))
-    assert fw._door_problem(conn, request("https://study.example.org")) is None
-    assert "origin" in str(fw._door_problem(conn, request("https://evil.example.org")))
+    assert fw.door.problem(conn, request("https://study.example.org")) is None
+    assert "origin" in str(fw.door.problem(conn, request("https://evil.example.org")))
     assert fw.client_host(conn, Headers([("X-Forwarded-For", "10.0.0.5")])) == "10.0.0.5"
 
 

@@ -38,7 +38,7 @@ from app.robot.task_view import (
     visible_fractions,
 )
 from study.protocol.loader import load_protocol
-from study.server.scene import scene_view, task_center
+from study.server.page_scene import scene_view, task_center
 
 ROOT = Path(__file__).resolve().parents[1]
 HEIGHT = 360

@@ -29,7 +29,7 @@ import pytest
 import viser
 import websockets
 
-from study.server.firewall import Firewall
+from study.server.firewall import Firewall, FirewallConfig
 from tests.attacker import CAMERA
 from tests.browser.harness import RunningServer, run_async, start_server
 from tests.test_ui_malformed import AGREE, RawClient
@@ -199,7 +199,7 @@ def test_idle_sockets_cannot_lock_a_new_tab_or_a_reload_out(tmp_path: Path) -> N
         tmp_path,
         time_limit_s=120.0,
         training_runs=1,
-        server_kw={"port_firewall": Firewall(max_connections=24)},
+        server_kw={"port_firewall": Firewall(FirewallConfig(max_connections=24))},
     )
     srv = rs.server
     code = srv.enrol("P01")
@@ -363,8 +363,8 @@ def test_a_link_tab_gets_no_join_screen_before_its_url_is_read_and_one_session(
             for value in ("P=" + "b" * 24, "."):
                 await tab.send("GuiUpdateMessage", uuid=link["uuid"], updates={"value": value})
             await tab.button(AGREE)
-            page = next(iter(srv._pages.values()))
-            assert not srv._bind(page, srv.session(code))  # one tab, one session
+            page = next(iter(srv.tabs._pages.values()))
+            assert not srv.tabs.bind(page, srv.session(code))  # one tab, one session
 
     try:
         run_async(scenario())
@@ -380,9 +380,9 @@ def test_a_second_tab_of_the_same_browser_leaves_the_rejoin_cookie_alone(
     """A second tab sends the same cookie; refused because the first holds the session, it
     once cleared the cookie the browser shares, so the first tab's next reload met the join
     screen. Now the cookie is cleared only when its session is over."""
-    import study.server.server as server_module
+    import study.server.participant_tabs as tabs_module
 
-    monkeypatch.setattr(server_module, "REJOIN_WAIT_S", 1.0)
+    monkeypatch.setattr(tabs_module, "REJOIN_WAIT_S", 1.0)
     srv = study.server
     code = srv.enrol("P01")
     srv.act(code, "start")

@@ -11,8 +11,8 @@ import websockets
 
 from study.protocol import BlindingError, load_protocol, parse_protocol
 from study.protocol.blinding import FIXED_WORDS, find_words
-from study.server import blinding
-from study.server.blinding import BlindingGuard, BlindingViolation, check_text
+from study.server import blinding_guard
+from study.server.blinding_guard import BlindingGuard, BlindingViolation, check_text
 from tests.browser.harness import decode_frame, iter_strings, run_async
 from tests.protocol_copies import PAPER_PROTOCOL, PROTOCOLS, STUDY_PROTOCOLS
 
@@ -112,7 +112,7 @@ def test_installed_guard_blocks_only_the_guarded_server() -> None:
     other = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     try:
         words = load_protocol(PROTOCOLS / "memory3.toml").condition_words
-        guard = blinding.install(guarded, words=words)
+        guard = blinding_guard.install(guarded, words=words)
         guarded.gui.add_markdown("Pick up the farther object")
         assert guard.violations == []
         guarded.gui.add_markdown("You are in the easy condition")
@@ -128,7 +128,7 @@ def test_installed_guard_blocks_only_the_guarded_server() -> None:
         assert not any(find_words(s, words) for s in texts)
         assert guard.redacted >= 1
     finally:
-        blinding.uninstall(guarded)
+        blinding_guard.uninstall(guarded)
         guarded.stop()
         other.stop()
 

@@ -3,18 +3,21 @@
 from __future__ import annotations
 
 import asyncio
+import importlib
 import inspect
 import math
 
 import msgspec
+import numpy as np
 import pytest
 import viser
+import websockets.asyncio.server as ws_server
 from viser.infra import _infra
 from viser.infra._async_message_buffer import AsyncMessageBuffer
 from viser.infra._messages import Message
 
-from study.server import blinding, firewall
-from study.server.firewall import MAX_MESSAGE_BYTES, Firewall
+from study.server import blinding_guard, firewall, viser_door
+from study.server.firewall import MAX_MESSAGE_BYTES, Firewall, FirewallConfig
 from study.server.firewall.rules import MAX_GUI_TEXT
 from study.server.firewall.shares import AcceptGate, FairShares
 from study.server.firewall.slots import Slots
@@ -103,9 +106,15 @@ def test_poses_far_away_zero_quaternions_and_degenerate_cameras_are_refused() ->
 
 
 def test_share_links_only_when_the_experimenter_asks() -> None:
-    assert Firewall(allowed=None).screen(_raw("ShareUrlRequest")) is not None
-    assert Firewall(allowed=None, allow_share=True).screen(_raw("ShareUrlRequest")) is None
-    assert Firewall(allowed=None).screen(_raw("FileTransferStartUpload", uuid="x")) is None
+    assert Firewall(FirewallConfig(allowed=None)).screen(_raw("ShareUrlRequest")) is not None
+    assert (
+        Firewall(FirewallConfig(allowed=None, allow_share=True)).screen(_raw("ShareUrlRequest"))
+        is None
+    )
+    assert (
+        Firewall(FirewallConfig(allowed=None)).screen(_raw("FileTransferStartUpload", uuid="x"))
+        is None
+    )
 
 
 def test_refusals_are_counted_and_logged_once_per_reason(caplog) -> None:
@@ -116,56 +125,104 @@ def test_refusals_are_counted_and_logged_once_per_reason(caplog) -> None:
     assert len([r for r in caplog.records if "refused" in r.getMessage()]) == 1
 
 
-def test_the_viser_internals_the_firewall_relies_on_are_where_it_expects() -> None:
-    """viser is pinned to the tested minor version; this fails loudly if a hook moved."""
+def _resolve(dotted: str) -> object:
+    """The object a dotted name of :data:`viser_door.PRIVATE_REACHES` names (module, then
+    attributes), or the class attribute for an instance attribute a class declares."""
+    parts = dotted.split(" ")[0].split(".")
+    for k in range(len(parts), 0, -1):
+        try:
+            obj: object = importlib.import_module(".".join(parts[:k]))
+        except ImportError:
+            continue
+        for name in parts[k:]:
+            obj = getattr(obj, name)
+        return obj
+    raise AssertionError(f"{dotted}: no module")
+
+
+def test_viser_is_the_pinned_minor_version() -> None:
+    """viser is pinned to the tested minor version; an upgrade means reading viser_door."""
     assert viser.__version__.startswith("1.1.")
-    assert callable(viser._messages.Message.deserialize)
+    assert f"viser-v{viser.__version__}" == viser_door.SUBPROTOCOL
 
 
-def test_the_viser_internals_the_blinding_guard_patches_are_where_it_expects() -> None:
-    """Each hook of study.server.blinding.PATCHED_HOOKS exists with the signature the wrapper
-    forwards, and the server keeps its event loop where install() reads it."""
+def test_the_viser_internals_the_door_reaches_are_where_it_expects() -> None:
+    """Every private name study.server.viser_door uses exists where it expects it: the hooks
+    with the signatures the wrappers forward, and on a live server its connections, a tab's
+    message channel and an element's id."""
     hooks = {
+        "viser._messages.Message.deserialize": (
+            viser_door._ORIGINAL_DESERIALIZE,
+            ["cls", "message"],
+        ),
         "viser.infra._async_message_buffer.AsyncMessageBuffer.push": (
-            blinding._ORIGINAL_PUSH,
+            viser_door._ORIGINAL_PUSH,
             ["self", "message"],
         ),
         "viser.infra._messages.Message.as_serializable_dict": (
-            blinding._ORIGINAL_SERIALIZE,
+            viser_door._ORIGINAL_SERIALIZE,
             ["self", "binary_buffers"],
         ),
     }
-    assert set(hooks) == set(blinding.PATCHED_HOOKS)
+    assert set(hooks) <= set(viser_door.PRIVATE_REACHES)
     assert AsyncMessageBuffer.__module__ == "viser.infra._async_message_buffer"
     assert Message.__module__ == "viser.infra._messages"
+    assert issubclass(viser_door.Message, Message)
     for name, (original, params) in hooks.items():
         assert list(inspect.signature(original).parameters) == params, name
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    try:
-        loop = server._websock_server._background_event_loop
-        assert isinstance(loop, asyncio.AbstractEventLoop)
-        guard = blinding.install(server, words=("hard",))
-        assert AsyncMessageBuffer.push is blinding._guarded_push
-        assert Message.as_serializable_dict is blinding._guarded_serialize
-        server.gui.add_markdown("a hard one")
-        assert guard.checked >= 1 and guard.blocked == 1
-    finally:
-        blinding.uninstall(server)
-        server.stop()
+    for name in (
+        "viser._messages.Message.deserialize",
+        "viser.infra._messages.Message._subclass_from_type_string",
+        "viser._messages.RunJavascriptMessage",
+    ):
+        assert callable(_resolve(name)), name
+    assert "websockets.asyncio.server.serve" in " ".join(viser_door.PRIVATE_REACHES)
+    assert callable(ws_server.serve)
+    assert viser_door.is_message_type("GuiUpdateMessage")
+    assert any(c.__name__ == "RunJavascriptMessage" for c in viser_door.message_classes())
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     try:
         ws = server._websock_server
         assert isinstance(ws, _infra.WebsockServer)
         assert isinstance(ws._live_connections, dict)
-        assert ws._background_event_loop is not None
+        assert viser_door.event_loop(server) is ws._background_event_loop
+        buffer = ws.get_message_buffer()
+        assert buffer.persistent_messages is True
+        assert buffer.event_loop is viser_door.event_loop(server)
+        text = server.gui.add_text("t", initial_value="")
+        assert isinstance(viser_door.element_uuid(text), str)
+        assert hasattr(text._impl, "sync_cb")
+        image = server.gui.add_image(np.zeros((2, 2, 3), np.uint8), format="jpeg")
+        viser_door.set_image_bytes(image, b"jpeg")
+        assert image._data == b"jpeg"
+        assert viser_door.connection_of(server, 12345) is None
     finally:
+        server.stop()
+
+
+def test_the_doors_hooks_reach_only_the_servers_that_use_them() -> None:
+    """The blinding guard and the firewall go through viser_door's hooks: installed, each
+    wraps viser's function (once per process), and acts only for the server it was installed
+    on (``test_ui_blinding``: another server passes untouched)."""
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        guard = blinding_guard.install(server, words=("hard",))
+        assert AsyncMessageBuffer.push is viser_door._watched_push
+        assert Message.as_serializable_dict is viser_door._watched_serialize
+        server.gui.add_markdown("a hard one")
+        assert guard.checked >= 1 and guard.blocked == 1
+        firewall.install(server, Firewall())
+        assert viser_door._vm.Message.deserialize.__func__ is viser_door._screened_deserialize
+    finally:
+        firewall.uninstall(server)
+        blinding_guard.uninstall(server)
         server.stop()
 
 
 def test_the_console_may_send_long_text() -> None:
     """An experimenter's reason can be long; only the participant port bounds strings."""
     long_reason = _raw("GuiUpdateMessage", uuid="a", updates={"value": "r" * (MAX_GUI_TEXT + 1)})
-    assert Firewall(allowed=None).screen(long_reason) is None
+    assert Firewall(FirewallConfig(allowed=None)).screen(long_reason) is None
     assert Firewall().screen(long_reason) is not None
 
 
@@ -196,7 +253,7 @@ def test_a_backlog_after_a_stall_is_not_a_flood() -> None:
     """A page at 180 messages a second whose server stalled 5 s has 900 queued messages, read
     at once; it keeps its connection. A client that sends 5,000 at once does not."""
     clock = _Clock()
-    fw = Firewall(rate_per_s=200.0, burst=400.0, clock=clock)
+    fw = Firewall(FirewallConfig(rate_per_s=200.0, burst=400.0), clock=clock)
 
     async def read(n_before: int, stall_s: float, backlog: int) -> None:
         await fw.screened_recv(_Socket("10.0.0.2", b"x", clock=clock, period=0.0))()
@@ -232,7 +289,7 @@ def test_unbound_addresses_share_the_budget_and_a_flood_waits_instead_of_droppin
 
 def test_a_bound_tab_never_waits_for_a_share() -> None:
     clock = _Clock()
-    fw = Firewall(shares_per_s=10.0, clock=clock)
+    fw = Firewall(FirewallConfig(shares_per_s=10.0), clock=clock)
     tab = _Socket("10.0.0.2", b"x", clock=clock, period=1 / 100)
     other = _Socket("10.0.0.2", b"x", clock=clock, period=1 / 100)
     fw.slots.admit(tab, "10.0.0.2", now=clock())

@@ -26,9 +26,9 @@ import pytest
 import viser
 import websockets
 
-from study.server.firewall import Firewall
+from study.server.firewall import Firewall, FirewallConfig
 from study.server.join import ALPHABET, CODE_LENGTH
-from study.server.server import JOIN_FAILED, JOIN_THROTTLED
+from study.server.participant_tabs import JOIN_FAILED, JOIN_THROTTLED
 from tests import disk_full
 from tests.attacker import CAMERA, SUBPROTOCOL
 from tests.browser.harness import RunningServer, run_async, start_server, wait_until
@@ -38,7 +38,9 @@ from tests.test_ui_malformed import AGREE, RawClient
 def roomy() -> Firewall:
     """The participant port's rules with a wider accept gate: these tests open many sockets
     from 127.0.0.1 one after another (the gate has its own tests)."""
-    return Firewall(new_tabs_per_s=None, accept_burst=500.0, accept_total_per_s=500.0)
+    return Firewall(
+        FirewallConfig(new_tabs_per_s=None, accept_burst=500.0, accept_total_per_s=500.0)
+    )
 
 
 @pytest.fixture
@@ -518,7 +520,7 @@ def test_tabs_that_leave_at_once_leave_nothing_behind_and_never_hold_a_session(
         run_async(hit_and_run())
         assert wait_until(lambda: not srv.participant.get_clients(), timeout=10)
         time.sleep(0.5)
-        assert set(srv._pages) <= set(srv.participant.get_clients())
+        assert set(srv.tabs._pages) <= set(srv.participant.get_clients())
         code = srv.enrol("P01")
         time.sleep(0.5)
         assert srv.session(code).page is None  # no dead tab took the kiosk's session

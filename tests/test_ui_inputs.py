@@ -9,7 +9,7 @@ from app.teleop import ReachRegion, TrialObservation
 from app.teleop.errors import InvalidTargetError
 from study.protocol import LikertItem, Scale
 from study.server.inputs import InputFrozen, ParticipantInput
-from study.server.participant import (
+from study.server.page_inputs import (
     InputRejected,
     parse_answer,
     parse_key_state,

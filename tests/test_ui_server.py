@@ -22,7 +22,7 @@ from study.server.join import (
     new_token,
     normalize_code,
 )
-from study.server.participant import DECLINE
+from study.server.participant_page import DECLINE
 from tests.browser.harness import iter_strings, run_async, start_server, wait_until
 from tests.protocol_copies import PAPER_PROTOCOL
 from tests.test_ui_malformed import AGREE, RawClient

@@ -77,7 +77,7 @@ class TaskView:
     """A perspective camera pose, z up: what the page sets on ``client.camera``.
 
     ``position = look_at + distance (cos e cos a, cos e sin a, sin e)`` with ``a, e`` the azimuth
-    and elevation in degrees (the convention of ``study.server.scene.frame_task``). ``fov_rad`` is the
+    and elevation in degrees (the convention of ``study.server.page_scene.frame_task``). ``fov_rad`` is the
     vertical field of view. ``visible_fraction`` is the worst visible fraction of any object in
     any checked pose (1.0: nothing hidden), estimated by ray casting.
     """

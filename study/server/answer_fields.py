@@ -1,8 +1,10 @@
-"""The participant page's fields for questionnaire items other than Likert ratings.
+"""The participant page's fields for questionnaire items.
 
-:meth:`study.server.participant.ParticipantPage.show_questions` draws Likert items itself and
-every other kind here, one field per item under its prompt:
+:meth:`study.server.participant_page.ParticipantPage.show_questions` draws each item's prompt
+and its field here, one field per item under its prompt:
 
+- Likert items: a row of buttons 1..points (the chosen one relabelled ``[k]``, drawn filled by
+  the page script) and a line that says the answer with its anchor;
 - choice, attention and retention items: a dropdown whose first entry, :data:`CHOOSE`, means
   "not answered yet" (no option is preselected: a default would be an answer nobody gave);
 - number items: a text field (empty until typed: a number input would start at some value),
@@ -12,7 +14,7 @@ every other kind here, one field per item under its prompt:
   sent back to the page: it is data, and the page must not receive condition words, which a
   participant may well type. (viser queues an echo of each typed value for the typing tab's
   own connection, which never sends it: the blinding guard drops such echoes unread,
-  ``study.server.blinding``.)
+  ``study.server.blinding_guard``.)
 
 Each field reports ``(item id, value or None, valid)`` through ``report``; the page enables
 Continue once every required item has a valid answer and nothing typed is invalid. The
@@ -25,11 +27,12 @@ import asyncio
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from study.protocol import AnswerError, ChoiceItem, Item, NumberItem, TextItem
-from study.server.blinding import check_text
+from study.protocol import AnswerError, ChoiceItem, Item, LikertItem, NumberItem, TextItem
+from study.server.blinding_guard import check_text
+from study.server.page_inputs import InputRejected, parse_answer
 
 if TYPE_CHECKING:
-    from study.server.participant import ParticipantPage
+    from study.server.participant_page import ParticipantPage
 
 CHOOSE = "(choose an answer)"
 """The dropdown's first entry: no answer chosen yet."""
@@ -43,7 +46,9 @@ def add_answer_field(
 ) -> None:
     """Draw ``item``'s field on ``page`` (its prompt is drawn already); ``current()`` says the
     screen is still shown (a late update from an old screen is ignored)."""
-    if isinstance(item, ChoiceItem):
+    if isinstance(item, LikertItem):
+        _likert(page, item, current=current, report=report)
+    elif isinstance(item, ChoiceItem):
         _choice(page, item, current=current, report=report)
     elif isinstance(item, NumberItem):
         _number(page, item, current=current, report=report)
@@ -51,6 +56,32 @@ def add_answer_field(
         _text(page, item, current=current, report=report)
     else:  # a registered kind (study.protocol.item_kinds): typed, checked by the item itself
         _typed(page, item, current=current, report=report)
+
+
+def _likert(
+    page: ParticipantPage, item: LikertItem, *, current: Callable[[], bool], report: Report
+) -> None:
+    """A row of buttons 1..points; the chosen one reads ``[k]`` and the line under the row
+    says the answer with its anchor."""
+    plain = tuple(str(k) for k in range(1, item.points + 1))
+    group = page.client.gui.add_button_group(" ", plain)
+    page._handles.append(group)
+    chosen = page._md("Your answer: none yet")
+
+    def on_click(_: object) -> None:
+        if not current():
+            return
+        try:
+            answer = parse_answer(str(group.value).strip("[] "), points=item.points)
+        except InputRejected as exc:
+            page.reject(str(exc))
+            return
+        marked = [f"[{o}]" if int(o) == answer else o for o in plain]
+        group.options = tuple(marked)  # the chosen button reads [k]
+        chosen.content = f"Your answer: **{answer}** ({item.anchors[answer - 1]})"
+        report(item.id, answer, True)
+
+    group.on_click(on_click)
 
 
 def _choice(

@@ -29,14 +29,17 @@ steering key it can stop the event before the camera or anything else sees it:
   which only an environment map lights, and the page has none (it cost two thirds of a
   software-WebGL frame), so their sides would render black.
 
-It relies on two things viser's client exposes for its own end-to-end tests,
-``window.__viserMutable.sendMessage`` and ``.cameraControl``; ``tests/browser`` fails loudly if
-either moves (and the viser pin in ``pyproject.toml`` keeps to the tested minor version).
+It relies on what viser's client exposes for its own end-to-end tests,
+:data:`study.server.viser_door.CLIENT_GLOBAL` (its ``.sendMessage``, ``.cameraControl`` and
+``.scene``); ``tests/browser`` fails loudly if any moves (and the viser pin in
+``pyproject.toml`` keeps to the tested minor version).
 """
 
 from __future__ import annotations
 
 import json
+
+from study.server import viser_door
 
 STEERING_CODES: dict[str, str] = {
     "KeyW": "w",
@@ -102,7 +105,8 @@ def page_script(*, keys_uuid: str, title: str) -> str:
         "noticeTitles": list(HIDDEN_NOTICE_TITLES),
     }
     return (
-        _TEMPLATE.replace("__CODES__", json.dumps(STEERING_CODES))
+        _TEMPLATE.replace("__VISER__", viser_door.CLIENT_GLOBAL)
+        .replace("__CODES__", json.dumps(STEERING_CODES))
         .replace("__ARROWS__", json.dumps({str(k): v for k, v in ARROW_KEYCODES.items()}))
         .replace("__CONFIG__", json.dumps(config))
     )
@@ -119,7 +123,7 @@ _TEMPLATE = r"""
                                                          changed: -1e9};
   st.uuid = cfg.uuid;
   const send = () => {
-    const m = window.__viserMutable;
+    const m = __VISER__;
     if (!m || !st.uuid) return;
     st.seq += 1;
     m.sendMessage({type: "GuiUpdateMessage", uuid: st.uuid,
@@ -129,7 +133,7 @@ _TEMPLATE = r"""
   const isField = (t) => !!t && (t.tagName === "INPUT" || t.tagName === "TEXTAREA" ||
                                  t.tagName === "SELECT" || t.isContentEditable);
   const matte = () => {
-    const m = window.__viserMutable;
+    const m = __VISER__;
     if (!m || !m.scene) return;
     let changed = false;
     m.scene.traverse((o) => {
@@ -144,7 +148,7 @@ _TEMPLATE = r"""
   };
   const tame = () => {
     matte();
-    const c = window.__viserMutable && window.__viserMutable.cameraControl;
+    const c = __VISER__ && __VISER__.cameraControl;
     if (!c || c.__studyTamed) return;
     c.__studyTamed = true;
     // no panning (the table stays in view); the button name is spelt in pieces because the

@@ -6,7 +6,7 @@ wrappers, a mailing list) use a generic ``pid``. The tab's own page reads them
 (:func:`link_script`: the server never sees the page's URL, only its websocket) and sends each,
 cut to ``MAX_ID + 1`` characters, as a value of one hidden text element: ``"<key>=<value>"``
 then ``"."`` when done (a GUI value of at most 64 characters, as the firewall allows). The
-element's values are never echoed (viser's ``sync_cb`` for it is cleared).
+element's values are never echoed (:func:`study.server.viser_door.stop_echo`).
 
 Hostile ground: each value must be 1-``MAX_ID`` letters, digits, ``-`` or ``_``
 (:func:`parse_ids`; Prolific's IDs are 24 hexadecimal digits), else the link is refused with a
@@ -26,7 +26,8 @@ import threading
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from study.server.participant import ParticipantPage
+from study.server import viser_door
+from study.server.participant_page import ParticipantPage
 
 PARAMS: dict[str, str] = {"PROLIFIC_PID": "P", "STUDY_ID": "S", "SESSION_ID": "E", "pid": "p"}
 """URL parameters read, and the one-letter key each travels under."""
@@ -93,7 +94,8 @@ def parse_message(text: str) -> tuple[str, str] | None:
 def link_script(*, uuid: str) -> str:
     """JavaScript: send the tab's recruitment parameters to the hidden element ``uuid``."""
     return (
-        _LINK.replace("__UUID__", json.dumps(uuid))
+        _LINK.replace("__VISER__", viser_door.CLIENT_GLOBAL)
+        .replace("__UUID__", json.dumps(uuid))
         .replace("__PARAMS__", json.dumps(list(PARAMS.items())))
         .replace("__CUT__", str(MAX_ID + 1))
     )
@@ -101,7 +103,7 @@ def link_script(*, uuid: str) -> str:
 
 _LINK = r"""
 (() => {
-  const m = window.__viserMutable;
+  const m = __VISER__;
   if (!m) return;
   const q = new URLSearchParams(window.location.search);
   const send = (v) => m.sendMessage({type: "GuiUpdateMessage", uuid: __UUID__,
@@ -124,7 +126,7 @@ def read_link(page: ParticipantPage, *, timeout_s: float = LINK_WAIT_S) -> dict[
     # viser queues every GUI value a tab sends back to "the other clients" of its handle (none
     # for a tab's own element, but the message is still built): a recruitment ID holding a
     # condition word would then trip the blinding guard. Nothing is to be echoed here.
-    box._impl.sync_cb = None
+    viser_door.stop_echo(box)
 
     async def on_value(_: object) -> None:  # on viser's loop: in arrival order
         text = str(box.value)
@@ -135,7 +137,7 @@ def read_link(page: ParticipantPage, *, timeout_s: float = LINK_WAIT_S) -> dict[
 
     box.on_update(on_value)
     try:
-        page.run_script(link_script(uuid=box._impl.uuid))
+        page.run_script(link_script(uuid=viser_door.element_uuid(box)))
         answered = done.wait(timeout_s)
     finally:
         with contextlib.suppress(Exception):  # the tab closed meanwhile

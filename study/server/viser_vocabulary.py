@@ -4,20 +4,20 @@ A protocol level can be an ordinary word that viser also uses as a setting ("sta
 a level of ``protocols/memory3.toml`` and the default ``material`` of every mesh viser sends).
 Such a value is the same in every condition, so it reveals nothing; the blinding guard lets a
 string through when it is exactly one of the values viser declares for the field it sits in,
-and checks everything else. The table is read from viser's message classes when this module
-is imported (viser is pinned to the tested minor version).
+and checks everything else. The table is read from viser's message classes
+(:func:`study.server.viser_door.message_classes`) when this module is imported (viser is pinned
+to the tested minor version).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import typing
 from collections.abc import Mapping
 from types import MappingProxyType
 from typing import Any
 
-from viser import _messages as viser_messages
+from study.server import viser_door
 
 
 def _literals(tp: Any, out: set[str], seen: set[type], fields: dict[str, set[str]]) -> None:
@@ -40,9 +40,8 @@ def _literals(tp: Any, out: set[str], seen: set[type], fields: dict[str, set[str
 def _field_values() -> Mapping[str, frozenset[str]]:
     fields: dict[str, set[str]] = {}
     seen: set[type] = set()
-    for cls in vars(viser_messages).values():
-        if inspect.isclass(cls) and dataclasses.is_dataclass(cls):
-            _literals(cls, set(), seen, fields)
+    for cls in viser_door.message_classes():
+        _literals(cls, set(), seen, fields)
     return MappingProxyType({k: frozenset(v) for k, v in fields.items()})
 
 

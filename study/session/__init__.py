@@ -42,10 +42,11 @@ and the lease keeper's background threads. The locks of the project, and what ea
 - ``ParticipantInput._lock``, ``GizmoInput._lock``, ``KeyboardInput._lock``: the participant's
   target, held keys, grasp request and frozen flag.
 - ``NeutralNames._lock``: the scene's opaque node ids.
-- ``StudyServer._lock`` (RLock): the server's sessions, tabs and join codes.
+- ``StudyServer._lock`` (RLock): the server's sessions, tabs (``ParticipantTabs``, which
+  shares it) and join codes.
 - ``JoinThrottle._lock``: join attempts per client and address.
-- ``BlindingGuard._lock``, ``Firewall._lock``: their counters; two ``_INSTALL_LOCK``: installing
-  each guard once per server.
+- ``BlindingGuard._lock``, ``Firewall._lock``, ``Door._lock``: their counters;
+  ``firewall.hooks._LOCK`` -> ``viser_door._LOCK``: installing each hook once per server.
 - ``dask_engine._Bars._lock``: the progress bars of a simulated study.
 
 Lock order: a thread holding a lock takes only locks to its right on these chains, never the

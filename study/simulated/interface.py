@@ -50,7 +50,7 @@ AXIS_KEYS = (("s", "w"), ("d", "a"), ("f", "r"))
 
 
 def view_direction(p: InterfaceParams) -> np.ndarray:
-    """Unit vector from the page's camera toward the task (``study.server.scene.frame_task`` puts
+    """Unit vector from the page's camera toward the task (``study.server.page_scene.frame_task`` puts
     the camera at ``look_at + r (cos el cos az, cos el sin az, sin el)``)."""
     az, el = math.radians(p.view_azimuth_deg), math.radians(p.view_elevation_deg)
     return -np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])

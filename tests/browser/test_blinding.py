@@ -17,7 +17,7 @@ from typing import Any
 
 import pytest
 
-from study.server.blinding import iter_strings
+from study.server.blinding_guard import iter_strings
 from study.server.viser_vocabulary import FIELD_VALUES
 from tests.browser.harness import FrameLog, start_server, wait_until
 from tests.browser.page import connect_page, join, without_client_warning

@@ -22,9 +22,10 @@ import pytest
 from PIL import Image
 
 from app.robot.scene import grasp_position
+from study.server import viser_door
 from study.server.inset import TopDownCamera
 from study.server.live.texts import AT_REACH_LIMIT, TIME_WARNING
-from study.server.participant import HANDLE_OFFSET_M, HANDLE_PX
+from study.server.page_handle import HANDLE_OFFSET_M, HANDLE_PX
 from tests.browser.harness import (
     FrameLog,
     RunningServer,
@@ -70,7 +71,7 @@ def _arrow(page: Any, live: Any, axis: int) -> tuple[np.ndarray, np.ndarray]:
     """Where to grab the handle's ``axis`` arrow (CSS pixels, 80 % along it) and the arrow's
     direction on the screen (unit)."""
     cam = live.page.client.camera
-    origin = np.asarray(live.page._gizmo.position, float)
+    origin = np.asarray(live.page.handle.gizmo.position, float)
     e = np.eye(3)[axis]
     o = page_pixel(page, cam, origin)
     length_m = HANDLE_PX / pixels_per_m(page, cam, origin)
@@ -157,7 +158,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
 
     # The handle floats over the gripper, its arrows pointing up the screen: not over the mug.
     cam = live.page.client.camera
-    handle = np.asarray(live.page._gizmo.position, float)
+    handle = np.asarray(live.page.handle.gizmo.position, float)
     assert np.allclose(handle - OFFSET, run.trial.user_target, atol=1e-3)
 
     # Each arrow, dragged 90 px along itself, moves the gripper across the screen that way,
@@ -187,7 +188,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     # The view from above is redrawn while the arm moves (keys held for seconds): the server
     # makes 10 pictures a second or more, and the page gets them (viser merges two pictures
     # queued within one send window, so a loaded machine shows fewer, the newest each time).
-    uuid = live.page._inset._impl.uuid
+    uuid = viser_door.element_uuid(live.page._inset)
     inset = live.view.inset
     before = len(_inset_frames(frames, uuid))
     t0 = time.monotonic()
@@ -231,7 +232,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     screenshot(page, screenshots, "13-depth-past-the-reach")
     page.mouse.up()
     assert wait_until(lambda: not notice.first.is_visible(), timeout=10)
-    back = np.asarray(live.page._gizmo.position, float) - OFFSET
+    back = np.asarray(live.page.handle.gizmo.position, float) - OFFSET
     assert scene.reach.contains(back, tol=1e-6), "the handle came back inside the reach"
     # W held at the far edge pushes past it too: the same notice while the key is down
     page.keyboard.down("w")
@@ -247,7 +248,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     g = _gripper(live)
     assert float(np.linalg.norm(g[:2] - goal[:2])) < 0.02, g
     mug = page_pixel(page, cam, goal)
-    origin = page_pixel(page, cam, np.asarray(live.page._gizmo.position, float))
+    origin = page_pixel(page, cam, np.asarray(live.page.handle.gizmo.position, float))
     assert origin[1] < mug[1] - 30, "the handle sits above the mug on the screen"
     for axis in range(3):
         _, d = _arrow(page, live, axis)
@@ -274,7 +275,7 @@ def test_a_run_that_ends_while_the_handle_is_held_says_why(tmp_path: Path, wide:
         settle_frames(page)
         page.get_by_role("button", name="Start").click()
         page.get_by_role("button", name="Close the gripper (G)").wait_for()
-        assert wait_until(lambda: live.run is not None and live.page._gizmo is not None)
+        assert wait_until(lambda: live.run is not None and live.page.handle.gizmo is not None)
         wait_camera_still(live)  # the scene was drawn on the ready screen already
 
         # Grab the up arrow and keep moving it slowly until the time is up; the countdown runs.

@@ -18,6 +18,7 @@ import msgspec
 import numpy as np
 import pytest
 
+from study.server import viser_door
 from tests.browser.harness import RunningServer, start_server, wait_until
 from tests.browser.page import connect_page, join, settle_frames
 
@@ -49,7 +50,9 @@ def test_a_lost_key_release_is_repaired_by_the_next_state(
     settle_frames(page)
 
     screen = srv.firewall.screen
-    keys_uuid = live.page._keys._impl.uuid  # the hidden element the page's key state goes to
+    keys_uuid = viser_door.element_uuid(
+        live.page._keys
+    )  # the hidden element the page's key state goes to
     lost: list[str] = []
 
     def losing_the_first_release(raw: bytes) -> str | None:

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from app.teleop.keyboard import KEY_SPEED_M_S
-from study.server.participant import HANDLE_OFFSET_M
+from study.server.page_handle import HANDLE_OFFSET_M
 from tests.browser.harness import RunningServer, start_server, wait_until
 from tests.browser.page import AGREE, connect_page, hold, join, screenshot, settle_frames
 
@@ -136,16 +136,16 @@ def test_keys_steer_the_arm_never_the_camera_and_a_pause_freezes_them(
     for key in ("w", "r", "r", "r"):
         hold(page, key, 0.3)
     page.keyboard.up("r")
-    assert live.page._gizmo is not None and not live.page._gizmo.visible
+    assert live.page.handle.gizmo is not None and not live.page.handle.gizmo.visible
     srv.act(code, "resume")
     page.get_by_role("button", name="Close the gripper (G)").wait_for()
     page.wait_for_timeout(1500)
     gripper = np.array(run.trial.sim.ee, float)
     after = np.array(run.trial.user_target, float)
     assert float(np.linalg.norm(after - paused_at)) < 0.02, "input from the pause was applied"
-    handle = np.array(live.page._gizmo.position) - np.array([0.0, 0.0, HANDLE_OFFSET_M])
+    handle = np.array(live.page.handle.gizmo.position) - np.array([0.0, 0.0, HANDLE_OFFSET_M])
     assert float(np.linalg.norm(handle - gripper)) < 0.02  # the handle floats over the gripper
-    assert live.page._gizmo.visible
+    assert live.page.handle.gizmo.visible
     rejected = [e for e in study.store.events() if e.kind == "input_rejected"]
     assert any("while paused" in str(e.detail) for e in rejected)
     events = [e for evs in study.store.samples(run.trial_id).events for e in json.loads(evs)]

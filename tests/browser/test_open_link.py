@@ -18,7 +18,7 @@ from typing import Any
 
 import pytest
 
-from study.server.blinding import iter_strings
+from study.server.blinding_guard import iter_strings
 from tests.browser.harness import FrameLog, RunningServer, start_server, wait_until
 from tests.browser.page import AGREE, connect_page, screenshot
 from tests.protocol_copies import with_completion

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from study.server.participant import HANDLE_OFFSET_M
+from study.server.page_handle import HANDLE_OFFSET_M
 from tests.browser.harness import drag, project, start_server, wait_until
 from tests.browser.page import AGREE, connect_page, join, screenshot, settle_frames
 from tests.protocol_copies import relative_copy
@@ -53,7 +53,7 @@ def test_a_released_handle_returns_to_the_gripper(
         assert trial.poses().gripper[2] < start[2] - 0.1, "the handle was not dragged"
 
         def handle_on_gripper() -> bool:  # the handle floats HANDLE_OFFSET_M above its point
-            gizmo = live.page._gizmo
+            gizmo = live.page.handle.gizmo
             at = np.asarray(gizmo.position) if gizmo is not None else np.full(3, np.inf)
             above = trial.poses().gripper + np.array([0.0, 0.0, HANDLE_OFFSET_M])
             return float(np.linalg.norm(at - above)) < 0.01

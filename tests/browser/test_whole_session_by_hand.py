@@ -44,7 +44,8 @@ from playwright.sync_api import expect
 from app.robot.scene import grasp_position
 from study.protocol import load_protocol
 from study.server.live.texts import AT_REACH_LIMIT
-from study.server.participant import HANDLE_PX, INSET_SIZE
+from study.server.page_handle import HANDLE_PX
+from study.server.participant_page import INSET_SIZE
 from tests.browser.harness import FrameLog, RunningServer, start_server, wait_until
 from tests.browser.page import (
     AGREE,
@@ -131,7 +132,7 @@ class Person:
         return self.live.run
 
     def handle(self) -> np.ndarray:
-        return np.asarray(self.live.page._gizmo.position, float)
+        return np.asarray(self.live.page.handle.gizmo.position, float)
 
     def target(self) -> np.ndarray:
         return np.asarray(self.run.trial.user_target, float)
@@ -161,7 +162,7 @@ class Person:
         press_start()
         self.page.get_by_role("button", name="Close the gripper (G)").wait_for()
         assert wait_until(lambda: self.run is not None and not self.run.over)
-        assert wait_until(lambda: self.live.page._gizmo is not None)
+        assert wait_until(lambda: self.live.page.handle.gizmo is not None)
         self.mark("run started")
         wait_camera_still(self.live)
         self.clock_at_start = left = self.clock()

@@ -1,14 +1,14 @@
-"""Where a :class:`~study.server.firewall.Firewall` hooks into viser and websockets.
+"""Where a :class:`~study.server.firewall.Firewall` stands in front of a viser server, through
+the hooks of :mod:`study.server.viser_door`.
 
-* :func:`hardened_serve` (around the ``ViserServer`` constructor, which starts serving before
-  it returns) gives the websocket server the firewall's size limit, its accept gate (a socket
-  refused there is reset before its request is read), its door checks, no ``Server`` header
-  (no version strings), and puts :meth:`Firewall.screened_recv` in front of every
-  connection's reads;
-* :func:`install` wraps viser's message decoder once per process: for a server with a firewall
-  each incoming message is admitted and screened *before* it becomes a message object (a
-  refused one becomes a :class:`~study.server.firewall.rules.Dropped` that nothing handles).
-  Servers without a firewall pass untouched.
+* :func:`start_server` builds and starts a ``ViserServer`` whose websocket server has the
+  firewall's size limit, its accept gate (a socket refused there is reset before its request
+  is read), its door checks, no ``Server`` header (no version strings), and
+  :meth:`Firewall.screened_recv` in front of every connection's reads;
+* :func:`install` screens every message the server receives with
+  :meth:`Firewall.screened_decode` *before* it becomes a message object (a refused one becomes
+  a :class:`~study.server.firewall.rules.Dropped` that nothing handles). Servers without a
+  firewall pass untouched.
 """
 
 from __future__ import annotations
@@ -17,75 +17,46 @@ import asyncio
 import contextlib
 import logging
 import threading
-from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import viser
-import websockets.asyncio.server as ws_server
-from viser import _messages as vm
 from websockets.asyncio.server import ServerConnection
 
+from study.server import viser_door
 from study.server.firewall.notes import OncePerMinute
 from study.server.firewall.rules import ConnectionFlood
 
 if TYPE_CHECKING:
-    from study.server.firewall.policy import Firewall
+    from study.server.firewall.port import Firewall
 
 _WEBSOCKETS_LINES = OncePerMinute()
-_FIREWALLS: dict[int, Firewall] = {}
-_INSTALL_LOCK = threading.Lock()
-_ORIGINAL = vm.Message.deserialize.__func__  # type: ignore[attr-defined]
-
-
-def _guarded_deserialize(cls: type[vm.Message], message: bytes) -> vm.Message:
-    try:
-        loop = asyncio.get_running_loop()
-    except RuntimeError:
-        return _ORIGINAL(cls, message)
-    firewall = _FIREWALLS.get(id(loop))
-    if firewall is None:
-        return _ORIGINAL(cls, message)
-    firewall.admit()
-    reason = firewall.screen(message)
-    if reason is not None:
-        firewall.count_refusal()
-        return firewall.refuse(reason)
-    try:
-        decoded = _ORIGINAL(cls, message)
-    except Exception as exc:  # a field of the wrong shape for its type
-        return firewall.refuse(f"undecodable message ({type(exc).__name__})")
-    firewall.admitted()
-    return decoded
+_INSTALLED: dict[int, Firewall] = {}
+_LOCK = threading.Lock()
 
 
 def install(server: viser.ViserServer, firewall: Firewall) -> Firewall:
     """Screen every message ``server`` receives from now on with ``firewall``."""
-    loop = server._websock_server._background_event_loop
-    if loop is None:  # pragma: no cover - viser starts its loop in the constructor
-        raise RuntimeError("the viser server has no event loop yet; install after it starts")
-    with _INSTALL_LOCK:
-        if getattr(vm.Message.deserialize, "__func__", None) is not _guarded_deserialize:
-            vm.Message.deserialize = classmethod(_guarded_deserialize)  # type: ignore[method-assign,assignment]
-        _FIREWALLS[id(loop)] = firewall
+    with _LOCK:
+        viser_door.screen_incoming(server, firewall.screened_decode)
+        _INSTALLED[id(server)] = firewall
     firewall.attach(server)
     return firewall
 
 
 def uninstall(server: viser.ViserServer) -> None:
-    loop = server._websock_server._background_event_loop
-    with _INSTALL_LOCK:
-        firewall = _FIREWALLS.pop(id(loop), None)
+    with _LOCK:
+        viser_door.unscreen_incoming(server)
+        firewall = _INSTALLED.pop(id(server), None)
     if firewall is not None:
         firewall.detach()
 
 
-@contextlib.contextmanager
-def hardened_serve(firewall: Firewall) -> Iterator[None]:
-    """Build a ``ViserServer`` inside this block: its websocket server gets ``firewall``'s
-    size limit and door checks (viser starts serving before its constructor returns)."""
-    original = ws_server.serve
+def start_server(firewall: Firewall, *, host: str, port: int, verbose: bool) -> viser.ViserServer:
+    """A started ``ViserServer`` whose websocket server has ``firewall``'s size limit and door
+    checks (viser starts serving before its constructor returns)."""
+    logging.getLogger("websockets.server").addFilter(_WEBSOCKETS_LINES)  # a set: once
 
-    def serve(handler: Any, *args: Any, **kwargs: Any) -> Any:
+    def adapt(handler: Any, kwargs: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
         async def guarded(connection: Any) -> None:
             connection.recv = firewall.screened_recv(connection)
             try:
@@ -98,16 +69,9 @@ def hardened_serve(firewall: Firewall) -> Iterator[None]:
         kwargs["process_request"] = firewall.process_request(kwargs.get("process_request"))
         kwargs["server_header"] = None
         kwargs["create_connection"] = gated_connection(firewall)
-        return original(guarded, *args, **kwargs)
+        return guarded, kwargs
 
-    with _INSTALL_LOCK:
-        ws_server.serve = serve  # type: ignore[assignment,misc]
-        logging.getLogger("websockets.server").addFilter(_WEBSOCKETS_LINES)  # a set: once
-    try:
-        yield
-    finally:
-        with _INSTALL_LOCK:
-            ws_server.serve = original  # type: ignore[misc]
+    return viser_door.start_server(host=host, port=port, verbose=verbose, adapt_serve=adapt)
 
 
 def gated_connection(firewall: Firewall) -> type[ServerConnection]:
@@ -141,9 +105,3 @@ def gated_connection(firewall: Firewall) -> type[ServerConnection]:
             super().connection_lost(exc)
 
     return GatedConnection
-
-
-def remote_host(connection: Any) -> str:
-    """The peer address of a websocket connection ("unknown" if it has none)."""
-    remote = getattr(connection, "remote_address", None)
-    return str(remote[0]) if isinstance(remote, tuple) and remote else "unknown"

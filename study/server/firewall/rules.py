@@ -12,11 +12,13 @@ fixed texts plus the type name, never the payload.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import msgspec
-from viser import _messages as vm
+
+from study.server import viser_door
 
 PARTICIPANT_TYPES: frozenset[str] = frozenset(
     {
@@ -51,7 +53,7 @@ shortening it. The message limit (``MAX_MESSAGE_BYTES``) still bounds it in byte
 
 
 @dataclass(eq=False)
-class Dropped(vm.Message, include_in_scene_serialization=False):
+class Dropped(viser_door.Message, include_in_scene_serialization=False):
     """Stands in for a refused incoming message; nothing handles it."""
 
     reason: str
@@ -107,45 +109,68 @@ def _string(value: Any, *, what: str, limit: int = MAX_STRING) -> None:
         raise RefusedMessage(f"{what} is not a string of at most {limit} characters")
 
 
+def _handle_pose(body: dict[str, Any], *, max_position_m: float, max_text: int) -> None:
+    _handle_drag(body, max_position_m=max_position_m, max_text=max_text)
+    _within(body.get("position"), bound=max_position_m, what="handle position")
+    _rotation(body.get("wxyz"), what="handle orientation")
+
+
+def _handle_drag(body: dict[str, Any], *, max_position_m: float, max_text: int) -> None:
+    _string(body.get("name"), what="handle name")
+    _string(body.get("owner", ""), what="handle owner")
+
+
+def _gui_update(body: dict[str, Any], *, max_position_m: float, max_text: int) -> None:
+    _string(body.get("uuid"), what="GUI id", limit=64)
+    updates = body.get("updates")
+    if not isinstance(updates, dict) or set(updates) != {"value"}:
+        raise RefusedMessage("GUI update changes something other than its value")
+    value = updates["value"]
+    if isinstance(value, str):
+        _string(value, what="GUI value", limit=max_text)
+    elif not isinstance(value, bool):
+        _finite(value, bound=1e9, what="GUI value")
+
+
+def _storage_answer(body: dict[str, Any], *, max_position_m: float, max_text: int) -> None:
+    _string(body.get("request_uuid"), what="storage request id", limit=64)
+    for key in ("value", "error"):
+        if body.get(key) is not None:
+            _string(body.get(key), what=f"storage {key}", limit=64)
+
+
+def _camera(body: dict[str, Any], *, max_position_m: float, max_text: int) -> None:
+    for key in ("position", "look_at", "up_direction"):
+        _vector(body.get(key), n=3, bound=1e4, what=f"camera {key}")
+    _rotation(body.get("wxyz"), what="camera orientation")
+    gap = [float(a) - float(b) for a, b in zip(body["position"], body["look_at"], strict=True)]
+    if _norm(gap) < 1e-6 or _norm(body["up_direction"]) < 1e-6:
+        raise RefusedMessage("camera looks at its own position or has no up direction")
+    for key in ("fov", "near", "far"):
+        _finite(body.get(key), bound=1e6, what=f"camera {key}")
+    for key in ("image_height", "image_width"):
+        _finite(body.get(key), bound=1e5, what=f"camera {key}")
+
+
+_CHECKS: dict[str, Callable[..., None]] = {
+    "TransformControlsUpdateMessage": _handle_pose,
+    "TransformControlsDragStartMessage": _handle_drag,
+    "TransformControlsDragEndMessage": _handle_drag,
+    "GuiUpdateMessage": _gui_update,
+    "LocalStorageGetItemResponseMessage": _storage_answer,
+    "ViewerCameraMessage": _camera,
+}
+"""The value checks of each message type a page may send (other types: none)."""
+
+
 def check_values(
     kind: str, body: dict[str, Any], *, max_position_m: float, max_text: int = MAX_GUI_TEXT
 ) -> None:
     """Raise :class:`RefusedMessage` unless ``body`` (a decoded message) is plausible; GUI
     text values of at most ``max_text`` characters."""
-    if kind == "TransformControlsUpdateMessage":
-        _string(body.get("name"), what="handle name")
-        _string(body.get("owner", ""), what="handle owner")
-        _within(body.get("position"), bound=max_position_m, what="handle position")
-        _rotation(body.get("wxyz"), what="handle orientation")
-    elif kind in ("TransformControlsDragStartMessage", "TransformControlsDragEndMessage"):
-        _string(body.get("name"), what="handle name")
-        _string(body.get("owner", ""), what="handle owner")
-    elif kind == "GuiUpdateMessage":
-        _string(body.get("uuid"), what="GUI id", limit=64)
-        updates = body.get("updates")
-        if not isinstance(updates, dict) or set(updates) != {"value"}:
-            raise RefusedMessage("GUI update changes something other than its value")
-        value = updates["value"]
-        if isinstance(value, str):
-            _string(value, what="GUI value", limit=max_text)
-        elif not isinstance(value, bool):
-            _finite(value, bound=1e9, what="GUI value")
-    elif kind == "LocalStorageGetItemResponseMessage":
-        _string(body.get("request_uuid"), what="storage request id", limit=64)
-        for key in ("value", "error"):
-            if body.get(key) is not None:
-                _string(body.get(key), what=f"storage {key}", limit=64)
-    elif kind == "ViewerCameraMessage":
-        for key in ("position", "look_at", "up_direction"):
-            _vector(body.get(key), n=3, bound=1e4, what=f"camera {key}")
-        _rotation(body.get("wxyz"), what="camera orientation")
-        gap = [float(a) - float(b) for a, b in zip(body["position"], body["look_at"], strict=True)]
-        if _norm(gap) < 1e-6 or _norm(body["up_direction"]) < 1e-6:
-            raise RefusedMessage("camera looks at its own position or has no up direction")
-        for key in ("fov", "near", "far"):
-            _finite(body.get(key), bound=1e6, what=f"camera {key}")
-        for key in ("image_height", "image_width"):
-            _finite(body.get(key), bound=1e5, what=f"camera {key}")
+    check = _CHECKS.get(kind)
+    if check is not None:
+        check(body, max_position_m=max_position_m, max_text=max_text)
 
 
 def screen(
@@ -171,7 +196,7 @@ def screen(
     if kind in SHARE_TYPES and not allow_share:
         return f"{kind} (share links are off; start the server with --share to allow them)"
     if allowed is not None and kind not in allowed:
-        known = kind in vm.Message._subclass_from_type_string()
+        known = viser_door.is_message_type(kind)
         return f"{kind if known else 'an unknown type'} is not accepted here"
     if allowed is None:
         return None

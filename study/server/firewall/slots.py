@@ -22,6 +22,7 @@ Slots are shared, never hoarded:
 
 from __future__ import annotations
 
+import asyncio
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
@@ -149,3 +150,10 @@ class Slots:
                 due.append(slot)
         self.timed_out += len(due)
         return due
+
+
+def close_slot(slot: Slot, code: int) -> None:
+    """Close ``slot``'s connection with websocket close ``code`` (on the server's event loop)."""
+    connection = slot.connection
+    if connection is not None and hasattr(connection, "close"):
+        asyncio.get_running_loop().create_task(connection.close(code, ""))

@@ -1,8 +1,8 @@
 """One live study session on the server, in parts that each read in one sitting.
 
-``session.LiveSession`` connects a ``study.session.Session`` to one participant tab and to time;
+``live_session.LiveSession`` connects a ``study.session.Session`` to one participant tab and to time;
 its parts: ``view.LiveView`` (snapshots and the render loop), ``controls.LiveInput`` (the
-participant's input, frozen while paused), ``faults.ControlFaults`` (a tick that raised),
+participant's input, frozen while paused), ``control_faults.ControlFaults`` (a tick that raised),
 ``screens.show_screen`` (the session's screen on the page), ``texts`` (what the participant
 reads around a run), ``console`` (the experimenter's summary and detail). ``session_factory``
 opens the sessions the study server serves.
@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from study.protocol import Protocol
-from study.server.live.session import LiveSession
+from study.server.live.live_session import LiveSession
 from study.session import FINAL_STATUSES, Session
 from study.store import Store
 

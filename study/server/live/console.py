@@ -17,7 +17,7 @@ from datetime import UTC, datetime
 import numpy as np
 
 from app.trial import TickRecord
-from study.server.experimenter import SessionDetail, SessionSummary
+from study.server.console_model import SessionDetail, SessionSummary
 from study.server.live.timeline import timeline
 from study.session import Overview, Session, TrialRun
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from study.protocol import Protocol
 from study.schedule import Design, Enrollment, next_row
-from study.server.experimenter import StudyProgress
+from study.server.console_model import StudyProgress
 from study.store import Store
 
 STOPPED = ("withdrawn", "ended")

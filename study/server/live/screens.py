@@ -18,7 +18,7 @@ from study.server.live.texts import (
     WAITING_TEXT,
     end_screen,
 )
-from study.server.participant import ParticipantPage
+from study.server.participant_page import ParticipantPage
 from study.server.recruitment import redirect_script
 from study.session import PauseCause, Screen
 
@@ -51,13 +51,45 @@ def show_screen(
     status: str = "",
     texts: Texts | None = None,
 ) -> None:
-    """Build ``screen`` on ``page`` (see module docstring)."""
+    """Build ``screen`` on ``page`` (see module docstring): a held fault, a pause or the last
+    run's outcome first, else the screen of the session's phase."""
     progress: str | None = (
         screen.progress.text if screen.progress.of and screen.progress.trial else None
     )  # none before the first run (the questions about the participant)
-    title, text = screen.title, screen.text
-    if progress is not None and (progress in title or progress in text):
+    if progress is not None and (progress in screen.title or progress in screen.text):
         progress = None  # said once is enough
+    interrupted = _show_interruption(
+        page,
+        screen,
+        fault=fault,
+        paused_by=paused_by,
+        outcome=outcome,
+        progress=progress,
+        handlers=handlers,
+    )
+    if not interrupted:
+        _show_phase(
+            page,
+            screen,
+            progress=progress,
+            agree_label=agree_label,
+            handlers=handlers,
+            status=status,
+            texts=texts,
+        )
+
+
+def _show_interruption(
+    page: ParticipantPage,
+    screen: Screen,
+    *,
+    fault: bool,
+    paused_by: PauseCause | None,
+    outcome: str | None,
+    progress: str | None,
+    handlers: PageHandlers,
+) -> bool:
+    """Show a held fault, a pause or the last run's outcome; False when there is none."""
     if fault:
         page.show_message("Please wait", WAIT_TEXT, progress=progress)
     elif screen.paused and paused_by == "tab_lost":
@@ -69,7 +101,7 @@ def show_screen(
             on_button=handlers.continue_after_tab_lost,
         )
     elif screen.paused:
-        page.show_message("Please wait", text or WAIT_TEXT, progress=progress)
+        page.show_message("Please wait", screen.text or WAIT_TEXT, progress=progress)
     elif outcome is not None and screen.phase != "running":
         page.show_message(
             "Run finished",
@@ -78,7 +110,24 @@ def show_screen(
             button="Continue",
             on_button=handlers.seen_outcome,
         )
-    elif screen.phase == "consent":
+    else:
+        return False
+    return True
+
+
+def _show_phase(
+    page: ParticipantPage,
+    screen: Screen,
+    *,
+    progress: str | None,
+    agree_label: str,
+    handlers: PageHandlers,
+    status: str,
+    texts: Texts | None,
+) -> None:
+    """The screen of the session's phase."""
+    title, text = screen.title, screen.text
+    if screen.phase == "consent":
         page.show_consent(
             text, on_agree=handlers.agree, agree=agree_label, on_decline=handlers.decline
         )

@@ -9,8 +9,9 @@ too. Experimenter side only: the rows name conditions.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from datetime import datetime
+from typing import Any
 
 from study.store import EventRecord, TrialRecord
 
@@ -80,50 +81,58 @@ def run_text(t: TrialRecord) -> str:
     return f"run {t.trial_number}: {cond}{attempt} -> {end}{took}"
 
 
+_FIXED_TEXTS: dict[str, str] = {
+    "start": "session started",
+    "consent": "consent given",
+    "resume": "resumed",
+    "finish": "**completed**",
+    "close": "server let the session go",
+    "participant_disconnected": "tab lost",
+    "second_tab_refused": "a second tab was refused",
+}
+"""Events told the same way every time."""
+
+_REASONED_TEXTS: dict[str, str] = {
+    "redo": "redo",
+    "skip": "skipped",
+    "withdraw": "**withdrawn**",
+    "end": "**ended**",
+}
+"""Experimenter actions, told with the reason given (``": <reason>"``)."""
+
+
+def _pause_text(d: Mapping[str, Any]) -> str:
+    return "paused: participant's tab lost" if d.get("cause") == "tab_lost" else "paused"
+
+
+def _reopen_text(d: Mapping[str, Any]) -> str:
+    n = len(d.get("interrupted") or ())
+    return "session reopened" + (f" ({n} run interrupted)" if n else "")
+
+
+_DETAILED_TEXTS: dict[str, Callable[[Mapping[str, Any]], str]] = {
+    "enrol": lambda d: f"enrolled (schedule row {d.get('schedule_row')})",
+    "pause": _pause_text,
+    "reopen": _reopen_text,
+    "control_fault": lambda d: f"**control fault**: `{str(d.get('error', ''))[:120]}`",
+    "input_rejected": lambda d: f"input rejected: {str(d.get('problem', ''))[:80]}",
+    "answer": lambda d: f"answered {len(d.get('items') or ())} item(s)",
+}
+"""Events told with what their detail holds."""
+
+
 def _event_text(e: EventRecord, *, connected_before: bool) -> str:
+    """One event as the timeline tells it ("" for an event it does not show)."""
     d = e.detail
-    reason = f": {d['reason']}" if d.get("reason") else ""
-    match e.kind:
-        case "enrol":
-            return f"enrolled (schedule row {d.get('schedule_row')})"
-        case "start":
-            return "session started"
-        case "consent":
-            return "consent given"
-        case "pause":
-            cause = d.get("cause")
-            return "paused: participant's tab lost" if cause == "tab_lost" else "paused"
-        case "resume":
-            return "resumed"
-        case "redo":
-            return f"redo{reason}"
-        case "skip":
-            return f"skipped{reason}"
-        case "withdraw":
-            return f"**withdrawn**{reason}"
-        case "end":
-            return f"**ended**{reason}"
-        case "finish":
-            return "**completed**"
-        case "reopen":
-            n = len(d.get("interrupted") or ())
-            return "session reopened" + (f" ({n} run interrupted)" if n else "")
-        case "close":
-            return "server let the session go"
-        case "participant_connected":
-            where = f" from {d['address']}" if d.get("address") else ""
-            return ("tab reconnected (reload)" if connected_before else "tab connected") + where
-        case "participant_disconnected":
-            return "tab lost"
-        case "second_tab_refused":
-            return "a second tab was refused"
-        case "control_fault":
-            return f"**control fault**: `{str(d.get('error', ''))[:120]}`"
-        case "input_rejected":
-            return f"input rejected: {str(d.get('problem', ''))[:80]}"
-        case "answer":
-            return f"answered {len(d.get('items') or ())} item(s)"
-    return ""
+    if e.kind in _FIXED_TEXTS:
+        return _FIXED_TEXTS[e.kind]
+    if e.kind in _REASONED_TEXTS:
+        return _REASONED_TEXTS[e.kind] + (f": {d['reason']}" if d.get("reason") else "")
+    if e.kind == "participant_connected":
+        where = f" from {d['address']}" if d.get("address") else ""
+        return ("tab reconnected (reload)" if connected_before else "tab connected") + where
+    told = _DETAILED_TEXTS.get(e.kind)
+    return "" if told is None else told(d)
 
 
 def _when(iso: str) -> datetime | None:

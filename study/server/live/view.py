@@ -27,8 +27,8 @@ from study.server.inset import InsetJob, InsetLoop
 from study.server.intent_cue import IntentGoals, ring_opacity
 from study.server.live.texts import AT_REACH_LIMIT, MISSED_GRASP, TIME_WARNING, TIME_WARNING_S
 from study.server.loop import PacedLoop
-from study.server.participant import ParticipantPage
-from study.server.scene import SceneView, frame_scene, reach_footprint
+from study.server.page_scene import SceneView, frame_scene, reach_footprint
+from study.server.participant_page import ParticipantPage
 from study.session import TrialRun
 
 LOGGER = logging.getLogger("study.server.live")

@@ -23,14 +23,21 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass, field
-from typing import Protocol
 
 import numpy as np
 import viser
 import viser.uplot as uplot
 
+from study.server.console_model import Console, SessionDetail, SessionSummary
+from study.server.console_texts import (
+    link_markdown,
+    progress_markdown,
+    schedule_markdown,
+    sessions_markdown,
+    status_markdown,
+    timeline_markdown,
+    trials_markdown,
+)
 from study.server.loop import PacedLoop
 from study.session import EXPERIMENTER_ACTIONS, NEEDS_REASON
 
@@ -51,200 +58,9 @@ CONFIRM_TEXT: dict[str, str] = {
 """What the console asks before an action that needs a reason (``NEEDS_REASON``)."""
 
 
-@dataclass(frozen=True)
-class SessionSummary:
-    """One row of the sessions list. ``elapsed_s``: session time since the session started
-    (``None`` before it started)."""
-
-    code: str
-    participant: str
-    state: str
-    position: str
-    connected: bool
-    elapsed_s: float | None
-    source: str = ""
-    """How the participant came: "" (enrolled in the console) or "link" (open enrolment)."""
-
-
-@dataclass(frozen=True)
-class SessionDetail:
-    """What the console shows about the selected session."""
-
-    summary: SessionSummary
-    schedule: Sequence[tuple[str, str, str]]  # (step label, task, mode)
-    cursor: int  # index into schedule of the current step, -1 before the first
-    condition: str
-    trial_elapsed_s: float
-    paused: bool
-    t: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    alpha: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    confidence: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    probabilities: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
-    goal_names: tuple[str, ...] = ()
-    log: Sequence[str] = ()
-    fault: str | None = None
-    """The control loop's last error while the trial waits for the experimenter to resume."""
-    trials: Sequence[tuple[str, int, str, str, str]] = ()
-    """Every attempt so far: (label, attempt, status, outcome, duration)."""
-    actions: tuple[str, ...] = ()
-    """The experimenter actions the session's state allows now."""
-    timeline: Sequence[tuple[str, str, str]] = ()
-    """Runs and events, oldest first: (clock time, time since the session started, what)."""
-    tally: str = ""
-    """One line: runs by outcome, pauses, reloads, redos, faults."""
-    recruitment: Sequence[tuple[str, str]] = ()
-    """Recruitment IDs the participant came with (open enrolment), as (name, value)."""
-
-
-@dataclass(frozen=True)
-class StudyProgress:
-    """The study so far, for the top of the console."""
-
-    planned: int | None
-    completed: int
-    running: int
-    stopped: int
-    """Withdrawn or ended early."""
-    conditions: Sequence[tuple[str, int, int]] = ()
-    """Per condition of the task trials: (label, completed runs, successes)."""
-    next_row: int = 0
-    next_schedule: Sequence[str] = ()
-    """The next participant's task trials in order, e.g. "1. easy_right, timid"."""
-
-
-@dataclass(frozen=True)
-class LinkState:
-    """The open-enrolment link: on or off, its places and the sessions it opened."""
-
-    enabled: bool
-    cap: int
-    used: int
-    url: str
-
-
-class Console(Protocol):
-    def enrol(self, participant: str) -> str: ...
-    def summaries(self) -> list[SessionSummary]: ...
-    def detail(self, code: str) -> SessionDetail | None: ...
-    def act(self, code: str, action: str, *, reason: str = "") -> str: ...
-    def reopenable(self) -> list[str]: ...
-    def reopen(self, participant: str) -> str: ...
-    def progress(self) -> StudyProgress: ...
-    def link(self) -> LinkState: ...
-    def set_link(self, *, enabled: bool, cap: int) -> LinkState: ...
-    def health(self) -> str: ...
-
-
-def fmt_time(seconds: float | None) -> str:
-    if seconds is None:
-        return "not started"
-    m, s = divmod(max(0.0, seconds), 60.0)
-    h, m = divmod(int(m), 60)
-    return f"{h}:{m:02d}:{s:04.1f}" if h else f"{m:02d}:{s:04.1f}"
-
-
-def sessions_markdown(rows: Sequence[SessionSummary]) -> str:
-    if not rows:
-        return "_No sessions yet. Enrol a participant to start one._"
-    lines = [
-        "| code | participant | state | step | tab | session time |",
-        "|---|---|---|---|---|---|",
-    ]
-    for r in rows:
-        tab = "connected" if r.connected else "-"
-        who = r.participant + (" (link)" if r.source == "link" else "")
-        lines.append(
-            f"| `{r.code}` | {who} | {r.state} | {r.position} | {tab} | {fmt_time(r.elapsed_s)} |"
-        )
-    return "\n".join(lines)
-
-
-def schedule_markdown(detail: SessionDetail) -> str:
-    lines = ["| # | step | task | mode |", "|---|---|---|---|"]
-    for k, (label, task, mode) in enumerate(detail.schedule):
-        mark = "**>**" if k == detail.cursor else ""
-        lines.append(f"| {mark} {k + 1} | {label} | {task} | {mode} |")
-    return "\n".join(lines)
-
-
-def trials_markdown(detail: SessionDetail) -> str:
-    """Every attempt of the session so far, with how it ended."""
-    if not detail.trials:
-        return "_No runs yet._"
-    lines = ["| run | attempt | status | outcome | time |", "|---|---|---|---|---|"]
-    for label, attempt, status, outcome, duration in detail.trials:
-        lines.append(f"| {label} | {attempt} | {status} | {outcome} | {duration} |")
-    return "\n".join(lines)
-
-
 EMPTY_PLOT = (np.array([0.0, 1.0]), np.full(2, np.nan), np.full(2, np.nan))
 """A plot with nothing drawn (uPlot given no points at all keeps a broken x axis after the
 first real data arrive)."""
-
-TIMELINE_ROWS = 40
-"""Timeline entries shown (the newest); the store keeps them all."""
-
-
-def timeline_markdown(detail: SessionDetail) -> str:
-    """The session's runs and events, newest first, under a one-line tally."""
-    head = f"**Timeline** ({detail.tally})" if detail.tally else "**Timeline**"
-    if not detail.timeline:
-        return head + "\n\n_Nothing yet._"
-    rows = list(reversed(detail.timeline))
-    lines = [head, "", "| time | session | what |", "|---|---|---|"]
-    lines += [f"| {at} | {since} | {what} |" for at, since, what in rows[:TIMELINE_ROWS]]
-    if len(rows) > TIMELINE_ROWS:
-        lines.append(f"| | | _{len(rows) - TIMELINE_ROWS} earlier entries (in the store)_ |")
-    return "\n".join(lines)
-
-
-def progress_markdown(p: StudyProgress) -> str:
-    planned = f" of **{p.planned}** planned" if p.planned else " (no planned number)"
-    lines = [
-        f"Participants completed: **{p.completed}**{planned}; in progress {p.running};"
-        f" withdrawn or ended {p.stopped}"
-    ]
-    if p.conditions:
-        lines += ["", "| condition | runs | success |", "|---|---|---|"]
-        for label, n, ok in p.conditions:
-            rate = f"{ok}/{n} ({100 * ok / n:.0f}%)" if n else "-"
-            lines.append(f"| {label} | {n} | {rate} |")
-    if p.next_schedule:
-        lines += [
-            "",
-            f"Next participant: schedule row **{p.next_row}**: " + "; ".join(p.next_schedule),
-        ]
-    return "\n".join(lines)
-
-
-def link_markdown(link: LinkState) -> str:
-    if not link.enabled:
-        return "Open link is **off**: participants need a join code."
-    free = max(0, link.cap - link.used)
-    return (
-        f"Open link is **on**: {link.used} of {link.cap} places taken ({free} free).\n\n"
-        f"Link for the recruitment site:\n\n`{link.url}`"
-    )
-
-
-def status_markdown(detail: SessionDetail) -> str:
-    s = detail.summary
-    lines = [
-        f"**{s.participant}** (code `{s.code}`), state **{s.state}**"
-        f"{' (paused)' if detail.paused else ''}; step {s.position}",
-        f"Condition: **{detail.condition}**",
-        f"Session time {fmt_time(s.elapsed_s)}, trial time"
-        f" {fmt_time(detail.trial_elapsed_s) if detail.trial_elapsed_s else '-'};"
-        f" participant tab {'connected' if s.connected else 'not connected'}",
-    ]
-    if detail.recruitment:
-        lines.append("Recruitment: " + ", ".join(f"{k} `{v}`" for k, v in detail.recruitment))
-    if detail.fault:
-        lines.append(
-            f"**Control error, trial paused:** `{detail.fault}`. Resume to try again;"
-            " redo or end if it comes back."
-        )
-    return "\n\n".join(lines)
 
 
 class ExperimenterConsole:
@@ -257,9 +73,9 @@ class ExperimenterConsole:
         self.pending: str | None = None
         """The action waiting for its reason and confirmation."""
         self._results: dict[str, str] = {}
+        """The last action's result line per session code."""
         self._options: dict[str, str] = {}
         """Each session code's entry in the session list."""
-        """The last action's result line per session code."""
         self._progress_at = 0.0
         self._lock = threading.RLock()
         """One refresh or selection change at a time (the paced thread against clicks)."""
@@ -270,6 +86,17 @@ class ExperimenterConsole:
         gui.add_markdown("## Experimenter console")
         with gui.add_folder("Study"):
             self.progress_md = gui.add_markdown("")
+        self._build_sessions(gui)
+        self._build_link(gui)
+        self._session_folder = gui.add_folder("Selected session")
+        with self._session_folder:
+            self._build_selected(gui)
+        self._wire()
+        self._loop = PacedLoop(self._refresh_safely, rate_hz=refresh_hz, name="console")
+        self._loop.start()
+
+    def _build_sessions(self, gui: viser.GuiApi) -> None:
+        """The sessions list, enrolment and reopening."""
         with gui.add_folder("Sessions"):
             self.sessions_md = gui.add_markdown(sessions_markdown([]))
             self.session_select = gui.add_dropdown("Session", options=("(none)",))
@@ -281,45 +108,52 @@ class ExperimenterConsole:
             )
             self.reopen_button = gui.add_button("Reopen session", disabled=True)
             self.health_md = gui.add_markdown("")
+
+    def _build_link(self, gui: viser.GuiApi) -> None:
+        """The open link: on or off, its places."""
         with gui.add_folder("Open link", expand_by_default=False):
             self.link_on = gui.add_checkbox("Open link on", initial_value=False)
             self.link_cap = gui.add_number("Places", initial_value=0, min=0, max=100_000, step=1)
             self.link_md = gui.add_markdown("")
-        self._session_folder = gui.add_folder("Selected session")
-        with self._session_folder:
-            self.status_md = gui.add_markdown("_Select a session._")
-            self.action_buttons = {
-                a: gui.add_button(
-                    a.capitalize(), disabled=True, color="red" if a in FINAL_ACTIONS else None
-                )
-                for a in EXPERIMENTER_ACTIONS
-            }
-            self.confirm_md = gui.add_markdown("", visible=False)
-            self.reason = gui.add_text("Reason", initial_value="", visible=False)
-            self.confirm_button = gui.add_button("Confirm", visible=False, color="red")
-            self.cancel_button = gui.add_button("Cancel", visible=False)
-            self.action_status = gui.add_markdown("")
-            self.timeline_md = gui.add_markdown("")
-            self.alpha_plot = gui.add_uplot(
-                EMPTY_PLOT,
-                (
-                    uplot.Series(label="t (s)"),
-                    uplot.Series(label="alpha", stroke="#d9480f", width=2),
-                    uplot.Series(label="confidence", stroke="#1971c2", width=2),
-                ),
-                title="Arbitration",
-                scales={
-                    "x": uplot.Scale(time=False),
-                    "y": uplot.Scale(auto=False, range=(0.0, 1.0)),
-                },
-                height=200,
+
+    def _build_selected(self, gui: viser.GuiApi) -> None:
+        """The selected session: status, actions, confirmation, timeline, plots, schedule."""
+        self.status_md = gui.add_markdown("_Select a session._")
+        self.action_buttons = {
+            a: gui.add_button(
+                a.capitalize(), disabled=True, color="red" if a in FINAL_ACTIONS else None
             )
-            self.plotted = False
-            """Whether the plots show a run (of the selected session)."""
-            self.prob_plot: viser.GuiUplotHandle | None = None
-            self._prob_goals: tuple[str, ...] = ()
-            with gui.add_folder("Schedule and attempts", expand_by_default=False):
-                self.schedule_md = gui.add_markdown("")
+            for a in EXPERIMENTER_ACTIONS
+        }
+        self.confirm_md = gui.add_markdown("", visible=False)
+        self.reason = gui.add_text("Reason", initial_value="", visible=False)
+        self.confirm_button = gui.add_button("Confirm", visible=False, color="red")
+        self.cancel_button = gui.add_button("Cancel", visible=False)
+        self.action_status = gui.add_markdown("")
+        self.timeline_md = gui.add_markdown("")
+        self.alpha_plot = gui.add_uplot(
+            EMPTY_PLOT,
+            (
+                uplot.Series(label="t (s)"),
+                uplot.Series(label="alpha", stroke="#d9480f", width=2),
+                uplot.Series(label="confidence", stroke="#1971c2", width=2),
+            ),
+            title="Arbitration",
+            scales={
+                "x": uplot.Scale(time=False),
+                "y": uplot.Scale(auto=False, range=(0.0, 1.0)),
+            },
+            height=200,
+        )
+        self.plotted = False
+        """Whether the plots show a run (of the selected session)."""
+        self.prob_plot: viser.GuiUplotHandle | None = None
+        self._prob_goals: tuple[str, ...] = ()
+        with gui.add_folder("Schedule and attempts", expand_by_default=False):
+            self.schedule_md = gui.add_markdown("")
+
+    def _wire(self) -> None:
+        """The console's callbacks."""
 
         @self.enrol_button.on_click
         def _(_: object) -> None:
@@ -354,9 +188,6 @@ class ExperimenterConsole:
         @self.link_cap.on_update
         def _(_: object) -> None:
             self._set_link()
-
-        self._loop = PacedLoop(self._refresh_safely, rate_hz=refresh_hz, name="console")
-        self._loop.start()
 
     # -- actions ---------------------------------------------------------------------------------
     def _enrol(self, pid: str, *, verb: str = "Session for") -> None:

@@ -13,9 +13,9 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
+from study.server.live.control_faults import ControlFaults
 from study.server.live.controls import LiveInput
-from study.server.live.faults import ControlFaults
-from study.server.participant import ParticipantPage
+from study.server.participant_page import ParticipantPage
 from study.session import EXPERIMENTER_ACTIONS, NEEDS_REASON, Session, TrialRun, check_reason
 
 

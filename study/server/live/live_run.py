@@ -23,12 +23,12 @@ from app.trial import TickRecord, Trial
 from app.trial.events import EventKind, TrialEvent
 from study.server.inputs import ParticipantInput
 from study.server.live.console import LivePlots
+from study.server.live.control_faults import ControlFaults
 from study.server.live.controls import LiveInput
-from study.server.live.faults import ControlFaults
 from study.server.live.texts import outcome_sentence
 from study.server.live.view import LiveView, shows_intent
 from study.server.loop import PacedLoop
-from study.server.participant import ParticipantPage
+from study.server.participant_page import ParticipantPage
 from study.session import Session, TrialRun
 
 LOGGER = logging.getLogger("study.server.live")

@@ -112,7 +112,7 @@ def task_center(points: np.ndarray) -> tuple[np.ndarray, float]:
 
 HANDLE_HEADROOM_M = 0.3
 """Space kept in the task view above the gripper: the handle floats there
-(``study.server.participant.HANDLE_OFFSET_M``, then its arrows)."""
+(``study.server.page_handle.HANDLE_OFFSET_M``, then its arrows)."""
 
 
 def scene_view(scene: Any) -> TaskView | None:

@@ -3,28 +3,24 @@
 The words are those of the protocol the server runs (:attr:`study.protocol.Protocol.
 condition_words`: every factor level, task and mode name, plus a fixed list), given to
 :func:`install`. Our own code checks each text where it hands it to viser (:func:`check_text`,
-used by :mod:`study.server.participant`); this guard then checks what viser actually sends,
+used by :mod:`study.server.participant_page`); this guard then checks what viser actually sends,
 which also covers what viser echoes back (text a tab typed) and names in the 3-D scene.
 
-viser has no public hook on outgoing messages, so the guard wraps two private ones
-(:data:`PATCHED_HOOKS`); viser is pinned to the tested minor version in ``pyproject.toml`` and
-``tests/test_ui_firewall.py`` fails loudly when one of them moves. Two layers, both installed by
-:func:`install` for one viser server (the participant's):
+viser has no public hook on outgoing messages; :mod:`study.server.viser_door` gives one
+(:func:`~study.server.viser_door.watch_outgoing`), and the guard is written as policy over it.
+Two layers, both installed by :func:`install` for one viser server (the participant's):
 
-1. Queue: every message a viser server queues passes through an ``AsyncMessageBuffer`` (the
-   broadcast buffer or one per client). ``AsyncMessageBuffer.push`` is wrapped once per
-   process; a push on the event loop of a guarded server is checked by that server's
-   :class:`BlindingGuard`, which walks every string in the message (values, dict keys, tuple
-   items). A message containing a forbidden word (case-insensitive substring, so "bright"
-   counts as well as "right") is dropped and logged. viser's echo of what a tab typed, queued
-   on that tab's own connection (which never sends it back), is dropped unread and unlogged
-   (:func:`is_own_echo`): a participant's free-text answer is data, may hold any word, and
-   must not fill the log as a false leak.
-2. Wire: viser mutates the props of already-queued messages in place (a markdown's content
-   update also rewrites its creation message), so the queue check alone can be bypassed.
-   ``Message.as_serializable_dict``, which viser's sender calls for every message on the
-   server's own event loop just before encoding, is wrapped too: any string still carrying a
-   forbidden word is blanked in the outgoing dict and the violation logged.
+1. Queue (:meth:`BlindingGuard.on_queue`): every message the server queues is checked; the guard
+   walks every string in the message (values, dict keys, tuple items). A message containing a
+   forbidden word (case-insensitive substring, so "bright" counts as well as "right") is
+   dropped and logged. viser's echo of what a tab typed, queued on that tab's own connection
+   (which never sends it back), is dropped unread and unlogged: a participant's free-text
+   answer is data, may hold any word, and must not fill the log as a false leak.
+2. Wire (:meth:`BlindingGuard.on_serialize`): viser mutates the props of already-queued messages
+   in place (a markdown's content update also rewrites its creation message), so the queue
+   check alone can be bypassed. Each message's outgoing dict, made on the server's own event
+   loop just before encoding, is checked too: any string still carrying a forbidden word is
+   blanked and the violation logged.
 
 A string that is exactly one of viser's own fixed values for the field it sits in passes both
 layers (:mod:`study.server.viser_vocabulary`: memory3's level "standard" is also every mesh's
@@ -35,7 +31,6 @@ Other servers (the experimenter's) pass through untouched.
 
 from __future__ import annotations
 
-import asyncio
 import dataclasses
 import logging
 import threading
@@ -45,20 +40,12 @@ from typing import Any
 
 import numpy as np
 import viser
-from viser.infra._async_message_buffer import AsyncMessageBuffer
-from viser.infra._messages import Message as _WireMessage
 
 from study.protocol.blinding import find_words
+from study.server import viser_door
 from study.server.viser_vocabulary import is_viser_setting
 
 LOGGER = logging.getLogger("study.server.blinding")
-
-PATCHED_HOOKS: tuple[str, ...] = (
-    "viser.infra._async_message_buffer.AsyncMessageBuffer.push",
-    "viser.infra._messages.Message.as_serializable_dict",
-)
-"""The private viser functions :func:`install` wraps (it also reads the server's event loop,
-``ViserServer._websock_server._background_event_loop``)."""
 
 
 class BlindingViolation(RuntimeError):
@@ -86,20 +73,24 @@ def iter_strings(obj: Any, *, _depth: int = 0) -> Iterator[str]:
     elif isinstance(obj, (bytes, bytearray, memoryview, np.ndarray, int, float, bool)):
         return
     elif dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        for field in dataclasses.fields(obj):
-            value = getattr(obj, field.name)
-            if not (isinstance(value, str) and is_viser_setting(field.name, value)):
-                yield from iter_strings(value, _depth=_depth + 1)
+        fields = ((f.name, getattr(obj, f.name)) for f in dataclasses.fields(obj))
+        yield from _field_strings(fields, keys=False, depth=_depth)
     elif isinstance(obj, dict):
-        for key, value in obj.items():
-            if isinstance(key, str):
-                yield key
-                if isinstance(value, str) and is_viser_setting(key, value):
-                    continue
-            yield from iter_strings(value, _depth=_depth + 1)
+        yield from _field_strings(obj.items(), keys=True, depth=_depth)
     elif isinstance(obj, (list, tuple, set, frozenset)):
         for item in obj:
             yield from iter_strings(item, _depth=_depth + 1)
+
+
+def _field_strings(fields: Iterable[tuple[Any, Any]], *, keys: bool, depth: int) -> Iterator[str]:
+    """The strings of ``(name, value)`` pairs: the names too when ``keys`` (a mapping's keys),
+    never a value that is viser's own setting for its field."""
+    for name, value in fields:
+        if keys and isinstance(name, str):
+            yield name
+        if isinstance(name, str) and isinstance(value, str) and is_viser_setting(name, value):
+            continue
+        yield from iter_strings(value, _depth=depth + 1)
 
 
 @dataclasses.dataclass
@@ -177,6 +168,26 @@ class BlindingGuard:
             )
         return not self.block
 
+    def on_queue(self, message: Any, *, own_echo: bool) -> bool:
+        """A message the server is queueing (:class:`~study.server.viser_door.OutgoingWatch`):
+        False drops it. A tab's own echo is dropped unread: what a participant typed is data,
+        not a leak (a free-text answer may well hold a condition word), and viser would only
+        hold this copy of it in the buffer unsent."""
+        if own_echo:
+            with self._lock:
+                self.echoes += 1
+            return False
+        return self.allow(message)
+
+    def on_serialize(self, out: dict[str, Any], *, message_type: str) -> dict[str, Any]:
+        """A message's outgoing dict: ``out``, or a copy with every string naming a condition
+        blanked (:meth:`redact`)."""
+        with self._lock:
+            self.serialized += 1
+        if any(find_words(t, self.words) for t in iter_strings(out)):
+            return self.redact(out, message_type=message_type)
+        return out
+
     def redact(self, obj: Any, *, message_type: str) -> Any:
         """``obj`` (a serialisable dict tree) with every string naming a condition blanked."""
         if isinstance(obj, str):
@@ -202,70 +213,14 @@ class BlindingGuard:
         return obj
 
 
-_GUARDS: dict[int, BlindingGuard] = {}
-_INSTALL_LOCK = threading.Lock()
-_ORIGINAL_PUSH = AsyncMessageBuffer.push
-_ORIGINAL_SERIALIZE = _WireMessage.as_serializable_dict
-
-
-def is_own_echo(buffer: AsyncMessageBuffer, message: Any) -> bool:
-    """``message`` is viser's echo of a value a tab typed, queued on that same tab's own
-    connection, which skips it: a per-client buffer (not persistent) is read by one client
-    only, the one ``excluded_self_client`` names. It will never be sent to anyone."""
-    return (
-        not buffer.persistent_messages
-        and getattr(message, "excluded_self_client", None) is not None
-        and type(message).__name__ == "GuiUpdateMessage"
-    )
-
-
-def _guarded_push(self: AsyncMessageBuffer, message: Any) -> None:
-    guard = _GUARDS.get(id(self.event_loop))
-    if guard is not None and is_own_echo(self, message):
-        # What a participant typed is data, not a leak: a free-text answer may well hold a
-        # condition word, and viser would only hold this copy of it in the buffer unsent.
-        with guard._lock:
-            guard.echoes += 1
-        return
-    if guard is not None and not guard.allow(message):
-        return
-    _ORIGINAL_PUSH(self, message)
-
-
-def _guarded_serialize(self: Any, binary_buffers: Any = None) -> dict[str, Any]:
-    out = _ORIGINAL_SERIALIZE(self, binary_buffers)
-    try:
-        loop = asyncio.get_running_loop()
-    except RuntimeError:
-        return out
-    guard = _GUARDS.get(id(loop))
-    if guard is None:
-        return out
-    with guard._lock:
-        guard.serialized += 1
-    if any(find_words(t, guard.words) for t in iter_strings(out)):
-        out = guard.redact(out, message_type=type(self).__name__)
-    return out
-
-
 def install(server: viser.ViserServer, *, words: Iterable[str]) -> BlindingGuard:
     """Guard every message ``server`` sends from now on against ``words`` (the served
     protocol's :attr:`~study.protocol.Protocol.condition_words`); return the guard."""
-    loop = server._websock_server._background_event_loop
-    if loop is None:  # pragma: no cover - viser starts its loop in the constructor
-        raise RuntimeError("the viser server has no event loop yet; install after it starts")
     guard = BlindingGuard(words=words)
-    with _INSTALL_LOCK:
-        if AsyncMessageBuffer.push is not _guarded_push:
-            AsyncMessageBuffer.push = _guarded_push  # type: ignore[method-assign]
-        if _WireMessage.as_serializable_dict is not _guarded_serialize:
-            _WireMessage.as_serializable_dict = _guarded_serialize  # type: ignore[method-assign]
-        _GUARDS[id(loop)] = guard
+    viser_door.watch_outgoing(server, guard)
     return guard
 
 
 def uninstall(server: viser.ViserServer) -> None:
     """Stop guarding ``server`` (call when it stops)."""
-    loop = server._websock_server._background_event_loop
-    with _INSTALL_LOCK:
-        _GUARDS.pop(id(loop), None)
+    viser_door.unwatch_outgoing(server)

@@ -1,8 +1,9 @@
-"""The participant's page: one screen at a time in the viser panel, plus the teleop gizmo.
+"""The participant's page: one screen at a time in the viser panel, plus the teleop handle
+(:mod:`study.server.page_handle`).
 
 The page only shows and asks; it decides nothing. The server's session controller calls
 ``show_*`` to change the screen and receives answers through the callbacks it passes. Every
-string shown goes through :func:`study.server.blinding.check_text` first (a condition word raises),
+string shown goes through :func:`study.server.blinding_guard.check_text` first (a condition word raises),
 and the blinding guard checks every message again on the wire. Callbacks of a screen that is
 no longer shown are ignored, so a late click can never answer the next screen.
 
@@ -22,7 +23,6 @@ import asyncio
 import contextlib
 import logging
 import math
-import re
 import threading
 import time
 from collections import deque
@@ -30,13 +30,17 @@ from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 import viser
-from viser import _messages as viser_messages
 
 from study.protocol import Item, LikertItem
+from study.server import viser_door
 from study.server.answer_fields import add_answer_field
-from study.server.blinding import check_text
-from study.server.firewall import MAX_POSITION_M
-from study.server.page_script import ARROW_KEYCODES, MAX_KEY_MESSAGE, STEERING_CODES, page_script
+from study.server.blinding_guard import check_text
+from study.server.page_handle import TeleopHandle
+from study.server.page_inputs import (
+    InputRejected,
+    parse_key_state,
+)
+from study.server.page_script import page_script
 
 LOGGER = logging.getLogger("study.server.participant")
 
@@ -48,58 +52,9 @@ KEY_HELP = (
     "lifts it. The picture shows the table from above. Drag the background to "
     "look around, scroll to zoom; **V** brings back the starting view."
 )
-HANDLE_OFFSET_M = 0.12
-"""The handle floats this far above the point the gripper is sent to (a thin stem joins them),
-so that near a grasp it never covers the object; its arrows point away from the task camera
-(``app.robot.task_view`` keeps the camera behind the robot), upward on the screen."""
-HANDLE_PX = 150.0
-"""Length of the handle's arrows on the screen (pixels, whatever the zoom)."""
-HANDLE_LINE_PX = 5.0
 INSET_SIZE = (320, 240)
 """Width and height (pixels) of the view from above on the trial screen."""
 DECLINE = "I do not wish to take part"
-KEY_LETTERS = frozenset(STEERING_CODES.values()) | frozenset(ARROW_KEYCODES.values())
-_KEY_STATE = re.compile(r"([0-9]{1,12}) ([a-z]*)", re.ASCII)
-
-
-class InputRejected(ValueError):
-    """A message from the browser was malformed (NaN pose, unknown answer); it was ignored."""
-
-
-def parse_answer(value: object, *, points: int) -> int:
-    """The integer answer 1..points in ``value`` (a button label), else :class:`InputRejected`."""
-    try:
-        answer = int(str(value))
-    except ValueError:
-        raise InputRejected(f"answer {value!r} is not a number 1..{points}") from None
-    if not 1 <= answer <= points:
-        raise InputRejected(f"answer {answer} is outside 1..{points}")
-    return answer
-
-
-def parse_position(position: object) -> np.ndarray:
-    """A finite 3-vector within ``MAX_POSITION_M`` of the origin, else :class:`InputRejected`
-    (whose message is short: never the whole payload)."""
-    try:
-        p = np.asarray(position, dtype=float).reshape(-1)
-    except (TypeError, ValueError, OverflowError):
-        raise InputRejected("gizmo position is not numeric") from None
-    if p.shape != (3,):
-        raise InputRejected(f"gizmo position has {p.size} values, not 3")
-    if not np.all(np.isfinite(p)) or float(np.max(np.abs(p))) > MAX_POSITION_M:
-        raise InputRejected(f"gizmo position is not finite or beyond {MAX_POSITION_M:g} m")
-    return p
-
-
-def parse_key_state(value: object) -> tuple[int, frozenset[str]]:
-    """``"<seq> <letters>"`` -> (seq, held keys), else :class:`InputRejected`."""
-    text = str(value)
-    if len(text) > MAX_KEY_MESSAGE:
-        raise InputRejected(f"key state of {len(text)} characters")
-    match = _KEY_STATE.fullmatch(text)
-    if match is None or not set(match[2]) <= KEY_LETTERS:
-        raise InputRejected("key state is not '<number> <keys>'")
-    return int(match[1]), frozenset(match[2])
 
 
 class ParticipantPage:
@@ -113,11 +68,9 @@ class ParticipantPage:
         self.screen = 0
         self.screen_name = "none"
         self._lock = threading.RLock()
+        self.handle = TeleopHandle(client, lock=self._lock, reject=self.reject)
+        """The teleoperation handle on the tab's scene."""
         self._handles: list[object] = []
-        self._gizmo: viser.TransformControlsHandle | None = None
-        self._stem: list[object] = []
-        self.dragging = False
-        """True while the participant holds the handle with the mouse."""
         self._clock: viser.GuiMarkdownHandle | None = None
         self._clock_text = ""
         self._inset: viser.GuiImageHandle | None = None
@@ -137,13 +90,12 @@ class ParticipantPage:
         self._keys = client.gui.add_text("keys", initial_value="", visible=False)
         self._keys.on_update(self._on_key_state)
         client.gui.set_panel_label(self.title)
-        self.run_script(page_script(keys_uuid=self._keys._impl.uuid, title=self.title))
+        keys_uuid = viser_door.element_uuid(self._keys)
+        self.run_script(page_script(keys_uuid=keys_uuid, title=self.title))
 
     def run_script(self, source: str) -> None:
         """Run ``source`` (JavaScript) in this tab once (checked for condition words too)."""
-        self.client._websock_connection.queue_message(
-            viser_messages.RunJavascriptMessage(source=check_text(source, words=self.words))
-        )
+        viser_door.run_javascript(self.client, check_text(source, words=self.words))
 
     async def _on_key_state(self, _event: object) -> None:
         """A new key state from the page script (async: in arrival order, never reordered)."""
@@ -355,7 +307,7 @@ class ParticipantPage:
         progress: str | None,
         on_submit: Callable[[dict[str, object]], None],
     ) -> int:
-        """Likert items as 1..7 button rows with their anchors, every other kind as its field
+        """Each item's prompt (a Likert item's with its anchors) and its field
         (:mod:`study.server.answer_fields`); Continue needs every required answer, valid."""
         with self._lock:
             screen = self._new_screen("questions:" + heading)
@@ -379,34 +331,11 @@ class ParticipantPage:
                     submit.disabled = not complete()
 
             for item in items:
-                if not isinstance(item, LikertItem):
-                    self._md(f"**{item.prompt}**")
-                    add_answer_field(
-                        self, item, current=lambda: self._current(screen), report=report
-                    )
-                    continue
-                self._md(f"**{item.prompt}**\n\n{item.anchor_text()}")
-                plain = tuple(str(k) for k in range(1, item.points + 1))
-                group = self.client.gui.add_button_group(" ", plain)
-                self._handles.append(group)
-                chosen = self._md("Your answer: none yet")
-
-                def on_click(
-                    event: object, item: LikertItem = item, group=group, chosen=chosen, plain=plain
-                ) -> None:
-                    if not self._current(screen):
-                        return
-                    try:
-                        answer = parse_answer(str(group.value).strip("[] "), points=item.points)
-                    except InputRejected as exc:
-                        self.reject(str(exc))
-                        return
-                    marked = [f"[{o}]" if int(o) == answer else o for o in plain]
-                    group.options = tuple(marked)  # the chosen button reads [k]
-                    chosen.content = f"Your answer: **{answer}** ({item.anchors[answer - 1]})"
-                    report(item.id, answer, True)
-
-                group.on_click(on_click)
+                prompt = f"**{item.prompt}**"
+                if isinstance(item, LikertItem):
+                    prompt += f"\n\n{item.anchor_text()}"
+                self._md(prompt)
+                add_answer_field(self, item, current=lambda: self._current(screen), report=report)
             submit = self._button("Continue", disabled=not complete())
 
             @submit.on_click
@@ -477,9 +406,14 @@ class ParticipantPage:
         words by :mod:`study.server.inset` (viser would otherwise re-encode the array)."""
         with self._lock:
             if self._inset is not None:
-                self._inset._data = jpeg
+                viser_door.set_image_bytes(self._inset, jpeg)
 
-    # -- teleoperation -----------------------------------------------------------------------
+    # -- teleoperation (the handle: ``study.server.page_handle``) ----------------------------
+    @property
+    def dragging(self) -> bool:
+        """True while the participant holds the handle with the mouse."""
+        return self.handle.dragging
+
     def add_gizmo(
         self,
         position: np.ndarray,
@@ -487,76 +421,18 @@ class ParticipantPage:
         on_target: Callable[[np.ndarray], None],
         on_release: Callable[[], None] | None = None,
     ) -> viser.TransformControlsHandle:
-        """The transform handle, :data:`HANDLE_OFFSET_M` above the target ``position``, with a
-        stem down to it; every pose update sends the target (the handle's position minus the
-        offset) to ``on_target``, and letting go of it calls ``on_release``."""
-        offset = np.array([0.0, 0.0, HANDLE_OFFSET_M])
-        with self._lock:
-            self.remove_gizmo()
-            gizmo = self.client.scene.add_transform_controls(
-                "/handle",
-                scale=HANDLE_PX,
-                fixed=True,
-                line_width=HANDLE_LINE_PX,
-                disable_rotations=True,
-                depth_test=False,
-                opacity=0.9,
-                position=tuple(np.asarray(position, float) + offset),
-            )
-            self._gizmo = gizmo
-            # children move with the handle in the browser while it is dragged
-            self._stem = [
-                self.client.scene.add_cylinder(
-                    "/handle/stem",
-                    radius=0.0025,
-                    height=HANDLE_OFFSET_M,
-                    color=(60, 60, 70),
-                    position=(0.0, 0.0, -HANDLE_OFFSET_M / 2),
-                ),
-                self.client.scene.add_icosphere(
-                    "/handle/tip", radius=0.006, color=(60, 60, 70), position=tuple(-offset)
-                ),
-            ]
-
-        # async: runs on viser's event loop in arrival order (thread-pool callbacks may run
-        # out of order, and a stale pose must never overwrite a newer one); ``on_target`` only
-        # takes a lock. A rejection (notice + store event) and a release go to a worker thread.
-        @gizmo.on_update
-        async def _(event: viser.TransformControlsEvent) -> None:
-            phase = getattr(event, "phase", "update")
-            if phase != "update":
-                self.dragging = phase == "start"
-                if phase == "end" and on_release is not None:
-                    asyncio.get_running_loop().run_in_executor(None, on_release)
-                return  # the same pose as the update before it
-            try:
-                on_target(parse_position(gizmo.position) - offset)
-            except InputRejected as exc:
-                asyncio.get_running_loop().run_in_executor(None, self.reject, str(exc), False)
-
-        return gizmo
+        """The handle over the target ``position`` (:meth:`TeleopHandle.add`)."""
+        return self.handle.add(position, on_target=on_target, on_release=on_release)
 
     def move_gizmo(self, position: np.ndarray) -> None:
         """Put the handle over the target ``position``."""
-        with self._lock:
-            if self._gizmo is not None:
-                self._gizmo.position = tuple(
-                    np.asarray(position, float) + np.array([0.0, 0.0, HANDLE_OFFSET_M])
-                )
+        self.handle.move(position)
 
     def show_gizmo(self, visible: bool) -> None:
-        with self._lock:
-            if self._gizmo is not None:
-                self._gizmo.visible = visible
+        self.handle.show(visible)
 
     def remove_gizmo(self) -> None:
-        with self._lock:
-            self.dragging = False
-            for h in [*self._stem, self._gizmo]:
-                if h is not None:
-                    with contextlib.suppress(Exception):
-                        h.remove()  # type: ignore[attr-defined]
-            self._gizmo, self._stem = None, []
+        self.handle.remove()
 
 
 def clock_text(seconds: float) -> str:

@@ -12,7 +12,7 @@ session is paused); this object connects it to the browser and to time, through 
 * a lost tab pauses the running trial (``Session.pause(cause="tab_lost")``) and the
   participant resumes it from the next tab with "Continue";
 * any pause freezes the participant's input and hides the handle (``controls.LiveInput``);
-* an exception in a control tick holds the trial (``faults.ControlFaults``), is recorded and
+* an exception in a control tick holds the trial (``control_faults.ControlFaults``), is recorded and
   shown to the experimenter, and the page asks to wait: the loop never dies silently;
 * each run ends with a neutral outcome sentence (``texts``); the console reads ``console``.
 """
@@ -29,19 +29,19 @@ from datetime import datetime
 from typing import Any
 
 from app.robot import Simulation, build_scene
-from study.server.experimenter import SessionDetail, SessionSummary
+from study.server.console_model import SessionDetail, SessionSummary
 from study.server.inputs import ParticipantInput
 from study.server.live.console import LiveFacts, LivePlots, session_detail, session_summary
+from study.server.live.control_faults import ControlFaults
 from study.server.live.controls import LiveInput
-from study.server.live.experimenter import ExperimenterControl
-from study.server.live.faults import ControlFaults
-from study.server.live.run import LiveRun
+from study.server.live.experimenter_control import ExperimenterControl
+from study.server.live.live_run import LiveRun
 from study.server.live.screens import show_screen
 from study.server.live.timeline import started_at
 from study.server.live.view import LiveView, shows_intent
 from study.server.loop import PacedLoop
-from study.server.participant import ParticipantPage
-from study.server.scene import SceneView
+from study.server.page_scene import SceneView
+from study.server.participant_page import ParticipantPage
 from study.session import (
     Session,
     SessionClosedError,
