@@ -14,7 +14,7 @@ JSON line of what it managed on stdout. The kinds:
   throttled;
 * ``version``: websocket handshakes offering a 7 KB subprotocol of another viser version.
 
-Used by ``tests/test_ui_attacks.py`` and ``benchmarks/server.py``.
+Used by ``tests/test_port_attacks.py`` and ``benchmarks/server.py``.
 """
 
 from __future__ import annotations

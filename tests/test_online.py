@@ -221,6 +221,6 @@ def test_serve_refuses_a_trusted_proxy_that_is_not_an_address(tmp_path: Path) ->
     )
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
-        "error: --trusted-proxy 'nginx' is not an IP address or network (e.g. 127.0.0.1 or"
-        " 10.0.0.0/8)"
+        "python -m study serve: error: --trusted-proxy 'nginx' is not an IP address or network"
+        " (e.g. 127.0.0.1 or 10.0.0.0/8)"
     ]

@@ -16,7 +16,9 @@ from urllib.parse import urlsplit
 
 from study.cli.arguments import port as port_number
 from study.cli.arguments import rate_hz
-from study.protocol import ProtocolError, load_protocol
+from study.cli.dispatch import UsageError
+from study.errors import StudyError
+from study.protocol import load_protocol
 from study.protocol.preflight import check_scenes
 from study.server import logs, realtime
 from study.server.forwarded import trusted_networks
@@ -162,7 +164,7 @@ def public_url(text: str | None) -> str | None:
         return None
     parts = urlsplit(text)
     if parts.scheme not in ("http", "https") or not parts.hostname or parts.query or parts.fragment:
-        raise ValueError(
+        raise UsageError(
             f"--public-url {text!r} is not an http(s) address such as https://study.example.org"
         )
     return text.rstrip("/")
@@ -202,7 +204,7 @@ def main(args: argparse.Namespace) -> int:
     try:
         protocol = load_protocol(args.protocol)
         check_scenes(protocol)  # every scene builds before a participant can join
-    except ProtocolError as exc:  # naming file, key and problem
+    except StudyError as exc:  # naming file, key and problem
         print(f"error: {exc}", file=sys.stderr)
         return 2
     for what, host, port in (
@@ -216,12 +218,8 @@ def main(args: argparse.Namespace) -> int:
             flag = "--port" if what == "participant" else "--experimenter-port"
             print(f"error: {what} view on {host}:{port}: {problem} ({flag})", file=sys.stderr)
             return 2
-    try:
-        proxies = trusted_networks(args.trusted_proxy)
-        public = public_url(args.public_url)
-    except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    proxies = trusted_networks(args.trusted_proxy)  # a StudyError: said by the dispatcher
+    public = public_url(args.public_url)
     log_path = args.log or args.db.parent / "serve.log"
     try:
         args.db.parent.mkdir(parents=True, exist_ok=True)
@@ -231,7 +229,7 @@ def main(args: argparse.Namespace) -> int:
         return 2
     try:
         store = open_store(args.db, protocol)
-    except Exception as exc:
+    except StudyError as exc:  # not a store, another protocol's, damaged, locked, ...
         print(f"error: cannot open the store {args.db}: {exc}", file=sys.stderr)
         return 2
     # before the servers start their threads, which inherit it (Linux: per thread)

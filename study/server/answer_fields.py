@@ -25,14 +25,28 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import Protocol
+
+import viser
 
 from study.protocol import AnswerError, ChoiceItem, Item, LikertItem, NumberItem, TextItem
 from study.server.blinding_guard import check_text
 from study.server.page_inputs import InputRejected, parse_answer
 
-if TYPE_CHECKING:
-    from study.server.participant_page import ParticipantPage
+
+class FieldPage(Protocol):
+    """What a field needs of the page it is drawn on (``ParticipantPage`` has it): the tab's
+    client, the blinded words its texts are checked against, a markdown line, the list of
+    handles the page removes with the screen, and a way to reject an answer with a notice."""
+
+    client: viser.ClientHandle
+    words: tuple[str, ...]
+    _handles: list[object]
+
+    def _md(self, text: str) -> viser.GuiMarkdownHandle: ...
+
+    def reject(self, problem: str, notify: bool = True) -> None: ...
+
 
 CHOOSE = "(choose an answer)"
 """The dropdown's first entry: no answer chosen yet."""
@@ -42,7 +56,7 @@ Report = Callable[[str, object, bool], None]
 
 
 def add_answer_field(
-    page: ParticipantPage, item: Item, *, current: Callable[[], bool], report: Report
+    page: FieldPage, item: Item, *, current: Callable[[], bool], report: Report
 ) -> None:
     """Draw ``item``'s field on ``page`` (its prompt is drawn already); ``current()`` says the
     screen is still shown (a late update from an old screen is ignored)."""
@@ -59,7 +73,7 @@ def add_answer_field(
 
 
 def _likert(
-    page: ParticipantPage, item: LikertItem, *, current: Callable[[], bool], report: Report
+    page: FieldPage, item: LikertItem, *, current: Callable[[], bool], report: Report
 ) -> None:
     """A row of buttons 1..points; the chosen one reads ``[k]`` and the line under the row
     says the answer with its anchor."""
@@ -85,7 +99,7 @@ def _likert(
 
 
 def _choice(
-    page: ParticipantPage, item: ChoiceItem, *, current: Callable[[], bool], report: Report
+    page: FieldPage, item: ChoiceItem, *, current: Callable[[], bool], report: Report
 ) -> None:
     options = (CHOOSE, *item.options)
     field = page.client.gui.add_dropdown(
@@ -112,7 +126,7 @@ def _choice(
 
 
 def _number(
-    page: ParticipantPage, item: NumberItem, *, current: Callable[[], bool], report: Report
+    page: FieldPage, item: NumberItem, *, current: Callable[[], bool], report: Report
 ) -> None:
     accepts = f"Please enter {item.range_text()}."
     field = page.client.gui.add_text(
@@ -140,9 +154,7 @@ def _number(
         report(item.id, value, True)
 
 
-def _text(
-    page: ParticipantPage, item: TextItem, *, current: Callable[[], bool], report: Report
-) -> None:
+def _text(page: FieldPage, item: TextItem, *, current: Callable[[], bool], report: Report) -> None:
     limit = f"at most {item.max_length} characters"
     field = page.client.gui.add_text(
         "Answer", initial_value="", multiline=True, hint=limit.capitalize()
@@ -173,9 +185,7 @@ def _text(
 __all__ = ["CHOOSE", "add_answer_field"]
 
 
-def _typed(
-    page: ParticipantPage, item: Item, *, current: Callable[[], bool], report: Report
-) -> None:
+def _typed(page: FieldPage, item: Item, *, current: Callable[[], bool], report: Report) -> None:
     """Any other kind: a one-line text field whose every change the item's ``check`` reads
     (what it refuses is marked, never echoed)."""
     field = page.client.gui.add_text("Answer", initial_value="")

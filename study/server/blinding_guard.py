@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 import viser
 
+from study.errors import StudyError
 from study.protocol.blinding import find_words
 from study.server import viser_door
 from study.server.viser_vocabulary import is_viser_setting
@@ -48,7 +49,7 @@ from study.server.viser_vocabulary import is_viser_setting
 LOGGER = logging.getLogger("study.server.blinding")
 
 
-class BlindingViolation(RuntimeError):
+class BlindingViolation(StudyError, RuntimeError):
     """A participant-facing string names a condition. Rephrase the text without the word."""
 
 

@@ -23,20 +23,26 @@ import ipaddress
 from collections.abc import Iterable
 from typing import Any
 
+from study.errors import StudyError
+
 Network = ipaddress.IPv4Network | ipaddress.IPv6Network
 MAX_HEADER = 2048
 """Longest forwarding entry read (a longer one is not a proxy's: the peer's address stays)."""
 
 
+class ProxyAddressError(StudyError, ValueError):
+    """A ``--trusted-proxy`` value that is neither an IP address nor a network."""
+
+
 def trusted_networks(values: Iterable[str]) -> tuple[Network, ...]:
     """``--trusted-proxy`` values (addresses or networks such as ``10.0.0.0/8``) as networks;
-    ``ValueError`` naming the value that is neither."""
+    ``ProxyAddressError`` naming the value that is neither."""
     out = []
     for value in values:
         try:
             out.append(ipaddress.ip_network(str(value).strip(), strict=False))
         except ValueError:
-            raise ValueError(
+            raise ProxyAddressError(
                 f"--trusted-proxy {value!r} is not an IP address or network (e.g. 127.0.0.1 or"
                 " 10.0.0.0/8)"
             ) from None

@@ -42,6 +42,7 @@ import mujoco
 import numpy as np
 
 from app.robot import BodyPoses, Scene
+from study.errors import StudyError
 from study.server.loop import PacedLoop
 
 LOGGER = logging.getLogger("study.server.inset")
@@ -133,7 +134,7 @@ def encode_jpeg(rgb: np.ndarray, *, words: Iterable[str], quality: int = JPEG_QU
     raise InsetError("no JPEG quality avoided the condition words; frame dropped")
 
 
-class InsetError(RuntimeError):
+class InsetError(StudyError, RuntimeError):
     """A frame of the view from above could not be made (no GL context, no clean JPEG)."""
 
 

@@ -18,10 +18,12 @@ from collections.abc import Callable
 
 import numpy as np
 
+from study.errors import StudyError
+
 LOGGER = logging.getLogger("study.server.loop")
 
 
-class LoopError(RuntimeError):
+class LoopError(StudyError, RuntimeError):
     """The loop was misconfigured (e.g. a non-positive rate)."""
 
 

@@ -26,6 +26,7 @@ import threading
 import time
 from collections import deque
 
+from study.errors import StudyError
 from study.server.recruitment import Recruitment
 from study.store import Store
 
@@ -33,7 +34,7 @@ LINK_PARTICIPANT = re.compile(r"L(\d{4,})")
 LINK_SOURCE = "link"
 
 
-class LinkClosed(RuntimeError):
+class LinkClosed(StudyError, RuntimeError):
     """The link does not take new participants now (off, or every place taken)."""
 
 

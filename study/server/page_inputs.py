@@ -10,6 +10,7 @@ import re
 
 import numpy as np
 
+from study.errors import StudyError
 from study.server.firewall import MAX_POSITION_M
 from study.server.page_script import ARROW_KEYCODES, MAX_KEY_MESSAGE, STEERING_CODES
 
@@ -17,7 +18,7 @@ KEY_LETTERS = frozenset(STEERING_CODES.values()) | frozenset(ARROW_KEYCODES.valu
 _KEY_STATE = re.compile(r"([0-9]{1,12}) ([a-z]*)", re.ASCII)
 
 
-class InputRejected(ValueError):
+class InputRejected(StudyError, ValueError):
     """A message from the browser was malformed (NaN pose, unknown answer); it was ignored."""
 
 

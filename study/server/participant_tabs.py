@@ -21,14 +21,15 @@ import logging
 import math
 import threading
 import time
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import viser
 
 from study.server import viser_door
-from study.server.firewall import REJOIN_COOKIE
-from study.server.join import normalize_code
-from study.server.live import LiveSession
+from study.server.blinding_guard import BlindingGuard
+from study.server.firewall import REJOIN_COOKIE, Firewall
+from study.server.join import JoinThrottle, normalize_code
+from study.server.live import LiveSession, SessionFactory
 from study.server.live.screens import show_end
 from study.server.live.texts import (
     LINK_CLOSED_TEXT,
@@ -36,13 +37,10 @@ from study.server.live.texts import (
     LINK_IN_USE_TEXT,
     LINK_INVALID_TEXT,
 )
-from study.server.open_link import LinkClosed
+from study.server.open_link import LinkClosed, OpenLink
 from study.server.page_scene import frame_task
 from study.server.participant_page import ParticipantPage
 from study.server.recruitment import LinkError, Recruitment, parse_ids, read_link
-
-if TYPE_CHECKING:
-    from study.server.server import StudyServer
 
 LOGGER = logging.getLogger("study.server.server")
 
@@ -59,10 +57,39 @@ LINK_QUIET_S = 2.0
 that the study is open in another tab."""
 
 
+class TabsServer(Protocol):
+    """What the tabs need of their study server (``StudyServer`` has it): its participant
+    port, firewall, blinding guard, join throttle, open link and session factory, its lock,
+    and its sessions by join code, rejoin token and recruitment link."""
+
+    participant: viser.ViserServer
+    firewall: Firewall
+    guard: BlindingGuard
+    throttle: JoinThrottle
+    open_link: OpenLink
+    factory: SessionFactory
+    kiosk: bool
+    _lock: threading.RLock
+
+    def find(self, code: str) -> LiveSession | None: ...
+
+    def session_token(self, code: str) -> str: ...
+
+    def by_link(self, code: str) -> bool: ...
+
+    def code_of(self, token: str | None) -> str | None: ...
+
+    def open_sessions(self) -> list[LiveSession]: ...
+
+    def link_session(
+        self, recruitment: Recruitment, *, address: str = "unknown"
+    ) -> tuple[LiveSession | None, str]: ...
+
+
 class ParticipantTabs:
     """The participant port's open tabs and the session each holds, for one study server."""
 
-    def __init__(self, server: StudyServer) -> None:
+    def __init__(self, server: TabsServer) -> None:
         self.server = server
         self._lock = server._lock
         self._throttle_logged = 0.0

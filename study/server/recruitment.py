@@ -26,6 +26,7 @@ import threading
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from study.errors import StudyError
 from study.server import viser_door
 from study.server.participant_page import ParticipantPage
 
@@ -41,7 +42,7 @@ within a round trip once its page runs; a loaded machine or phone can take secon
 that has not answered by then is offered the join code)."""
 
 
-class LinkError(ValueError):
+class LinkError(StudyError, ValueError):
     """The link's recruitment parameters are not usable (the message names which, never the
     value)."""
 

@@ -34,6 +34,7 @@ import threading
 from collections.abc import Iterable
 from pathlib import Path
 
+from study.errors import StudyError
 from study.protocol.blinding import find_words
 from study.server import blinding_guard, firewall, logs, realtime
 from study.server.console_model import LinkState, SessionDetail, SessionSummary, StudyProgress
@@ -64,7 +65,7 @@ from study.session import EXPERIMENTER_ACTIONS, FINAL_STATUSES
 LOGGER = logging.getLogger("study.server.server")
 
 
-class ServerError(RuntimeError):
+class ServerError(StudyError, RuntimeError):
     """The study server cannot do what was asked (unknown session code, duplicate ...)."""
 
 

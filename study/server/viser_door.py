@@ -6,7 +6,7 @@ ids and the JavaScript channel private. The study server needs all of them: the 
 (:mod:`study.server.firewall`) screens what comes in, the blinding guard
 (:mod:`study.server.blinding_guard`) what goes out, the participant page runs its own script.
 They are written as policy over the small public API here; an upgrade of viser means reading
-this file (and the pin and hook tests, ``tests/test_ui_firewall.py``, which check every name in
+this file (and the pin and hook tests, ``tests/test_firewall_rules.py``, which check every name in
 :data:`PRIVATE_REACHES`). viser is pinned to the tested minor version in ``pyproject.toml``.
 
 * Incoming (:func:`screen_incoming`): viser decodes every websocket message a browser sends

@@ -22,7 +22,7 @@ if TYPE_CHECKING:
     from app.robot.simulation import Simulation
     from app.teleop.ik_step import IKStep
     from app.trial.config import TrialConfig
-    from app.trial.trial import Trial
+    from app.trial.tasks.task import TrialParts
 
 __all__ = ["CLOSE_S", "DROP_S", "LIFT_SPEED", "LIFT_TIMEOUT_S", "REOPEN_S", "WAKE_M", "LiftTask"]
 
@@ -50,7 +50,7 @@ class LiftTask:
         self._lift_target = np.zeros(3)
         self._lost_t: float | None = None
 
-    def start(self, trial: Trial) -> None:
+    def start(self, trial: TrialParts) -> None:
         self.sim: Simulation = trial.sim
         self.ik: IKStep = trial.ik
         self.config: TrialConfig = trial.config

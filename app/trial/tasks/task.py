@@ -21,10 +21,30 @@ from typing import TYPE_CHECKING, Protocol
 if TYPE_CHECKING:
     import numpy as np
 
+    from app.robot.scene import Scene
+    from app.robot.simulation import Simulation
+    from app.teleop.ik_step import IKStep
+    from app.trial.config import TrialConfig
     from app.trial.events import TrialEvent
-    from app.trial.trial import Trial
 
-__all__ = ["Task"]
+__all__ = ["Task", "TrialParts"]
+
+
+class TrialParts(Protocol):
+    """What a task sees of its trial (``app.trial.trial.Trial`` has these): the physics, the
+    scene, the configuration and the IK step that turns a target into joint positions."""
+
+    @property
+    def sim(self) -> Simulation: ...
+
+    @property
+    def scene(self) -> Scene: ...
+
+    @property
+    def config(self) -> TrialConfig: ...
+
+    @property
+    def ik(self) -> IKStep: ...
 
 
 class Task(Protocol):
@@ -35,7 +55,7 @@ class Task(Protocol):
     gripper_closed: bool
     held: int | None
 
-    def start(self, trial: Trial) -> None:
+    def start(self, trial: TrialParts) -> None:
         """Bind to ``trial`` (its ``sim``, ``scene``, ``config``, ``ik``) before the first tick."""
 
     def control(

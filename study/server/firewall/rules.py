@@ -18,6 +18,7 @@ from typing import Any
 
 import msgspec
 
+from study.errors import StudyError
 from study.server import viser_door
 
 PARTICIPANT_TYPES: frozenset[str] = frozenset(
@@ -59,11 +60,11 @@ class Dropped(viser_door.Message, include_in_scene_serialization=False):
     reason: str
 
 
-class RefusedMessage(ValueError):
+class RefusedMessage(StudyError, ValueError):
     """An incoming message broke a rule; the text says which (never the payload)."""
 
 
-class ConnectionFlood(ConnectionError):
+class ConnectionFlood(StudyError, ConnectionError):
     """A connection sent far more, or far worse, than a page does; it is closed with ``code``
     (1008 policy violation, or 1003 for data viser does not speak)."""
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from app.teleop.errors import TeleopError
 from app.teleop.keyboard import KEYMAP
-from study.server.inputs import InputFrozen, ParticipantInput
+from app.teleop.participant_input import InputFrozen, ParticipantInput
 from study.server.participant_page import ParticipantPage
 
 LOGGER = logging.getLogger("study.server.live")

@@ -19,9 +19,9 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from app.teleop.keyboard import KEYMAP
+from app.teleop.participant_input import ParticipantInput
 from app.trial import TickRecord, Trial
 from app.trial.events import EventKind, TrialEvent
-from study.server.inputs import ParticipantInput
 from study.server.live.console import LivePlots
 from study.server.live.control_faults import ControlFaults
 from study.server.live.controls import LiveInput

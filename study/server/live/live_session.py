@@ -29,8 +29,8 @@ from datetime import datetime
 from typing import Any
 
 from app.robot import Simulation, build_scene
+from app.teleop.participant_input import ParticipantInput
 from study.server.console_model import SessionDetail, SessionSummary
-from study.server.inputs import ParticipantInput
 from study.server.live.console import LiveFacts, LivePlots, session_detail, session_summary
 from study.server.live.control_faults import ControlFaults
 from study.server.live.controls import LiveInput

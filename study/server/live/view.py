@@ -22,7 +22,7 @@ import mujoco
 import numpy as np
 
 from app.robot import BodyPoses, Scene
-from study.server.inputs import ParticipantInput
+from app.teleop.participant_input import ParticipantInput
 from study.server.inset import InsetJob, InsetLoop
 from study.server.intent_cue import IntentGoals, ring_opacity
 from study.server.live.texts import AT_REACH_LIMIT, MISSED_GRASP, TIME_WARNING, TIME_WARNING_S

@@ -32,7 +32,7 @@ from study.server.participant_tabs import JOIN_FAILED, JOIN_THROTTLED
 from tests import disk_full
 from tests.attacker import CAMERA, SUBPROTOCOL
 from tests.browser.harness import RunningServer, run_async, start_server, wait_until
-from tests.test_ui_malformed import AGREE, RawClient
+from tests.support.raw_client import AGREE, RawClient
 
 
 def roomy() -> Firewall:

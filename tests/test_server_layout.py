@@ -25,7 +25,7 @@ from study.server.join import (
 from study.server.participant_page import DECLINE
 from tests.browser.harness import iter_strings, run_async, start_server, wait_until
 from tests.protocol_copies import PAPER_PROTOCOL
-from tests.test_ui_malformed import AGREE, RawClient
+from tests.support.raw_client import AGREE, RawClient
 
 
 def _lan_ip() -> str | None:

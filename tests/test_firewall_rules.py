@@ -203,7 +203,7 @@ def test_the_viser_internals_the_door_reaches_are_where_it_expects() -> None:
 def test_the_doors_hooks_reach_only_the_servers_that_use_them() -> None:
     """The blinding guard and the firewall go through viser_door's hooks: installed, each
     wraps viser's function (once per process), and acts only for the server it was installed
-    on (``test_ui_blinding``: another server passes untouched)."""
+    on (``test_blinding_guard``: another server passes untouched)."""
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     try:
         guard = blinding_guard.install(server, words=("hard",))

@@ -7,8 +7,8 @@ import pytest
 
 from app.teleop import ReachRegion, TrialObservation
 from app.teleop.errors import InvalidTargetError
+from app.teleop.participant_input import InputFrozen, ParticipantInput
 from study.protocol import LikertItem, Scale
-from study.server.inputs import InputFrozen, ParticipantInput
 from study.server.page_inputs import (
     InputRejected,
     parse_answer,

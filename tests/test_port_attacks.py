@@ -32,7 +32,7 @@ import websockets
 from study.server.firewall import Firewall, FirewallConfig
 from tests.attacker import CAMERA
 from tests.browser.harness import RunningServer, run_async, start_server
-from tests.test_ui_malformed import AGREE, RawClient
+from tests.support.raw_client import AGREE, RawClient
 
 ROOT = Path(__file__).resolve().parents[1]
 
