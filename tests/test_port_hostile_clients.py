@@ -672,3 +672,51 @@ def test_repeated_headers_and_host_tricks_are_forbidden(study: RunningServer) ->
     assert _handshake(part, f"evil.example@127.0.0.1:{part}") == 403
     assert srv.experimenter_firewall.refused_connections["a repeated Host header"] == 1
     assert srv.experimenter_firewall.refused_connections["a malformed Host header"] == 2
+
+
+def test_frames_below_a_message_are_bounded_and_the_honest_tab_goes_on(
+    study: RunningServer,
+) -> None:
+    """A message that never ends (empty fragments, which the websocket library would keep
+    without limit) is closed after 64 frames, and a ping flood (each ping answered) after its
+    burst; the honest participant's pose still lands and their session is not paused."""
+    srv, code, live = _started(study)
+
+    async def endless() -> Any:
+        n = 0
+        while True:
+            yield b""
+            n += 1
+            if n % 50 == 0:
+                await asyncio.sleep(0)
+
+    async def attack() -> tuple[int | None, int | None, int]:
+        async with RawClient(srv.participant_port) as honest:
+            owner = await _running(honest, code)
+            assert wait_until(lambda: live.control_loop is not None, timeout=10)
+            async with RawClient(srv.participant_port) as c:
+                with contextlib.suppress(websockets.ConnectionClosed):
+                    await asyncio.wait_for(c.ws.send(endless()), timeout=10)
+                await asyncio.wait_for(c.ws.wait_closed(), timeout=10)
+                fragments = c.ws.close_code
+            async with RawClient(srv.participant_port) as c:
+                pings = 0
+                with contextlib.suppress(websockets.ConnectionClosed):
+                    for pings in range(1, 2001):
+                        await c.ws.ping()
+                        if pings % 20 == 0:
+                            await asyncio.sleep(0.01)
+                await asyncio.wait_for(c.ws.wait_closed(), timeout=10)
+                pinged = c.ws.close_code
+            await honest.pose((0.5, -0.04, 0.3), owner=owner)
+            assert wait_until(
+                lambda: abs(float(live.run.trial.user_target[1]) + 0.04) < 1e-9, timeout=5
+            )
+            assert not honest.closed
+            return fragments, pinged, pings
+
+    fragments, pinged, pings = run_async(attack())
+    assert fragments == 1009, fragments  # message too big: closed, nothing more kept
+    assert pinged == 1008 and pings < 200, (pinged, pings)
+    assert srv.firewall.closed_connections >= 2
+    assert not live.session.paused

@@ -195,11 +195,13 @@ class StudyServer:
             sessions = list(self._sessions.values())
         for live in sessions:
             live.close()
+        # the servers stop first: a message that arrives while they shut down is still screened
+        # (a share-link request sent just before stop() reached viser when the order was reversed)
+        self.participant.stop()
+        self.experimenter.stop()
         blinding_guard.uninstall(self.participant)
         firewall.uninstall(self.participant)
         firewall.uninstall(self.experimenter)
-        self.participant.stop()
-        self.experimenter.stop()
         realtime.thaw_heap()
 
     # -- sessions ----------------------------------------------------------------------------

@@ -17,12 +17,15 @@ import asyncio
 import contextlib
 import logging
 import threading
+import time
 from typing import TYPE_CHECKING, Any
 
 import viser
 from websockets.asyncio.server import ServerConnection
+from websockets.frames import Frame, Opcode
 
 from study.server import viser_door
+from study.server.firewall.limits import FrameBudget
 from study.server.firewall.notes import OncePerMinute
 from study.server.firewall.rules import ConnectionFlood
 
@@ -76,32 +79,68 @@ def start_server(firewall: Firewall, *, host: str, port: int, verbose: bool) -> 
 
 def gated_connection(firewall: Firewall) -> type[ServerConnection]:
     """A websockets connection class that asks ``firewall.accepts(peer)`` before anything is
-    read (a refused socket is reset; nothing else runs for it) and frees its slot when gone."""
+    read (a refused socket is reset; nothing else runs for it), closes a connection that
+    breaks its ``FrameBudget`` (fragments of one message, pings) before the library keeps or
+    answers more of it, and frees its slot when gone."""
+    return type("GatedConnection", (GatedConnection,), {"firewall": firewall})
 
-    class GatedConnection(ServerConnection):
-        refused = False
 
-        def connection_made(self, transport: asyncio.BaseTransport) -> None:
-            peer = transport.get_extra_info("peername")
-            address = str(peer[0]) if isinstance(peer, tuple) and peer else "unknown"
-            if not firewall.accepts(address):
-                self.refused = True
-                transport.abort()
-                return
-            super().connection_made(transport)
+class GatedConnection(ServerConnection):
+    """A connection behind ``firewall`` (a subclass per firewall: ``gated_connection``)."""
 
-        def data_received(self, data: bytes) -> None:
-            if not self.refused:
-                super().data_received(data)
+    firewall: Firewall
+    refused = False
+    failed = False
+    budget: FrameBudget | None = None
 
-        def eof_received(self) -> None:
-            if not self.refused:
-                super().eof_received()
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        peer = transport.get_extra_info("peername")
+        address = str(peer[0]) if isinstance(peer, tuple) and peer else "unknown"
+        if not self.firewall.accepts(address):
+            self.refused = True
+            transport.abort()
+            return
+        config = self.firewall.config
+        self.budget = FrameBudget(
+            max_fragments=config.max_fragments,
+            pings_per_s=config.pings_per_s,
+            ping_burst=config.ping_burst,
+            last=time.monotonic(),
+        )
+        super().connection_made(transport)
 
-        def connection_lost(self, exc: Exception | None) -> None:
-            if self.refused:
-                return
-            firewall.connection_lost(self)
-            super().connection_lost(exc)
+    def process_event(self, event: Frame) -> None:  # type: ignore[override]
+        if self.failed:
+            return  # closing: nothing more is kept or handled
+        why = self._over_budget(event)
+        if why is None:
+            super().process_event(event)
+            return
+        self.failed = True
+        self.firewall.frames_refused(why)
+        self.protocol.fail(1009 if "frames" in why else 1008, "refused")
+        self.send_data()
 
-    return GatedConnection
+    def _over_budget(self, event: Frame) -> str | None:
+        budget = self.budget
+        if budget is None or not isinstance(event, Frame):
+            return None  # the handshake's events
+        if event.opcode in (Opcode.TEXT, Opcode.BINARY, Opcode.CONT):
+            return budget.data(fin=event.fin)
+        if event.opcode is Opcode.PING:
+            return budget.ping(time.monotonic())
+        return None
+
+    def data_received(self, data: bytes) -> None:
+        if not self.refused:
+            super().data_received(data)
+
+    def eof_received(self) -> None:
+        if not self.refused:
+            super().eof_received()
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        if self.refused:
+            return
+        self.firewall.connection_lost(self)
+        super().connection_lost(exc)

@@ -294,6 +294,12 @@ class Firewall:
             if slot.rate.refused > self.config.max_refused:
                 self._closing(f"more than {self.config.max_refused} refused messages")
 
+    def frames_refused(self, why: str) -> None:
+        """A connection broke its frame budget (``limits.FrameBudget``) and is being closed."""
+        with self._lock:
+            self.closed_connections += 1
+        self.notes.note("frames refused", f"closed a connection that sent {why}")
+
     def _closing(self, why: str, *, code: int = 1008) -> None:
         with self._lock:
             self.closed_connections += 1

@@ -35,6 +35,8 @@ class FirewallConfig:
       (``None``: never), the ``Origin`` check (``check_origin``), only this machine's names
       (``loopback_only``), ``trusted_proxies`` whose forwarded client address counts
       (``study.server.forwarded``);
+    * what one connection may do below a message (``limits.FrameBudget``): a message in at most
+      ``max_fragments`` frames, at most ``pings_per_s`` pings a second (burst ``ping_burst``);
     * one log line per refusal reason every ``log_every_s`` seconds at most.
     """
 
@@ -62,4 +64,7 @@ class FirewallConfig:
     check_origin: bool = True
     loopback_only: bool = False
     trusted_proxies: tuple[Network, ...] = ()
+    max_fragments: int = 64
+    pings_per_s: float = 5.0
+    ping_burst: float = 20.0
     log_every_s: float = 60.0
