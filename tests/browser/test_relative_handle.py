@@ -58,6 +58,9 @@ def test_a_released_handle_returns_to_the_gripper(
             above = trial.poses().gripper + np.array([0.0, 0.0, HANDLE_OFFSET_M])
             return float(np.linalg.norm(at - above)) < 0.01
 
+        # let go past the reach: the input is no longer dragged (a clamp sent to it as a new
+        # target marked it dragged again, and the handle stayed where it was let go)
+        assert wait_until(lambda: not live.input.source.dragging, timeout=10)
         assert wait_until(handle_on_gripper, timeout=10)
         assert trial.poses().gripper[2] > floor - 0.01  # stopped at the reach, not below
         screenshot(page, screenshots, "relative-released")

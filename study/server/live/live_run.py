@@ -106,12 +106,16 @@ class LiveRun:
             page.show_gizmo(False)
 
     def _released(self, page: ParticipantPage, trial: Trial) -> None:
-        """The handle was let go: with a relative mapping it returns to the gripper; if it was
+        """The handle was let go: with a relative mapping it returns to the gripper (and follows
+        it; the reach already bounds where the gripper goes); with an absolute one, if it was
         left past the reach, it goes back over the point the arm was sent to (the reach clamps
-        it), and that point becomes the input's target."""
+        it), and that point becomes the input's target. (Sending that point to a relative input
+        was a new displacement that also marked the handle as dragged again: it then stayed
+        where it was let go instead of following the gripper.)"""
         self.input.on_release()
-        if self.trial is trial and not trial.done and self.input.source is not None:
-            target = self.input.source.last_target
+        source = self.input.source
+        if self.trial is trial and not trial.done and source is not None and not source.relative:
+            target = source.last_target
             if target is not None and not trial.scene.reach.contains(target):
                 inside = trial.scene.reach.clamp(target)
                 self.input.on_target(inside)
