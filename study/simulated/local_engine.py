@@ -13,6 +13,7 @@ import multiprocessing as mp
 import queue
 import sys
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -28,18 +29,26 @@ if TYPE_CHECKING:
     from study.store import Store
 
 
+@dataclass(frozen=True)
+class LocalRun:
+    """What a run's participants are made from and written to; a worker process rebuilds its
+    protocol, store and population from it (paths and numbers: it crosses ``spawn``)."""
+
+    protocol_path: Path
+    db: Path
+    population_path: Path
+    seed: int
+    synchronous: str = "FULL"
+
+
 def run_local(
     jobs: list[ParticipantJob],
     results: list[ParticipantResult],
     *,
+    run: LocalRun,
     store: Store,
     protocol: Protocol,
     workers: int,
-    protocol_path: Path,
-    db: Path,
-    population_path: Path,
-    seed: int,
-    synchronous: str,
     progress: bool,
     trials_each: int,
     desc: str,
@@ -69,18 +78,7 @@ def run_local(
     )
     with people, bar:
         if workers > 1:
-            return _run_pool(
-                jobs,
-                results,
-                workers=workers,
-                protocol_path=protocol_path,
-                db=db,
-                population_path=population_path,
-                seed=seed,
-                synchronous=synchronous,
-                bar=bar,
-                people=people,
-            )
+            return _run_pool(jobs, results, run=run, workers=workers, bar=bar, people=people)
         try:
             for job in jobs:
                 bar.reset()
@@ -90,8 +88,8 @@ def run_local(
                         job,
                         store=store,
                         protocol=protocol,
-                        population_path=population_path,
-                        seed=seed,
+                        population_path=run.population_path,
+                        seed=run.seed,
                         on_trial=lambda: bar.update(1),
                     )
                 )
@@ -105,12 +103,8 @@ def _run_pool(
     jobs: list[ParticipantJob],
     results: list[ParticipantResult],
     *,
+    run: LocalRun,
     workers: int,
-    protocol_path: Path,
-    db: Path,
-    population_path: Path,
-    seed: int,
-    synchronous: str,
     bar: Any,
     people: Any,
 ) -> str | None:
@@ -124,7 +118,7 @@ def _run_pool(
         max_workers=min(workers, len(jobs)),
         mp_context=ctx,
         initializer=_init_worker,
-        initargs=(str(protocol_path), str(db), str(population_path), seed, synchronous, ticks),
+        initargs=(run, ticks),
     ) as pool:
         pending: set[Future[ParticipantResult]] = {pool.submit(_run_in_worker, j) for j in jobs}
         while pending:
@@ -156,16 +150,13 @@ def _drain(ticks: Any, bar: Any) -> None:
 _worker: dict[str, Any] = {}
 
 
-def _init_worker(
-    protocol_path: str, db: str, population_path: str, seed: int, synchronous: str, progress: Any
-) -> None:
-
-    protocol = load_protocol(protocol_path)
+def _init_worker(run: LocalRun, progress: Any) -> None:
+    protocol = load_protocol(run.protocol_path)
     _worker.update(
         protocol=protocol,
-        store=open_store(db, protocol, synchronous=synchronous, verify=False),  # checked
-        population_path=Path(population_path),
-        seed=seed,
+        store=open_store(run.db, protocol, synchronous=run.synchronous, verify=False),  # checked
+        population_path=run.population_path,
+        seed=run.seed,
         progress=progress,
     )
 

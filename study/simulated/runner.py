@@ -46,7 +46,7 @@ from study.simulated.job import (
     ParticipantResult,
     result_from_store,
 )
-from study.simulated.local_engine import run_local
+from study.simulated.local_engine import LocalRun, run_local
 from study.simulated.population import DEFAULT_POPULATION_PATH, load_population
 
 if TYPE_CHECKING:
@@ -242,18 +242,15 @@ def simulate(
             store.discard_participant(pid)
         results += [result_from_store(job, store, sid, 0.0, None) for job, sid in plan.kept]
         if plan.jobs:
+            run = LocalRun(Path(protocol_path), Path(db), population_path, seed, synchronous)
             fault = _run_jobs(
                 plan.jobs,
                 results,
+                run=run,
                 engine=engine,
                 store=store,
                 protocol=protocol,
                 workers=workers,
-                protocol_path=Path(protocol_path),
-                db=Path(db),
-                population_path=population_path,
-                seed=seed,
-                synchronous=synchronous,
                 progress=progress,
                 scheduler=scheduler,
                 client=client,
@@ -276,15 +273,11 @@ def _run_jobs(
     jobs: list[ParticipantJob],
     results: list[ParticipantResult],
     *,
+    run: LocalRun,
     engine: str,
     store: Store,
     protocol: Protocol,
     workers: int,
-    protocol_path: Path,
-    db: Path,
-    population_path: Path,
-    seed: int,
-    synchronous: str,
     progress: bool,
     scheduler: str | None,
     client: Any,
@@ -298,9 +291,9 @@ def _run_jobs(
             jobs,
             results,
             store=store,
-            protocol_path=protocol_path,
-            population_path=population_path,
-            seed=seed,
+            protocol_path=run.protocol_path,
+            population_path=run.population_path,
+            seed=run.seed,
             workers=workers,
             scheduler=scheduler,
             trials_each=per_person,
@@ -310,14 +303,10 @@ def _run_jobs(
     return run_local(
         jobs,
         results,
+        run=run,
         store=store,
         protocol=protocol,
         workers=workers,
-        protocol_path=protocol_path,
-        db=db,
-        population_path=population_path,
-        seed=seed,
-        synchronous=synchronous,
         progress=progress,
         trials_each=per_person,
         desc=desc,
