@@ -3,6 +3,7 @@ the participant's lease, never into a session another process has taken over or 
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import pytest
@@ -62,5 +63,23 @@ def test_no_ui_event_into_a_closed_session(store: Store, protocol: Protocol) -> 
         before = kinds(store)
         live._event("second_tab_refused", {"client": 4})
         assert kinds(store) == before
+    finally:
+        live.close()
+
+
+def test_a_tab_closed_after_the_session_ended_is_logged_as_such(
+    store: Store, protocol: Protocol, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The server log says the session is over, not "reopen the session" (an experimenter
+    reading it after a finished session would look for something to reopen)."""
+    session = Session.enrol(store, protocol, "P01", seed=1)
+    live = LiveSession(session, code="1234", title="t")
+    try:
+        session.end(reason="test: the session is over")
+        session.close()
+        with caplog.at_level(logging.INFO, logger="study.server.live"):
+            live._event("participant_disconnected", {"client": 3})
+        lines = [r.getMessage() for r in caplog.records]
+        assert "event participant_disconnected not recorded: the session is over" in lines, lines
     finally:
         live.close()

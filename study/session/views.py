@@ -48,7 +48,7 @@ def screen(steps: Steps, *, revision: int) -> Screen:
     items: tuple[Item, ...] = ()
     actions = PARTICIPANT_ACTIONS.get(phase, ())
     if phase == "waiting":
-        title, text = "Welcome", texts.instructions["welcome"]
+        title, text = "Before you start", texts.instructions["welcome"]  # its text greets
     elif phase == "consent":
         title, text = "Consent", texts.consent
     elif phase in ("ready", "running") and step is not None:

@@ -43,6 +43,7 @@ from study.server.loop import PacedLoop
 from study.server.page_scene import SceneView
 from study.server.participant_page import ParticipantPage
 from study.session import (
+    FINAL_STATUSES,
     Session,
     SessionClosedError,
     TrialRun,
@@ -149,7 +150,8 @@ class LiveSession:
             self.session.record_event(kind, detail)
         except SessionClosedError as exc:
             # finished and released, or taken over by another process: not ours to log into
-            LOGGER.info("event %s not recorded: %s", kind, exc)
+            over = self.session.status in FINAL_STATUSES
+            LOGGER.info("event %s not recorded: %s", kind, "the session is over" if over else exc)
             return False
         except Exception:
             LOGGER.exception("could not record event %s", kind)
