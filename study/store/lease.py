@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import time
 import uuid
+from collections.abc import Callable
 from contextlib import AbstractContextManager
 from typing import Any
 
@@ -26,8 +27,8 @@ class Leases:
     """The claims half of ``Store`` (a mixin over its ``transaction``): one process at a time
     writes a participant's session; a dead holder's lease is taken over."""
 
-    def transaction(self) -> AbstractContextManager[Transaction]:  # provided by Store
-        raise NotImplementedError
+    # what it needs of the Store it is mixed into (declared, not defined here)
+    transaction: Callable[[], AbstractContextManager[Transaction]]
 
     def acquire_lease(self, participant: str, *, stale_after_s: float = STALE_AFTER_S) -> Lease:
         """Claim ``participant``'s session for this process.

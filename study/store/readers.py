@@ -38,12 +38,10 @@ from study.store.values import unknown_participant
 class Readers:
     """The reading half of ``Store`` (a mixin: it uses the store's connection and lock)."""
 
+    # what it needs of the Store it is mixed into (declared, not defined here)
     path: Path
     _lock: threading.RLock
-
-    @property
-    def conn(self) -> sqlite3.Connection:  # provided by Store
-        raise NotImplementedError
+    conn: sqlite3.Connection
 
     def _query(self, sql: str, params: Sequence[Any] = ()) -> list[tuple[Any, ...]]:
         with self._lock:
