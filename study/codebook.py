@@ -202,6 +202,13 @@ def _describe(
             f" goal at index {m.group(1)} of the trial's goal_names",
             "0..1",
         )
+    if table == "trials" and protocol is not None and column in protocol.factors:
+        subjects = "between" if column in protocol.between_factors else "within"
+        return (
+            f"manipulated factor: {column} ({subjects} subjects; empty for training"
+            + (")" if subjects == "within" else ", which has the participant's level)"),
+            " | ".join(protocol.factors[column]),
+        )
     if table == "trials":
         return _likert(column, protocol, columns)
     if table == "participants":

@@ -1,4 +1,4 @@
-"""Counterbalanced schedules: Williams Latin squares over task types, balanced mode orders.
+"""Counterbalanced schedules: Williams Latin squares, the paper's nested scheme, between groups.
 
 A Williams square of ``n`` conditions is a Latin square (each condition once in every position)
 that is also balanced for first-order carry-over: every condition immediately follows every
@@ -11,8 +11,14 @@ A participant's *design row* ``r`` fixes their whole schedule: the task order is
 ``r mod R`` (``R`` task rows), and within task ``t`` the modes are done in the order of the
 Williams square over the modes, row ``(r div R + t) mod M``. After ``R * M`` participants (one
 *cycle*, 8 for the paper's 4 tasks x 2 modes) every task is in every position equally often and
-every task is done first in each mode equally often. Rows are handed out in enrollment order; a
-withdrawn participant's row is given to the next enrollment (:func:`next_row`).
+every task is done first in each mode equally often. That is the ``nested`` scheme (each task's
+runs back to back). The ``williams`` scheme orders every task x mode condition by one Williams
+square over all of them (row ``r mod C``, ``C`` its rows), runs of a task not necessarily together.
+
+Between-subjects groups (``G`` of them) take turns: row ``r`` is in group ``r mod G`` and uses
+the within-subjects design row ``r div G``, so one cycle is ``G`` times the within cycle and
+fills every group with every order once. Rows are handed out in enrollment order; a withdrawn
+participant's row is given to the next enrollment (:func:`next_row`).
 """
 
 from __future__ import annotations
@@ -23,16 +29,25 @@ from typing import Protocol as Structural
 
 from study.errors import StudyError
 
+SCHEMES = ("nested", "williams")
+
 
 class DesignSource(Structural):
-    """Anything that names its tasks and modes in order: a loaded protocol does (the schedule
-    needs nothing else from it, so it does not import the protocol package)."""
+    """Anything that names its tasks, modes and between groups in order and its scheme: a loaded
+    protocol does (the schedule needs nothing else from it, so it does not import the protocol
+    package)."""
 
     @property
     def task_names(self) -> tuple[str, ...]: ...
 
     @property
     def mode_names(self) -> tuple[str, ...]: ...
+
+    @property
+    def group_names(self) -> tuple[str, ...]: ...
+
+    @property
+    def scheme(self) -> str: ...
 
 
 class ScheduleError(StudyError, ValueError):
@@ -78,10 +93,13 @@ class ScheduledTrial:
 
 @dataclass(frozen=True)
 class Design:
-    """Task orders x mode orders for ``tasks`` and ``modes`` (names, in protocol order)."""
+    """The orders of ``tasks`` x ``modes`` (names, in protocol order) under ``scheme``, for
+    ``groups`` between-subjects groups."""
 
     tasks: tuple[str, ...]
     modes: tuple[str, ...]
+    scheme: str = "nested"
+    groups: int = 1
 
     def __post_init__(self) -> None:
         for label, names in (("tasks", self.tasks), ("modes", self.modes)):
@@ -89,11 +107,22 @@ class Design:
                 raise ScheduleError(f"Design: need at least one of {label}")
             if len(set(names)) != len(names):
                 raise ScheduleError(f"Design: {label} must be distinct, got {names}")
+        if self.scheme not in SCHEMES:
+            raise ScheduleError(
+                f"Design: scheme is one of {', '.join(SCHEMES)}, got {self.scheme!r}"
+            )
+        if isinstance(self.groups, bool) or not isinstance(self.groups, int) or self.groups < 1:
+            raise ScheduleError(f"Design: groups is a positive integer, got {self.groups!r}")
 
     @classmethod
     def from_protocol(cls, protocol: DesignSource) -> Design:
         """The design of a loaded protocol: its tasks and modes in their declared order."""
-        return cls(tasks=protocol.task_names, modes=protocol.mode_names)
+        return cls(
+            tasks=protocol.task_names,
+            modes=protocol.mode_names,
+            scheme=protocol.scheme,
+            groups=len(protocol.group_names),
+        )
 
     @property
     def task_orders(self) -> tuple[tuple[int, ...], ...]:
@@ -104,45 +133,89 @@ class Design:
         return williams_square(len(self.modes))
 
     @property
-    def cycle(self) -> int:
-        """Participants in one fully balanced cycle: task rows x mode rows."""
+    def condition_orders(self) -> tuple[tuple[int, ...], ...]:
+        """The ``williams`` scheme's orders over conditions ``task_index * M + mode_index``."""
+        return williams_square(len(self.tasks) * len(self.modes))
+
+    @property
+    def within_cycle(self) -> int:
+        """Design rows that balance the within-subjects orders once."""
+        if self.scheme == "williams":
+            return len(self.condition_orders)
         return len(self.task_orders) * len(self.mode_orders)
+
+    @property
+    def cycle(self) -> int:
+        """Participants in one fully balanced cycle: groups x within-subjects orders."""
+        return self.groups * self.within_cycle
+
+    @property
+    def cycle_parts(self) -> str:
+        """What the cycle is made of, in words (for messages)."""
+        if self.scheme == "williams":
+            within = (
+                f"{self.within_cycle} orders of the {len(self.tasks) * len(self.modes)} conditions"
+            )
+        else:
+            within = f"{len(self.task_orders)} task orders x {len(self.mode_orders)} mode orders"
+        return within if self.groups == 1 else f"{self.groups} groups x {within}"
+
+    def group(self, row: int) -> int:
+        """The between-subjects group (0-based) of design row ``row``."""
+        _check_row(row)
+        return row % self.groups
 
     @property
     def trials_per_participant(self) -> int:
         return len(self.tasks) * len(self.modes)
 
     def task_order(self, row: int) -> tuple[str, ...]:
-        """Task names in the order design row ``row`` does them."""
+        """Task names in the order design row ``row`` first does them."""
         _check_row(row)
+        if self.scheme == "williams":
+            return tuple(dict.fromkeys(t for t, _ in self.conditions(row)))
         orders = self.task_orders
-        return tuple(self.tasks[i] for i in orders[row % len(orders)])
+        return tuple(self.tasks[i] for i in orders[(row // self.groups) % len(orders)])
 
     def mode_order(self, row: int, task: str) -> tuple[str, ...]:
         """Mode names in the order design row ``row`` does them within ``task``."""
         _check_row(row)
         if task not in self.tasks:
             raise ScheduleError(f"no task {task!r}; tasks: {self.tasks}")
-        replicate = row // len(self.task_orders)
+        if self.scheme == "williams":
+            return tuple(m for t, m in self.conditions(row) if t == task)
+        replicate = (row // self.groups) // len(self.task_orders)
         orders = self.mode_orders
         order = orders[(replicate + self.tasks.index(task)) % len(orders)]
         return tuple(self.modes[i] for i in order)
 
+    def conditions(self, row: int) -> tuple[tuple[str, str], ...]:
+        """Every ``(task, mode)`` of design row ``row`` in the order they are done."""
+        _check_row(row)
+        if self.scheme == "nested":
+            return tuple((t, m) for t in self.task_order(row) for m in self.mode_order(row, t))
+        orders = self.condition_orders
+        n_modes = len(self.modes)
+        order = orders[(row // self.groups) % len(orders)]
+        return tuple((self.tasks[c // n_modes], self.modes[c % n_modes]) for c in order)
+
     def row_trials(self, row: int, *, participant: str = "") -> tuple[ScheduledTrial, ...]:
-        """Every task trial of design row ``row``, in order: each task's runs back to back."""
+        """Every task trial of design row ``row``, in order (``nested``: each task's runs
+        back to back); ``run`` counts the runs of the same task so far."""
         trials: list[ScheduledTrial] = []
-        for task in self.task_order(row):
-            for run, mode in enumerate(self.mode_order(row, task), start=1):
-                trials.append(
-                    ScheduledTrial(
-                        participant=participant,
-                        row=row,
-                        position=len(trials) + 1,
-                        task=task,
-                        mode=mode,
-                        run=run,
-                    )
+        runs: dict[str, int] = {}
+        for task, mode in self.conditions(row):
+            runs[task] = runs.get(task, 0) + 1
+            trials.append(
+                ScheduledTrial(
+                    participant=participant,
+                    row=row,
+                    position=len(trials) + 1,
+                    task=task,
+                    mode=mode,
+                    run=runs[task],
                 )
+            )
         return tuple(trials)
 
 

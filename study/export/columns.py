@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from app.trial.accidents import ACCIDENT_MEASURES
 
 TABLE_NAMES = ("trials", "samples", "ratings", "answers", "participants", "events", "sessions")
@@ -36,7 +38,22 @@ TRIAL_COLUMNS = (
     "baseline_rating",
     "tasks_completed",
 )
-"""Fixed leading columns of ``trials``; Likert and preference columns and ``trial_id`` follow."""
+"""Fixed leading columns of ``trials`` for the paper's factors; Likert and preference columns and
+``trial_id`` follow. Another protocol's factors take the place of ``difficulty``, ``correctness``
+and ``mode`` (:func:`trial_columns`)."""
+
+PAPER_FACTORS = ("difficulty", "correctness", "mode")
+
+
+def trial_columns(factors: Sequence[str] | None) -> tuple[str, ...]:
+    """The leading columns of ``trials`` with one column per declared factor, in the protocol's
+    order, where the paper's three stand (``None``: the paper's columns)."""
+    if factors is None:
+        return TRIAL_COLUMNS
+    at = TRIAL_COLUMNS.index(PAPER_FACTORS[0])
+    rest = TRIAL_COLUMNS[at + len(PAPER_FACTORS) :]
+    return (*TRIAL_COLUMNS[:at], *factors, *rest)
+
 
 SAMPLE_KEY = ("trial_id", "participant", "tick")
 """Leading columns of ``samples``; the store's sample columns (``app.trial.samples``) follow,

@@ -61,8 +61,8 @@ from study.export.columns import (
     RECRUITMENT_COLUMNS,
     SAMPLE_KEY,
     SESSION_COLUMNS,
-    TRIAL_COLUMNS,
     participant_item_column,
+    trial_columns,
 )
 from study.export.errors import ExportError
 from study.export.source import resolve_protocol
@@ -154,6 +154,7 @@ class _Exporter:
         rows = self.participants.set_index("participant")["schedule_row"]
         t["schedule_row"] = t["participant"].map(rows)
         t["mode"] = t["mode"].where(t["phase"] != "training", TRAINING_MODE)
+        t = self._factor_levels(t)
         t["success"] = t["success"].map(lambda v: pd.NA if pd.isna(v) else bool(v))
         t = self._covariates(t)
         after_run, after_task, mid, reference = self._items()
@@ -164,7 +165,8 @@ class _Exporter:
             extra.append(item)
             if reference is not None:
                 extra.append(f"{item}_{reference}")
-        out = t[[*TRIAL_COLUMNS, *extra, "trial_id"]].reset_index(drop=True)
+        factors = None if self.protocol is None else tuple(self.protocol.factors)
+        out = t[[*trial_columns(factors), *extra, "trial_id"]].reset_index(drop=True)
         return _typed(
             out,
             ints=(
@@ -182,6 +184,26 @@ class _Exporter:
             ),
             bools=("success",),
         )
+
+    def _factor_levels(self, t: pd.DataFrame) -> pd.DataFrame:
+        """One column per declared factor: the trial's level (``Protocol.levels``); a training
+        run has the participant's between levels, ``mode`` = ``none`` and no other level."""
+        if self.protocol is None:
+            return t
+        protocol = self.protocol
+        names = tuple(protocol.factors)
+        levels = [
+            protocol.levels(None if phase == "training" else task, mode, row=int(row))
+            for phase, task, mode, row in zip(
+                t["phase"], t["task"], t["mode"], t["schedule_row"], strict=True
+            )
+        ]
+        for name in names:
+            column = [lv.get(name) for lv in levels]
+            if name == "mode":
+                column = [TRAINING_MODE if v is None else v for v in column]
+            t[name] = pd.Series(column, index=t.index, dtype="str")
+        return t
 
     def _covariates(self, t: pd.DataFrame) -> pd.DataFrame:
         training = t[(t["phase"] == "training") & (t["status"] == "completed")]

@@ -48,6 +48,10 @@ class ProtocolValueError(ProtocolError):
     """A value has the right type but is out of range or not one of the allowed choices."""
 
 
+class ConditionConflictError(ProtocolError):
+    """Two levels (or a level and a task) of one condition set the same value differently."""
+
+
 class UndefinedReferenceError(ProtocolError):
     """A name refers to something the file does not define (a scene, a level, an item ...)."""
 

@@ -10,7 +10,6 @@ blinding (no participant-facing text contains a condition word).
 
 from __future__ import annotations
 
-import difflib
 import hashlib
 import json
 import re
@@ -27,17 +26,19 @@ from app.robot.scene_spec import SceneSpec
 from app.teleop.participant_input import INPUT_MAPPINGS
 from app.trial.config import ON_KNOCK, TrialConfig
 from study.protocol.components import build_check, component
+from study.protocol.conditions import Conditions
 from study.protocol.errors import (
     ProtocolError,
     ProtocolSyntaxError,
     ProtocolValueError,
     UndefinedReferenceError,
 )
-from study.protocol.fields import Table, join_key
+from study.protocol.factors import read_design, read_factors
+from study.protocol.fields import Table
 from study.protocol.items import read_questionnaire
-from study.protocol.model import INTENT_DISPLAYS, Control, Mode, StudyInfo, Task, Training
+from study.protocol.model import Control, Group, Mode, StudyInfo, Task, Training
 from study.protocol.participant_texts import check_blinding, read_texts
-from study.protocol.protocol import TRAINING_MODE, Protocol
+from study.protocol.protocol import Protocol
 from study.schedule import Design
 
 SCHEMA = 1
@@ -58,6 +59,7 @@ _TOP_LEVEL = (
     "schema",
     "study",
     "control",
+    "design",
     "factors",
     "tasks",
     "prediction",
@@ -214,26 +216,32 @@ class _Loader:
             raise root.value_error("schema", f"this software reads schema {SCHEMA}, got {schema}")
         study = self._study(root.table("study"))
         control = self._control(root.table("control"))
-        factors = root.table("factors")
-        factors.only("difficulty", "correctness", "mode")
-        difficulty = self._levels(factors, "difficulty")
-        correctness = self._levels(factors, "correctness")
-        mode_levels = self._levels(factors, "mode")
-        if TRAINING_MODE in mode_levels:
-            raise factors.value_error("mode", f"{TRAINING_MODE!r} is reserved for training runs")
-        factors.close(allowed="difficulty, correctness, mode")
+        scheme = read_design(root.table("design")) if "design" in root else "nested"
+        declared = read_factors(root.table("factors"), level_name=self._check_name)
         scenes = self._scenes(root.table("scenes"))
-        tasks = self._tasks(root.table("tasks"), difficulty, correctness, scenes, control)
-        prediction = self._prediction(root.table("prediction"), correctness)
+        prediction = self._prediction(root.table("prediction")) if "prediction" in root else {}
+        conditions = Conditions(root, declared, scenes, control, self._check_name)
+        tasks = conditions.tasks(prediction)
+        modes = conditions.modes()
+        groups = conditions.groups(modes)
         confidence = component(root.table("confidence"), "confidence")
         policy = component(root.table("policy"), "policy")
-        modes = self._modes(root.table("modes"), mode_levels)
         training = self._training(root.table("training"), scenes, control)
-        self._check_sample_size(study, tasks, modes)
-        questionnaire = read_questionnaire(
-            root.table("questionnaire"), n_modes=len(modes), n_tasks=len(tasks)
+        design = Design(
+            tasks=tuple(t.name for t in tasks),
+            modes=tuple(m.name for m in modes),
+            scheme=scheme,
+            groups=len(groups),
         )
-        self._build_checks(tasks, scenes, prediction, confidence, policy, modes, training, control)
+        self._check_sample_size(study, design)
+        questionnaire = read_questionnaire(
+            root.table("questionnaire"),
+            n_modes=len(modes) if scheme == "nested" else 0,
+            n_tasks=len(tasks) if scheme == "nested" else design.trials_per_participant,
+        )
+        self._build_checks(
+            tasks, scenes, prediction, confidence, policy, modes, groups, training, control
+        )
         texts = read_texts(root, questionnaire=questionnaire)
         root.close(allowed=", ".join(_TOP_LEVEL))
         protocol = Protocol(
@@ -241,10 +249,11 @@ class _Loader:
             schema=schema,
             study=study,
             control=control,
-            difficulty_levels=difficulty,
-            correctness_levels=correctness,
+            declared=declared,
+            scheme=scheme,
             tasks=tasks,
             modes=modes,
+            groups=groups,
             prediction=MappingProxyType(prediction),
             confidence=MappingProxyType(confidence),
             policy=MappingProxyType(policy),
@@ -273,17 +282,14 @@ class _Loader:
         )
         return info
 
-    def _check_sample_size(
-        self, study: StudyInfo, tasks: tuple[Task, ...], modes: tuple[Mode, ...]
-    ) -> None:
-        cycle = Design(tasks=tuple(t.name for t in tasks), modes=tuple(m.name for m in modes))
+    def _check_sample_size(self, study: StudyInfo, design: Design) -> None:
         n = study.participants
-        if n is not None and n % cycle.cycle:
+        if n is not None and n % design.cycle:
             raise self.error(
                 ProtocolValueError,
                 "study.participants",
-                f"{n} participants do not fill whole balanced cycles of {cycle.cycle} (task"
-                f" orders x mode orders); use a multiple of {cycle.cycle}",
+                f"{n} participants do not fill whole balanced cycles of {design.cycle}"
+                f" ({design.cycle_parts}); use a multiple of {design.cycle}",
             )
 
     def _control(self, t: Table) -> Control:
@@ -308,20 +314,17 @@ class _Loader:
 
     def _name(self, t: Table, key: str) -> str:
         value = t.string(key)
-        if not _NAME.match(value):
-            raise t.value_error(key, f"{value!r} must be lower-case letters, digits, '_' or '-'")
+        self._check_name(value, t.where(key))
         return value
 
-    def _levels(self, t: Table, key: str) -> tuple[str, ...]:
-        levels = t.strings(key)
-        for i, level in enumerate(levels):
-            if not _NAME.match(level):
-                raise self.error(
-                    ProtocolValueError,
-                    join_key(t.where(key), i),
-                    f"{level!r} must be lower-case letters, digits, '_' or '-'",
-                )
-        return levels
+    def _check_name(self, value: str, key: str, *, what: str = "names") -> None:
+        if not _NAME.match(value):
+            raise self.error(
+                ProtocolValueError,
+                key,
+                f"{value!r}: {what} must be lower-case letters, digits, '_' or '-'"
+                " (at most 32, starting with a letter)",
+            )
 
     def _scenes(self, t: Table) -> dict[str, Any]:
         scenes: dict[str, Any] = {}
@@ -348,106 +351,10 @@ class _Loader:
             )
         return name
 
-    def _level_ref(self, t: Table, key: str, levels: tuple[str, ...]) -> str:
-        value = t.string(key)
-        if value not in levels:
-            raise self.error(
-                UndefinedReferenceError,
-                t.where(key),
-                f"{value!r} is not a level of factors.{key} ({', '.join(levels)})",
-            )
-        return value
-
-    def _tasks(
-        self,
-        t: Table,
-        difficulty: tuple[str, ...],
-        correctness: tuple[str, ...],
-        scenes: Mapping[str, Any],
-        control: Control,
-    ) -> tuple[Task, ...]:
-        tasks: list[Task] = []
-        cells: dict[tuple[str, str], str] = {}
-        for name, sub in t.tables():
-            if not _NAME.match(name):
-                raise t.value_error(name, "task names must be lower-case letters, digits, '_', '-'")
-            sub.only("difficulty", "correctness", "scene", "time_limit_s")
-            task = Task(
-                name=name,
-                difficulty=self._level_ref(sub, "difficulty", difficulty),
-                correctness=self._level_ref(sub, "correctness", correctness),
-                scene=self._scene_ref(sub, "scene", scenes),
-                time_limit_s=sub.number(
-                    "time_limit_s", control.time_limit_s, minimum=1.0, maximum=3600.0
-                ),
-            )
-            sub.close(allowed="difficulty, correctness, scene, time_limit_s")
-            cell = (task.difficulty, task.correctness)
-            if cell in cells:
-                raise t.value_error(
-                    name,
-                    f"same difficulty and correctness as task {cells[cell]!r}; each"
-                    " combination is one task",
-                )
-            cells[cell] = name
-            tasks.append(task)
-        for d in difficulty:
-            for c in correctness:
-                if (d, c) not in cells:
-                    raise self.error(
-                        UndefinedReferenceError,
-                        t.where(),
-                        f"no task has difficulty = {d!r} and correctness = {c!r}; the design"
-                        " crosses every difficulty with every correctness level",
-                    )
-        return tuple(tasks)
-
-    def _prediction(self, t: Table, correctness: tuple[str, ...]) -> dict[str, Any]:
-        out: dict[str, Any] = {}
-        for level in correctness:
-            if level not in t:
-                raise self.error(
-                    UndefinedReferenceError,
-                    t.where(level),
-                    f"missing: correctness level {level!r} needs a [prediction.{level}] table"
-                    + _misspelt(t, level, correctness),
-                )
-            out[level] = MappingProxyType(component(t.table(level), "prediction"))
-        t.close(allowed=f"the correctness levels {', '.join(correctness)}")
-        return out
-
-    def _modes(self, t: Table, levels: tuple[str, ...]) -> tuple[Mode, ...]:
-        modes: list[Mode] = []
-        for level in levels:
-            if level not in t:
-                raise self.error(
-                    UndefinedReferenceError,
-                    t.where(level),
-                    f"missing: mode {level!r} (factors.mode) needs a [modes.{level}] table"
-                    + _misspelt(t, level, levels),
-                )
-            sub = t.table(level)
-            sub.only("arbitration", "confidence", "intent")
-            arbitration = component(sub.table("arbitration"), "arbitration")
-            confidence = (
-                component(sub.table("confidence"), "confidence") if "confidence" in sub else None
-            )
-            intent = sub.choice("intent", INTENT_DISPLAYS, "none")
-            if intent != "none" and arbitration["kind"] == "none":
-                raise sub.value_error("intent", "an unassisted mode has no intent to show")
-            sub.close(allowed="arbitration, confidence, intent")
-            modes.append(
-                Mode(
-                    name=level,
-                    arbitration=None
-                    if arbitration["kind"] == "none"
-                    else MappingProxyType(arbitration),
-                    confidence=None if confidence is None else MappingProxyType(confidence),
-                    intent=intent,
-                )
-            )
-        t.close(allowed=f"the mode levels {', '.join(levels)}")
-        return tuple(modes)
+    def _prediction(self, t: Table) -> dict[str, Any]:
+        """``[prediction.<name>]`` tables, each checked against its kind's specification; a
+        task uses one by name (the paper's: by its correctness level)."""
+        return {name: MappingProxyType(component(sub, "prediction")) for name, sub in t.tables()}
 
     def _build_checks(
         self,
@@ -457,12 +364,17 @@ class _Loader:
         confidence: Mapping[str, Any],
         policy: Mapping[str, Any],
         modes: tuple[Mode, ...],
+        groups: tuple[Group, ...],
         training: Training,
         control: Control,
     ) -> None:
         """Build every blending table once with app.blending, in the scenes it will run in."""
         file = str(self.path)
-        runs = [(f"prediction.{t.correctness}", prediction[t.correctness], t.scene) for t in tasks]
+        named = {id(table): f"prediction.{name}" for name, table in prediction.items()}
+        runs = [
+            (named.get(id(t.prediction), f"tasks.{t.name}.prediction"), t.prediction, t.scene)
+            for t in tasks
+        ]
         runs.append(("training.prediction", training.prediction, training.scene))
         for where, cfg, scene_name in runs:
             scene = scenes[scene_name]
@@ -475,21 +387,23 @@ class _Loader:
                 target=scene.target_index,
                 rate_hz=control.rate_hz,
             )
-        build_check("confidence", confidence, where="confidence", file=file)
-        build_check("policy", policy, where="policy", file=file, rate_hz=control.rate_hz)
+        tables: list[tuple[str, str, Mapping[str, Any] | None]] = [
+            ("confidence", "confidence", confidence),
+            ("policy", "policy", policy),
+        ]
         for m in modes:
-            if m.arbitration is not None:
-                build_check(
-                    "arbitration",
-                    m.arbitration,
-                    where=f"modes.{m.name}.arbitration",
-                    file=file,
-                    rate_hz=control.rate_hz,
-                )
-            if m.confidence is not None:
-                build_check(
-                    "confidence", m.confidence, where=f"modes.{m.name}.confidence", file=file
-                )
+            tables += [
+                (role, f"modes.{m.name}.{role}", getattr(m, role))
+                for role in ("arbitration", "confidence", "policy")
+            ]
+        for g in groups:
+            tables += [
+                (role, f"groups.{g.name}.{role}", g.settings.get(role))
+                for role in ("confidence", "policy")
+            ]
+        for role, where, cfg in tables:
+            if cfg is not None:
+                build_check(role, cfg, where=where, file=file, rate_hz=control.rate_hz)
 
     def _training(self, t: Table, scenes: Mapping[str, Any], control: Control) -> Training:
         t.only("runs", "scene", "time_limit_s", "prediction")
@@ -508,13 +422,6 @@ class _Loader:
         )
         t.close(allowed="runs, scene, time_limit_s, prediction")
         return training
-
-
-def _misspelt(t: Table, level: str, levels: tuple[str, ...]) -> str:
-    """``"; is [x.levl] a misspelling of it?"`` when the table has a key close to ``level``."""
-    spare = [str(k) for k in t.data if k not in levels]
-    close = difflib.get_close_matches(level, spare, n=1, cutoff=0.6)
-    return f"; is [{t.key}.{close[0]}] a misspelling of it?" if close else ""
 
 
 def trial_config_from_protocol(

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 
@@ -40,13 +40,25 @@ class Control:
 
 @dataclass(frozen=True)
 class Task:
-    """One task type: a cell of difficulty x correctness, done once in every mode."""
+    """One task type: a cell of the task factors (the paper's difficulty x correctness), done
+    once in every mode. ``levels`` maps each task factor to this task's level; ``prediction`` is
+    the predictor table the robot uses in it."""
 
     name: str
-    difficulty: str
-    correctness: str
     scene: str
     time_limit_s: float
+    prediction: Mapping[str, Any]
+    levels: Mapping[str, str] = field(default_factory=dict)
+
+    @property
+    def difficulty(self) -> str | None:
+        """The paper's difficulty level (None when the protocol has no such factor)."""
+        return self.levels.get("difficulty")
+
+    @property
+    def correctness(self) -> str | None:
+        """The paper's correctness level (None when the protocol has no such factor)."""
+        return self.levels.get("correctness")
 
 
 INTENT_DISPLAYS = ("none", "goal")
@@ -57,15 +69,32 @@ on the table around the object the robot predicts, its opacity following the rob
 
 @dataclass(frozen=True)
 class Mode:
-    """One level of the within-task factor (the arbitration); ``arbitration`` None = unassisted.
+    """How the robot helps in a run: a level of ``mode`` (the arbitration; ``None`` =
+    unassisted), crossed with the levels of any other within factor that sets how runs go.
 
-    ``intent``: one of :data:`INTENT_DISPLAYS`; two modes that differ only in it make intent
-    display a level of the mode factor, balanced by the same Williams square."""
+    ``levels`` maps each of those factors to this mode's level (``{"mode": name}`` in the
+    paper). ``intent``: one of :data:`INTENT_DISPLAYS`. ``confidence``, ``policy`` and
+    ``input_mapping`` override the protocol's when set.
+    """
 
     name: str
     arbitration: Mapping[str, Any] | None
     confidence: Mapping[str, Any] | None = None  # overrides the protocol's [confidence]
     intent: str = "none"
+    levels: Mapping[str, str] = field(default_factory=dict)
+    policy: Mapping[str, Any] | None = None
+    input_mapping: str | None = None
+
+
+@dataclass(frozen=True)
+class Group:
+    """One between-subjects cell: a level of every between factor (``levels``) and the run
+    settings they set (``settings``: confidence, policy, intent, input_mapping ...). A
+    protocol without between factors has one group, ``""``, that sets nothing."""
+
+    name: str
+    levels: Mapping[str, str] = field(default_factory=dict)
+    settings: Mapping[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,8 @@ from typing import TYPE_CHECKING, Any
 from app.trial.config import TrialConfig
 from study.protocol.blinding import blinded_words
 from study.protocol.errors import ConditionError
-from study.protocol.model import Control, Mode, StudyInfo, Task, Texts, Training
+from study.protocol.factors import Factor
+from study.protocol.model import Control, Group, Mode, StudyInfo, Task, Texts, Training
 from study.protocol.questionnaire import Questionnaire
 
 if TYPE_CHECKING:
@@ -42,11 +43,12 @@ class Protocol:
     schema: int
     study: StudyInfo
     control: Control
-    difficulty_levels: tuple[str, ...]
-    correctness_levels: tuple[str, ...]
+    declared: tuple[Factor, ...]
+    scheme: str  # counterbalancing: "nested" (the paper's) or "williams" (study.schedule)
     tasks: tuple[Task, ...]
     modes: tuple[Mode, ...]
-    prediction: Mapping[str, Mapping[str, Any]]  # correctness level -> predictor table
+    groups: tuple[Group, ...]  # between-subjects cells; one nameless group if none
+    prediction: Mapping[str, Mapping[str, Any]]  # [prediction.<name>] (the paper: correctness)
     confidence: Mapping[str, Any]
     policy: Mapping[str, Any]
     training: Training
@@ -72,13 +74,38 @@ class Protocol:
 
     @property
     def factors(self) -> dict[str, tuple[str, ...]]:
-        """Factor -> levels, in file order: ``difficulty``, ``correctness``, ``mode``. Every
-        level listed here is blinded (:attr:`condition_words`): a new factor goes here."""
-        return {
-            "difficulty": self.difficulty_levels,
-            "correctness": self.correctness_levels,
-            "mode": self.mode_names,
-        }
+        """Factor -> levels, in file order (the paper: ``difficulty``, ``correctness``,
+        ``mode``). Every level listed here is blinded (:attr:`condition_words`)."""
+        return {f.name: f.levels for f in self.declared}
+
+    @property
+    def within_factors(self) -> tuple[str, ...]:
+        """Names of the factors every participant meets every level of, in file order."""
+        return tuple(f.name for f in self.declared if not f.between)
+
+    @property
+    def between_factors(self) -> tuple[str, ...]:
+        """Names of the factors each participant meets one level of, in file order."""
+        return tuple(f.name for f in self.declared if f.between)
+
+    @property
+    def group_names(self) -> tuple[str, ...]:
+        return tuple(g.name for g in self.groups)
+
+    def group_for(self, row: int) -> Group:
+        """The between-subjects group of design row ``row`` (``study.schedule``: rows cycle
+        through the groups, so every whole cycle fills each group equally)."""
+        return self.groups[row % len(self.groups)]
+
+    def levels(self, task: str | None, mode: str | None, *, row: int) -> dict[str, str]:
+        """Every declared factor's level in one trial of design row ``row`` (a training run,
+        ``task`` None: the between factors' only), in file order."""
+        found: dict[str, str] = dict(self.group_for(row).levels)
+        if task is not None:
+            found.update(self.task(task).levels)
+        if mode is not None and mode != TRAINING_MODE:
+            found.update(self.mode(mode).levels)
+        return {f.name: found[f.name] for f in self.declared if f.name in found}
 
     @functools.cached_property
     def condition_words(self) -> tuple[str, ...]:
@@ -138,16 +165,18 @@ class Protocol:
         return _fill(self.texts.instructions["training"], self.scenes[self.training.scene].target)
 
     # -- trial configurations -----------------------------------------------------------------
-    def trial_config(self, task: str, mode: str) -> TrialConfig:
-        """The :class:`app.trial.TrialConfig` of one condition: ``task`` done in ``mode``."""
+    def trial_config(self, task: str, mode: str, *, row: int = 0) -> TrialConfig:
+        """The :class:`app.trial.TrialConfig` of one condition: ``task`` done in ``mode`` by
+        a participant of design row ``row`` (whose group's settings apply)."""
         t = self.task(task)
         m = self.mode(mode)
+        group = self.group_for(row).settings
         return TrialConfig(
             scene=self.scenes[t.scene],
-            prediction=self.prediction[t.correctness],
-            confidence=m.confidence if m.confidence is not None else self.confidence,
+            prediction=t.prediction,
+            confidence=_first(m.confidence, group.get("confidence"), self.confidence),
             arbitration=m.arbitration,
-            policy=self.policy,
+            policy=_first(m.policy, group.get("policy"), self.policy),
             rate_hz=self.control.rate_hz,
             physics_dt=self.control.physics_dt,
             time_limit_s=t.time_limit_s,
@@ -156,27 +185,37 @@ class Protocol:
             task=t.name,
             mode=m.name,
             extra=self._extra(
-                difficulty=t.difficulty, correctness=t.correctness, phase="task", intent=m.intent
+                difficulty=t.difficulty or "",
+                correctness=t.correctness or "",
+                phase="task",
+                intent=m.intent if m.intent != "none" else group.get("intent", "none"),
+                input_mapping=_first(
+                    m.input_mapping, group.get("input_mapping"), self.control.input_mapping
+                ),
             ),
         )
 
-    def config_for(self, task: str, mode: str, *, time_limit_s: float | None = None) -> TrialConfig:
+    def config_for(
+        self, task: str, mode: str, *, time_limit_s: float | None = None, row: int = 0
+    ) -> TrialConfig:
         """Like :meth:`trial_config`, plus ``mode="none"`` (unassisted, alpha = 0),
         ``task="training"`` (the training run) and an optional time-limit override."""
         if task == "training":
-            config = self.training_config()
+            config = self.training_config(row=row)
         elif mode == "none":
             config = dataclasses.replace(
-                self.trial_config(task, self.mode_names[0]), arbitration=None, mode="none"
+                self.trial_config(task, self.mode_names[0], row=row), arbitration=None, mode="none"
             )
         else:
-            config = self.trial_config(task, mode)
+            config = self.trial_config(task, mode, row=row)
         if time_limit_s is not None:
             config = dataclasses.replace(config, time_limit_s=time_limit_s)
         return config
 
-    def training_config(self) -> TrialConfig:
-        """The unassisted training run (arbitration ``None``, mode ``"none"``)."""
+    def training_config(self, *, row: int = 0) -> TrialConfig:
+        """The unassisted training run (arbitration ``None``, mode ``"none"``) of a participant
+        of design row ``row`` (trained with their group's input mapping)."""
+        group = self.group_for(row).settings
         return TrialConfig(
             scene=self.scenes[self.training.scene],
             prediction=self.training.prediction,
@@ -190,19 +229,30 @@ class Protocol:
             on_knock=self.control.on_knock,
             task="training",
             mode=TRAINING_MODE,
-            extra=self._extra(difficulty="", correctness="", phase="training", intent="none"),
+            extra=self._extra(
+                difficulty="",
+                correctness="",
+                phase="training",
+                intent="none",
+                input_mapping=group.get("input_mapping", self.control.input_mapping),
+            ),
         )
 
-    def _extra(self, **fields: str) -> dict[str, str]:
-        """Labels a trial carries beside its settings; ``input_mapping`` is the interface's
-        (``[control]``), which the page and simulated participants read from here."""
+    def _extra(self, *, input_mapping: str, **fields: str) -> dict[str, str]:
+        """Labels a trial carries beside its settings; ``input_mapping`` (``[control]``'s
+        unless a level sets it) is read from here by the page and simulated participants."""
         return {
             "protocol": self.id,
             "protocol_version": self.study.version,
             "content_hash": self.content_hash,
-            "input_mapping": self.control.input_mapping,
+            "input_mapping": input_mapping,
             **fields,
         }
+
+
+def _first(*values: Any) -> Any:
+    """The first of ``values`` that is not None (a mode's setting, its group's, the default)."""
+    return next(v for v in values if v is not None)
 
 
 def _fill(template: str, target: str) -> str:

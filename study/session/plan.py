@@ -101,8 +101,11 @@ def build_plan(protocol: Protocol, assignments: Sequence[AssignmentRecord]) -> P
     _training(steps, protocol)
     between = dict(q.between_tasks)
     rows = sorted(assignments, key=lambda a: a.position)
-    for task_number, (task, runs) in enumerate(groupby(rows, key=lambda a: a.task), start=1):
-        _task(steps, q, task, list(runs), task_number=task_number)
+    # nested: a task's runs are one block; williams: every run is its own block
+    block = (lambda a: a.task) if protocol.scheme == "nested" else (lambda a: a.position)
+    for task_number, (_, runs) in enumerate(groupby(rows, key=block), start=1):
+        block_runs = list(runs)
+        _task(steps, q, block_runs[0].task, block_runs, task_number=task_number)
         if task_number in between:
             steps.add(
                 "questions", "session", questionnaire="between_tasks", items=between[task_number]

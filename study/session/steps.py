@@ -36,6 +36,7 @@ class Steps:
         self.store = store
         self.ledger = ledger
         self.session_id = ledger.info.session_id
+        self.schedule_row = ledger.info.schedule_row
 
     # ---- where we are ---------------------------------------------------------------------------
     def current(self) -> Step | None:
@@ -62,8 +63,8 @@ class Steps:
 
     def config(self, step: Step) -> TrialConfig:
         if step.phase == "training":
-            return self.protocol.training_config()
-        return self.protocol.trial_config(step.task or "", step.mode or "")
+            return self.protocol.training_config(row=self.schedule_row)
+        return self.protocol.trial_config(step.task or "", step.mode or "", row=self.schedule_row)
 
     def pending_items(self, step: Step) -> list[Item]:
         """The step's items not yet answered (ratings and other answers alike)."""

@@ -18,7 +18,7 @@ import numpy as np
 
 from app.trial import TickRecord
 from study.server.console_model import SessionDetail, SessionSummary
-from study.server.live.timeline import timeline
+from study.server.live.timeline import task_text, timeline
 from study.session import Overview, Session, TrialRun
 
 LOGGER = logging.getLogger("study.server.live")
@@ -146,10 +146,7 @@ def condition_line(o: Overview) -> str:
         return f"none: the session is {o.status}"
     if o.task:
         where = "questions after" if o.step_kind == "questions" else o.training_or_task
-        return (
-            f"{where}: {o.task} ({o.difficulty}, {o.correctness}), mode {o.mode},"
-            f" {o.run} run{attempt}"
-        )
+        return f"{where}: {task_text(o)}, mode {o.mode}, {o.run} run{attempt}"
     if o.step_kind == "trial":
         return f"practice, unassisted{attempt}"
     if o.step_kind == "questions":

@@ -224,7 +224,10 @@ class LiveSession:
             with self._lock:
                 if self.trial_run.running:
                     return
-                source = ParticipantInput(mapping=self.session.protocol.control.input_mapping)
+                # the condition's mapping: [control]'s, unless a level (say a between-subjects
+                # input factor) sets it
+                mapping = str(self.session.trial_config().extra["input_mapping"])
+                source = ParticipantInput(mapping=mapping)
                 run = self.session.start_trial(input_source=source)
                 self.trial_run.begin(run, source)
 

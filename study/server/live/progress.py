@@ -24,7 +24,8 @@ def study_progress(store: Store, protocol: Protocol) -> StudyProgress:
     last: dict[tuple[int, int], tuple[str, bool]] = {}
     for t in store.trials():
         if t.phase == "task" and t.status == "completed":
-            label = f"{t.difficulty}/{t.correctness}, {t.mode}"
+            levels = "/".join(v for v in (t.difficulty, t.correctness) if v)
+            label = f"{levels or t.task}, {t.mode}"
             last[(t.session_id, t.step)] = (label, bool(t.success))
     counts: dict[str, list[int]] = {}
     for label, ok in last.values():

@@ -11,9 +11,23 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from datetime import datetime
-from typing import Any
+from typing import Any, Protocol
 
 from study.store import EventRecord, TrialRecord
+
+
+class TaskLabelled(Protocol):
+    """A row naming a task and the paper's task levels (a trial record, a session overview)."""
+
+    @property
+    def task(self) -> str | None: ...
+
+    @property
+    def difficulty(self) -> str | None: ...
+
+    @property
+    def correctness(self) -> str | None: ...
+
 
 Row = tuple[str, str, str]
 """(clock time, time since the session started, what)."""
@@ -61,10 +75,17 @@ def timeline(
     return rows, "runs: " + ", ".join(parts)
 
 
+def task_text(t: TaskLabelled) -> str:
+    """``easy-right (easy, right)``: the task and the paper's task levels where it has them
+    (a protocol of other factors names them in its task names)."""
+    levels = ", ".join(v for v in (t.difficulty, t.correctness) if v)
+    return f"{t.task} ({levels})" if levels else str(t.task)
+
+
 def run_text(t: TrialRecord) -> str:
     """A run as one line: number, phase, condition, attempt, and how it ended."""
     if t.task:
-        cond = f"{t.task} ({t.difficulty}, {t.correctness}), mode **{t.mode}**, {t.run} run"
+        cond = f"{task_text(t)}, mode **{t.mode}**, {t.run} run"
     else:
         cond = "practice, unassisted"
     attempt = f", attempt {t.attempt}" if t.attempt > 1 else ""
