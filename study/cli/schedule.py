@@ -52,12 +52,21 @@ def main(args: argparse.Namespace) -> int:
                 f"{args.protocol} sets no study.participants; pass --participants N"
             )
     trials = schedule(protocol, participants=participants)
-    records = [{c: getattr(t, c) for c in COLUMNS} for t in trials]
+    between = protocol.between_factors  # a column each, after the participant
+    columns = (COLUMNS[0], *between, *COLUMNS[1:])
+    records = [
+        {
+            **{c: getattr(t, c) for c in COLUMNS},
+            **{f: protocol.group_for(t.row).levels[f] for f in between},
+        }
+        for t in trials
+    ]
+    records = [{c: r[c] for c in columns} for r in records]
     if args.format == "json":
         text = json.dumps(records, indent=1) + "\n"
     else:
         buffer = io.StringIO()
-        writer = csv.DictWriter(buffer, fieldnames=COLUMNS, lineterminator="\n")
+        writer = csv.DictWriter(buffer, fieldnames=columns, lineterminator="\n")
         writer.writeheader()
         writer.writerows(records)
         text = buffer.getvalue()

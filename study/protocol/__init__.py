@@ -11,6 +11,7 @@ protocol_from_store(store)                          # the exact protocol a store
 from study.protocol.errors import (
     AnswerError,
     BlindingError,
+    ConditionConflictError,
     ConditionError,
     MissingKeyError,
     ProtocolError,
@@ -52,6 +53,7 @@ __all__ = [
     "AttentionItem",
     "BlindingError",
     "ChoiceItem",
+    "ConditionConflictError",
     "ConditionError",
     "Control",
     "Item",
