@@ -17,7 +17,7 @@ from pathlib import Path
 
 from study.cli.arguments import int_range
 from study.protocol import load_protocol
-from study.schedule import ScheduleError, schedule
+from study.schedule import Design, ScheduleError, schedule
 
 DEFAULT_PROTOCOL = Path(__file__).resolve().parents[2] / "protocols" / "dragan2013.toml"
 COLUMNS = ("participant", "position", "task", "mode")
@@ -52,6 +52,13 @@ def main(args: argparse.Namespace) -> int:
                 f"{args.protocol} sets no study.participants; pass --participants N"
             )
     trials = schedule(protocol, participants=participants)
+    design = Design.from_protocol(protocol)
+    if participants % design.cycle:
+        print(
+            f"note: {participants} participants leave the last cycle unbalanced; whole balanced"
+            f" cycles are multiples of {design.cycle} ({design.cycle_parts})",
+            file=sys.stderr,
+        )
     between = protocol.between_factors  # a column each, after the participant
     columns = (COLUMNS[0], *between, *COLUMNS[1:])
     records = [

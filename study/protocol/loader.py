@@ -3,9 +3,11 @@
 Checks, each failing with a typed :class:`~study.protocol.errors.ProtocolError` that names the
 file, the key path and the problem: TOML syntax and duplicate keys; unknown keys at every level;
 types and ranges; references (a task's scene, a factor level, a questionnaire item or scale);
-the full crossing of difficulty x correctness; one prediction table per correctness level and
-one mode table per mode level; anchors matching the questionnaire's number of points; and
-blinding (no participant-facing text contains a condition word).
+the declared factors and the conditions built from them (``study.protocol.factors``,
+``study.protocol.conditions``: every cell of the task factors once, one mode table per mode
+level, no two levels of one condition setting one value differently); a sample of whole balanced
+cycles; anchors matching the questionnaire's number of points; and blinding (no
+participant-facing text contains a condition word).
 """
 
 from __future__ import annotations
