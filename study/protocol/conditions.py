@@ -26,7 +26,7 @@ from study.protocol.errors import (
     UndefinedReferenceError,
     UnknownKeyError,
 )
-from study.protocol.factors import MODE_FACTOR, TASK_SETTINGS, Factor
+from study.protocol.factors import MAX_LATENCY_S, MODE_FACTOR, TASK_SETTINGS, Factor
 from study.protocol.fields import Table, check_number
 from study.protocol.model import INTENT_DISPLAYS, Control, Group, Mode, Task
 from study.protocol.protocol import TRAINING_MODE
@@ -321,6 +321,7 @@ class Conditions:
             levels=MappingProxyType(levels),
             policy=run.get("policy"),
             input_mapping=run.get("input_mapping"),
+            latency_s=run.get("latency_s"),
         )
 
     def run_settings(self, merged: Mapping[str, tuple[str, Any]]) -> dict[str, Any]:
@@ -341,6 +342,14 @@ class Conditions:
                         f"expected a table, got {value!r}", file=self.file, key=at
                     )
                 out[key] = MappingProxyType(component(Table(value, file=self.file, key=at), key))
+            elif key == "latency_s":
+                out[key] = check_number(
+                    Table({}, file=self.file, key=where),
+                    key,
+                    value,
+                    minimum=0.0,
+                    maximum=MAX_LATENCY_S,
+                )
             else:
                 choices = INTENT_DISPLAYS if key == "intent" else INPUT_MAPPINGS
                 if value not in choices:
@@ -379,7 +388,7 @@ class Conditions:
         """What ``mode`` sets, as sources named after its levels (for conflict messages)."""
         label = " x ".join(f"factors.{f}.levels.{lv}" for f, lv in mode.levels.items())
         settings: dict[str, Any] = {}
-        for key in ("confidence", "policy", "input_mapping"):
+        for key in ("confidence", "policy", "input_mapping", "latency_s"):
             value = getattr(mode, key)
             if value is not None:
                 settings[key] = _plain(value)

@@ -14,7 +14,7 @@ Two forms, mixable in one ``[factors]`` table::
 
 A level may set the task (:data:`TASK_SETTINGS`: the scene, the prediction, the time limit) or
 how a run goes (:data:`RUN_SETTINGS`: the arbitration, confidence, robot policy, intent display,
-input mapping). A within factor that sets the task varies *what* is done (crossed with the
+input mapping, added latency). A within factor that sets the task varies *what* is done (crossed with the
 other task factors into the tasks); any other within factor varies *how* the robot helps
 (crossed with ``mode`` into the runs done of every task). A between factor sets run settings for
 every run of the participants assigned to its level. ``mode`` (the arbitration) is always a
@@ -33,8 +33,10 @@ from study.protocol.fields import Table, join_key
 SUBJECTS = ("within", "between")
 TASK_SETTINGS = ("scene", "prediction", "time_limit_s")
 """What a level may set about the task itself."""
-RUN_SETTINGS = ("arbitration", "confidence", "policy", "intent", "input_mapping")
-"""What a level may set about how a run goes (a between factor sets these only)."""
+RUN_SETTINGS = ("arbitration", "confidence", "policy", "intent", "input_mapping", "latency_s")
+"""What a level may set about how a run goes (a between factor sets these only); ``latency_s``
+is added latency: the participant's commands act that much later (``app.teleop.delayed_input``)."""
+MAX_LATENCY_S = 2.0
 SCHEMES = ("nested", "williams")
 """``nested``: the paper's (Williams task orders, each task's runs back to back in a Williams
 mode order); ``williams``: one Williams square over every task x run condition."""

@@ -73,8 +73,8 @@ class Mode:
     unassisted), crossed with the levels of any other within factor that sets how runs go.
 
     ``levels`` maps each of those factors to this mode's level (``{"mode": name}`` in the
-    paper). ``intent``: one of :data:`INTENT_DISPLAYS`. ``confidence``, ``policy`` and
-    ``input_mapping`` override the protocol's when set.
+    paper). ``intent``: one of :data:`INTENT_DISPLAYS`. ``confidence``, ``policy``,
+    ``input_mapping`` and ``latency_s`` override the protocol's when set.
     """
 
     name: str
@@ -84,6 +84,7 @@ class Mode:
     levels: Mapping[str, str] = field(default_factory=dict)
     policy: Mapping[str, Any] | None = None
     input_mapping: str | None = None
+    latency_s: float | None = None  # added latency (app.teleop.delayed_input)
 
 
 @dataclass(frozen=True)

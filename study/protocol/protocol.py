@@ -192,6 +192,7 @@ class Protocol:
                 input_mapping=_first(
                     m.input_mapping, group.get("input_mapping"), self.control.input_mapping
                 ),
+                **_latency(m.latency_s, group.get("latency_s")),
             ),
         )
 
@@ -235,10 +236,11 @@ class Protocol:
                 phase="training",
                 intent="none",
                 input_mapping=group.get("input_mapping", self.control.input_mapping),
+                **_latency(group.get("latency_s")),
             ),
         )
 
-    def _extra(self, *, input_mapping: str, **fields: str) -> dict[str, str]:
+    def _extra(self, *, input_mapping: str, **fields: Any) -> dict[str, Any]:
         """Labels a trial carries beside its settings; ``input_mapping`` (``[control]``'s
         unless a level sets it) is read from here by the page and simulated participants."""
         return {
@@ -253,6 +255,13 @@ class Protocol:
 def _first(*values: Any) -> Any:
     """The first of ``values`` that is not None (a mode's setting, its group's, the default)."""
     return next(v for v in values if v is not None)
+
+
+def _latency(*values: float | None) -> dict[str, float]:
+    """``{"latency_s": s}`` when a level sets added latency (the first set of ``values``), else
+    nothing: the trial's input is then not delayed (``app.teleop.delayed_input``)."""
+    value = next((v for v in values if v is not None), None)
+    return {} if value is None else {"latency_s": float(value)}
 
 
 def _fill(template: str, target: str) -> str:

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from app.teleop.delayed_input import delayed
 from app.trial import TrialConfig
 from study.protocol import Answer, AnswerError, LikertItem, NumberItem
 from study.session.errors import InvalidAnswerError, UnknownItemError
@@ -62,7 +63,9 @@ class ParticipantActions:
         attempt = self.steps.next_attempt(step.index)
         seed = trial_seed(self.ledger.info.seed, step.index, attempt)
         config = self.steps.config(step)
-        trial = self.factory(config, input_source, seed)
+        latency_s = float(config.extra.get("latency_s", 0.0))  # a level's added latency
+        source = delayed(input_source, latency_s=latency_s, rate_hz=config.rate_hz)
+        trial = self.factory(config, source, seed)
         names, positions, target = goal_info(trial, config)
         with self.ledger.tx() as tx:
             trial_id = self.ledger.insert_trial(
