@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from study.codebook import CodebookError, codebook
-from study.export import ExportError, tidy_tables
+from study.export import TRIAL_COLUMNS, ExportError, tidy_tables
 from study.protocol import load_protocol
 from study.retention import RetentionError, record_retention
 from study.store import Store
@@ -27,6 +27,16 @@ def store_path(tmp_path_factory, protocol):
     path = tmp_path_factory.mktemp("store") / "study.sqlite"
     info = build_store(path, protocol)
     return path, info
+
+
+def test_the_papers_protocol_exports_exactly_the_papers_factor_columns(store_path) -> None:
+    """Factors are exported by name (issue 25); the paper's three are today's columns, in place."""
+    path, _ = store_path
+    trials = tidy_tables(path)["trials"]
+    assert tuple(trials.columns[: len(TRIAL_COLUMNS)]) == TRIAL_COLUMNS
+    assert TRIAL_COLUMNS[5:9] == ("task", "difficulty", "correctness", "mode")
+    training = trials[trials["phase"] == "training"]
+    assert training["difficulty"].isna().all() and (training["mode"] == "none").all()
 
 
 def test_trials_table_columns_and_covariates(store_path, protocol) -> None:
