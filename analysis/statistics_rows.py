@@ -89,6 +89,15 @@ ASSUMES = {
     "a participant's trials counted as independent (anti-conservative)",
     "prediction_rm": "one mean per participant, condition and predictor; normal contrast scores; "
     "sphericity for effects with more than 1 df",
+    "factor_anova": "one mean per participant and condition; normal contrast scores; equal "
+    "covariance of them across between-subject groups; sphericity for effects with more than "
+    "1 df (GG/HF-corrected p and Mauchly's test given)",
+    "factor_mixed": "participants differ by a random intercept (equal correlation of a "
+    "participant's runs), normal random effects and residuals; Satterthwaite df from the REML "
+    "fit",
+    "factor_posthoc": "one mean per participant and condition; normal differences (paired t) or "
+    "normal groups with unequal variances allowed (Welch t); Bonferroni and Holm within each "
+    "family",
 }
 """The one-line assumption statement of each analysis."""
 
