@@ -25,7 +25,9 @@ def rated_items(
     items = list(declared)
     if not items and {"phase", "mode", "item"} <= set(ratings.columns):
         mode = ratings["mode"].astype("string").fillna("")
-        items = list(dict.fromkeys(ratings.loc[(ratings["phase"] == "task") & (mode != ""), "item"]))
+        items = list(
+            dict.fromkeys(ratings.loc[(ratings["phase"] == "task") & (mode != ""), "item"])
+        )
     return tuple(str(i) for i in items if i in cells.columns)
 
 

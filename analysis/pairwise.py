@@ -89,7 +89,9 @@ def _condition_pairs(fit: SplitPlotResult) -> list[dict[str, float | str]]:
         names = [*fit.between, *cells.factors]
         la = _label(names, [*groups[g1], *cells.cells[c1]])
         lb = _label(names, [*groups[g2], *cells.cells[c2]])
-        rows.append({"family": CONDITIONS, "comparison": f"{la} - {lb}", **_test(a, b, paired=g1 == g2)})
+        rows.append(
+            {"family": CONDITIONS, "comparison": f"{la} - {lb}", **_test(a, b, paired=g1 == g2)}
+        )
     return rows
 
 

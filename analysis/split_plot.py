@@ -89,7 +89,9 @@ def _sse(x: np.ndarray, z: np.ndarray) -> float:
     return float((r * r).sum())
 
 
-def _between_design(groups: pd.DataFrame, between: Sequence[str]) -> dict[tuple[int, ...], np.ndarray]:
+def _between_design(
+    groups: pd.DataFrame, between: Sequence[str]
+) -> dict[tuple[int, ...], np.ndarray]:
     """The intercept (key ``()``) and each between term's sum-to-zero columns."""
     n = len(groups)
     blocks: dict[tuple[int, ...], np.ndarray] = {(): np.ones((n, 1))}
@@ -252,7 +254,9 @@ def split_plot_anova(
         if sizes.nunique() > 1:
             notes.append(
                 "unequal group sizes ("
-                + ", ".join(f"{' x '.join(map(str, np.atleast_1d(k)))}: {v}" for k, v in sizes.items())
+                + ", ".join(
+                    f"{' x '.join(map(str, np.atleast_1d(k)))}: {v}" for k, v in sizes.items()
+                )
                 + "): type III sums of squares (unweighted group means)"
             )
     return SplitPlotResult(

@@ -56,6 +56,9 @@ FORMS = {
     "timing_pairwise": REVIEWER_FORM,
     "preference_rmcorr": REVIEWER_FORM,
     "prediction_rm": REVIEWER_FORM,
+    "factor_anova": REVIEWER_FORM,  # a design other than the paper's: today's forms only
+    "factor_mixed": REVIEWER_FORM,
+    "factor_posthoc": REVIEWER_FORM,
 }
 """Which rows are the paper's own tests and which the forms a reviewer would ask for."""
 

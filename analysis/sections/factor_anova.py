@@ -85,8 +85,7 @@ def _measure_tables(res: StudyResults, m: str, ma: MeasureAnalysis) -> list[Tabl
     if ma.mixed is not None:
         tables.append(
             Table(
-                f"{m}: linear mixed model, random intercept per participant "
-                f"({ma.mixed.n} runs)",
+                f"{m}: linear mixed model, random intercept per participant ({ma.mixed.n} runs)",
                 rm_table(ma.mixed.table, MIXED, _stats_of(res, MIXED, m)),
                 assumes(MIXED),
             )

@@ -15,15 +15,15 @@ def section(ctx: ReportContext) -> Section | None:
         return None
     d, cells = fa.design, fa.cells
     per_level = [
-        ", ".join(
-            f"{v}: {cells.loc[cells[f] == v, 'participant'].nunique()}" for v in d.factors[f]
-        )
+        ", ".join(f"{v}: {cells.loc[cells[f] == v, 'participant'].nunique()}" for v in d.factors[f])
         for f in d.factors
     ]
     frame = pd.DataFrame(
         {
             "factor": list(d.factors),
-            "varied": ["between subjects" if f in d.between else "within subjects" for f in d.factors],
+            "varied": [
+                "between subjects" if f in d.between else "within subjects" for f in d.factors
+            ],
             "levels": [", ".join(v) for v in d.factors.values()],
             "participants per level": per_level,
         }

@@ -51,7 +51,9 @@ def _table(posthoc: pd.DataFrame) -> pd.DataFrame:
         {
             "family": posthoc["family"],
             "comparison": posthoc["comparison"],
-            "test": [f"{t}({df_text(d)})" for t, d in zip(posthoc["test"], posthoc["df"], strict=True)],
+            "test": [
+                f"{t}({df_text(d)})" for t, d in zip(posthoc["test"], posthoc["df"], strict=True)
+            ],
             "t": posthoc["t"].map(fmt),
             "p": posthoc["p"].map(fmt_p),
             "p Bonferroni": posthoc["p_bonf"].map(fmt_p),

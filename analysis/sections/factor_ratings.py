@@ -15,7 +15,9 @@ def section(ctx: ReportContext) -> Section | None:
     if fa is None or fa.ratings.empty:
         return None
     r = fa.ratings
-    r = r.assign(cell=[f"{show(m, 2)} ({show(s, 2)})" for m, s in zip(r["mean"], r["sd"], strict=True)])
+    r = r.assign(
+        cell=[f"{show(m, 2)} ({show(s, 2)})" for m, s in zip(r["mean"], r["sd"], strict=True)]
+    )
     frame = r.pivot_table(
         index="condition", columns="item", values="cell", aggfunc="first", sort=False
     )[list(fa.items)]
@@ -26,9 +28,7 @@ def section(ctx: ReportContext) -> Section | None:
         f"(SD) over the runs (one answer per participant and run). {MISSING}: not defined. "
         "The tests of each item are in the ANOVA section."
     )
-    sec.tables.append(
-        Table("Ratings after each run: mean (SD)", frame.reset_index())
-    )
+    sec.tables.append(Table("Ratings after each run: mean (SD)", frame.reset_index()))
     medians = r.pivot_table(index="condition", columns="item", values="median", sort=False)
     sec.tables.append(
         Table(
