@@ -186,6 +186,12 @@ def split_plot_cells(cells: CellData, groups: pd.DataFrame, between: Sequence[st
     blocks = _between_design(groups, between)
     n = len(cells.subjects)
     g = int(groups[between].drop_duplicates().shape[0]) if between else 1
+    full = int(np.prod([len(groups[f].cat.categories) for f in between])) if between else 1
+    if g < full:
+        raise DesignError(
+            f"{full - g} of the {full} between-subject groups ({' x '.join(between)}) have no "
+            "subject; every combination of the between factors' levels needs participants"
+        )
     if n - g < 1:
         raise DesignError(
             f"{n} subject(s) in {g} between-subject group(s) leave no error df; the split-plot "
