@@ -10,6 +10,10 @@ matplotlib and statsmodels, measured with ``-X importtime``; the loader costs pa
     from analysis.sections import SECTIONS           the report's sections, in order
     from analysis.rm_anova import rm_anova           repeated-measures ANOVA (GG/HF, Mauchly)
     from analysis.mixed import mixed_anova           random-intercept mixed model, type III F
+    from analysis.split_plot import split_plot_anova within x between factors (split-plot)
+    from analysis.factor_analysis import factor_analysis   any design by factor name
+    from analysis.pairwise import pairwise_comparisons     every pair, Bonferroni and Holm
+    from analysis.contrast_power import contrast_power     power of any declared contrast
     from analysis.anova import factorial_anova, covariate_anova
     from analysis.posthoc import paired_t, paired_comparisons
     from analysis.correlations import pearson, preference_correlations

@@ -25,16 +25,10 @@ from study.errors import StudyError
 from study.store import Store
 
 TABLES = ("trials", "samples", "ratings", "answers", "participants", "events")
-TRIAL_COLUMNS = (
-    "participant",
-    "phase",
-    "task",
-    "difficulty",
-    "correctness",
-    "mode",
-    "status",
-    "duration_s",
-)
+TRIAL_COLUMNS = ("participant", "phase", "task", "mode", "status", "duration_s")
+"""Columns every trials table has; the factors' columns are the protocol's (below)."""
+PAPER_FACTORS = ("difficulty", "correctness", "mode")
+"""The paper's factors: the columns of its protocol's trials table (and ``task_cells``' default)."""
 COVARIATES = ("training_time_s", "baseline_rating", "tasks_completed")
 RATING_ITEMS = ("helpful", "matched", "teammate")
 SAMPLE_COLUMNS = ("trial_id", "t", "target_x", "target_y", "target_z")
@@ -97,8 +91,9 @@ def normalise_trials(trials: pd.DataFrame) -> pd.DataFrame:
     require_columns(trials, TRIAL_COLUMNS, what="the trials table")
     t = trials.copy()
     t["participant"] = t["participant"].astype(str)
-    for c in ("phase", "task", "difficulty", "correctness", "mode", "status"):
-        t[c] = t[c].astype("string").fillna("").astype(str)
+    for c in ("phase", "task", *PAPER_FACTORS, "status"):
+        if c in t.columns:  # a protocol of other factors has no difficulty, correctness
+            t[c] = t[c].astype("string").fillna("").astype(str)
     for c in ("goal_names", "goal_positions"):
         if c in t.columns:
             t[c] = t[c].map(_json_list)
@@ -327,9 +322,13 @@ def load_tables(
 
 
 def task_cells(
-    trials: pd.DataFrame, *, successful_only: bool = False
+    trials: pd.DataFrame,
+    *,
+    successful_only: bool = False,
+    factors: tuple[str, ...] = PAPER_FACTORS,
 ) -> tuple[pd.DataFrame, tuple[str, ...]]:
-    """One row per participant, task and mode: the completed task trial of each cell.
+    """One row per participant, task and condition (the levels of ``factors``, default the
+    paper's: one row per task and mode): the completed task trial of each cell.
 
     Training runs, redone, skipped and interrupted attempts are left out. Completed trials
     that ended without success (dropped, wrong object, timeout) are kept with a note - their
@@ -360,7 +359,8 @@ def task_cells(
                 f"({what}); their duration (until the trial ended, e.g. the time "
                 "limit) is analysed as is (--successful-only leaves them out)"
             )
-    keys = ["participant", "task", "difficulty", "correctness", "mode"]
+    keys = list(dict.fromkeys(["participant", "task", *factors]))
+    require_columns(t, keys, what="the trials table")
     dup = done.duplicated(keys, keep=False)
     if dup.any():
         notes.append(

@@ -82,7 +82,8 @@ def pilot_cells(cells: pd.DataFrame) -> PilotCells:
         found = "; ".join(f"{f}: {', '.join(v)}" for f, v in lv.items())
         raise DesignError(
             f"the power analysis tests the paper's hypotheses and needs its 2 x 2 x "
-            f"2 design ({found} found); run it on a study of dragan2013's design"
+            f"2 design ({found} found); run it on a study of dragan2013's design, or name "
+            "the contrasts to power (--effect FACTOR, --pair CONDITION CONDITION)"
         )
     notes: list[str] = []
     key = list(FACTORS)
@@ -355,7 +356,7 @@ class PowerResult:
     notes: tuple[str, ...]
 
 
-def _n80(ns: np.ndarray, power: np.ndarray, target: float = 0.8) -> tuple[float, float]:
+def n80(ns: np.ndarray, power: np.ndarray, target: float = 0.8) -> tuple[float, float]:
     """Smallest N of the grid reaching ``target``, and N linearly interpolated between the grid
     points around it (NaN when the smallest N already reaches it or no N does)."""
     hit = np.flatnonzero(power >= target)
@@ -428,13 +429,13 @@ def bootstrap_power(
     summ = []
     for (h, name, form), g in table.groupby(["hypothesis", "test", "form"], sort=False):
         g = g.sort_values("n")
-        n80, interp = _n80(g["n"].to_numpy(dtype=float), g["power"].to_numpy())
+        n80_, interp = n80(g["n"].to_numpy(dtype=float), g["power"].to_numpy())
         summ.append(
             {
                 "hypothesis": h,
                 "test": name,
                 "form": form,
-                "n80": n80,
+                "n80": n80_,
                 "n80_interpolated": interp,
                 "power_at_max_n": float(g["power"].iloc[-1]),
             }

@@ -1,5 +1,6 @@
 """What the report needs from a protocol: its id and hash, the arbitration of each mode, the
-factor levels and the prediction tables.
+factor levels (and which factors vary between subjects), the Likert items rated after each run
+and the prediction tables.
 
 The protocol the data were collected with comes first: the text a study store keeps
 (``study.protocol.protocol_from_store``) or an export folder's ``protocol.toml``; then the file
@@ -35,6 +36,13 @@ class ProtocolInfo:
     factors: dict[str, tuple[str, ...]] = field(default_factory=dict)  # [factors], in order
     prediction: dict[str, dict[str, Any]] = field(default_factory=dict)  # [prediction.<name>]
     rate_hz: float = 100.0  # [control] rate_hz (builds arbitration kinds with time constants)
+    between: tuple[str, ...] = ()  # the factors varied between subjects (the rest: within)
+    rating_items: tuple[str, ...] = ()  # the Likert items asked after each run, in order
+
+    @property
+    def within(self) -> tuple[str, ...]:
+        """The factors varied within subjects, in the protocol's order."""
+        return tuple(f for f in self.factors if f not in self.between)
 
 
 def _temperature(prediction: Mapping[str, Any] | None) -> float:
@@ -126,7 +134,16 @@ def _info(proto: Any, *, path: str) -> ProtocolInfo:
         factors={k: tuple(map(str, v)) for k, v in dict(proto.factors).items()},
         prediction=_prediction_tables(proto.prediction),
         rate_hz=float(proto.control.rate_hz),
+        # the factors-by-name protocol declares them; older ones have within factors only
+        between=tuple(map(str, getattr(proto, "between_factors", ()))),
+        rating_items=_rating_items(proto),
     )
+
+
+def _rating_items(proto: Any) -> tuple[str, ...]:
+    """The ids of the Likert items the protocol asks after each run (none if it asks none)."""
+    questionnaire = getattr(proto, "questionnaire", None)
+    return tuple(str(i.id) for i in getattr(questionnaire, "after_run", ()))
 
 
 def _file_info(path: str | Path) -> ProtocolInfo:

@@ -26,8 +26,11 @@ import pandas as pd
 
 from analysis.correlations import preference_correlations
 from analysis.errors import AnalysisError
+from analysis.factor_analysis import factor_analysis
+from analysis.factor_design import condition_cells, factor_design, is_paper_factors
 from analysis.form_pairs import PAIRS, form_pairs
-from analysis.load import StudyTables, task_cells
+from analysis.item_ratings import rated_items
+from analysis.load import PAPER_FACTORS, StudyTables, task_cells
 from analysis.prediction_eval import (
     PREDICTORS,
     evaluate_predictions,
@@ -69,7 +72,8 @@ def statistics_table(res: StudyResults) -> pd.DataFrame:
         f_mismatch = df1 is not None and "ANOVA" in r["test"] and r["df1"] != df1
         if not comparable[family] or f_mismatch:
             r.update(paper_value=None, paper_df=None, paper_p=None)
-    return pd.DataFrame(rows, columns=STAT_COLUMNS)
+    holm = ["p_holm"] if any("p_holm" in r for r in rows) else []  # post-hoc by factor only
+    return pd.DataFrame(rows, columns=[*STAT_COLUMNS, *holm])
 
 
 MIN_PARTICIPANTS = 3
@@ -94,11 +98,27 @@ def analyse(
     predictors: Mapping[str, Mapping[str, Any]] = PREDICTORS,
     successful_only: bool = False,
     levels: Mapping[str, Sequence[str]] | None = None,
+    between: Sequence[str] = (),
+    items: Sequence[str] = (),
 ) -> StudyResults:
     """Run every analysis of section 5 that the data allow; see the module docstring.
 
-    ``levels``: the protocol's factor levels, to order them as the protocol does.
+    ``levels``: the protocol's factor levels, to order them as the protocol does (default: the
+    paper's factors the trials have). ``between``: the factors varied between subjects;
+    ``items``: the Likert items rated after each run. A design other than the paper's
+    difficulty x correctness x mode (all within) is analysed by factor name instead
+    (:mod:`analysis.factor_analysis`: ``StudyResults.factors``).
     """
+    declared = list(levels or [f for f in PAPER_FACTORS if f in tables.trials.columns])
+    if not is_paper_factors(declared, between):
+        return _analyse_by_factor(
+            tables,
+            dict(levels) if levels else declared,
+            between=between,
+            items=items,
+            successful_only=successful_only,
+            paper_predictors=is_paper_predictors(predictors),
+        )
     cells, notes = task_cells(tables.trials, successful_only=successful_only)
     res = StudyResults(
         cells=cells, notes=[*tables.notes, *notes], paper_predictors=is_paper_predictors(predictors)
@@ -136,6 +156,53 @@ def analyse(
     _prediction(res, tables, cells, predictors, levels, tests=True)
     res.statistics = statistics_table(res)
     return res
+
+
+def _analyse_by_factor(
+    tables: StudyTables,
+    factors: Mapping[str, Sequence[str]] | Sequence[str],
+    *,
+    between: Sequence[str],
+    items: Sequence[str],
+    successful_only: bool,
+    paper_predictors: bool,
+) -> StudyResults:
+    """A design of other factors: the split-plot ANOVA, mixed model and post-hoc tests of each
+    measure and the ratings by condition (tests from ``MIN_PARTICIPANTS`` on)."""
+    design = factor_design(tables.trials, factors, between=between)
+    cells, notes = condition_cells(tables.trials, design, successful_only=successful_only)
+    res = StudyResults(
+        cells=cells,
+        notes=[*tables.notes, *notes],
+        paper_design=False,
+        paper_predictors=paper_predictors,
+    )
+    if cells.empty:
+        res.inferential, res.why_no_tests = False, "no completed task runs: nothing to test"
+        res.notes.append("no completed task trials: nothing to analyse")
+        return res
+    res.why_no_tests = too_few_participants(int(cells["participant"].nunique()))
+    res.inferential = not res.why_no_tests
+    if not res.inferential:
+        res.notes.append(res.why_no_tests)
+    res.factors = factor_analysis(
+        cells, design, items=rated_items(cells, tables.ratings, items), tests=res.inferential
+    )
+    res.notes += list(res.factors.notes)
+    res.notes.append(
+        "the design is not the paper's difficulty x correctness x mode: analysed by factor "
+        f"name ({_design_text(design.factors, design.between)}); the paper's timing, "
+        "preference and prediction analyses are not run"
+    )
+    res.statistics = statistics_table(res)
+    return res
+
+
+def _design_text(factors: Mapping[str, Sequence[str]], between: Sequence[str]) -> str:
+    return "; ".join(
+        f"{f} ({'between' if f in between else 'within'}: {', '.join(v)})"
+        for f, v in factors.items()
+    )
 
 
 def _prediction(

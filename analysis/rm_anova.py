@@ -74,9 +74,15 @@ def effect_contrasts(n_levels: Sequence[int], term: Sequence[int]) -> np.ndarray
     return k
 
 
-def sphericity(z_resid: np.ndarray) -> dict[str, float]:
-    """GG and HF epsilon and Mauchly's test from centred contrast scores ``(n, k)``."""
+def sphericity(z_resid: np.ndarray, *, df: int | None = None) -> dict[str, float]:
+    """GG and HF epsilon and Mauchly's test from centred contrast scores ``(n, k)``.
+
+    ``df``: the scores' error df (default ``n - 1``, one group; ``n - g`` for scores centred
+    within ``g`` groups of subjects, where HF is Lecoutre's ``((df + 1) k eps - 2) /
+    (k (df - k eps))`` as R's ``car`` computes it, and Mauchly's chi2 uses ``df`` for ``n - 1``).
+    """
     n, k = z_resid.shape
+    dfe = n - 1 if df is None else int(df)
     nan = float("nan")
     if k == 1:
         return {
@@ -87,11 +93,11 @@ def sphericity(z_resid: np.ndarray) -> dict[str, float]:
             "mauchly_df": nan,
             "mauchly_p": nan,
         }
-    s = z_resid.T @ z_resid / (n - 1)
+    s = z_resid.T @ z_resid / dfe
     tr, tr2 = float(np.trace(s)), float(np.trace(s @ s))
     eps = min(1.0, max(tr * tr / (k * tr2), 1.0 / k)) if tr2 > 0 else 1.0
-    hf_den = k * (n - 1 - k * eps)
-    eps_hf = min(1.0, (n * k * eps - 2) / hf_den) if hf_den > 0 else 1.0
+    hf_den = k * (dfe - k * eps)
+    eps_hf = min(1.0, ((dfe + 1) * k * eps - 2) / hf_den) if hf_den > 0 else 1.0
     eps_hf = max(eps_hf, eps)
     out = {
         "eps_gg": eps,
@@ -101,10 +107,10 @@ def sphericity(z_resid: np.ndarray) -> dict[str, float]:
         "mauchly_df": float(k * (k + 1) // 2 - 1),
         "mauchly_p": nan,
     }
-    if n > k and tr > 0:  # W needs a non-singular S (more subjects than contrasts)
+    if dfe >= k and tr > 0:  # W needs a non-singular S (more error df than contrasts)
         sign, logdet = np.linalg.slogdet(s)
         log_w = logdet - k * np.log(tr / k) if sign > 0 else -np.inf
-        chi2 = -(n - 1 - (2 * k * k + k + 2) / (6 * k)) * log_w
+        chi2 = -(dfe - (2 * k * k + k + 2) / (6 * k)) * log_w
         out.update(
             mauchly_W=float(np.exp(log_w)),
             mauchly_chi2=float(chi2),

@@ -56,6 +56,9 @@ FORMS = {
     "timing_pairwise": REVIEWER_FORM,
     "preference_rmcorr": REVIEWER_FORM,
     "prediction_rm": REVIEWER_FORM,
+    "factor_anova": REVIEWER_FORM,  # a design other than the paper's: today's forms only
+    "factor_mixed": REVIEWER_FORM,
+    "factor_posthoc": REVIEWER_FORM,
 }
 """Which rows are the paper's own tests and which the forms a reviewer would ask for."""
 
@@ -89,6 +92,15 @@ ASSUMES = {
     "a participant's trials counted as independent (anti-conservative)",
     "prediction_rm": "one mean per participant, condition and predictor; normal contrast scores; "
     "sphericity for effects with more than 1 df",
+    "factor_anova": "one mean per participant and condition; normal contrast scores; equal "
+    "covariance of them across between-subject groups; sphericity for effects with more than "
+    "1 df (GG/HF-corrected p and Mauchly's test given)",
+    "factor_mixed": "participants differ by a random intercept (equal correlation of a "
+    "participant's runs), normal random effects and residuals; Satterthwaite df from the REML "
+    "fit",
+    "factor_posthoc": "one mean per participant and condition; normal differences (paired t) or "
+    "normal groups with unequal variances allowed (Welch t); Bonferroni and Holm within each "
+    "family",
 }
 """The one-line assumption statement of each analysis."""
 

@@ -10,6 +10,7 @@ from typing import Any
 import pandas as pd
 
 from analysis.anova import FactorialAnovaResult
+from analysis.factor_analysis import FactorAnalysis
 from analysis.rm_anova import RMAnovaResult
 from analysis.statistics_rows import STAT_COLUMNS
 from analysis.timing import FACTORS, LEVELS, TimingAnalysis, design_levels
@@ -32,6 +33,7 @@ class StudyResults:
     paper_predictors: bool = True  # amnesic and memory-based with eq. 9's squared velocity
     inferential: bool = True  # enough participants for tests (MIN_PARTICIPANTS)
     why_no_tests: str = ""
+    factors: FactorAnalysis | None = None  # a design other than the paper's, by factor name
 
     @property
     def paper_comparable(self) -> dict[str, bool]:

@@ -1,4 +1,6 @@
-"""``python -m analysis power``: power of the paper's hypotheses at several N from a pilot.
+"""``python -m analysis power``: power of the paper's hypotheses (or, with ``--effect`` /
+``--pair``, of any declared contrast: :mod:`analysis.cli.contrast_power`) at several N from a
+pilot.
 
 Resamples the study's participants (a pilot store, an export folder, or a simulated population)
 with replacement, B times for each N, and runs H1 and H2 in the paper's and the reviewer's forms
@@ -15,7 +17,7 @@ import sys
 import time
 from pathlib import Path
 
-from analysis.cli import fail, friendly, note
+from analysis.cli import contrast_power, fail, friendly, note
 from analysis.figures import power_figure, save
 from analysis.load import load_tables, task_cells
 from analysis.power import bootstrap_power, pilot_cells
@@ -61,6 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="leave out completed trials that ended without success",
     )
+    contrast_power.add_arguments(parser)
 
 
 @friendly
@@ -74,13 +77,19 @@ def main(args: argparse.Namespace) -> int:
         )
     start = time.perf_counter()
     tables = load_tables(db=args.db, export_dir=args.export_dir)
-    cells, notes = task_cells(tables.trials, successful_only=args.successful_only)
-    if cells.empty:
-        return fail(
-            f"{tables.source} holds no completed task trials; run a study (or a simulation) first"
+    if contrast_power.wanted(args):
+        res, notes = contrast_power.run(tables, args)
+    else:
+        cells, found = task_cells(tables.trials, successful_only=args.successful_only)
+        if cells.empty:
+            return fail(
+                f"{tables.source} holds no completed task trials; run a study (or a "
+                "simulation) first"
+            )
+        res = bootstrap_power(
+            pilot_cells(cells), ns=args.n, b=args.b, alpha=args.alpha, seed=args.seed
         )
-    pilot = pilot_cells(cells)
-    res = bootstrap_power(pilot, ns=args.n, b=args.b, alpha=args.alpha, seed=args.seed)
+        notes = list(found)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     res.table.to_csv(out / "power.csv", index=False, float_format="%.6g")
@@ -97,9 +106,15 @@ def main(args: argparse.Namespace) -> int:
         "alpha": res.alpha,
         "seed": res.seed,
         "ns": sorted(set(args.n)),
-        "method": "participants resampled with replacement from the pilot's cell "
-        "summaries; power = share of replicates with (Bonferroni) p < alpha in "
-        "the hypothesised direction (H2); Wilson 95% CI",
+        "method": (
+            "participants resampled with replacement within each between-subject group from "
+            "the pilot's condition means; power = share of replicates with p < alpha; Wilson "
+            "95% CI"
+            if contrast_power.wanted(args)
+            else "participants resampled with replacement from the pilot's cell "
+            "summaries; power = share of replicates with (Bonferroni) p < alpha in "
+            "the hypothesised direction (H2); Wilson 95% CI"
+        ),
         "power": res.table.to_dict(orient="records"),
         "n_for_80_percent": res.summary.to_dict(orient="records"),
         "notes": [*notes, *res.notes],

@@ -49,6 +49,7 @@ def write_report(
     protocol_path: str | Path | None = None,
     predictors: Mapping[str, Mapping[str, Any]] | None = None,
     successful_only: bool = False,
+    protocol: ProtocolInfo | None = None,
 ) -> ReportFiles:
     """Analyse ``tables`` and write report.html, report.md, results.json and figures/.
 
@@ -59,10 +60,16 @@ def write_report(
 
     ``predictors``: the configs to replay; by default the paper's two (amnesic, memory-based
     with eq. 9's squared velocity), each replaced by the protocol's table of the same kind if
-    it has one."""
+    it has one.
+
+    ``protocol``: the protocol already read (its factors, within or between, and rated items
+    decide the analysis); by default it is read as above."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    proto, proto_notes = _protocol(tables, protocol_path)
+    if protocol is not None:
+        proto, proto_notes = protocol, list(protocol.notes)
+    else:
+        proto, proto_notes = _protocol(tables, protocol_path)
     if predictors is not None:
         choices = [
             PredictorChoice(n, dict(c), "given by the caller") for n, c in predictors.items()
@@ -74,6 +81,8 @@ def write_report(
         predictors=predictors,
         successful_only=successful_only,
         levels=proto.factors if proto is not None else None,
+        between=proto.between if proto is not None else (),
+        items=proto.rating_items if proto is not None else (),
     )
     res.notes = proto_notes + res.notes
     figures = draw_figures(

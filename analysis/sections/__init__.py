@@ -5,7 +5,9 @@ A section module defines ``section(ctx: ReportContext) -> Section | None`` (``No
 to show) and, if it reports tests, ``rows(res: StudyResults) -> list[dict]`` of
 :data:`analysis.statistics_rows.STAT_COLUMNS`. A new section is one module and one line in
 ``SECTIONS``: the data first (who, descriptives, ratings, data quality), then Fig. 7, success,
-contacts and the decoy, and the tests where n allows.
+contacts and the decoy, and the tests where n allows. The paper's design gets the paper's
+sections (timing, preferences, prediction); any other design (``res.factors``) the general ones
+instead: the design table, ratings by condition, ANOVA and post-hoc comparisons by factor.
 """
 
 from __future__ import annotations
@@ -22,6 +24,10 @@ from analysis.sections import (
     data_notes,
     data_quality,
     decoy,
+    factor_anova,
+    factor_design_table,
+    factor_posthoc,
+    factor_ratings,
     fig7_arbitration,
     no_tests,
     paper_vs_reviewer,
@@ -35,8 +41,10 @@ from analysis.study_results import StudyResults
 
 SECTIONS = (
     data,
+    factor_design_table,
     condition_descriptives,
     condition_ratings,
+    factor_ratings,
     data_quality,
     no_tests,
     fig7_arbitration,
@@ -45,6 +53,8 @@ SECTIONS = (
     contact_counts,
     paper_vs_reviewer,
     timing_tests,
+    factor_anova,
+    factor_posthoc,
     preference_tests,
     prediction_tests,
     appendix,
