@@ -18,6 +18,9 @@ One headless Chromium (Debian's) is connected to the participant view of a runni
 
 ``--no-browser`` skips the browser (and the single-session figures that need it) and measures
 the four sessions alone, which separates the server's own load from Chromium's software WebGL.
+``--sessions N`` measures N sessions alone the same way; ``--find`` starts at ``--sessions``
+and adds 2 (a fresh server each time) until the sessions no longer hold (each within 2 % of
+100 Hz and sample commits at most 250 ms apart), and prints the largest number that held.
 
 ``--scenario storm`` and ``--scenario tabs`` measure the participant port's promise instead:
 the control loop holds >= 95 Hz in every 0.25-s window and sample commits stay <= 250 ms apart
@@ -135,13 +138,14 @@ def start_trial(live, page=None) -> None:
         raise RuntimeError("the trial did not start")
 
 
-def four_sessions(srv, running: list, *, seconds: float, wait) -> dict:
-    """Start sessions until four run trials at once, feed each gizmo poses, and measure their
+def many_sessions(srv, running: list, *, n: int = 4, seconds: float, wait) -> dict:
+    """Start sessions until ``n`` run trials at once, feed each gizmo poses, and measure their
     control rates and sample-commit gaps over ``seconds``; ``wait(s)`` sleeps (through
-    Playwright when a browser is attached, so its events keep flowing)."""
+    Playwright when a browser is attached, so its events keep flowing). ``holds``: every
+    session within 2 % of its rate and no sample commit more than 250 ms after the last."""
     others = []
-    for k in range(4 - len(running)):
-        c = srv.enrol(f"B0{k + 2 + len(running)}")
+    for k in range(n - len(running)):
+        c = srv.enrol(f"B{k + 2 + len(running):02d}")
         srv.act(c, "start")
         others.append(srv.session(c))
     for other in others:
@@ -163,16 +167,18 @@ def four_sessions(srv, running: list, *, seconds: float, wait) -> dict:
         f.join()
     gaps = batch_gaps(lives, t0, t1)
     commit_ms = np.array([c for s in lives for c in s.session.sample_stats.commit_s]) * 1e3
+    error_pct = max(100 * abs(r - rate) / rate for r in rates)
     print(
-        f"4 sessions: control {', '.join(f'{r:.2f}' for r in rates)} Hz;"
+        f"{n} sessions: control {', '.join(f'{r:.2f}' for r in rates)} Hz;"
         f" sample batches max gap {gaps['max']:.0f} ms, p99 {gaps['p99']:.0f} ms,"
         f" median {gaps['median']:.0f} ms, {gaps['over_250']} of {gaps['n']} over 250 ms;"
         f" commit median {np.median(commit_ms):.1f} ms, max {commit_ms.max():.1f} ms"
     )
     return {
-        "sessions": 4,
+        "sessions": n,
+        "holds": bool(error_pct <= 2.0 and gaps["max"] <= 250.0),
         "sessions_control_hz": [round(r, 2) for r in rates],
-        "sessions_control_error_pct_max": round(max(100 * abs(r - rate) / rate for r in rates), 2),
+        "sessions_control_error_pct_max": round(error_pct, 2),
         "batch_gap_ms": gaps,
         "commit_ms": {
             "median": round(float(np.median(commit_ms)), 2),
@@ -299,11 +305,46 @@ def port_scenario(args: argparse.Namespace) -> dict:
     return result
 
 
+def sessions_alone(n: int, *, seconds: float) -> dict:
+    """``n`` sessions on one fresh server, no browser (:func:`many_sessions`)."""
+    rs = start_server(tempfile.mkdtemp(prefix="bench-server-"), time_limit_s=600.0, training_runs=1)
+    try:
+        return many_sessions(rs.server, [], n=n, seconds=seconds, wait=time.sleep)
+    finally:
+        rs.stop()
+
+
+def find_sessions(args: argparse.Namespace) -> dict:
+    """From ``--sessions`` up by 2, a fresh server each time, until one does not hold; the
+    largest number that held, and every run's figures."""
+    runs = []
+    n = args.sessions
+    while True:
+        run = sessions_alone(n, seconds=args.seconds)
+        runs.append(run)
+        if not run["holds"] or n >= 64:
+            break
+        n += 2
+    held = [r["sessions"] for r in runs if r["holds"]]
+    largest = max(held, default=0)
+    print(f"largest number of sessions that held: {largest} ({os.cpu_count()} CPUs)")
+    return {"largest_holding": largest, "cpus": os.cpu_count(), "runs": runs}
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=10.0, help="measurement window")
+    parser.add_argument("--no-browser", action="store_true", help="sessions without a browser only")
     parser.add_argument(
-        "--no-browser", action="store_true", help="four sessions without a browser only"
+        "--sessions",
+        type=int,
+        default=4,
+        help="sessions at once (default 4; implies --no-browser unless 4)",
+    )
+    parser.add_argument(
+        "--find",
+        action="store_true",
+        help="without a browser: from --sessions up by 2, the largest number that holds",
     )
     parser.add_argument("--scenario", choices=("storm", "tabs"), help="the port's promise")
     parser.add_argument("--code", help="another checkout to measure (e.g. main's)")
@@ -327,17 +368,16 @@ def main() -> int:
         print(json.dumps(port_scenario(args)))
         return 0
 
+    if args.find:
+        print(json.dumps(find_sessions(args)))
+        return 0
+    if args.no_browser or args.sessions != 4:
+        print(json.dumps(sessions_alone(args.sessions, seconds=args.seconds)))
+        return 0
     tmp = tempfile.mkdtemp(prefix="bench-server-")
     rs = start_server(tmp, time_limit_s=600.0, training_runs=1)
     srv = rs.server
     result: dict = {}
-    if args.no_browser:
-        try:
-            result = four_sessions(srv, [], seconds=args.seconds, wait=time.sleep)
-        finally:
-            rs.stop()
-        print(json.dumps(result))
-        return 0
     try:
         code = srv.enrol("B01")
         srv.act(code, "start")
@@ -401,7 +441,7 @@ def main() -> int:
             )
 
             result.update(
-                four_sessions(
+                many_sessions(
                     srv, [live], seconds=args.seconds, wait=lambda s: page.wait_for_timeout(s * 1e3)
                 )
             )

@@ -9,13 +9,15 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from analysis import load_tables
+from analysis.report import write_report
 from study.export import tidy_tables
 from study.simulated import simulate
 
 PROTOCOLS = Path(__file__).resolve().parents[1] / "protocols"
 
 
-def _trials(tmp_path_factory: pytest.TempPathFactory, name: str, participants: int) -> pd.DataFrame:
+def _store(tmp_path_factory: pytest.TempPathFactory, name: str, participants: int) -> Path:
     db = tmp_path_factory.mktemp(name) / "sim.db"
     report = simulate(
         protocol_path=PROTOCOLS / f"{name}.toml",
@@ -25,7 +27,11 @@ def _trials(tmp_path_factory: pytest.TempPathFactory, name: str, participants: i
         progress=False,
     )
     assert report.errors == [] and report.error is None
-    return tidy_tables(db)["trials"]
+    return db
+
+
+def _trials(tmp_path_factory: pytest.TempPathFactory, name: str, participants: int) -> pd.DataFrame:
+    return tidy_tables(_store(tmp_path_factory, name, participants))["trials"]
 
 
 def test_intent_mode_crosses_the_cue_with_the_modes_in_every_task(
@@ -54,15 +60,24 @@ def test_mapping_mode_gives_each_participant_one_mapping_for_all_their_runs(
     assert (trials[trials["phase"] == "task"]["status"] == "completed").all()
 
 
-def test_goals_mode_runs_two_and_four_object_scenes_in_a_williams_order(
+def test_goals_mode_runs_two_and_four_object_scenes_in_a_williams_order_and_is_reported(
     tmp_path_factory: pytest.TempPathFactory,
 ) -> None:
-    trials = _trials(tmp_path_factory, "goals_mode", 2)
+    db = _store(tmp_path_factory, "goals_mode", 3)  # 3: the fewest the report tests
+    trials = tidy_tables(db)["trials"]
     tasks = trials[trials["phase"] == "task"]
     assert "difficulty" not in trials.columns and "goals" in trials.columns
     goals = tasks.set_index("goals")["goal_names"].map(lambda s: len(json.loads(s)))
     assert set(goals.loc["goals2"]) == {2} and set(goals.loc["goals4"]) == {4}
-    # the two participants take different rows of the square: different first conditions
+    # the participants take different rows of the square: different first conditions
     first = tasks[tasks["position"] == 1][["goals", "mode"]].apply(tuple, axis=1)
-    assert first.nunique() == 2
+    assert first.nunique() == 3
     assert (tasks["status"] == "completed").all()
+    # reported by its own factors, not the paper's
+    out = tmp_path_factory.mktemp("goals_report")
+    write_report(load_tables(db=db), out)
+    report = (out / "report.md").read_text()
+    assert "## ANOVA by factor" in report and "## Post-hoc comparisons by factor" in report
+    assert "| goals | within subjects | goals2, goals4 |" in report
+    assert "| goals:mode | goals:mode x subjects |" in report
+    assert "| difficulty |" not in report and "easy" not in report
