@@ -59,10 +59,11 @@ def _stats(values: pd.Series) -> dict[str, float]:
 
 
 def condition_descriptives(
-    tables: StudyTables, *, modes: Sequence[str] | None = None
+    tables: StudyTables, *, modes: Sequence[str] | None = None, split: Sequence[str] = ()
 ) -> pd.DataFrame:
     """One row per condition (practice first, then task by task in ``modes``' order):
-    ``task``, ``mode``, ``participants``, ``runs``, ``successes``, ``success_rate``,
+    ``task``, ``mode``, each factor of ``split`` (other factors the protocol declares: a
+    condition is a task, a mode and a level of each), ``participants``, ``runs``, ``successes``, ``success_rate``,
     ``time_ok_{n,mean,sd,median}`` (successful runs), ``time_all_{mean,sd,median}`` (all
     completed runs), ``knocks``, ``knocks_per_run``, ``timeouts`` and ``other_failures`` (the
     failed runs that did not time out, as ``{outcome: runs}``)."""
@@ -85,14 +86,17 @@ def condition_descriptives(
         m for m in present if m not in (modes or ())
     ]
     rank = {m: i for i, m in enumerate(order)}
+    split = [f for f in split if f in done.columns]
     rows = []
-    for (task, mode), g in done.groupby(["task", "mode"], sort=False):
+    for key, g in done.groupby(["task", "mode", *split], sort=False, dropna=False):
+        task, mode, *levels = key
         ok, every = _stats(g.loc[g["ok"], "duration_s"]), _stats(g["duration_s"])
         failed = g.loc[~g["ok"], "outcome_"]
         rows.append(
             {
                 "task": task,
                 "mode": mode,
+                **{f: "" if pd.isna(v) else v for f, v in zip(split, levels, strict=True)},
                 "participants": g["participant"].nunique(),
                 "runs": len(g),
                 "successes": int(g["ok"].sum()),
@@ -113,7 +117,8 @@ def condition_descriptives(
     out = pd.DataFrame(rows)
     out["_practice"] = out["task"] != PRACTICE
     out["_mode"] = out["mode"].map(rank).fillna(-1)
-    out = out.sort_values(["_practice", "task", "_mode"]).drop(columns=["_practice", "_mode"])
+    out = out.sort_values(["_practice", "task", "_mode", *split], kind="stable")
+    out = out.drop(columns=["_practice", "_mode"])
     return out.reset_index(drop=True)
 
 
@@ -122,10 +127,13 @@ def show(x: float, digits: int = 1) -> str:
     return MISSING if x is None or pd.isna(x) else fmt(x, digits)
 
 
-def descriptive_section(tables: StudyTables, *, modes: Sequence[str] | None = None) -> Section:
-    """The report's descriptives by condition (module docstring)."""
+def descriptive_section(
+    tables: StudyTables, *, modes: Sequence[str] | None = None, split: Sequence[str] = ()
+) -> Section:
+    """The report's descriptives by condition (module docstring); ``split``: the protocol's
+    factors besides task and mode, a column each."""
     sec = Section("Descriptives by condition")
-    d = condition_descriptives(tables, modes=modes)
+    d = condition_descriptives(tables, modes=modes, split=split)
     if d.empty:
         sec.paragraphs.append("No completed runs yet: nothing to describe.")
         return sec
@@ -141,6 +149,7 @@ def descriptive_section(tables: StudyTables, *, modes: Sequence[str] | None = No
         {
             "task": d["task"],
             "mode": d["mode"],
+            **{f: d[f] for f in split if f in d.columns},
             "n (participants)": d["participants"],
             "runs": d["runs"],
             "success": [f"{r.successes}/{r.runs} ({r.success_rate:.0%})" for r in d.itertuples()],
