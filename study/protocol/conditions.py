@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import difflib
 import itertools
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
@@ -33,6 +33,8 @@ from study.protocol.protocol import TRAINING_MODE
 
 Source = tuple[str, Mapping[str, Any]]
 """Where settings come from (a key path such as ``factors.goals.levels.four``) and what it sets."""
+NameCheck = Callable[..., None]
+"""Checks a name (the name, its key path, ``what=`` it names); raises a ``ProtocolError``."""
 
 
 def merge(sources: Iterable[Source], *, file: str) -> dict[str, tuple[str, Any]]:
@@ -61,7 +63,7 @@ class Conditions:
     factors: tuple[Factor, ...]
     scenes: Mapping[str, Any]
     control: Control
-    check_name: Any
+    check_name: NameCheck
 
     @property
     def file(self) -> str:
