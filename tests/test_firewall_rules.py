@@ -125,6 +125,22 @@ def test_refusals_are_counted_and_logged_once_per_reason(caplog) -> None:
     assert len([r for r in caplog.records if "refused" in r.getMessage()]) == 1
 
 
+def test_a_client_cannot_make_a_log_line_per_size_or_per_type_name(caplog) -> None:
+    """Refusals are counted and logged by kind: a client choosing a new size or a new type
+    name for each message still gets one line per kind (issue 22's log growth)."""
+    fw = Firewall()
+    names = [f"Made{k}UpMessage" for k in range(150)]
+    names += ["RunJavascriptMessage", "FileTransferStartUpload"]
+    for name in names:
+        fw.refuse(fw.screen(msgspec.msgpack.encode({"type": name})) or "")
+    for size in range(17_000, 17_200):
+        fw.refuse(fw.screen(b"x" * size) or "")
+    lines = [r.getMessage() for r in caplog.records if "refused" in r.getMessage()]
+    assert len(lines) == 2, lines
+    assert fw.dropped["an unknown type is not accepted here"] == 150  # counted by type
+    assert fw.dropped["RunJavascriptMessage is not accepted here"] == 1
+
+
 def _resolve(dotted: str) -> object:
     """The object a dotted name of :data:`viser_door.PRIVATE_REACHES` names (module, then
     attributes), or the class attribute for an instance attribute a class declares."""

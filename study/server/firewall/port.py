@@ -14,8 +14,10 @@
   closed.
 
 The limits are one :class:`~study.server.firewall.port_config.FirewallConfig`. A refused
-message is counted under a fixed reason (never a name the client chose) and logged as a
-one-line summary at most once per reason every ``log_every_s`` seconds; one refused from a
+message is counted under its reason (a message type viser knows, or "an unknown type": never a
+name the client chose) and logged as a one-line summary at most once per kind of reason every
+``log_every_s`` seconds (:func:`~study.server.firewall.rules.reason_kind`: sizes and type names
+left out, so a client cannot make a line per size or per type); one refused from a
 bound tab is reported to ``on_bound_drop`` (the session records it). A connection closed for
 what it sent (:class:`ConnectionFlood`) closes with a policy code and no traceback.
 """
@@ -319,11 +321,12 @@ class Firewall:
         )
 
     def refuse(self, reason: str) -> Dropped:
-        key = reason.split(":")[0].split(" (")[0]
+        key = reason.split(":")[0].split(" (")[0]  # counted by type (a bounded set)...
+        kind = rules.reason_kind(reason)  # ...and logged by kind, whatever sizes or names
         with self._lock:
             self.dropped[key] += 1
             count = self.dropped[key]
-        if self.notes.due(key):
+        if self.notes.due(kind):
             LOGGER.warning("refused an incoming message: %s (%d refused so far)", reason, count)
         if self.on_drop is not None:
             self._report(self.on_drop, reason)

@@ -174,6 +174,21 @@ def check_values(
         check(body, max_position_m=max_position_m, max_text=max_text)
 
 
+def reason_kind(reason: str) -> str:
+    """The kind of a refusal, without what the client chose (a size, a message type it made
+    up): the key its count and its log line go by, so that a client cannot make one log line
+    per size or per type name. A value check's kind keeps the type, one of a few."""
+    if reason.startswith("message of "):
+        return "oversize message"
+    if reason.startswith("undecodable message"):
+        return "undecodable message"
+    if reason.endswith(" is not accepted here"):
+        return "a type not accepted here"
+    if "(share links are off" in reason:
+        return "share link (off)"
+    return reason.split(":")[0].split(" (")[0]
+
+
 def screen(
     raw: bytes,
     *,
