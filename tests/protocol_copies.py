@@ -12,8 +12,16 @@ STUDY_PROTOCOLS = (
     PROTOCOLS / "memory3.toml",
     PROTOCOLS / "adaptive.toml",
     PROTOCOLS / "intent.toml",
+    PROTOCOLS / "intent_mode.toml",
+    PROTOCOLS / "mapping_mode.toml",
+    PROTOCOLS / "goals_mode.toml",
 )
 """Every shipped study protocol (protocols/population.toml describes simulated people)."""
+PAGE_BLINDED_PROTOCOLS = tuple(p for p in STUDY_PROTOCOLS if p.stem != "goals_mode")
+"""The protocols a real browser is walked through for blinding (tests/browser/test_blinding.py):
+all but goals_mode, whose page is the paper's with two more objects and whose words
+(goals2, goals4) the unit tests check against every text; each costs 15-20 s of the browser
+lane."""
 
 
 def short_protocol(

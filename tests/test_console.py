@@ -50,6 +50,8 @@ def test_an_interrupted_session_is_reopened_from_the_console(tmp_path: Path) -> 
         assert live.session.phase() == "waiting"  # the experimenter starts it again
         again.act(new_code, "start")
         assert live.session.phase() == "ready"
+        # the session clock is read from what the start wrote (another thread under load)
+        assert wait_until(lambda: again.summaries()[0].elapsed_s is not None, timeout=5)
         detail = again.detail(new_code)
         assert detail is not None and detail.summary.elapsed_s is not None
         assert "run 1: practice, unassisted -> interrupted" in " ".join(

@@ -21,7 +21,7 @@ from study.server.blinding_guard import iter_strings
 from study.server.viser_vocabulary import FIELD_VALUES
 from tests.browser.harness import FrameLog, start_server, wait_until
 from tests.browser.page import connect_page, join, without_client_warning
-from tests.protocol_copies import STUDY_PROTOCOLS
+from tests.protocol_copies import PAGE_BLINDED_PROTOCOLS
 
 pytestmark = pytest.mark.browser
 
@@ -50,7 +50,7 @@ def _run_once(page: Any, seen: list[str]) -> None:
     _answer_items(page)
 
 
-@pytest.mark.parametrize("source", STUDY_PROTOCOLS, ids=lambda p: p.stem)
+@pytest.mark.parametrize("source", PAGE_BLINDED_PROTOCOLS, ids=lambda p: p.stem)
 def test_no_frame_names_a_condition_of_the_served_protocol(
     tmp_path: Path, context: Any, source: Path
 ) -> None:
