@@ -158,10 +158,10 @@ class Trial:
         held = self.task.held
         return TrialObservation(
             t=self.t,
-            q=self._q.copy(),
-            ee=self._ee.copy(),
+            q=self._q,  # fresh arrays each tick, never written to: shared, not copied
+            ee=self._ee,
             gripper_closed=self.task.gripper_closed,
-            user_target=self.user_target.copy(),
+            user_target=self.user_target,
             reach=self.scene.reach,
             goal_names=self.scene.goals.names,
             goal_positions=self.blender.goals.positions,
