@@ -5,7 +5,8 @@ pass at ``Q`` (``Kinematics.pose_and_jacobian`` keeps its last pass); the policy
 tests toward the same xy share their overlap spans; the blender works out the agreement of
 ``P - Q`` and ``U - Q`` only when it is read. References: each step on its own kinematics (no
 shared pass), a policy whose every test works out its own spans, the IK step's formula written
-out with ``numpy.linalg``, the agreement's cosine with numpy. Compared on every tick of headless trials (recorded ticks) and on
+out with ``numpy.linalg``, the agreement's cosine with numpy. Amnesic prediction from 3-D
+points in scalars equals the metric and softmax it stands for. Compared on every tick of headless trials (recorded ticks) and on
 random configurations.
 """
 
@@ -19,6 +20,8 @@ import pinocchio as pin
 import pytest
 
 from app.blending import GraspApproachPolicy, policy_from_config
+from app.blending.prediction.amnesic import AmnesicPredictor, euclidean
+from app.blending.prediction.base import softmax
 from app.robot.kinematics import Kinematics
 from app.teleop import ScriptedInput
 from app.teleop.ik_step import IKStep
@@ -144,3 +147,22 @@ def test_every_tick_u_p_and_agreement_equal_the_reference(
     while not trial.done:
         trial.tick()
     assert min(checked.values()) > 100, checked
+
+
+def test_amnesic_prediction_in_scalars_equals_the_metrics_softmin() -> None:
+    """The 3-D Euclidean fast path gives the very numbers of ``euclidean`` and ``softmax``."""
+    rng = np.random.default_rng(3)
+    for _ in range(3000):
+        points = rng.normal(size=(int(rng.integers(1, 6)), 3)) * rng.uniform(0.01, 5.0)
+        x = rng.normal(size=3) * rng.uniform(0.01, 5.0)
+        predictor = AmnesicPredictor(points, temperature=rng.uniform(0.01, 1.0))
+        got = predictor.update(x)
+        logits = euclidean(x, predictor.points)
+        logits *= -1.0 / predictor.temperature
+        want = softmax(logits)
+        assert got.index == want.index
+        assert got.probabilities.tolist() == want.probabilities.tolist()
+    predictor.points = points[::-1].copy()  # set directly: the fast path's copy is stale
+    logits = euclidean(x, predictor.points)
+    logits *= -1.0 / predictor.temperature
+    assert predictor.update(x).probabilities.tolist() == softmax(logits).probabilities.tolist()
