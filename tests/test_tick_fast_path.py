@@ -77,8 +77,8 @@ def _reference_agreement(p: np.ndarray, q: np.ndarray, u: np.ndarray) -> float:
     return float(np.clip(pv @ uv / nn, -1.0, 1.0)) if nn > 0.0 else 0.0
 
 
-def test_a_kept_kinematics_pass_is_the_pass_at_that_configuration() -> None:
-    config = trial_config_from_protocol("protocols/dragan2013.toml", "easy-right", "aggressive")
+def test_a_kept_kinematics_pass_is_the_pass_at_that_configuration(protocol_path: Any) -> None:
+    config = trial_config_from_protocol(protocol_path, "easy-right", "aggressive")
     kin = Trial(config, ScriptedInput(seed=0)).kinematics
     rng = np.random.default_rng(7)
     qs = [rng.uniform(kin.lower, kin.upper) for _ in range(40)]
