@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from operator import mul, sub
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
@@ -42,8 +42,8 @@ def blend(u: np.ndarray, p: np.ndarray, alpha: float) -> np.ndarray:
     return out
 
 
-class BlendRecord(NamedTuple):
-    """One tick, for the robot and for logging.
+class BlendRecord:
+    """One tick, for the robot and for logging (read its fields, never write them).
 
     command: ``(1 - alpha) U + alpha P``; P: the policy's next configuration; alpha;
     confidence; distance: ``d`` from ``x`` to the predicted goal (predictor space);
@@ -55,18 +55,68 @@ class BlendRecord(NamedTuple):
     and the robot's heading (from the robot to G*, predictor space), 0 before they have moved:
     Fig. 15's "dot product between the robot's policy and the user's motion", which, unlike
     ``agreement``, stays positive when an assisting robot merely runs ahead of the user.
+
+    ``agreement`` is worked out when first read, from ``Q`` and ``U`` as lists (``qu``), unless
+    given: the study's tick does not read it (a :class:`StatefulArbitration` does, and gets it).
     """
 
-    command: np.ndarray
-    P: np.ndarray
-    alpha: float
-    confidence: float
-    distance: float
-    probabilities: np.ndarray
-    predicted: int
-    agreement: float
-    rationality: float = math.nan
-    motion_agreement: float = 0.0
+    __slots__ = (
+        "P",
+        "_agreement",
+        "_qu",
+        "alpha",
+        "command",
+        "confidence",
+        "distance",
+        "motion_agreement",
+        "predicted",
+        "probabilities",
+        "rationality",
+    )
+
+    def __init__(
+        self,
+        command: np.ndarray,
+        P: np.ndarray,
+        alpha: float,
+        confidence: float,
+        distance: float,
+        probabilities: np.ndarray,
+        predicted: int,
+        agreement: float | None = None,
+        rationality: float = math.nan,
+        motion_agreement: float = 0.0,
+        *,
+        qu: tuple[list[float], list[float]] | None = None,
+    ) -> None:
+        if agreement is None and qu is None:
+            raise InvalidInputError("BlendRecord: give agreement, or Q and U (qu) to work it out")
+        self.command = command
+        self.P = P
+        self.alpha = alpha
+        self.confidence = confidence
+        self.distance = distance
+        self.probabilities = probabilities
+        self.predicted = predicted
+        self.rationality = rationality
+        self.motion_agreement = motion_agreement
+        self._agreement = agreement
+        self._qu = qu
+
+    @property
+    def agreement(self) -> float:
+        """Cosine of ``P - Q`` and ``U - Q`` (0 when either is zero), clipped to [-1, 1]."""
+        if self._agreement is None:
+            qs, us = self._qu  # type: ignore[misc]
+            self._agreement = _agreement(np.asarray(self.P, dtype=np.float64).tolist(), qs, us)
+        return self._agreement
+
+    def __repr__(self) -> str:
+        return (
+            f"BlendRecord(alpha={self.alpha!r}, confidence={self.confidence!r},"
+            f" predicted={self.predicted!r}, agreement={self.agreement!r},"
+            f" command={self.command!r}, P={self.P!r})"
+        )
 
 
 class PolicyBlender:
@@ -253,9 +303,11 @@ class PolicyBlender:
         if not 0.0 <= c <= 1.0:
             raise BlendingError(f"confidence: returned {c!r}, outside [0, 1]")
         p = self.policy.step(q, self._targets[i])
-        agreement = _agreement(p, qs, us, dof)
+        ps = _checked_policy(p, dof)
         arb = self.arbitration
+        agreement = None  # worked out when read (BlendRecord.agreement), unless needed now
         if isinstance(arb, StatefulArbitration):
+            agreement = _agreement(ps, qs, us)
             alpha = float(arb.update(TickSignals(c, agreement, motion, i, b)))
         else:
             alpha = float(arb(c))
@@ -265,7 +317,9 @@ class PolicyBlender:
         if alpha != 0.0:  # alpha = 0 (no assistance yet): the command is U itself
             cmd += alpha * p
         probs = pred.probabilities.copy()
-        return BlendRecord(cmd, p, alpha, c, distance, probs, i, agreement, float(b[i]), motion)
+        return BlendRecord(
+            cmd, p, alpha, c, distance, probs, i, agreement, float(b[i]), motion, qu=(qs, us)
+        )
 
     def _dof(self, q: np.ndarray, u: np.ndarray) -> int:
         """The robot's degrees of freedom (from the first ``Q`` seen), ``Q`` and ``U`` checked
@@ -290,18 +344,24 @@ class PolicyBlender:
         return float(d.dot(heading)) / n if n > 0.0 else 0.0
 
 
-def _agreement(p: Any, qs: list[float], us: list[float], dof: int) -> float:
-    """Cosine of ``P - Q`` and ``U - Q`` (0 when either is zero), after checking that the
-    policy's ``P`` has ``dof`` finite values."""
-    ps = np.asarray(p, dtype=np.float64).tolist()
-    if len(ps) != dof:
-        raise BlendingError(f"policy: returned P of {len(ps)} values, the robot has {dof}")
+def _checked_policy(p: Any, dof: int) -> list[float]:
+    """The policy's ``P`` as a list, after checking that it has ``dof`` finite values."""
+    pa = np.asarray(p, dtype=np.float64)
+    if pa.ndim != 1 or pa.shape[0] != dof:
+        raise BlendingError(f"policy: returned P of {pa.size} values, the robot has {dof}")
+    ps = pa.tolist()
+    # a sum of finite values may still overflow: only then the exact test runs
+    if not math.isfinite(sum(ps)) and not np.isfinite(pa).all():
+        raise BlendingError(f"policy: returned a non-finite P {p!r}")
+    return ps
+
+
+def _agreement(ps: list[float], qs: list[float], us: list[float]) -> float:
+    """Cosine of ``P - Q`` and ``U - Q`` (0 when either is zero), clipped to [-1, 1]."""
     # the velocities P - Q and U - Q in scalars (seven numbers: cheaper than arrays)
     pv = list(map(sub, ps, qs))
     uv = list(map(sub, us, qs))
     pp = sum(map(mul, pv, pv))
-    if not math.isfinite(pp) and not np.isfinite(p).all():  # NaN/inf in P make pp so
-        raise BlendingError(f"policy: returned a non-finite P {p!r}")
     nn = math.sqrt(pp * sum(map(mul, uv, uv)))
     agreement = sum(map(mul, pv, uv)) / nn if nn > 0.0 else 0.0
     return 1.0 if agreement > 1.0 else (-1.0 if agreement < -1.0 else agreement)

@@ -129,6 +129,8 @@ class ArmModel:
 _SQRT_HALF = math.sqrt(0.5)
 _Frame = tuple[float, float, float, float, tuple[tuple[float, float, float], ...]]
 """A hand layer in the world's xy plane (see ``GraspApproachPolicy._frames``)."""
+_Spans = dict[tuple[int, int], tuple[float, float] | None]
+"""Overlap spans of one sweep per (object, layer) (see ``GraspApproachPolicy._freedom``)."""
 
 
 class _Goal(NamedTuple):
@@ -335,12 +337,13 @@ class GraspApproachPolicy:
                 # the object in the open slot: the fingers slide along the slot plane to the
                 # axis (and on down), the hand clear of the other objects
                 if abs(ey) + abs(ex) * rot_err <= tol and abs(ex) <= goal.slot_reach:
-                    if self._freedom(xs, down, frames, skip=k) >= 1.0:
+                    spans: _Spans = {}  # toward down's xy: shared by the three tests
+                    if self._freedom(xs, down, frames, skip=k, spans=spans) >= 1.0:
                         return down, self.tcp_step, False
                     # another object's clearance floor is in the way: slide at that height
-                    floor = self._pass_height(xs, down, frames, skip=k)
+                    floor = self._pass_height(xs, down, frames, skip=k, spans=spans)
                     slide = (down[0], down[1], max(down[2], floor))
-                    f = self._freedom(xs, slide, frames, skip=k)
+                    f = self._freedom(xs, slide, frames, skip=k, spans=spans)
                     if f > 0.0:
                         return _toward(xs, slide, f), self.tcp_step, False
                 # the fingertips above the object's top, near it: over to the axis at this
@@ -356,12 +359,13 @@ class GraspApproachPolicy:
         if frames is None:
             frames = self._frames(q, rot)
         p = goal.p
-        f = self._freedom(xs, p, frames)
+        spans: _Spans = {}  # toward p's xy: shared by the three tests
+        f = self._freedom(xs, p, frames, spans=spans)
         if f > 0.0:
             return _toward(xs, p, f), self.tcp_step, True
-        zt = max(p[2], self._pass_height(xs, p, frames))
+        zt = max(p[2], self._pass_height(xs, p, frames, spans=spans))
         over = (p[0], p[1], zt)
-        f = 1.0 if xs[2] >= zt else self._freedom(xs, over, frames)
+        f = 1.0 if xs[2] >= zt else self._freedom(xs, over, frames, spans=spans)
         return _toward(xs, over, f), self.tcp_step, True
 
     # ---- clearance -----------------------------------------------------------------------
@@ -406,9 +410,11 @@ class GraspApproachPolicy:
         frames: list[_Frame],
         *,
         skip: int = -1,
+        spans: _Spans | None = None,
     ) -> float:
         """How much of the TCP segment ``a -> b`` the hand may take, clear of every object
-        but ``skip``: 1 all of it, 0 none.
+        but ``skip``: 1 all of it, 0 none. ``spans``: the sweep's overlaps already worked out
+        (and filled in), shared by the tests of segments from ``a`` to the same ``xy``.
 
         A layer already within an object's clearance zone at ``a`` (a user may hold the hand
         there) does not block a segment that takes it away from the object: beside the object,
@@ -426,11 +432,13 @@ class GraspApproachPolicy:
         for j, (cx, cy, radius, top) in enumerate(self._objects):
             if j == skip:
                 continue
-            for bottom, ox, oy, grow, dirs in frames:
+            for i, (bottom, ox, oy, grow, dirs) in enumerate(frames):
                 need = top - bottom  # the TCP height at which this layer clears the top
                 if low >= need:
                     continue
-                span = _overlap(cx - a[0] - ox, cy - a[1] - oy, mx, my, dirs, radius + grow)
+                span = _swept(
+                    spans, j, i, cx - a[0] - ox, cy - a[1] - oy, mx, my, dirs, radius + grow
+                )
                 if span is None:
                     continue
                 s0, s1 = span
@@ -456,20 +464,27 @@ class GraspApproachPolicy:
         return free
 
     def _pass_height(
-        self, a: Sequence[float], b: Sequence[float], frames: list[_Frame], *, skip: int = -1
+        self,
+        a: Sequence[float],
+        b: Sequence[float],
+        frames: list[_Frame],
+        *,
+        skip: int = -1,
+        spans: _Spans | None = None,
     ) -> float:
         """The lowest TCP height at which the hand passes from above ``a`` to above ``b``
-        clear of every object but ``skip`` (``-inf`` when nothing lies between)."""
+        clear of every object but ``skip`` (``-inf`` when nothing lies between); ``spans`` as
+        in ``_freedom``."""
         mx, my = b[0] - a[0], b[1] - a[1]
         height = -math.inf
         for j, (cx, cy, radius, top) in enumerate(self._objects):
             if j == skip:
                 continue
-            for bottom, ox, oy, grow, dirs in frames:
+            for i, (bottom, ox, oy, grow, dirs) in enumerate(frames):
                 need = top - bottom
                 if need <= height:
                     continue
-                if _overlap(cx - a[0] - ox, cy - a[1] - oy, mx, my, dirs, radius + grow):
+                if _swept(spans, j, i, cx - a[0] - ox, cy - a[1] - oy, mx, my, dirs, radius + grow):
                     height = need
         return height
 
@@ -485,6 +500,28 @@ def _toward(x: Sequence[float], c: Sequence[float], f: float) -> tuple[float, fl
     if f >= 1.0:
         return c[0], c[1], c[2]
     return x[0] + f * (c[0] - x[0]), x[1] + f * (c[1] - x[1]), c[2]
+
+
+def _swept(
+    spans: _Spans | None,
+    j: int,
+    i: int,
+    px: float,
+    py: float,
+    mx: float,
+    my: float,
+    dirs: tuple[tuple[float, float, float], ...],
+    rho: float,
+) -> tuple[float, float] | None:
+    """``_overlap`` of layer ``i`` and object ``j``, from ``spans`` when already worked out
+    there for this sweep (the same ``a`` and the same horizontal motion ``m``)."""
+    if spans is None:
+        return _overlap(px, py, mx, my, dirs, rho)
+    key = (j, i)
+    if key in spans:
+        return spans[key]
+    span = spans[key] = _overlap(px, py, mx, my, dirs, rho)
+    return span
 
 
 def _overlap(

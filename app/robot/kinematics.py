@@ -54,11 +54,14 @@ class Kinematics:
         self.joint_names = tuple(self.model.names[1:])
         self._urdf = urdf
         self._tcp = tcp_frame
+        self._pose_q = b""  # the configuration of the last pose_and_jacobian pass (bytes)
+        self._pose: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     def copy(self) -> Kinematics:
         other = object.__new__(Kinematics)
         other.__dict__.update(self.__dict__)
         other.data = self.model.createData()
+        other._pose_q, other._pose = b"", None
         return other
 
     @property
@@ -91,12 +94,23 @@ class Kinematics:
         )
 
     def pose_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position (3,), rotation (3, 3) and ``J(q)`` (6, 7) from one kinematics pass."""
+        """Position (3,), rotation (3, 3) and ``J(q)`` (6, 7) from one kinematics pass.
+
+        The last pass is kept: asked again at the same ``q`` (a control tick's IK step and its
+        policy both start from ``Q``), it returns the same arrays. They are shared: read them,
+        never write to them.
+        """
+        key = q.tobytes()
+        pose = self._pose
+        if key == self._pose_q and pose is not None:
+            return pose
         jac = pin.computeFrameJacobian(
             self.model, self.data, q, self.frame_id, pin.LOCAL_WORLD_ALIGNED
         )
         placement = self.data.oMf[self.frame_id]
-        return placement.translation.copy(), placement.rotation.copy(), jac
+        pose = self._pose = (placement.translation.copy(), placement.rotation.copy(), jac)
+        self._pose_q = key
+        return pose
 
     def ik(
         self,

@@ -262,8 +262,8 @@ class Simulation:
         return self._rest_xpos
 
     def object_positions(self) -> np.ndarray:
-        """Object centres (n, 3) in the order of the scene's objects."""
-        return self.data.xpos[self._object_bodies].copy()
+        """Object centres (n, 3) in the order of the scene's objects (a new array)."""
+        return self.data.xpos[self._object_bodies]  # indexing by an array copies
 
     def object_heights(self) -> np.ndarray:
         """How far each object's centre is above its rest height (n,), metres."""

@@ -16,8 +16,6 @@ from scipy.linalg.lapack import dposv
 
 from app.robot.kinematics import Kinematics, downward_rotation
 
-_WORLD_ALIGNED = pin.LOCAL_WORLD_ALIGNED
-
 GAIN_PER_S = 5.0
 """``k``: the TCP's speed toward its target is ``k`` times the distance (below ``max_speed``)."""
 
@@ -64,15 +62,15 @@ class IKStep:
         """Next configuration ``U`` (7,) moving the TCP from ``phi(q)`` toward ``target`` (3,)."""
         kin = self.kin
         dt = self.dt
-        jac = pin.computeFrameJacobian(kin.model, kin.data, q, kin.frame_id, _WORLD_ALIGNED)
-        placement = kin.data.oMf[kin.frame_id]  # computed by the Jacobian's kinematics pass
+        # one kinematics pass, shared with whatever asks at the same Q next (the tick's policy)
+        x, rotation_now, jac = kin.pose_and_jacobian(q)
         # the twist [v; w] (scaled by dt, so the solve yields dq directly) in scalars
-        ex, ey, ez = (target - placement.translation).tolist()
+        ex, ey, ez = (target - x).tolist()
         en = math.sqrt(ex * ex + ey * ey + ez * ez)
         limit = self.max_speed if max_speed is None else max_speed
         sv = (self.gain if self.gain * en <= limit else limit / en) * dt
         rot = self.rotation if rotation is None else rotation
-        rx, ry, rz = pin.log3(rot @ placement.rotation.T).tolist()
+        rx, ry, rz = pin.log3(rot.dot(rotation_now.T)).tolist()
         rn = math.sqrt(rx * rx + ry * ry + rz * rz)
         sw = self.rotation_gain
         if sw * rn > self.max_angular_speed:
@@ -84,13 +82,13 @@ class IKStep:
             # dq = J+ twist + (I - J+ J) z  =  z + J+ (twist - J z), z the posture velocity
             z = np.subtract(self.posture, q, out=self._z)
             z *= self.posture_gain * dt
-            twist -= jac @ z
-        jjt = jac @ jac.T
+            twist -= jac.dot(z)
+        jjt = jac.dot(jac.T)  # ndarray.dot: less call overhead than @ on these small arrays
         jjt += self._damp
         _, y, info = dposv(jjt, twist, overwrite_a=1)  # (J J^T + l^2 I) y = twist
         if info != 0:  # pragma: no cover - J J^T + l^2 I is positive definite
             return q.copy()
-        dq = jac.T @ y
+        dq = jac.T.dot(y)
         if z is not None:
             dq += z
         biggest = max(map(abs, dq.tolist()))

@@ -45,6 +45,7 @@ from app.trial.records import BlendTick, TickRecord, TrialResult
 from app.trial.tasks import LiftTask, Task
 
 FAR_OUTSIDE_M = 0.5  # a raw target this far outside the reach region is logged as such
+_FLOAT = np.dtype(float)
 GOAL_MOVED_M = 0.005  # a goal follows its object once the object has moved this far from it
 
 
@@ -158,10 +159,10 @@ class Trial:
         held = self.task.held
         return TrialObservation(
             t=self.t,
-            q=self._q.copy(),
-            ee=self._ee.copy(),
+            q=self._q,  # fresh arrays each tick, never written to: shared, not copied
+            ee=self._ee,
             gripper_closed=self.task.gripper_closed,
-            user_target=self.user_target.copy(),
+            user_target=self.user_target,
             reach=self.scene.reach,
             goal_names=self.scene.goals.names,
             goal_positions=self.blender.goals.positions,
@@ -316,10 +317,13 @@ class Trial:
     def _clamped(self, value: object) -> tuple[np.ndarray | None, float]:
         """``value`` clamped to the reach box and how far outside it was; ``None`` if it is not
         three finite numbers."""
-        try:
-            raw = np.asarray(value, dtype=float).reshape(-1).tolist()
-        except (TypeError, ValueError):
-            raw = []
+        if type(value) is np.ndarray and value.dtype == _FLOAT and value.ndim == 1:
+            raw = value.tolist()  # the usual input: no conversion needed
+        else:
+            try:
+                raw = np.asarray(value, dtype=float).reshape(-1).tolist()
+            except (TypeError, ValueError):
+                raw = []
         if len(raw) != 3 or not math.isfinite(raw[0] + raw[1] + raw[2]):
             return None, 0.0
         # clamp to the reach box in scalars (three numbers: cheaper than array operations)

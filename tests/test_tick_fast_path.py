@@ -1,0 +1,168 @@
+"""The control tick's fast paths give what the reference computations give, tick by tick.
+
+Fast paths (issue 24): the IK step (``U``) and the grasp policy (``P``) share one kinematics
+pass at ``Q`` (``Kinematics.pose_and_jacobian`` keeps its last pass); the policy's clearance
+tests toward the same xy share their overlap spans; the blender works out the agreement of
+``P - Q`` and ``U - Q`` only when it is read. References: each step on its own kinematics (no
+shared pass), a policy whose every test works out its own spans, the IK step's formula written
+out with ``numpy.linalg``, the agreement's cosine with numpy. Amnesic prediction from 3-D
+points in scalars equals the metric and softmax it stands for. Compared on every tick of headless trials (recorded ticks) and on
+random configurations.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from app.blending import GraspApproachPolicy, policy_from_config
+from app.blending.prediction.amnesic import AmnesicPredictor, euclidean
+from app.blending.prediction.base import softmax
+from app.robot.kinematics import Kinematics
+from app.teleop import ScriptedInput
+from app.teleop.ik_step import IKStep
+from app.trial import Trial
+from study.protocol import trial_config_from_protocol
+
+
+def _fresh_pass(kin: Kinematics, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position, rotation and Jacobian from a pinocchio pass of its own (nothing kept)."""
+    data = kin.model.createData()
+    jac = pin.computeFrameJacobian(kin.model, data, q, kin.frame_id, pin.LOCAL_WORLD_ALIGNED)
+    placement = data.oMf[kin.frame_id]
+    return placement.translation.copy(), placement.rotation.copy(), jac
+
+
+def _reference_u(ik: IKStep, q: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """``U`` by the IK step's docstring: ``U = clip(Q + dq)``, ``dq = dt J^+ [v; w] +
+    dt (I - J^+ J) k_n (q_rest - Q)``, ``J^+ = J^T (J J^T + l^2 I)^-1``, joints capped."""
+    x, rot, jac = _fresh_pass(ik.kin, q)
+    e = target - x
+    v = ik.gain * e
+    speed = np.linalg.norm(v)
+    if speed > ik.max_speed:
+        v *= ik.max_speed / speed
+    w = ik.rotation_gain * pin.log3(ik.rotation @ rot.T)
+    turn = np.linalg.norm(w)
+    if turn > ik.max_angular_speed:
+        w *= ik.max_angular_speed / turn
+    pinv = jac.T @ np.linalg.inv(jac @ jac.T + ik._damp)
+    z = ik.posture_gain * (ik.posture - q)
+    dq = ik.dt * (pinv @ np.concatenate([v, w]) + (np.eye(len(q)) - pinv @ jac) @ z)
+    biggest = np.abs(dq).max()
+    if biggest > ik.max_joint_step:
+        dq *= ik.max_joint_step / biggest
+    return np.clip(q + dq, ik.kin.lower, ik.kin.upper)
+
+
+class _UnsharedSpans(GraspApproachPolicy):
+    """The grasp policy with every clearance test working out its own overlap spans."""
+
+    def _freedom(self, a: Any, b: Any, frames: Any, *, skip: int = -1, spans: Any = None) -> float:
+        return super()._freedom(a, b, frames, skip=skip)
+
+    def _pass_height(
+        self, a: Any, b: Any, frames: Any, *, skip: int = -1, spans: Any = None
+    ) -> float:
+        return super()._pass_height(a, b, frames, skip=skip)
+
+
+def _reference_agreement(p: np.ndarray, q: np.ndarray, u: np.ndarray) -> float:
+    pv, uv = p - q, u - q
+    nn = np.linalg.norm(pv) * np.linalg.norm(uv)
+    return float(np.clip(pv @ uv / nn, -1.0, 1.0)) if nn > 0.0 else 0.0
+
+
+def test_a_kept_kinematics_pass_is_the_pass_at_that_configuration(protocol_path: Any) -> None:
+    config = trial_config_from_protocol(protocol_path, "easy-right", "aggressive")
+    kin = Trial(config, ScriptedInput(seed=0)).kinematics
+    rng = np.random.default_rng(7)
+    qs = [rng.uniform(kin.lower, kin.upper) for _ in range(40)]
+    for i, q in enumerate(qs):
+        for again in (q, q.copy(), qs[i - 1], q):  # kept, then another q, then back
+            got = kin.pose_and_jacobian(again)
+            for a, b in zip(got, _fresh_pass(kin, again), strict=True):
+                assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize(
+    ("task", "mode", "seed"),
+    [("easy-right", "aggressive", 0), ("hard-wrong", "timid", 1), ("easy-wrong", "none", 2)],
+)
+def test_every_tick_u_p_and_agreement_equal_the_reference(
+    protocol_path: Any, task: str, mode: str, seed: int
+) -> None:
+    config = dataclasses.replace(
+        trial_config_from_protocol(protocol_path, task, mode), time_limit_s=12.0
+    )
+    trial = Trial(config, ScriptedInput(seed=seed), seed=seed)
+    own_ik = IKStep(trial.kinematics.copy(), rate_hz=config.rate_hz, posture=trial.scene.start_q)
+    policy = trial.blender.policy
+    own_policy = policy_from_config(
+        dict(config.policy),
+        rate_hz=config.rate_hz,
+        where="policy",
+        arm=trial.scene.arm_model(trial.kinematics.copy()),
+    )
+    assert type(own_policy) is GraspApproachPolicy
+    own_policy.__class__ = _UnsharedSpans
+    own_policy.set_goals(trial.blender.goals)
+    checked = {"u": 0, "p": 0, "agreement": 0}
+
+    tick_ik, tick_policy, tick_blend = trial.ik, policy.step, trial.blender.step
+    set_goals = policy.set_goals
+
+    def ik(q: np.ndarray, target: np.ndarray) -> np.ndarray:
+        u = tick_ik(q, target)
+        assert np.array_equal(u, own_ik(q, target))  # the same step on its own pass
+        np.testing.assert_allclose(u, _reference_u(own_ik, q, target), rtol=0, atol=1e-12)
+        checked["u"] += 1
+        return u
+
+    def policy_step(q: np.ndarray, target: Any) -> np.ndarray:
+        p = tick_policy(q, target)
+        assert np.array_equal(p, own_policy.step(q, target))
+        checked["p"] += 1
+        return p
+
+    def blend_step(q: np.ndarray, u: np.ndarray, **kw: Any) -> Any:
+        rec = tick_blend(q, u, **kw)
+        want = _reference_agreement(np.asarray(rec.P), q, u)
+        assert rec.agreement == pytest.approx(want, abs=1e-12)
+        checked["agreement"] += 1
+        return rec
+
+    def goals_moved(goals: Any) -> None:
+        set_goals(goals)
+        own_policy.set_goals(goals)
+
+    trial.ik = ik  # type: ignore[method-assign]
+    policy.step = policy_step  # type: ignore[method-assign]
+    policy.set_goals = goals_moved  # type: ignore[method-assign]
+    trial.blender.step = blend_step  # type: ignore[method-assign]
+    while not trial.done:
+        trial.tick()
+    assert min(checked.values()) > 100, checked
+
+
+def test_amnesic_prediction_in_scalars_equals_the_metrics_softmin() -> None:
+    """The 3-D Euclidean fast path gives the very numbers of ``euclidean`` and ``softmax``."""
+    rng = np.random.default_rng(3)
+    for _ in range(3000):
+        points = rng.normal(size=(int(rng.integers(1, 6)), 3)) * rng.uniform(0.01, 5.0)
+        x = rng.normal(size=3) * rng.uniform(0.01, 5.0)
+        predictor = AmnesicPredictor(points, temperature=rng.uniform(0.01, 1.0))
+        got = predictor.update(x)
+        logits = euclidean(x, predictor.points)
+        logits *= -1.0 / predictor.temperature
+        want = softmax(logits)
+        assert got.index == want.index
+        assert got.probabilities.tolist() == want.probabilities.tolist()
+    predictor.points = points[::-1].copy()  # set directly: the fast path's copy is stale
+    logits = euclidean(x, predictor.points)
+    logits *= -1.0 / predictor.temperature
+    assert predictor.update(x).probabilities.tolist() == softmax(logits).probabilities.tolist()
