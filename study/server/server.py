@@ -196,7 +196,10 @@ class StudyServer:
         for live in sessions:
             live.close()
         # the servers stop first: a message that arrives while they shut down is still screened
-        # (a share-link request sent just before stop() reached viser when the order was reversed)
+        # (a share-link request sent just before stop() reached viser when the order was reversed);
+        # only the firewalls' sweepers end before, on the loops that run them
+        self.firewall.stop_sweeper()
+        self.experimenter_firewall.stop_sweeper()
         self.participant.stop()
         self.experimenter.stop()
         blinding_guard.uninstall(self.participant)

@@ -165,6 +165,24 @@ class Firewall:
         loop = viser_door.event_loop(server)
         asyncio.run_coroutine_threadsafe(self._start_sweeper(), loop).result(timeout=5)
 
+    def stop_sweeper(self) -> None:
+        """End the sweeper on the server's loop while it still runs (call before the server
+        stops: a task left pending on a closed loop is reported as destroyed)."""
+        server, sweeper = self._server, self._sweeper
+        if server is None or sweeper is None:
+            return
+        loop = viser_door.event_loop(server)
+
+        async def cancel() -> None:
+            sweeper.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await sweeper
+
+        if not loop.is_closed():
+            with contextlib.suppress(RuntimeError, TimeoutError):
+                asyncio.run_coroutine_threadsafe(cancel(), loop).result(timeout=5)
+        self._sweeper = None
+
     def detach(self) -> None:
         server, self._server = self._server, None
         loop = None if server is None else viser_door.event_loop(server)
