@@ -16,12 +16,20 @@ Two mappings (``mapping``, the protocol's ``[control] input_mapping``):
 - ``relative`` (a rate / clutch mapping): the input moves the gripper from where it is. The
   device keeps a pending displacement ``d``: each handle pose adds its displacement since the
   last one (the first of a drag since where the handle was drawn), held keys add ``speed dt``
-  per tick (a velocity of the gripper); each tick the target is ``ee + d``, then
-  ``d <- d exp(-dt k)`` with ``k`` the IK gain (``app.teleop.ik_step.GAIN_PER_S``). Alone, the
-  arm moves the gripper toward the target at ``k d`` -- the rate at which ``d`` is spent -- so
-  the gripper travels exactly the input's displacement, ``1/k`` seconds behind. A robot that
-  moves the gripper carries the target along: nothing pulls it back, and the user has to keep
-  moving against the robot. When a drag ends the handle returns to the gripper
+  per tick (a velocity of the gripper); each tick the target is ``h + d``, then the part
+  ``s = d (1 - exp(-dt k))`` is spent, ``d <- d - s``, ``h <- h + s``, with ``k`` the IK gain
+  (``app.teleop.ik_step.GAIN_PER_S``). ``h`` is where the input holds the gripper. While the
+  robot moves the gripper too (``alpha > 0``), ``h`` is the gripper's position: a robot that
+  moves the gripper carries the target along, nothing pulls it back, and the user has to keep
+  moving against the robot. While the user alone moves it (``alpha = 0``: practice, an
+  unassisted or a still unsure robot), ``h`` moves by what the input spends and follows the
+  gripper only when something takes it more than :data:`HOLD_M` away (a knock, a push
+  against an object), ``h <- ee + clip(h - ee, HOLD_M)``: with ``h = ee`` there, the arm's own
+  tracking error (under a millimetre at rest) was commanded again every tick and the gripper
+  crept away while the user held still (36 mm in 30 s after a drag; now none), and a 12 cm
+  drag ended 8 mm short (now 4 mm). Alone, the arm moves the gripper toward the target at
+  ``k d`` -- the rate at which ``d`` is spent -- so the gripper travels the input's
+  displacement, ``1/k`` seconds behind. When a drag ends the handle returns to the gripper
   (``handle_position``), and follows it while not dragged. The robot predicts the user's goal
   from the path their own input traced -- the gripper's start plus every displacement they
   gave, clamped to the reach (``TeleopCommand.path``) -- not from the target, which the robot's
@@ -51,6 +59,11 @@ from app.teleop.types import TeleopCommand, TrialObservation
 
 INPUT_MAPPINGS = ("absolute", "relative")
 """How the handle and keys map to the gripper (the module docstring)."""
+
+HOLD_M = 0.005
+"""Relative mapping: the gripper may be this far from where the input holds it before the hold
+follows it (more than the arm's tracking error at rest, under 1 mm, and its lag in a drag;
+small beside the robot's own motion)."""
 
 HANDLE_STEP_M = 0.001
 """In the relative mapping the handle is redrawn on the gripper once it is this far off."""
@@ -84,6 +97,7 @@ class ParticipantInput:
         self._frozen = False
         # relative mapping: pending displacement, the handle's last position, dragging or not
         self._pending = np.zeros(3)
+        self._hold: np.ndarray | None = None  # where the gripper is held (relative mapping)
         self._moved = np.zeros(3)  # displacement given since the last tick, for the path
         self._path: np.ndarray | None = None
         self._handle: np.ndarray | None = (
@@ -225,17 +239,34 @@ class ParticipantInput:
         self.last_target = np.array(target, dtype=float)
         return TeleopCommand(target, bool(grasp or from_gizmo.grasp or from_keys.grasp))
 
+    def _held_at(self, ee: np.ndarray, *, robot: bool) -> np.ndarray:
+        """``h <- ee + clip(h - ee, HOLD_M)``: where the gripper is held (module docstring);
+        ``h <- ee`` while the ``robot`` moves the gripper too (alpha > 0)."""
+        hold = self._hold
+        if hold is None or robot:
+            hold = ee.copy()
+        else:
+            off = hold - ee
+            dist = math.sqrt(float(off[0] * off[0] + off[1] * off[1] + off[2] * off[2]))
+            if dist > HOLD_M:
+                hold = ee + off * (HOLD_M / dist)
+        self._hold = hold
+        return hold
+
     def _relative(self, obs: TrialObservation) -> tuple[np.ndarray, np.ndarray, bool]:
-        """``target = ee + d`` after adding the keys' displacement, then ``d`` is spent; and the
+        """``target = h + d`` after adding the keys' displacement, then ``d`` is spent; and the
         path, which moves by the user's displacements only."""
         dt = 1.0 / obs.rate_hz
         keys, grasp = self.keyboard.step(dt)
         ee = np.asarray(obs.ee, dtype=float)
+        hold = self._held_at(ee, robot=obs.alpha > 0.0)
         with self._lock:
             pending = self._pending
             pending += keys
-            target = ee + pending
-            pending *= math.exp(-dt * GAIN_PER_S)
+            target = hold + pending
+            spent = pending * (1.0 - math.exp(-dt * GAIN_PER_S))
+            pending -= spent
+            hold += spent  # the hold moves on as the input is spent: the target stays put
             start = ee if self._path is None else self._path
             self._path = obs.reach.clamp(start + self._moved + keys)
             self._moved[:] = 0.0
