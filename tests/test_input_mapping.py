@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from app.teleop import ParticipantInput, ReachRegion, TrialObservation
-from app.teleop.participant_input import HANDLE_STEP_M
 from app.teleop.errors import TeleopError
+from app.teleop.participant_input import HANDLE_STEP_M
 from app.trial import Trial
 from study.protocol import trial_config_from_protocol
 
