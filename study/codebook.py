@@ -202,11 +202,17 @@ def _describe(
             f" goal at index {m.group(1)} of the trial's goal_names",
             "0..1",
         )
-    if table == "trials" and protocol is not None and column in protocol.factors:
-        subjects = "between" if column in protocol.between_factors else "within"
+    if table in ("trials", "participants") and protocol is not None and column in protocol.factors:
+        if column in protocol.between_factors:
+            where = "the participant's level" + (
+                " on every row, practice included" if table == "trials" else ""
+            )
+            return (
+                f"manipulated factor: {column} (between subjects; {where})",
+                " | ".join(protocol.factors[column]),
+            )
         return (
-            f"manipulated factor: {column} ({subjects} subjects; empty for training"
-            + (")" if subjects == "within" else ", which has the participant's level)"),
+            f"manipulated factor: {column} (within subjects; empty for practice runs)",
             " | ".join(protocol.factors[column]),
         )
     if table == "trials":

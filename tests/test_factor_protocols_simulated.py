@@ -11,7 +11,9 @@ import pytest
 
 from analysis import load_tables
 from analysis.report import write_report
+from study.codebook import codebook
 from study.export import tidy_tables
+from study.protocol import load_protocol
 from study.simulated import simulate
 
 PROTOCOLS = Path(__file__).resolve().parents[1] / "protocols"
@@ -52,8 +54,17 @@ def test_intent_mode_crosses_the_cue_with_the_modes_in_every_task(
 def test_mapping_mode_gives_each_participant_one_mapping_for_all_their_runs(
     tmp_path_factory: pytest.TempPathFactory,
 ) -> None:
-    trials = _trials(tmp_path_factory, "mapping_mode", 2)
+    tables = tidy_tables(_store(tmp_path_factory, "mapping_mode", 2))
+    trials = tables["trials"]
     assert "mapping" in trials.columns
+    # the participants table carries each participant's group, after their schedule row
+    people = tables["participants"]
+    assert list(people.columns[:4]) == ["participant", "session_id", "schedule_row", "mapping"]
+    assert people.set_index("schedule_row")["mapping"].to_dict() == {0: "absolute", 1: "relative"}
+    book = codebook(tables, protocol=load_protocol(PROTOCOLS / "mapping_mode.toml"))
+    described = book[book["column"] == "mapping"].set_index("table")["description"]
+    assert "between subjects; the participant's level on every row" in described["trials"]
+    assert "between subjects" in described["participants"]
     by_person = trials.groupby("participant")["mapping"].agg(lambda s: tuple(sorted(set(s))))
     assert sorted(by_person) == [("absolute",), ("relative",)]  # training rows included
     assert (trials.groupby("participant").size() == 11).all()

@@ -76,6 +76,8 @@ def test_a_between_factor_sets_every_run_of_its_participants_and_fills_its_group
     assert design.cycle == 16 and MAPPING.study.participants == 16
     groups = Counter(MAPPING.group_for(row).name for row in range(design.cycle))
     assert groups == {"absolute": 8, "relative": 8}
+    assert MAPPING.group_for(1).label == "mapping=relative"  # what the console shows
+    assert PAPER.group_for(1).label == ""
     relative = next(r for r in range(design.cycle) if MAPPING.group_for(r).name == "relative")
     assert MAPPING.training_config(row=relative).extra["input_mapping"] == "relative"
     assert MAPPING.trial_config("hard-wrong", "timid", row=relative).extra["input_mapping"] == (

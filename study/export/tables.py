@@ -366,8 +366,15 @@ class _Exporter:
         p["attention_failures"] = p["participant"].map(failed.groupby("participant").size())
         for c in ("attention_checks", "attention_failures"):
             p[c] = p[c].where(~p["included"], p[c].fillna(0))
-        extra = []
+        between = list(self.protocol.between_factors) if self.protocol is not None else []
+        for factor in between:  # the participant's level of each between-subjects factor
+            levels = {
+                row: self.protocol.group_for(int(row)).levels[factor]  # type: ignore[union-attr]
+                for row in p["schedule_row"].dropna().unique()
+            }
+            p[factor] = p["schedule_row"].map(levels).astype("string")
         q = self.protocol.questionnaire if self.protocol is not None else None
+        extra = []
         once = [i.id for i in q.once_items if i.kind not in ("attention", "retention")] if q else []
         for item in once:
             column = participant_item_column(item)
@@ -378,7 +385,8 @@ class _Exporter:
             else:
                 p[column] = p["participant"].map(by["value"]).astype("string")
             extra.append(column)
-        out = p[[*PARTICIPANT_COLUMNS, *extra]].reset_index(drop=True)
+        first, rest = PARTICIPANT_COLUMNS[:3], PARTICIPANT_COLUMNS[3:]  # ... schedule_row, then
+        out = p[[*first, *between, *rest, *extra]].reset_index(drop=True)
         return _typed(
             out,
             ints=("session_id", "schedule_row", "attention_checks", "attention_failures"),

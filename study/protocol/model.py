@@ -97,6 +97,12 @@ class Group:
     levels: Mapping[str, str] = field(default_factory=dict)
     settings: Mapping[str, Any] = field(default_factory=dict)
 
+    @property
+    def label(self) -> str:
+        """``mapping=relative``: the group's levels by factor, for the experimenter ("" when
+        the protocol has no between factor)."""
+        return ", ".join(f"{f}={level}" for f, level in self.levels.items())
+
 
 @dataclass(frozen=True)
 class Training:

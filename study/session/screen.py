@@ -82,3 +82,5 @@ class Overview:
     """``(position, task, run, mode)`` of every task trial."""
     skipped_steps: tuple[int, ...]
     experimenter_actions: tuple[str, ...]
+    group: str = ""
+    """The participant's between-subjects levels, ``mapping=relative`` ("" without any)."""

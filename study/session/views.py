@@ -125,6 +125,7 @@ def overview(steps: Steps, info: SessionInfo) -> Overview:
         trials_completed=sum(t.status == "completed" for t in trials),
         ratings=len(steps.store.ratings(session_id=info.session_id)),
         schedule_row=info.schedule_row,
+        group=protocol.group_for(info.schedule_row).label,
         schedule=tuple((a.position, a.task, a.run, a.mode) for a in info.assignments),
         skipped_steps=tuple(sorted(state.skipped)),
         experimenter_actions=experimenter_actions(steps),

@@ -146,7 +146,8 @@ def condition_line(o: Overview) -> str:
         return f"none: the session is {o.status}"
     if o.task:
         where = "questions after" if o.step_kind == "questions" else o.training_or_task
-        return f"{where}: {task_text(o)}, mode {o.mode}, {o.run} run{attempt}"
+        group = f" [{o.group}]" if o.group else ""
+        return f"{where}: {task_text(o)}, mode {o.mode}, {o.run} run{attempt}{group}"
     if o.step_kind == "trial":
         return f"practice, unassisted{attempt}"
     if o.step_kind == "questions":

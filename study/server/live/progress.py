@@ -40,6 +40,9 @@ def study_progress(store: Store, protocol: Protocol) -> StudyProgress:
     row = next_row(history)
     design = Design.from_protocol(protocol)
     upcoming = [f"{t.position}. {t.task}, {t.mode}" for t in design.row_trials(row)]
+    group = protocol.group_for(row).label
+    if group:  # a between-subjects design: the group the row belongs to comes first
+        upcoming.insert(0, group)
     return StudyProgress(
         planned=protocol.study.participants,
         completed=statuses.count("completed"),
