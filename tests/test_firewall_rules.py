@@ -141,6 +141,35 @@ def test_a_client_cannot_make_a_log_line_per_size_or_per_type_name(caplog) -> No
     assert fw.dropped["RunJavascriptMessage is not accepted here"] == 1
 
 
+def test_far_poses_from_a_tab_that_holds_a_session_never_close_it() -> None:
+    """A handle dragged along an axis seen nearly edge-on can go metres off; the poses are
+    refused (the trial keeps the last good one) but the participant's tab stays open. The same
+    poses from a connection without a session close it after ``max_refused``."""
+    clock = _Clock()
+    fw = Firewall(clock=clock)
+    far = _pose([3.2, 0.0, 0.3])
+
+    def send(bound: bool) -> int:
+        sock = _Socket("10.0.0.2", b"x", clock=clock, period=0.0)
+        fw.slots.admit(sock, "10.0.0.2", now=clock())
+
+        async def go() -> int:
+            await fw.screened_recv(sock)()
+            fw.slots.get(sock).bound = bound
+            for k in range(600):  # 20 s of a drag at 30 poses a second
+                clock.now += 1 / 30
+                try:
+                    fw.screened_decode(far, msgspec.msgpack.decode)
+                except firewall.ConnectionFlood:
+                    return k
+            return -1
+
+        return run_async(go())
+
+    assert send(bound=True) == -1
+    assert 150 < send(bound=False) < 600
+
+
 def _resolve(dotted: str) -> object:
     """The object a dotted name of :data:`viser_door.PRIVATE_REACHES` names (module, then
     attributes), or the class attribute for an instance attribute a class declares."""

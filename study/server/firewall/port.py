@@ -268,7 +268,12 @@ class Firewall:
         self.admit()
         reason = self.screen(raw)
         if reason is not None:
-            self.count_refusal()
+            slot = self._slot()
+            # a value out of range from a tab that holds a session (a handle dragged far along
+            # an axis seen edge-on) is refused but never closes the tab: its volume is already
+            # bounded by the rate; anything else refused counts toward closing the connection
+            if not (slot is not None and slot.bound and rules.is_value_refusal(reason)):
+                self.count_refusal()
             return self.refuse(reason)
         try:
             decoded = decode(raw)

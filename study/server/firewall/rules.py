@@ -189,6 +189,12 @@ def reason_kind(reason: str) -> str:
     return reason.split(":")[0].split(" (")[0]
 
 
+def is_value_refusal(reason: str) -> bool:
+    """The refusal is of a known message type's values (a pose too far, a text too long), not
+    of the message's size, form or type: what an honest page can still send by accident."""
+    return reason.split(":")[0] in _CHECKS
+
+
 def screen(
     raw: bytes,
     *,
