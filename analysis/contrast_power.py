@@ -31,7 +31,7 @@ from scipy import special
 from analysis.design import cell_means
 from analysis.errors import DesignError
 from analysis.factor_design import FactorDesign
-from analysis.power import COLUMNS, SUMMARY_COLUMNS, PowerResult, n80, paired_t_batch, wilson
+from analysis.power import COLUMNS, PowerResult, paired_t_batch, power_summary, wilson
 from analysis.rm_anova import effect_contrasts
 from analysis.split_plot import subject_levels
 
@@ -233,22 +233,9 @@ def contrast_power(
     table["power"] = table["successes"] / b
     table["ci_low"], table["ci_high"] = wilson(table["successes"].to_numpy(), b)
     table["alpha"] = alpha
-    summary = []
-    for (h, name, form), grp in table.groupby(["hypothesis", "test", "form"], sort=False):
-        n_80, interp = n80(grp["n"].to_numpy(dtype=float), grp["power"].to_numpy())
-        summary.append(
-            {
-                "hypothesis": h,
-                "test": name,
-                "form": form,
-                "n80": n_80,
-                "n80_interpolated": interp,
-                "power_at_max_n": float(grp["power"].iloc[-1]),
-            }
-        )
     return PowerResult(
         table=table[COLUMNS],
-        summary=pd.DataFrame(summary, columns=SUMMARY_COLUMNS),
+        summary=power_summary(table),
         n_pilot=len(pilot.group),
         b=b,
         alpha=alpha,

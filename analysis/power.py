@@ -369,6 +369,26 @@ def n80(ns: np.ndarray, power: np.ndarray, target: float = 0.8) -> tuple[float, 
     return float(ns[i]), float(ns[i - 1] + (target - lo) / (hi - lo) * (ns[i] - ns[i - 1]))
 
 
+def power_summary(table: pd.DataFrame) -> pd.DataFrame:
+    """Per hypothesis, test and form of a power ``table``: the smallest N with power >= 0.8
+    (:func:`n80`, and interpolated) and the power at the largest N."""
+    rows = []
+    for (h, name, form), g in table.groupby(["hypothesis", "test", "form"], sort=False):
+        g = g.sort_values("n")
+        n_80, interp = n80(g["n"].to_numpy(dtype=float), g["power"].to_numpy())
+        rows.append(
+            {
+                "hypothesis": h,
+                "test": name,
+                "form": form,
+                "n80": n_80,
+                "n80_interpolated": interp,
+                "power_at_max_n": float(g["power"].iloc[-1]),
+            }
+        )
+    return pd.DataFrame(rows, columns=SUMMARY_COLUMNS)
+
+
 def bootstrap_power(
     pilot: PilotCells,
     *,
@@ -426,23 +446,9 @@ def bootstrap_power(
     table["power"] = table["successes"] / b
     table["ci_low"], table["ci_high"] = wilson(table["successes"].to_numpy(), b)
     table["alpha"] = alpha
-    summ = []
-    for (h, name, form), g in table.groupby(["hypothesis", "test", "form"], sort=False):
-        g = g.sort_values("n")
-        n80_, interp = n80(g["n"].to_numpy(dtype=float), g["power"].to_numpy())
-        summ.append(
-            {
-                "hypothesis": h,
-                "test": name,
-                "form": form,
-                "n80": n80_,
-                "n80_interpolated": interp,
-                "power_at_max_n": float(g["power"].iloc[-1]),
-            }
-        )
     return PowerResult(
         table=table[COLUMNS],
-        summary=pd.DataFrame(summ, columns=SUMMARY_COLUMNS),
+        summary=power_summary(table),
         n_pilot=len(pilot.participants),
         b=b,
         alpha=alpha,
