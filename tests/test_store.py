@@ -7,6 +7,7 @@ import sqlite3
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 from pathlib import Path
 
@@ -215,3 +216,35 @@ def test_sample_writer_keeps_rows_when_a_commit_fails(tmp_path: Path) -> None:
         assert writer.pending == 3  # the new row is kept too, for the next commit
         with pytest.raises(StoreError, match="could not commit"):
             writer.close()  # the thread stops; the rows are still reported, not dropped
+
+
+def test_sessions_of_one_store_share_one_commit_and_a_bad_batch_holds_back_only_its_own(
+    tmp_path: Path,
+) -> None:
+    """Eight live sessions each committing their own batches queued for the file's write lock
+    (batches up to 0.76 s apart); their writers now share one committer thread per store, and a
+    writer whose rows are refused (a duplicate tick) does not stop the others' samples."""
+    with open_store(tmp_path / "s.db") as store:
+        trials = [new_trial(store, enrol(store, f"P0{n}")) for n in (1, 2, 3)]
+        writers = [SampleWriter(store, flush_interval_s=0.05) for _ in trials]
+        committers = {
+            t for t in threading.enumerate() if t.name == "sample-committer" and t.is_alive()
+        }
+        assert len(committers) == 1
+        bad = writers[0]
+        bad.add(trials[0], 0, tick(0))
+        bad.add(trials[0], 0, tick(0))  # refused by the store
+        for i in range(20):
+            for writer, tid in zip(writers[1:], trials[1:], strict=True):
+                writer.add(tid, i, tick(i))
+        deadline = time.monotonic() + 3.0
+        while time.monotonic() < deadline and any(store.sample_count(t) < 20 for t in trials[1:]):
+            time.sleep(0.01)
+        assert [store.sample_count(t) for t in trials] == [0, 20, 20]
+        assert isinstance(bad.error, StoreError) and bad.pending == 2
+        assert all(w.error is None and w.stats.rows == 20 for w in writers[1:])
+        for writer in writers[1:]:
+            writer.close()
+        with pytest.raises(StoreError, match="could not commit"):
+            bad.close()  # the last writer: the committer's thread ends, the rows are reported
+        assert not any(t is c and t.is_alive() for t in threading.enumerate() for c in committers)

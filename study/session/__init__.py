@@ -19,20 +19,23 @@ state: cursor, status, paused and by what, the active run), ``ledger.Ledger`` (l
 transactions), ``steps.Steps`` (read-only queries and guards), ``views`` (screen, overview),
 ``participant`` / ``experimenter`` (the actions), ``opening`` (enrol, reopen checks),
 ``trial_run.TrialRun`` (one attempt, ticked by a control loop), ``sample_writer``,
+``sample_committer``,
 ``lease_keeper``, ``event_limit``, ``plan``, ``screen``, ``errors``, ``store_open``.
 
 Threads and locks
 -----------------
 Threads: viser's callback threads and the experimenter console (any action), one control loop per
-running trial (``TrialRun.tick``), the live server's page and render loops, the sample writer's
-and the lease keeper's background threads. The locks of the project, and what each guards:
+running trial (``TrialRun.tick``), the live server's page and render loops, the sample
+committer's (one per store) and the lease keeper's background threads. The locks of the project,
+and what each guards:
 
 - ``Session._lock`` (RLock): the ``RunState`` and every store write of the session; every
   public ``Session`` method takes it.
 - ``TrialRun._lock``: one tick against pause, resume and abort of the same run.
 - ``app.trial.Trial._lock`` (RLock): the trial's physics state against its pause and abort.
 - ``SampleWriter._buffer_lock``: the row buffer (held for an append: microseconds);
-  ``SampleWriter._flush_lock``: one commit of the buffer at a time.
+  ``SampleCommitter._flush_lock``: one commit of a store's sample buffers at a time;
+  ``sample_committer._REGISTRY_LOCK``: the committers and their writers.
 - ``Store._lock`` (RLock): the main SQLite connection; ``Store._samples_lock``: the samples one.
 - ``LiveSession._lock`` (RLock): the live session's current run, trial, input and scene view.
 - ``LiveView._lock``: one scene frame against a preview draw or a view rebuild.
@@ -57,12 +60,13 @@ reverse, so no two threads can wait on each other:
     LiveSession._lock -> Session._lock -> TrialRun._lock -> Trial._lock -> ParticipantInput._lock
                                                                         -> Gizmo/KeyboardInput
     TrialRun._lock -> SampleWriter._buffer_lock
-    Session._lock -> SampleWriter._flush_lock -> Store._samples_lock
+    Session._lock -> SampleCommitter._flush_lock -> SampleWriter._buffer_lock
+    SampleCommitter._flush_lock -> Store._samples_lock
     Session._lock -> Store._lock;  StudyServer._lock -> Store._lock (opening a session)
 
 The control thread takes ``Session._lock`` only when its trial ends by itself, and then after
 releasing ``TrialRun._lock`` (``TrialRun.tick`` calls back last); it never touches SQLite (the
-sample writer's thread does). Session listeners run after ``Session._lock`` is released. The
+sample committer's thread does). Session listeners run after ``Session._lock`` is released. The
 other locks are leaves: nothing else is taken while one is held.
 """
 

@@ -1,9 +1,10 @@
 """``SampleWriter``: batches control-tick records into the store off the control thread.
 
 The control loop calls ``add(trial_id, tick, record)``, which only converts the record to a row
-tuple and appends it to a buffer under a short lock (a few microseconds). A background thread
-commits the buffer with one ``executemany`` every ``flush_interval_s`` (50 ms by default, at
-most 250 ms), so a killed process loses at most the last batch. ``flush()`` commits synchronously (the session
+tuple and appends it to a buffer under a short lock (a few microseconds). A background thread,
+shared by every writer of the store (``study.session.sample_committer``), commits the buffers
+with one ``executemany`` every ``flush_interval_s`` (50 ms by default, at most 250 ms), so a
+killed process loses at most the last batch. ``flush()`` commits synchronously (the session
 calls it before marking a trial completed). A failed commit keeps the rows buffered and makes
 the next ``add``/``flush`` raise, so samples are never dropped silently; the error keeps the
 store's type (``StoreFullError`` for a full disk, ``StoreNotWritableError`` for a read-only
@@ -14,13 +15,13 @@ rows held in memory reach the file once space is freed.
 from __future__ import annotations
 
 import threading
-import time
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
 from app.trial import samples as layout
 from app.trial.records import TickRecord
+from study.session.sample_committer import attach
 from study.store import SampleFormatError, Store, StoreError, StoreWriteError
 
 MAX_FLUSH_INTERVAL_S = 0.25
@@ -62,24 +63,20 @@ class WriterStats:
 
 
 class SampleWriter:
-    """Batching sample writer (see module docstring). Thread-safe: ``add``, ``flush`` and
-    ``close`` may be called from any thread."""
+    """One session's batching sample writer (see module docstring). Thread-safe: ``add``,
+    ``flush`` and ``close`` may be called from any thread."""
 
     def __init__(self, store: Store, *, flush_interval_s: float = DEFAULT_FLUSH_INTERVAL_S) -> None:
         if not 0 < flush_interval_s <= MAX_FLUSH_INTERVAL_S:
             raise StoreError(
                 f"flush_interval_s must be in (0, {MAX_FLUSH_INTERVAL_S}] s, not {flush_interval_s}"
             )
-        self._store = store
-        self._interval = flush_interval_s
         self._buffer: list[tuple[Any, ...]] = []
         self._buffer_lock = threading.Lock()
-        self._flush_lock = threading.Lock()
         self._error: BaseException | None = None
-        self._stop = threading.Event()
+        self._closed = False
         self.stats = WriterStats()
-        self._thread = threading.Thread(target=self._run, name="sample-writer", daemon=True)
-        self._thread.start()
+        self._committer = attach(self, store, interval_s=flush_interval_s)
 
     def add(self, trial_id: int, tick: int, record: TickRecord) -> None:
         """Queue one tick's record (converted now, so a malformed record fails here). If earlier
@@ -95,7 +92,7 @@ class SampleWriter:
     @property
     def error(self) -> BaseException | None:
         """Why the last commit failed (``StoreFullError``, ...), or ``None`` once a commit
-        succeeded again -- the thread keeps retrying, so this clears by itself when the disk
+        succeeded again -- the committer keeps retrying, so this clears by itself when the disk
         has room again."""
         return self._error
 
@@ -106,33 +103,37 @@ class SampleWriter:
 
     def flush(self) -> int:
         """Commit everything queued so far; returns the number of rows written."""
-        with self._flush_lock:
-            with self._buffer_lock:
-                rows, self._buffer = self._buffer, []
-            if not rows:
-                self._raise_pending()
-                return 0
-            start = time.perf_counter()
-            try:
-                self._store.insert_samples(rows)
-            except BaseException as exc:
-                with self._buffer_lock:
-                    self._buffer[:0] = rows
-                self._error = exc
-                raise _like(exc, f"could not commit {len(rows)} samples") from exc
-            self._error = None
-            self.stats.committed_at.append(time.monotonic())
-            self.stats.commit_s.append(time.perf_counter() - start)
-            self.stats.rows += len(rows)
-            self.stats.batches += 1
-            return len(rows)
+        before = self.stats.rows
+        error = self._committer.commit([self]).get(self)
+        if error is not None:
+            raise _like(error, f"could not commit {self.pending} samples") from error
+        self._raise_pending()
+        return self.stats.rows - before
 
     def close(self) -> None:
-        """Stop the thread and commit what is left."""
-        self._stop.set()
-        if self._thread.is_alive() and self._thread is not threading.current_thread():
-            self._thread.join()
+        """Leave the committer (its thread ends with the last writer) and commit what is left."""
+        if not self._closed:
+            self._closed = True
+            self._committer.detach(self)
         self.flush()
+
+    # ---- the committer's side (study.session.sample_committer) ------------------------------
+    def _take(self) -> list[tuple[Any, ...]]:
+        with self._buffer_lock:
+            rows, self._buffer = self._buffer, []
+        return rows
+
+    def _failed(self, rows: list[tuple[Any, ...]], error: BaseException) -> None:
+        with self._buffer_lock:
+            self._buffer[:0] = rows
+        self._error = error
+
+    def _committed(self, rows: int, elapsed_s: float, at: float) -> None:
+        self._error = None
+        self.stats.committed_at.append(at)
+        self.stats.commit_s.append(elapsed_s)
+        self.stats.rows += rows
+        self.stats.batches += 1
 
     def _raise_pending(self) -> None:
         error = self._error
@@ -143,22 +144,3 @@ class SampleWriter:
                 "are written as soon as the store takes writes again (they are lost if this "
                 "process ends first)",
             )
-
-    def _run(self) -> None:
-        # Deadlines on a fixed grid, not "sleep after each commit": a slow commit then delays
-        # only its own batch, and the next one follows at once instead of a full period later.
-        due = time.monotonic()
-        while True:
-            due += self._interval
-            now = time.monotonic()
-            if due < now:  # fell behind by more than a period: start the grid again from now
-                due = now
-            if self._stop.wait(max(0.0, due - now)):
-                return
-            try:
-                self.flush()
-            except StoreError:
-                # Kept in the buffer and reported by the next add()/flush(); retry next period.
-                continue
-            except BaseException:  # pragma: no cover - a store closed under us
-                return
