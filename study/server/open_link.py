@@ -15,8 +15,8 @@ Bots: anyone with the link can make up IDs, and a script from 8 addresses once f
 places in 20 s. One address gets at most ``per_address`` new IDs in ``window_s`` (3 an hour, 0: no limit;
 people behind one address -- a household, a carrier's shared address -- rarely start the
 same study within the hour; an ID seen before is never refused by it). A script with many
-addresses still fills places; the console shows them, and declined or withdrawn sessions
-give them back.
+addresses still fills places; the console shows them, declined or withdrawn sessions give
+them back, and so do sessions left before consent for ten minutes (``study.server.link_places``).
 """
 
 from __future__ import annotations
@@ -32,6 +32,10 @@ from study.store import Store
 
 LINK_PARTICIPANT = re.compile(r"L(\d{4,})")
 LINK_SOURCE = "link"
+RELEASED = "link_place_released"
+"""The event that records a session's place given back (``study.server.link_places``)."""
+RETAKEN = "link_place_retaken"
+"""The event that records its recruitment ID coming back: the session holds a place again."""
 
 
 class LinkClosed(StudyError, RuntimeError):
@@ -60,7 +64,13 @@ class OpenLink:
         self.cap = 0
         self._by_key: dict[str, str] = {}
         self._recruitment: dict[str, Recruitment] = {}
+        self._released: set[str] = set()
+        """Participants whose place was given back (until they come back)."""
         for event in store.events():
+            if event.kind == RELEASED and event.participant:
+                self._released.add(event.participant)
+            elif event.kind in (RETAKEN, "participant_connected"):
+                self._released.discard(event.participant or "")
             rec = event.detail.get("recruitment") if event.kind == "enrol" else None
             if isinstance(rec, dict) and event.participant:
                 try:
@@ -95,10 +105,24 @@ class OpenLink:
             return self._recruitment.get(participant)
 
     def used(self) -> int:
-        """Places taken: the link's sessions that did not withdraw."""
+        """Places taken: the link's sessions that did not withdraw and were not given back."""
         with self._lock:
-            mine = set(self._by_key.values())
+            mine = set(self._by_key.values()) - self._released
         return sum(s.participant in mine and s.status != "withdrawn" for s in self.store.sessions())
+
+    def release(self, participant: str) -> None:
+        """Give ``participant``'s place back (their session was left before consent)."""
+        with self._lock:
+            self._released.add(participant)
+
+    def returned(self, participant: str) -> None:
+        """``participant`` came back by the link: they hold a place again."""
+        with self._lock:
+            self._released.discard(participant)
+
+    def released(self) -> frozenset[str]:
+        with self._lock:
+            return frozenset(self._released)
 
     def claim(self, recruitment: Recruitment, *, address: str = "unknown") -> str:
         """A new study pseudonym for ``recruitment`` from ``address`` (call ``taken`` once it
@@ -137,4 +161,4 @@ class OpenLink:
             return sum(1 for t in stamps if now - t <= self.window_s)
 
 
-__all__ = ["LINK_SOURCE", "LinkClosed", "OpenLink"]
+__all__ = ["LINK_SOURCE", "RELEASED", "RETAKEN", "LinkClosed", "OpenLink"]

@@ -107,6 +107,11 @@ class ParticipantTabs:
         with self._lock:
             return len(self._pages), len(self._page_session)
 
+    def holds(self, code: str) -> bool:
+        """Whether a tab holds (or is being bound to) session ``code``."""
+        with self._lock:
+            return code in self._page_session.values()
+
     def session_code(self, client_id: int) -> str | None:
         """The join code of the session tab ``client_id`` holds (no lock: safe on the event
         loop, which must never wait for an enrolment)."""

@@ -31,6 +31,7 @@ from __future__ import annotations
 import hmac
 import logging
 import threading
+import time
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -42,6 +43,7 @@ from study.server.console_page import ExperimenterConsole
 from study.server.firewall import LOOPBACK_NAMES
 from study.server.forwarded import Network
 from study.server.join import JoinThrottle, new_join_code, new_token
+from study.server.link_places import LINK_IDLE_S, SWEEP_S, PlaceSweeper, idle_link_sessions
 from study.server.live import LiveSession, SessionFactory
 from study.server.live.progress import study_progress
 from study.server.live.texts import (
@@ -95,6 +97,7 @@ class StudyServer:
         trusted_proxies: tuple[Network, ...] = (),
         port_firewall: firewall.Firewall | None = None,
         log_path: Path | None = None,
+        link_idle_s: float = LINK_IDLE_S,
     ) -> None:
         """``open_link``: places of the open-enrolment link (0: off; the console turns it on
         and off); ``public_url``: the participants' address as they reach it (behind a
@@ -102,7 +105,8 @@ class StudyServer:
         client address and host name count (``study.server.forwarded``); ``port_firewall``:
         the participant port's rules (a default ``Firewall`` if not given; tests and
         benchmarks pass one with other limits); ``log_path``: the server's log file
-        (``study.server.logs``), whose disk use the console shows."""
+        (``study.server.logs``), whose disk use the console shows; ``link_idle_s``: how long a
+        link session left before consent keeps its place (``study.server.link_places``)."""
         self.log_path = log_path
         self.factory = factory
         self.render_hz = render_hz
@@ -140,6 +144,10 @@ class StudyServer:
         )
         firewall.install(self.experimenter, self.experimenter_firewall)
         self.console = ExperimenterConsole(self.experimenter, self, refresh_hz=console_refresh_hz)
+        self.link_idle_s = link_idle_s
+        self._places = PlaceSweeper(
+            self.reclaim_link_places, period_s=min(SWEEP_S, max(0.05, link_idle_s / 4))
+        )
         realtime.freeze_heap()  # after start-up: collections never walk it again
 
     def _start_participant(
@@ -190,6 +198,7 @@ class StudyServer:
         )
 
     def stop(self) -> None:
+        self._places.stop()
         self.console.close()
         with self._lock:
             sessions = list(self._sessions.values())
@@ -237,7 +246,8 @@ class StudyServer:
         left them): the console can reopen them."""
         with self._lock:
             open_now = {s.participant for s in self._sessions.values() if not s.closed}
-        return self.factory.reopenable(open_now=open_now)
+        # a link session given back before consent comes back by its link, not the console
+        return self.factory.reopenable(open_now=open_now | self.open_link.released())
 
     def reopen(self, participant: str) -> str:
         """Reopen ``participant``'s interrupted session; returns its join code."""
@@ -369,7 +379,36 @@ class StudyServer:
             status = self.factory.store.session(participant).status
             if status in FINAL_STATUSES:
                 return None, status
-            return self._sessions[self.enrol(participant)], ""
+            live = self._sessions[self.enrol(participant)]
+            if participant in self.open_link.released():
+                self.open_link.returned(participant)
+                live.note_retaken()
+            return live, ""
+
+    def reclaim_link_places(self) -> list[str]:
+        """Close the open link's sessions left before consent for ``link_idle_s`` and give
+        their places back (``study.server.link_places``); returns their participants."""
+        now = time.monotonic()
+        idle = idle_link_sessions(self.sessions(), idle_s=self.link_idle_s, now=now)
+        reclaimed = []
+        for live in idle:
+            with self._lock:  # a tab that binds meanwhile keeps the session
+                if live.page is not None or self.tabs.holds(live.code):
+                    continue
+                self._sessions.pop(live.code, None)
+                self._tokens.pop(live.code, None)
+            live.note_released(live.unattended_s(now))
+            live.close()
+            self.open_link.release(live.participant)
+            reclaimed.append(live.participant)
+        if reclaimed:
+            LOGGER.info(
+                "open link: %d place(s) given back (sessions left before consent for %.0f s)",
+                len(reclaimed),
+                self.link_idle_s,
+            )
+            self.tabs.offer_all()
+        return reclaimed
 
 
 def _check_page_is_blind(words: tuple[str, ...]) -> None:

@@ -40,6 +40,7 @@ from study.server.live.screens import show_screen
 from study.server.live.timeline import started_at
 from study.server.live.view import LiveView, shows_intent
 from study.server.loop import PacedLoop
+from study.server.open_link import RELEASED, RETAKEN
 from study.server.page_scene import SceneView
 from study.server.participant_page import ParticipantPage
 from study.session import (
@@ -63,6 +64,8 @@ class LiveSession:
         self.page: ParticipantPage | None = None
         self.ever_attached = False
         """A tab has held this session (a kiosk then asks for the code after a drop)."""
+        self._unattended_since: float | None = time.monotonic()
+        """Since when no tab holds this session (``None`` while one does)."""
         self.on_closed: Callable[[], None] | None = None
         self.recruitment: tuple[tuple[str, str], ...] = ()
         """The recruitment IDs the participant came with (open enrolment), for the console."""
@@ -165,6 +168,7 @@ class LiveSession:
         with self._lock:
             self.page = page
             self.ever_attached = True
+            self._unattended_since = None
             self._shown = None
         self._event(
             "participant_connected",
@@ -180,6 +184,7 @@ class LiveSession:
             if self.page is not page:
                 return
             self.page = None
+            self._unattended_since = time.monotonic()
             self.view.drop()
             running = self.trial_run.running
         self._event("participant_disconnected", {"client": page.client.client_id})
@@ -190,6 +195,20 @@ class LiveSession:
                     self.session.pause(cause="tab_lost")
             except Exception as exc:
                 LOGGER.warning("could not pause after disconnect: %s", exc)
+
+    def unattended_s(self, now: float) -> float:
+        """Seconds until ``now`` (``time.monotonic()``) that no tab has held this session (0
+        while one holds it)."""
+        since = self._unattended_since
+        return 0.0 if since is None else max(0.0, now - since)
+
+    def note_released(self, idle_s: float) -> None:
+        """Record that the open link took this session's place back (``link_places``)."""
+        self._event(RELEASED, {"unattended_s": round(idle_s)})
+
+    def note_retaken(self) -> None:
+        """Record that this session's recruitment ID came back after its place was given back."""
+        self._event(RETAKEN, {})
 
     def note_refused_join(self, page: ParticipantPage) -> None:
         """The right code from a second tab while one holds the session: logged for the

@@ -110,6 +110,8 @@ _FIXED_TEXTS: dict[str, str] = {
     "close": "server let the session go",
     "participant_disconnected": "tab lost",
     "second_tab_refused": "a second tab was refused",
+    "link_place_released": "left before consent: its open-link place given back",
+    "link_place_retaken": "back by the open link: holds a place again",
 }
 """Events told the same way every time."""
 
