@@ -16,20 +16,34 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from study.store import Store
 
-if TYPE_CHECKING:
-    from study.session.sample_writer import SampleWriter
-
 Rows = list[tuple[Any, ...]]
+
+
+class RowQueue(Protocol):
+    """What the committer needs of a writer (``SampleWriter`` has it)."""
+
+    def take_rows(self) -> Rows:
+        """Everything queued so far (the queue is then empty)."""
+        ...
+
+    def put_back(self, rows: Rows, error: BaseException) -> None:
+        """``rows`` could not be stored (``error``): queue them first again."""
+        ...
+
+    def note_committed(self, rows: int, elapsed_s: float, at: float) -> None:
+        """``rows`` rows reached the store in a commit of ``elapsed_s`` ending at ``at``."""
+        ...
+
 
 _REGISTRY: dict[tuple[int, float], SampleCommitter] = {}
 _REGISTRY_LOCK = threading.Lock()
 
 
-def attach(writer: SampleWriter, store: Store, *, interval_s: float) -> SampleCommitter:
+def attach(writer: RowQueue, store: Store, *, interval_s: float) -> SampleCommitter:
     """The running committer of ``store`` for ``interval_s`` (started if there is none), with
     ``writer`` added to the writers it commits."""
     key = (id(store), interval_s)
@@ -48,13 +62,13 @@ class SampleCommitter:
     def __init__(self, store: Store, *, interval_s: float) -> None:
         self._store = store
         self._interval = interval_s
-        self._writers: list[SampleWriter] = []  # guarded by _REGISTRY_LOCK
+        self._writers: list[RowQueue] = []  # guarded by _REGISTRY_LOCK
         self._flush_lock = threading.Lock()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="sample-committer", daemon=True)
         self._thread.start()
 
-    def detach(self, writer: SampleWriter) -> None:
+    def detach(self, writer: RowQueue) -> None:
         """Stop committing ``writer``'s rows (it flushes what it has itself); the thread ends with
         the last writer."""
         with _REGISTRY_LOCK:
@@ -69,34 +83,34 @@ class SampleCommitter:
         if self._thread is not threading.current_thread():
             self._thread.join()
 
-    def commit(self, writers: list[SampleWriter]) -> dict[SampleWriter, BaseException]:
+    def commit(self, writers: list[RowQueue]) -> dict[RowQueue, BaseException]:
         """Commit the rows ``writers`` have queued, in one transaction; returns why each writer
         whose rows could not be stored failed (their rows are back in their buffers)."""
         with self._flush_lock:
-            taken = [(w, rows) for w in writers if (rows := w._take())]
+            taken = [(w, rows) for w in writers if (rows := w.take_rows())]
             if not taken:
                 return {}
             if len(taken) > 1 and self._insert(taken) is None:
                 return {}
-            failed: dict[SampleWriter, BaseException] = {}
+            failed: dict[RowQueue, BaseException] = {}
             for writer, rows in taken:  # one by one: only the writers at fault keep failing
                 error = self._insert([(writer, rows)])
                 if error is not None:
                     failed[writer] = error
             return failed
 
-    def _insert(self, taken: list[tuple[SampleWriter, Rows]]) -> BaseException | None:
+    def _insert(self, taken: list[tuple[RowQueue, Rows]]) -> BaseException | None:
         start = time.perf_counter()
         try:
             self._store.insert_samples([row for _, rows in taken for row in rows])
         except Exception as exc:
             if len(taken) == 1:
-                taken[0][0]._failed(taken[0][1], exc)
+                taken[0][0].put_back(taken[0][1], exc)
             return exc
         elapsed = time.perf_counter() - start
         now = time.monotonic()
         for writer, rows in taken:
-            writer._committed(len(rows), elapsed, now)
+            writer.note_committed(len(rows), elapsed, now)
         return None
 
     def _run(self) -> None:

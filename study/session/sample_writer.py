@@ -117,18 +117,18 @@ class SampleWriter:
             self._committer.detach(self)
         self.flush()
 
-    # ---- the committer's side (study.session.sample_committer) ------------------------------
-    def _take(self) -> list[tuple[Any, ...]]:
+    # ---- the committer's side (sample_committer.RowQueue) --------------------------------------
+    def take_rows(self) -> list[tuple[Any, ...]]:
         with self._buffer_lock:
             rows, self._buffer = self._buffer, []
         return rows
 
-    def _failed(self, rows: list[tuple[Any, ...]], error: BaseException) -> None:
+    def put_back(self, rows: list[tuple[Any, ...]], error: BaseException) -> None:
         with self._buffer_lock:
             self._buffer[:0] = rows
         self._error = error
 
-    def _committed(self, rows: int, elapsed_s: float, at: float) -> None:
+    def note_committed(self, rows: int, elapsed_s: float, at: float) -> None:
         self._error = None
         self.stats.committed_at.append(at)
         self.stats.commit_s.append(elapsed_s)
