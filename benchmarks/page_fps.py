@@ -51,9 +51,21 @@ FPS_JS = """(ms) => new Promise((done) => {
 })"""
 
 
-def _window(page, live, seconds: float) -> tuple[float, float, float, float]:
+def _busy(cdp) -> dict[str, float]:
+    """The page's main-thread time so far (s): all tasks, and script alone (CDP metrics)."""
+    metrics = {m["name"]: m["value"] for m in cdp.send("Performance.getMetrics")["metrics"]}
+    return {"task": metrics["TaskDuration"], "script": metrics["ScriptDuration"]}
+
+
+BUSY: list[dict[str, float]] = []
+"""Per window: the page's main thread busy (ms per s), all tasks and script alone."""
+
+
+def _window(page, live, seconds: float, cdp=None) -> tuple[float, float, float, float]:
     """Over ``seconds``: frames/s drawn by the page, scene frames/s sent by the server, pictures
-    from above made per second (0 where the page has none) and the control loop's ticks/s."""
+    from above made per second (0 where the page has none) and the control loop's ticks/s
+    (with ``cdp``, the main thread's busy time is appended to ``BUSY``)."""
+    before = _busy(cdp) if cdp is not None else None
     sent = live.scene_view.frames_sent
     inset = getattr(live.view, "inset", None)
     made = inset.frames if inset is not None else 0
@@ -61,6 +73,9 @@ def _window(page, live, seconds: float) -> tuple[float, float, float, float]:
     t = time.monotonic()
     fps = float(page.evaluate(FPS_JS, seconds * 1000))
     dt = time.monotonic() - t
+    if before is not None:
+        after = _busy(cdp)
+        BUSY.append({k: round((after[k] - before[k]) * 1e3 / dt, 1) for k in before})
     made = (inset.frames - made) / dt if inset is not None else 0.0
     return (
         fps,
@@ -116,6 +131,8 @@ def main() -> int:
             result["viewport"] = args.viewport
             page = browser.new_page(viewport={"width": width, "height": height})
             page.set_default_timeout(120_000)
+            cdp = page.context.new_cdp_session(page)
+            cdp.send("Performance.enable")
             page.goto(rs.url)
             page.get_by_text("Connected").first.wait_for()
             join(page, code)
@@ -135,7 +152,8 @@ def main() -> int:
             feeder.start()
             page.wait_for_timeout(1000)
             live.control_loop._stamps.clear()  # tick periods of the moving windows only
-            moving = [_window(page, live, args.seconds) for _ in range(args.repeats)]
+            moving = [_window(page, live, args.seconds, cdp) for _ in range(args.repeats)]
+            result["main_thread_ms_per_s_moving"] = list(BUSY)
             periods = live.control_loop.periods() * 1e3
             result["control_tick_period_ms_moving"] = {
                 "median": round(float(np.median(periods)), 2),
@@ -163,7 +181,9 @@ def main() -> int:
             stop.set()
             feeder.join()
             page.wait_for_timeout(1500)  # the arm settles
-            still = [_window(page, live, args.seconds) for _ in range(args.repeats)]
+            BUSY.clear()
+            still = [_window(page, live, args.seconds, cdp) for _ in range(args.repeats)]
+            result["main_thread_ms_per_s_still"] = list(BUSY)
             browser.close()
     finally:
         rs.stop()
@@ -186,6 +206,10 @@ def main() -> int:
             " ticks/s"
         )
     print(f"control tick periods while moving (ms): {result['control_tick_period_ms_moving']}")
+    print(
+        "page main thread busy (ms/s; all tasks, script): moving"
+        f" {result['main_thread_ms_per_s_moving']}, still {result['main_thread_ms_per_s_still']}"
+    )
     print(json.dumps(result))
     return 0
 
