@@ -14,14 +14,15 @@ import threading
 from pathlib import Path
 from urllib.parse import urlsplit
 
+from study.cli.arguments import float_range, rate_hz
 from study.cli.arguments import port as port_number
-from study.cli.arguments import rate_hz
 from study.cli.dispatch import UsageError
 from study.errors import StudyError
 from study.protocol import load_protocol
 from study.protocol.preflight import check_scenes
 from study.server import logs, realtime
 from study.server.forwarded import trusted_networks
+from study.server.link_places import LINK_IDLE_S
 from study.server.live import session_factory
 from study.server.server import StudyServer
 from study.session import open_store
@@ -103,6 +104,15 @@ def _online_arguments(parser: argparse.ArgumentParser) -> None:
         help="turn the open-enrolment link on with this many places (online studies: a tab"
         " whose URL carries PROLIFIC_PID or pid gets a session without a join code); default:"
         " off (the console turns it on and off)",
+    )
+    group.add_argument(
+        "--link-idle",
+        type=float_range(1.0, 1440.0),
+        default=LINK_IDLE_S / 60.0,
+        metavar="MINUTES",
+        help="an open-link session left before consent, with no tab, gives its place back"
+        " after this many minutes, 1..1440 (its ID coming back gets it again); default:"
+        " %(default)g",
     )
     group.add_argument(
         "--trusted-proxy",
@@ -251,6 +261,7 @@ def main(args: argparse.Namespace) -> int:
         kiosk=args.kiosk,
         allow_share=args.share,
         open_link=args.open_link,
+        link_idle_s=args.link_idle * 60.0,
         public_url=public,
         trusted_proxies=proxies,
         log_path=log_path,
