@@ -5,7 +5,9 @@ machine without a GPU), before the websocket is open and so before the page scri
 (:mod:`study.server.page_script`) can hide anything: a participant would see it on every load
 and reload. :func:`inject_head` rewrites viser's ``index.html`` response on its way out (through
 ``Firewall.page_filter``) with a ``<style>`` element in the head: the page script's CSS
-(:data:`study.server.page_script.PANEL_CHROME_CSS`), in force from the first paint.
+(:data:`study.server.page_script.PANEL_CHROME_CSS`), in force from the first paint; and a script
+that must run before viser's client asks for its WebGL context
+(:data:`study.server.software_webgl.SOFTWARE_WEBGL_SCRIPT`: no multisampling on a CPU renderer).
 """
 
 from __future__ import annotations
@@ -19,17 +21,20 @@ from websockets.datastructures import Headers
 from websockets.http11 import Response
 
 from study.server.page_script import PANEL_CHROME_CSS
+from study.server.software_webgl import SOFTWARE_WEBGL_SCRIPT
 
 HEAD_STYLE = f"<style>{PANEL_CHROME_CSS}</style>"
+HEAD = HEAD_STYLE + SOFTWARE_WEBGL_SCRIPT
+"""What the participant page's head gets."""
 _HTML = "text/html"
 
 
 class PageHead:
-    """``(request, response) -> response``: the page's HTML gets :data:`HEAD_STYLE` before
+    """``(request, response) -> response``: the page's HTML gets :data:`HEAD` before
     ``</head>``; any other response passes unchanged. Rewritten pages are cached (viser serves
     the same cached bytes each time)."""
 
-    def __init__(self, head: str = HEAD_STYLE) -> None:
+    def __init__(self, head: str = HEAD) -> None:
         self.head = head.encode()
         self._cache: dict[tuple[bytes, bool], bytes] = {}
         self._lock = threading.Lock()
@@ -60,4 +65,4 @@ class PageHead:
         return gzip.compress(html) if zipped else html
 
 
-__all__ = ["HEAD_STYLE", "PageHead"]
+__all__ = ["HEAD", "HEAD_STYLE", "PageHead"]

@@ -53,7 +53,7 @@ from study.server.live.texts import (
     LINK_INVALID_TEXT,
 )
 from study.server.open_link import OpenLink
-from study.server.page_head import PageHead
+from study.server.page_head import HEAD, PageHead
 from study.server.page_script import page_script
 from study.server.participant_tabs import (
     JOIN_FAILED,
@@ -416,6 +416,7 @@ def _check_page_is_blind(words: tuple[str, ...]) -> None:
     participant page's own script or fixed texts (the guard would block them, breaking the page):
     the level must be renamed."""
     fixed = [
+        HEAD,
         page_script(keys_uuid="", title=PAGE_TITLE),
         link_script(uuid=""),
         JOIN_FAILED,

@@ -67,6 +67,18 @@ def _texts_ok(texts: list[str], words: tuple[str, ...]) -> None:
         assert word not in joined, f"condition word {word!r} reached the participant"
 
 
+CANVAS_JS = """() => {
+  const area = (c) => c.clientWidth * c.clientHeight;
+  const view = [...document.querySelectorAll("canvas")].sort((a, b) => area(b) - area(a))[0];
+  const gl = view.getContext("webgl2");  // the 3-D view's own context (three.js: WebGL 2)
+  const info = gl.getExtension("WEBGL_debug_renderer_info");
+  return {antialias: gl.getContextAttributes().antialias,
+          renderer: String(gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER))};
+}"""
+"""The 3-D view's WebGL context (the page's largest canvas): whether it multisamples, and what
+draws it."""
+
+
 def test_participant_session_end_to_end(study: RunningServer, context: Any, screenshots: Path):
     srv = study.server
     page = context.new_page()
@@ -108,6 +120,10 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     live = srv.session(code)
     assert wait_until(lambda: live.scene_view is not None and live.scene_view.frames_sent >= 1)
     text_now()
+    # Debian's Chromium draws WebGL on the CPU here: the 3-D view runs without multisampling
+    # (study.server.software_webgl: +37 % frames/s), and says what drew it
+    drawn = page.evaluate(CANVAS_JS)
+    assert "SwiftShader" in drawn["renderer"] and drawn["antialias"] is False, drawn
 
     run = live.run
     start = np.array(run.trial.user_target, float)
