@@ -20,6 +20,11 @@ def partial_eta_squared(f: float, df1: float, df2: float) -> float:
     return f * df1 / (f * df1 + df2)
 
 
+LAMBDA_MAX = 1e9
+"""The largest noncentrality searched: beyond it the CI's bound is reported as not computable
+(NaN; the F is then astronomically large: an effect without error variance)."""
+
+
 def _lambda_bound(f: float, df1: float, df2: float, prob: float) -> float:
     """The noncentrality at which ``P(F' <= f) = prob`` (0 when even lambda = 0 falls short)."""
 
@@ -33,11 +38,14 @@ def _lambda_bound(f: float, df1: float, df2: float, prob: float) -> float:
     if gap(0.0) <= 0:
         return 0.0
     hi = max(10.0, 4 * f * df1)
-    while gap(hi) > 0:
+    while hi <= LAMBDA_MAX:
+        above = gap(hi)
+        if not math.isfinite(above):  # scipy's noncentral F gives up before LAMBDA_MAX
+            break
+        if above <= 0:
+            return float(optimize.brentq(gap, 0.0, hi, xtol=1e-10))
         hi *= 2
-        if hi > 1e7:
-            return float("nan")
-    return float(optimize.brentq(gap, 0.0, hi, xtol=1e-10))
+    return float("nan")  # an F so large (an effect without error) that the bound is lost
 
 
 def np2_ci(f: float, df1: float, df2: float, *, level: float = 0.95) -> tuple[float, float]:

@@ -6,6 +6,7 @@ setting every paper-form test beside its reviewer-form counterpart."""
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pandas as pd
@@ -101,6 +102,14 @@ def test_sphericity_of_a_spherical_sample_and_of_one_df() -> None:
     assert out["mauchly_p"] == pytest.approx(1.0)
     one = sphericity(np.array([[1.0], [-1.0], [0.5]]))
     assert one["eps_gg"] == 1 and np.isnan(one["mauchly_W"])
+
+
+def test_np2_ci_of_an_effect_without_error_is_not_computable_rather_than_a_crash() -> None:
+    """A simulated pilot gave an F of 1.2e31 (an effect every participant showed exactly): the
+    report died in scipy's root finder; the CI is now NaN and the rest of the report stands."""
+    assert all(math.isnan(v) for v in np2_ci(1.2e31, 1, 7))
+    lo, hi = np2_ci(3e6, 1, 7)  # large but finite: still inverted
+    assert 0.99998 < lo < hi < 1.0
 
 
 @pytest.mark.parametrize(("f", "df1", "df2"), [(6.58, 1, 48), (11.73, 2, 10), (1.7, 1, 7)])

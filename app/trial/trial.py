@@ -35,6 +35,7 @@ from app.robot.errors import PhysicsError
 from app.robot.scene import Scene, build_scene
 from app.robot.simulation import BodyPoses, Simulation
 from app.teleop.ik_step import IKStep
+from app.teleop.lift_out import Cylinder, lift_out
 from app.teleop.types import InputSource, TeleopCommand, TrialObservation
 from app.trial.accidents import Accidents
 from app.trial.build_blender import build_blender
@@ -93,6 +94,8 @@ class Trial:
         self._ee = self.sim.ee
         self._object_positions = self.sim.object_positions()
         self._grasp_points = self.scene.goals.positions
+        self._reach_below = max(0.0, -min((layer.lo for layer in self.scene.hand), default=0.0))
+        self._cylinders = self._object_cylinders()
         self._blend = BlendTick(0.0, 0.0, np.full(n, 1.0 / n), -1, 0.0, math.nan)
         self.records: list[TickRecord] = []
         self.events: list[tuple[float, TrialEvent]] = []
@@ -182,6 +185,37 @@ class Trial:
         pos = self.sim.object_positions()
         self._object_positions = pos
         self._grasp_points = self.scene.goals.positions + (pos - self.sim.rest_positions)
+        self._cylinders = self._object_cylinders()
+
+    def _object_cylinders(self) -> tuple[Cylinder, ...]:
+        """Each object as ``(x, y, radius, top)`` where it stands now (``app.teleop.lift_out``)."""
+        envelopes = self.scene.goals.envelopes
+        if envelopes is None:
+            return ()
+        return tuple(
+            (g[0], g[1], env[0], g[2] + env[1])
+            for g, env in zip(self._grasp_points.tolist(), envelopes.tolist(), strict=True)
+        )
+
+    def _steer(self) -> np.ndarray:
+        """Where ``U`` steers this tick: the user's target, or first out of an object the open
+        hand is around and the target leaves (``app.teleop.lift_out``; not a lying object)."""
+        if self.task.gripper_closed:
+            return self.user_target
+        down = self.accidents.down
+        cylinders = (
+            self._cylinders
+            if not down
+            else [c for k, c in enumerate(self._cylinders) if k not in down]
+        )
+        out = lift_out(
+            self._ee.tolist(),
+            self.user_target.tolist(),
+            cylinders,
+            reach_below=self._reach_below,
+            slot=self.scene.spec.gripper_open,
+        )
+        return self.user_target if out is None else np.array(out)
 
     def _follow_objects(self, events: list[TrialEvent]) -> None:
         """Re-aim the robot at objects a grasp moved: ``G_k <-`` object ``k``'s grasp point now,
@@ -343,7 +377,7 @@ class Trial:
         held = self.task.control(q, self.t, request=request, events=events)
         if held is not None:
             return held, held, held
-        u = self.ik(q, self.user_target)
+        u = self.ik(q, self._steer())
         rec = self.blender.step(q, u, x=self.user_input, robot_x=self._ee)
         alpha, command = rec.alpha, rec.command
         if self.accidents.lying(rec.predicted):  # its goal lies, to be stood up where the
