@@ -18,7 +18,9 @@ over ``k`` and the user's target ``t`` is not (``|t_xy - o_k,xy| >= r_k + s + c`
 so the fingertips clear the top by ``c`` before the hand moves sideways (aiming ``m`` higher
 than that: ``U`` slows as it nears its target, and would creep across the last millimetres), and it descends
 toward a low target only once it has left ``k``'s footprint. A target over ``k`` (a grasp of
-it, an adjustment) is followed as given.
+it, an adjustment) is followed as given; so is any target while the robot is taking the hand to
+``k`` (the trial leaves ``k`` out: its policy keeps the hand clear, and a user aiming beside the
+object would only push straight against it).
 """
 
 from __future__ import annotations

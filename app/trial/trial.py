@@ -199,14 +199,18 @@ class Trial:
 
     def _steer(self) -> np.ndarray:
         """Where ``U`` steers this tick: the user's target, or first out of an object the open
-        hand is around and the target leaves (``app.teleop.lift_out``; not a lying object)."""
+        hand is around and the target leaves (``app.teleop.lift_out``). Not out of a lying
+        object, nor out of the one the robot is taking the hand to (``alpha > 0`` at the last
+        tick): its policy keeps the hand clear there, and a user aiming beside the object would
+        only push against it (Theorem 1's stalemate at ``p = -u``)."""
         if self.task.gripper_closed:
             return self.user_target
         down = self.accidents.down
+        taking = self._blend.predicted if self._blend.alpha > 0.0 else -1
         cylinders = (
             self._cylinders
-            if not down
-            else [c for k, c in enumerate(self._cylinders) if k not in down]
+            if not down and taking < 0
+            else [c for k, c in enumerate(self._cylinders) if k not in down and k != taking]
         )
         out = lift_out(
             self._ee.tolist(),
