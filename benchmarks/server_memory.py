@@ -16,12 +16,13 @@ control loops' worst 0.25-s window in that interval. At the end:
 * with ``--tracemalloc N``: the top allocation sites (N frames) grown between the first and
   the last sample (tracemalloc slows the server: its rates are then not the served ones).
 
-``--time-limit`` is the trial's time limit (default 600 s, longer than the run: one trial
+``--attack KIND`` runs ``tests/attacker.py KIND`` (e.g. ``storm``) against the participant port
+meanwhile (its connections leave garbage: collections come often). ``--time-limit`` is the trial's time limit (default 600 s, longer than the run: one trial
 grows all the way, as in the attack pass); ``--code DIR`` measures another checkout (``git
 archive main | tar -x -C DIR``) with this script, side by side.
 
 Usage: ``.venv/bin/python benchmarks/server_memory.py [--seconds 180] [--sessions 2]
-[--browser] [--tracemalloc 8] [--code DIR]``. Last line: one JSON object.
+[--browser] [--attack storm] [--tracemalloc 8] [--code DIR]``. Last line: one JSON object.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ import argparse
 import collections
 import gc
 import json
+import subprocess
 import sys
 import tempfile
 import threading
@@ -197,14 +199,26 @@ def run(args: argparse.Namespace) -> dict:
             else:
                 time.sleep(seconds)
 
+        attacker = None
+        if args.attack:
+            argv = ["--port", str(srv.participant_port), "--seconds", str(args.seconds + 5)]
+            attacker = subprocess.Popen(
+                [sys.executable, "-m", "tests.attacker", args.attack, *argv],
+                cwd=ROOT,
+                stdout=subprocess.DEVNULL,
+            )
         wait(2.0)
         sampler = Sampler(lives, pauses, trace=bool(args.tracemalloc))
         end = sampler.t0 + args.seconds
         while time.monotonic() < end - 1e-3:
             wait(min(args.every, end - time.monotonic()))
             sampler.sample()
+        if attacker is not None:
+            attacker.kill()
+            attacker.wait()
         result = {
             "code": args.code or str(ROOT),
+            "attack": args.attack,
             "sessions": args.sessions,
             "browser": bool(args.browser),
             "seconds": args.seconds,
@@ -238,6 +252,9 @@ def main() -> int:
     parser.add_argument("--time-limit", type=float, default=600.0, help="the trials' limit, s")
     parser.add_argument(
         "--tracemalloc", type=int, default=0, help="trace allocations with N frames (slow)"
+    )
+    parser.add_argument(
+        "--attack", help="run tests/attacker.py KIND (e.g. storm) against the port meanwhile"
     )
     parser.add_argument("--code", help="another checkout to measure (e.g. main's)")
     args = parser.parse_args()
