@@ -12,14 +12,17 @@ control loops' worst 0.25-s window in that interval. At the end:
 * ``objects_slope_per_s``: the same for tracked objects, and the types that grew most
   between the first and last sample;
 * ``gc2_ms``: generation-2 pauses (count, max, p99, median), the loops' worst window and how
-  many 0.25-s windows fell under 95 Hz;
+  many 0.25-s windows fell under 95 Hz (the sampling itself, a list of the tracked objects,
+  takes a few ms);
 * with ``--tracemalloc N``: the top allocation sites (N frames) grown between the first and
   the last sample (tracemalloc slows the server: its rates are then not the served ones).
 
 ``--attack KIND`` runs ``tests/attacker.py KIND`` (e.g. ``storm``) against the participant port
-meanwhile (its connections leave garbage: collections come often). ``--time-limit`` is the trial's time limit (default 600 s, longer than the run: one trial
-grows all the way, as in the attack pass); ``--code DIR`` measures another checkout (``git
-archive main | tar -x -C DIR``) with this script, side by side.
+meanwhile (its connections leave garbage: collections come often). ``--time-limit`` is the
+trials' time limit (default 600 s, longer than the run: one trial runs all the way, as in the
+attack pass); ``--code DIR`` measures another checkout (``git archive main | tar -x -C DIR``)
+with this script, side by side. The load average before and after is printed: the worst
+windows follow the machine's load more than anything in the server.
 
 Usage: ``.venv/bin/python benchmarks/server_memory.py [--seconds 180] [--sessions 2]
 [--browser] [--attack storm] [--tracemalloc 8] [--code DIR]``. Last line: one JSON object.
@@ -31,6 +34,7 @@ import argparse
 import collections
 import gc
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -208,6 +212,7 @@ def run(args: argparse.Namespace) -> dict:
                 stdout=subprocess.DEVNULL,
             )
         wait(2.0)
+        load_before = [round(x, 2) for x in os.getloadavg()]
         sampler = Sampler(lives, pauses, trace=bool(args.tracemalloc))
         end = sampler.t0 + args.seconds
         while time.monotonic() < end - 1e-3:
@@ -223,6 +228,7 @@ def run(args: argparse.Namespace) -> dict:
             "browser": bool(args.browser),
             "seconds": args.seconds,
             "paused": [bool(s.session.paused) for s in lives],
+            "load": [load_before, [round(x, 2) for x in os.getloadavg()]],
             **sampler.summary(frames=args.tracemalloc or 1),
             "rows": sampler.rows,
         }
@@ -238,7 +244,7 @@ def run(args: argparse.Namespace) -> dict:
         f" (slope {s['rss_slope_mb_s']['all']} MB/s, second half"
         f" {s['rss_slope_mb_s']['second_half']} MB/s); objects {s['objects']['first']} ->"
         f" {s['objects']['last']}; gen-2 GC {s['gc2_ms']}; worst window {s['worst_hz']:.0f} Hz,"
-        f" {s['windows_under_95']} of {s['windows']} under 95"
+        f" {s['windows_under_95']} of {s['windows']} under 95; load {s['load']}"
     )
     return result
 
