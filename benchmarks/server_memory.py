@@ -157,6 +157,74 @@ class Sampler:
         return out
 
 
+def start_sessions(rs, n: int, browser) -> tuple[list, object]:
+    """``n`` live sessions, each in its first trial; with ``browser``, the first one's tab
+    (returned, else ``None``) types its code and presses Start."""
+    srv = rs.server
+    lives = []
+    for k in range(n):
+        code = srv.enrol(f"M{k + 1:02d}")
+        srv.act(code, "start")
+        lives.append(srv.session(code))
+    page = None
+    for k, live in enumerate(lives):
+        live.session.agree()
+        if k == 0 and browser is not None:
+            from tests.browser.test_participant_flow import join
+
+            page = browser.new_page(viewport={"width": 1000, "height": 700})
+            page.set_default_timeout(120_000)
+            page.goto(rs.url)
+            join(page, live.code, then="Start")
+            start_trial(live, page)
+        else:
+            start_trial(live)
+    return lives, page
+
+
+def measure(args: argparse.Namespace, rs, lives: list, page, pauses: GcPauses) -> dict:
+    """Sample every ``--every`` s for ``--seconds`` (an attacker meanwhile with ``--attack``);
+    waits through Playwright when a tab is attached, so its events keep flowing."""
+
+    def wait(seconds: float) -> None:
+        if page is not None:
+            page.wait_for_timeout(seconds * 1000)
+        else:
+            time.sleep(seconds)
+
+    attacker = None
+    if args.attack:
+        argv = ["--port", str(rs.server.participant_port), "--seconds", str(args.seconds + 5)]
+        attacker = subprocess.Popen(
+            [sys.executable, "-m", "tests.attacker", args.attack, *argv],
+            cwd=ROOT,
+            stdout=subprocess.DEVNULL,
+        )
+    try:
+        wait(2.0)
+        load_before = [round(x, 2) for x in os.getloadavg()]
+        sampler = Sampler(lives, pauses, trace=bool(args.tracemalloc))
+        end = sampler.t0 + args.seconds
+        while time.monotonic() < end - 1e-3:
+            wait(min(args.every, end - time.monotonic()))
+            sampler.sample()
+    finally:
+        if attacker is not None:
+            attacker.kill()
+            attacker.wait()
+    return {
+        "code": args.code or str(ROOT),
+        "attack": args.attack,
+        "sessions": args.sessions,
+        "browser": bool(args.browser),
+        "seconds": args.seconds,
+        "paused": [bool(s.session.paused) for s in lives],
+        "load": [load_before, [round(x, 2) for x in os.getloadavg()]],
+        **sampler.summary(frames=args.tracemalloc or 1),
+        "rows": sampler.rows,
+    }
+
+
 def run(args: argparse.Namespace) -> dict:
     if args.tracemalloc:
         tracemalloc.start(args.tracemalloc)
@@ -165,80 +233,23 @@ def run(args: argparse.Namespace) -> dict:
     if args.browser:
         from playwright.sync_api import sync_playwright
 
-        from tests.browser.test_participant_flow import join
-
         playwright = sync_playwright().start()
         browser = launch(playwright)
     rs = start_server(
         tempfile.mkdtemp(prefix="bench-memory-"), time_limit_s=args.time_limit, training_runs=1
     )
-    srv = rs.server
     stop = threading.Event()
     try:
-        lives = []
-        for k in range(args.sessions):
-            code = srv.enrol(f"M{k + 1:02d}")
-            srv.act(code, "start")
-            lives.append(srv.session(code))
-        page = None
-        for k, live in enumerate(lives):
-            live.session.agree()
-            if k == 0 and browser is not None:
-                page = browser.new_page(viewport={"width": 1000, "height": 700})
-                page.set_default_timeout(120_000)
-                page.goto(rs.url)
-                join(page, live.code, then="Start")
-                start_trial(live, page)
-            else:
-                start_trial(live)
-        feeders = [
-            threading.Thread(target=feed_gizmo, args=(live, stop), daemon=True) for live in lives
-        ]
-        for f in feeders:
-            f.start()
-
-        def wait(seconds: float) -> None:
-            if page is not None:
-                page.wait_for_timeout(seconds * 1000)
-            else:
-                time.sleep(seconds)
-
-        attacker = None
-        if args.attack:
-            argv = ["--port", str(srv.participant_port), "--seconds", str(args.seconds + 5)]
-            attacker = subprocess.Popen(
-                [sys.executable, "-m", "tests.attacker", args.attack, *argv],
-                cwd=ROOT,
-                stdout=subprocess.DEVNULL,
-            )
-        wait(2.0)
-        load_before = [round(x, 2) for x in os.getloadavg()]
-        sampler = Sampler(lives, pauses, trace=bool(args.tracemalloc))
-        end = sampler.t0 + args.seconds
-        while time.monotonic() < end - 1e-3:
-            wait(min(args.every, end - time.monotonic()))
-            sampler.sample()
-        if attacker is not None:
-            attacker.kill()
-            attacker.wait()
-        result = {
-            "code": args.code or str(ROOT),
-            "attack": args.attack,
-            "sessions": args.sessions,
-            "browser": bool(args.browser),
-            "seconds": args.seconds,
-            "paused": [bool(s.session.paused) for s in lives],
-            "load": [load_before, [round(x, 2) for x in os.getloadavg()]],
-            **sampler.summary(frames=args.tracemalloc or 1),
-            "rows": sampler.rows,
-        }
+        lives, page = start_sessions(rs, args.sessions, browser)
+        for live in lives:
+            threading.Thread(target=feed_gizmo, args=(live, stop), daemon=True).start()
+        s = measure(args, rs, lives, page, pauses)
     finally:
         stop.set()
         rs.stop()
         if browser is not None:
             browser.close()
             playwright.stop()
-    s = result
     print(
         f"RSS {s['rss_mb']['first']} -> {s['rss_mb']['last']} MB"
         f" (slope {s['rss_slope_mb_s']['all']} MB/s, second half"
@@ -246,7 +257,7 @@ def run(args: argparse.Namespace) -> dict:
         f" {s['objects']['last']}; gen-2 GC {s['gc2_ms']}; worst window {s['worst_hz']:.0f} Hz,"
         f" {s['windows_under_95']} of {s['windows']} under 95; load {s['load']}"
     )
-    return result
+    return s
 
 
 def main() -> int:
