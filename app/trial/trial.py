@@ -52,7 +52,12 @@ GOAL_MOVED_M = 0.005  # a goal follows its object once the object has moved this
 
 class Trial:
     """A trial drivable tick by tick (``tick()``) or to the end (``run_trial``); ``task``: what
-    the ticks mean (a fresh :class:`~app.trial.tasks.lift.LiftTask` when ``None``)."""
+    the ticks mean (a fresh :class:`~app.trial.tasks.lift.LiftTask` when ``None``).
+
+    ``keep_records=False``: ``records`` and ``events`` stay empty (``tick()`` still returns each
+    record), for a caller that keeps every tick itself -- a study session writes each one to its
+    store; kept here as well, a served trial held about 1.5 kB and one more object for the
+    garbage collector to walk per tick (``benchmarks/server_memory.py``)."""
 
     def __init__(
         self,
@@ -62,8 +67,10 @@ class Trial:
         seed: int = 0,
         scene: Scene | None = None,
         task: Task | None = None,
+        keep_records: bool = True,
     ) -> None:
         self.config = config
+        self.keep_records = keep_records
         self._dt = config.dt
         self._substeps = config.substeps
         self.input_source = input_source
@@ -429,7 +436,7 @@ class Trial:
         else:
             alpha, motion, rationality = 0.0, 0.0, math.nan
         t = self.t
-        if events:
+        if events and self.keep_records:
             self.events.extend((t, e) for e in events)
         # u, p, command, probabilities and user_target are fresh arrays each tick (or the
         # unchanging hold configuration), never written to afterwards: no copies needed.
@@ -451,7 +458,8 @@ class Trial:
             motion_agreement=float(motion),
             rationality=float(rationality),
         )
-        self.records.append(rec)
+        if self.keep_records:
+            self.records.append(rec)
         return rec
 
 

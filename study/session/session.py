@@ -41,8 +41,9 @@ Listener = Callable[[Screen], None]
 
 
 def default_trial_factory(config: TrialConfig, input_source: Any, seed: int) -> Trial:
-    """``app.trial.Trial(config, input_source, seed=seed)``."""
-    return Trial(config, input_source, seed=seed)
+    """``app.trial.Trial(config, input_source, seed=seed)``, keeping no records in memory: the
+    run writes each tick to the store (a long trial would otherwise grow the process)."""
+    return Trial(config, input_source, seed=seed, keep_records=False)
 
 
 class Session:
