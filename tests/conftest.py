@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -43,3 +44,28 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             continue
         group = "browser" if item.get_closest_marker("browser") else item.module.__name__
         item.add_marker(pytest.mark.xdist_group(group))
+
+
+BROWSER_TESTS = "tests/browser/"
+
+
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    """``--dist loadgroup`` that groups as the hook above says even where pytest-xdist cannot
+    read the groups: xdist 3.8 writes each test's group into ``item._nodeid``, which pytest 9
+    no longer reads (a test's id comes from ``item._id``), so every test was scheduled alone
+    -- a module's tests on both workers, each building its module fixtures (a simulated
+    reference store twice), and browser tests on both workers at once. The group is read from
+    the test's id: xdist's ``@group`` suffix where it is there, else ``browser`` for every test
+    under tests/browser/ (the only browser tests) and the module's path for the others."""
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadGroupScheduling
+
+    class ByModule(LoadGroupScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            if nodeid.rfind("@") > nodeid.rfind("]"):
+                return nodeid.rsplit("@", 1)[-1]
+            path = nodeid.split("::", 1)[0]
+            return "browser" if path.startswith(BROWSER_TESTS) else path
+
+    return ByModule(config, log)
