@@ -112,3 +112,14 @@ def each_target_once(path: Path, *, mode: str = "timid") -> Path:
     )
     path.write_text(text, encoding="utf-8")
     return path
+
+
+def short_practice(path: Path, *, seconds: float) -> Path:
+    """Give the practice runs of the protocol at ``path`` (in place) their own time limit of
+    ``seconds`` (``[training] time_limit_s``), for tests that only wait a practice run out.
+    Return ``path``."""
+    text = path.read_text(encoding="utf-8")
+    assert "[training]\n" in text, "the protocol has no [training] table: update this helper"
+    text = text.replace("[training]\n", f"[training]\ntime_limit_s = {seconds:g}\n", 1)
+    path.write_text(text, encoding="utf-8")
+    return path

@@ -36,6 +36,21 @@ def context(browser: Any) -> Iterator[Any]:
 
 
 @pytest.fixture
+def small(browser: Any) -> Iterator[Any]:
+    """An 800 x 600 window for tests that measure no pixel and keep no screenshot (blinding,
+    key state): 61 % of the pixels of 1100 x 720 for software WebGL to draw, leaving more of
+    the cores to the server and the other pytest worker (the tests' own times are set by what
+    they wait for: no faster within the noise of a shared machine). Wide enough for viser's
+    desktop layout (its phone layout starts below 576 px)."""
+    ctx = browser.new_context(viewport={"width": 800, "height": 600})
+    ctx.set_default_timeout(60_000)
+    try:
+        yield ctx
+    finally:
+        ctx.close()
+
+
+@pytest.fixture
 def wide(browser: Any) -> Iterator[Any]:
     """A 1366 x 768 window, a common laptop screen: the size the page is tried at."""
     ctx = browser.new_context(viewport={"width": 1366, "height": 768})

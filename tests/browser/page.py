@@ -100,11 +100,21 @@ def without_client_warning(text: str) -> str:
     return "\n".join(ln for ln in lines if "WebGL" not in ln and "hardware acceleration" not in ln)
 
 
-def page_pixel(page: Any, camera: Any, point: np.ndarray) -> np.ndarray:
+def canvas_box(page: Any) -> dict[str, float]:
+    """The scene canvas's box on the page (CSS pixels). Each call waits for the page's main
+    thread (up to a second when software WebGL is busy): a caller placing several points at
+    one moment reads it once and passes it on as ``box``."""
+    return page.locator("canvas").first.bounding_box()
+
+
+def page_pixel(
+    page: Any, camera: Any, point: np.ndarray, *, box: dict[str, float] | None = None
+) -> np.ndarray:
     """Page pixel (CSS) of world ``point``: the camera's image scaled to the canvas on the page
-    (viser lowers the canvas resolution when frames are slow)."""
+    (viser lowers the canvas resolution when frames are slow); ``box``: the canvas's box,
+    read now if not given."""
     x, y = project(camera, point)
-    box = page.locator("canvas").first.bounding_box()
+    box = box or canvas_box(page)
     return np.array(
         [
             box["x"] + x * box["width"] / camera.image_width,
@@ -113,8 +123,11 @@ def page_pixel(page: Any, camera: Any, point: np.ndarray) -> np.ndarray:
     )
 
 
-def pixels_per_m(page: Any, camera: Any, point: np.ndarray) -> float:
-    """Page pixels per metre across the line of sight at ``point``."""
+def pixels_per_m(
+    page: Any, camera: Any, point: np.ndarray, *, box: dict[str, float] | None = None
+) -> float:
+    """Page pixels per metre across the line of sight at ``point`` (``box``: as for
+    :func:`page_pixel`)."""
     rot = np.asarray(camera.wxyz)
     w, x, y, z = rot
     r = np.array(
@@ -125,7 +138,7 @@ def pixels_per_m(page: Any, camera: Any, point: np.ndarray) -> float:
         ]
     )
     depth = float((r.T @ (np.asarray(point) - np.asarray(camera.position)))[2])
-    box = page.locator("canvas").first.bounding_box()
+    box = box or canvas_box(page)
     f = (box["height"] / 2) / np.tan(camera.fov / 2)
     return f / depth
 

@@ -52,14 +52,14 @@ def _run_once(page: Any, seen: list[str]) -> None:
 
 @pytest.mark.parametrize("source", PAGE_BLINDED_PROTOCOLS, ids=lambda p: p.stem)
 def test_no_frame_names_a_condition_of_the_served_protocol(
-    tmp_path: Path, context: Any, source: Path
+    tmp_path: Path, small: Any, source: Path
 ) -> None:
     rs = start_server(tmp_path, time_limit_s=TIME_LIMIT_S, training_runs=1, source=source)
     try:
         srv = rs.server
         words = rs.protocol.condition_words
         assert set(srv.guard.words) == set(words)
-        page = context.new_page()
+        page = small.new_page()
         frames = FrameLog().attach(page)
         seen: list[str] = []
         connect_page(page, rs.url)

@@ -26,6 +26,7 @@ from study.server.live import session_factory
 from study.server.server import StudyServer
 from tests.browser.harness import RunningServer, start_server, wait_until
 from tests.browser.page import AGREE, connect_page, join, screenshot, text_input
+from tests.protocol_copies import short_practice
 
 pytestmark = pytest.mark.browser
 
@@ -37,17 +38,16 @@ ACTIONS = ("Start", "Pause", "Resume", "Redo", "Skip", "Withdraw", "End")
 
 @pytest.fixture
 def study(tmp_path: Path) -> Any:
-    rs = start_server(tmp_path, time_limit_s=TIME_LIMIT_S, training_runs=1, edit=_short_practice)
+    rs = start_server(
+        tmp_path,
+        time_limit_s=TIME_LIMIT_S,
+        training_runs=1,
+        edit=lambda p: short_practice(p, seconds=PRACTICE_S),
+    )
     try:
         yield rs
     finally:
         rs.stop()
-
-
-def _short_practice(path: Path) -> Path:
-    text = path.read_text()
-    path.write_text(text.replace("[training]\n", f"[training]\ntime_limit_s = {PRACTICE_S:g}\n", 1))
-    return path
 
 
 def _enabled(console: Any) -> set[str]:

@@ -1,6 +1,6 @@
 """The robot's intent on the participant page: a ring around the predicted object, or nothing.
 
-protocols/intent.toml (shortened: one practice run, 8 s trials) gives design row 0 the
+protocols/intent.toml (shortened: one practice run of 4 s, 8 s task runs) gives design row 0 the
 Easy&Right task first in mode ``aggressive`` (intent not shown), then in ``aggressive_shown``
 (``intent = "goal"``). A participant steers toward the box with held keys in both runs: with
 the display off the page never receives a ring node; with it on, the browser's scene tree holds
@@ -28,10 +28,13 @@ from tests.browser.page import (
     screenshot,
     settle_frames,
 )
+from tests.protocol_copies import short_practice
 
 pytestmark = pytest.mark.browser
 
 INTENT = Path(__file__).resolve().parents[2] / "protocols" / "intent.toml"
+PRACTICE_S = 4.0
+"""The practice run is only waited out (no ring in it): half the task runs' 8 s."""
 RING_JS = """(name) => {
   const node = window.__viserSceneTree.getState()[name];
   if (!node) return null;
@@ -44,7 +47,13 @@ RING_JS = """(name) => {
 
 @pytest.fixture
 def study(tmp_path: Path) -> Any:
-    rs = start_server(tmp_path, time_limit_s=8.0, training_runs=1, source=INTENT)
+    rs = start_server(
+        tmp_path,
+        time_limit_s=8.0,
+        training_runs=1,
+        source=INTENT,
+        edit=lambda p: short_practice(p, seconds=PRACTICE_S),
+    )
     try:
         yield rs
     finally:

@@ -34,14 +34,12 @@ def study(tmp_path: Path) -> Any:
         rs.stop()
 
 
-def test_a_lost_key_release_is_repaired_by_the_next_state(
-    study: RunningServer, context: Any
-) -> None:
+def test_a_lost_key_release_is_repaired_by_the_next_state(study: RunningServer, small: Any) -> None:
     srv = study.server
     code = srv.enrol("P01")
     srv.act(code, "start")
     live = srv.session(code)
-    page = context.new_page()
+    page = small.new_page()
     connect_page(page, study.url)
     join(page, code)
     page.get_by_role("button", name="I have read this and agree to take part").click()

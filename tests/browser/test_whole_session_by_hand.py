@@ -49,6 +49,7 @@ from study.server.participant_page import INSET_SIZE
 from tests.browser.harness import FrameLog, RunningServer, start_server, wait_until
 from tests.browser.page import (
     AGREE,
+    canvas_box,
     connect_page,
     hold,
     join,
@@ -144,8 +145,10 @@ class Person:
         scene = self.run.trial.scene
         return np.asarray(grasp_position(scene.spec.objects[scene.target_index]), float)
 
-    def screen(self, point: np.ndarray) -> np.ndarray:
-        return page_pixel(self.page, self.live.page.client.camera, point)
+    def screen(self, point: np.ndarray, *, box: dict[str, float] | None = None) -> np.ndarray:
+        """Where ``point`` is on the page (``box``: the canvas's, read once by a caller that
+        places several points at one moment)."""
+        return page_pixel(self.page, self.live.page.client.camera, point, box=box)
 
     def clock(self) -> int:
         m = CLOCK.search(self.read())
@@ -184,10 +187,10 @@ class Person:
         distance = self.wait_at_grasp()
         print(f"{self.name} {label}: gripper {1e3 * distance:.0f} mm from the grasp point")
         assert distance < 0.015, f"the gripper did not get to the grasp ({distance:.3f} m)"
-        obj = self.screen(goal)
-        origin = self.screen(self.handle())
+        box = canvas_box(self.page)
+        obj = self.screen(goal, box=box)
+        origin = self.screen(self.handle(), box=box)
         assert origin[1] < obj[1] - 30, "the handle sits above the target on the screen"
-        box = self.page.locator("canvas").first.bounding_box()
         assert box["x"] < obj[0] < box["x"] + box["width"] and 0 < obj[1] < box["height"]
         assert self.clock() < self.clock_at_start, "the countdown runs"
         # The view from above shows the gripper's cross on the target: depth is read there.
@@ -261,10 +264,10 @@ def _grab(page: Any, at: np.ndarray) -> None:
     page.wait_for_timeout(150)
 
 
-def _arm_length_m(person: Person) -> float:
+def _arm_length_m(person: Person, *, box: dict[str, float] | None = None) -> float:
     """The handle's arrow length in metres at the handle (it is drawn HANDLE_PX long)."""
     cam = person.live.page.client.camera
-    return HANDLE_PX / pixels_per_m(person.page, cam, person.handle())
+    return HANDLE_PX / pixels_per_m(person.page, cam, person.handle(), box=box)
 
 
 def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
@@ -275,12 +278,14 @@ def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
 def _plane_grip(person: Person) -> np.ndarray:
     """Where a person presses the table-plane square (world): the point of it farthest on the
     screen from the up arrow, which is drawn across the square's middle."""
-    origin, length = person.handle(), _arm_length_m(person)
-    base, tip = person.screen(origin), person.screen(origin + length * np.array([0, 0, 1.0]))
+    box = canvas_box(person.page)
+    origin, length = person.handle(), _arm_length_m(person, box=box)
+    base = person.screen(origin, box=box)
+    tip = person.screen(origin + length * np.array([0, 0, 1.0]), box=box)
     half = 0.225 / 2 * 0.7  # inside the square's edges
     grid = np.linspace(PLANE_AT - half, PLANE_AT + half, 5)
     points = [origin + length * np.array([a, b, 0.0]) for a in grid for b in grid]
-    return max(points, key=lambda w: _segment_distance(person.screen(w), base, tip))
+    return max(points, key=lambda w: _segment_distance(person.screen(w, box=box), base, tip))
 
 
 def _drag_handle(
@@ -301,13 +306,14 @@ def _drag_handle(
     axes = [0, 1] if part == "plane" else [2]
     for missed in range(3):
         origin = person.handle()
-        length = _arm_length_m(person)
+        box = canvas_box(page)
+        length = _arm_length_m(person, box=box)
         if part == "plane":
             grabbed = _plane_grip(person) + 0.02 * missed * length * np.array([1.0, -1.0, 0])
         else:
             grabbed = origin + 0.75 * length * np.array([0.0, 0.0, 1.0])
-        start = person.screen(grabbed)
-        end = person.screen(grabbed + move)
+        start = person.screen(grabbed, box=box)
+        end = person.screen(grabbed + move, box=box)
         _grab(page, start)
         if not wait_until(lambda: person.live.page.dragging, timeout=5):
             page.mouse.up()
@@ -459,11 +465,16 @@ def test_a_whole_session_with_the_mouse_alone(
 
 def _focus(page: Any, want: Any, *, presses: int = 40) -> dict[str, Any]:
     """Press Tab until the focused element satisfies ``want`` (a participant's eye on the
-    focus ring); return what is focused."""
+    focus ring); return what is focused. The focus moves while the browser handles the Tab
+    (the press returns after that); only a focus seen not to have moved is read again later."""
+    focused = page.evaluate(FOCUSED)
     for _ in range(presses):
+        before = focused
         page.keyboard.press("Tab")
-        page.wait_for_timeout(80)
         focused = page.evaluate(FOCUSED)
+        if focused == before:
+            page.wait_for_timeout(80)
+            focused = page.evaluate(FOCUSED)
         if want(focused):
             return focused
     raise AssertionError(f"Tab never reached the element wanted; last {focused}")
