@@ -10,8 +10,10 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 
 from app.robot import build_scene
+from app.teleop.keyboard import KEY_SPEED_M_S
 from app.teleop.lift_out import CLEARANCE_M, MARGIN_M, lift_out
 from app.teleop.types import TeleopCommand, TrialObservation
 from app.trial import Trial
@@ -25,10 +27,16 @@ def test_out_first_then_across_and_a_target_at_the_object_is_followed() -> None:
     kw = {"reach_below": 0.05, "slot": 0.04}
     floor = 0.25 + 0.05 + CLEARANCE_M
     inside = (0.55, -0.08, 0.17)
-    assert lift_out(inside, (0.64, 0.06, 0.25), [BOTTLE], **kw) == (0.55, -0.08, floor + MARGIN_M)
+    up = (0.55, -0.08, floor + MARGIN_M)
+    assert lift_out(inside, (0.64, 0.06, 0.25), [BOTTLE], **kw) == up  # far: out first
+    # a key held away: the target leads the hand by 2 cm, still over the bottle
+    assert lift_out(inside, (0.55, -0.06, 0.17), [BOTTLE], **kw) == up
     above = (0.55, -0.08, floor + 0.001)
     assert lift_out(above, (0.64, 0.06, 0.04), [BOTTLE], **kw) == (0.64, 0.06, floor)
+    assert lift_out(inside, (0.64, 0.06, 0.04), [BOTTLE], **kw) == up  # aimed low: out first
     assert lift_out(inside, (0.56, -0.07, 0.10), [BOTTLE], **kw) is None  # at the bottle
+    off_centre = (0.555, -0.09, 0.17)
+    assert lift_out(off_centre, (0.552, -0.082, 0.17), [BOTTLE], **kw) is None  # centring on it
     assert lift_out((0.40, 0.0, 0.17), (0.64, 0.06, 0.04), [BOTTLE], **kw) is None  # not over it
 
 
@@ -47,18 +55,41 @@ class _AroundThenAway:
         return TeleopCommand(target=np.asarray(self.stages[self.stage], dtype=float))
 
 
-def test_a_hand_around_the_wrong_object_rises_out_of_it_and_knocks_nothing(protocol_path) -> None:
+class _AroundThenKeys(_AroundThenAway):
+    """The same, but leaving as a held sideways key does on the page: the target slides
+    sideways (along y, across the fingers' slot), at the hand's height, to ``then``'s y at the
+    keys' speed, a couple of centimetres ahead of the hand."""
+
+    def __init__(self, first: np.ndarray, then: np.ndarray) -> None:
+        super().__init__(first, np.array((first[0], then[1], first[2])))  # A/D: along y
+
+    def command(self, obs: TrialObservation) -> TeleopCommand:
+        if self.stage < 2:
+            cmd = super().command(obs)
+            self.held = np.array(cmd.target, dtype=float)
+            return cmd
+        step = self.stages[2] - self.held
+        dist = float(np.linalg.norm(step))
+        if dist > 1e-9:
+            self.held = self.held + step * min(1.0, KEY_SPEED_M_S / obs.rate_hz / dist)
+        return TeleopCommand(target=self.held.copy())
+
+
+@pytest.mark.parametrize("user", [_AroundThenAway, _AroundThenKeys])
+def test_a_hand_around_the_wrong_object_rises_out_of_it_and_knocks_nothing(
+    protocol_path, user
+) -> None:
     cfg = dataclasses.replace(
-        trial_config_from_protocol(protocol_path, "easy-right", "none"), time_limit_s=12.0
+        trial_config_from_protocol(protocol_path, "easy-right", "none"), time_limit_s=20.0
     )
     scene = build_scene(cfg.scene)
     k = scene.object_names.index("bottle")
     other = scene.target_index
     away = scene.goals.positions[other] + np.array((0.0, 0.0, 0.08))
-    user = _AroundThenAway(scene.goals.positions[k].copy(), away)
+    user = user(scene.goals.positions[k].copy(), away)
     trial = Trial(cfg, user, scene=scene)
     path = []
-    while not trial.done and trial.t < 10.0:
+    while not trial.done and trial.t < 18.0:
         trial.tick()
         if user.stage == 2:
             path.append(trial.sim.ee.copy())
@@ -72,4 +103,4 @@ def test_a_hand_around_the_wrong_object_rises_out_of_it_and_knocks_nothing(proto
     rose = path[np.argmax(sideways > 0.03)]  # where the hand was once 3 cm across
     fingertips = max(0.0, -min(layer.lo for layer in scene.hand))  # below the TCP
     assert rose[2] - fingertips > top, "it moved across before its fingertips cleared the bottle"
-    assert np.linalg.norm(path[-1] - away) < 0.01
+    assert np.linalg.norm(path[-1] - user.stages[2]) < 0.01
