@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from study.server.console_texts import link_markdown
 from study.server.open_link import LinkClosed, OpenLink
 from study.server.recruitment import Recruitment
 from study.session import open_store
@@ -39,6 +40,7 @@ def test_bots_that_never_consent_give_their_places_back_and_a_returning_id_its_s
         assert srv.link().used == 2
         with pytest.raises(LinkClosed, match="all 2 places"):
             srv.link_session(Recruitment((("pid", "person"),)), address="10.0.0.9")
+        assert "New IDs refused: 1 while it was full." in link_markdown(srv.link())
         codes = [live.code for live in opened if live is not None]
         assert any(_threads_of(c) for c in codes)
         assert wait_until(lambda: srv.link().used == 0, timeout=10.0)

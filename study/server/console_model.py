@@ -84,6 +84,8 @@ class LinkState:
     cap: int
     used: int
     url: str
+    refused: tuple[tuple[str, int], ...] = ()
+    """New IDs refused since the server started, by why (``OpenLink.refused``)."""
 
 
 class Console(Protocol):

@@ -89,9 +89,16 @@ def link_markdown(link: LinkState) -> str:
     if not link.enabled:
         return "Open link is **off**: participants need a join code."
     free = max(0, link.cap - link.used)
+    why = {
+        "off": "while it was off",
+        "full": "while it was full",
+        "address": "from an address past its new IDs for the hour",
+    }
+    refused = ", ".join(f"{n} {why.get(k, k)}" for k, n in link.refused if n)
     return (
-        f"Open link is **on**: {link.used} of {link.cap} places taken ({free} free).\n\n"
-        f"Link for the recruitment site:\n\n`{link.url}`"
+        f"Open link is **on**: {link.used} of {link.cap} places taken ({free} free)."
+        + (f" New IDs refused: {refused}." if refused else "")
+        + f"\n\nLink for the recruitment site:\n\n`{link.url}`"
     )
 
 

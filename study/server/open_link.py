@@ -66,6 +66,9 @@ class OpenLink:
         self._recruitment: dict[str, Recruitment] = {}
         self._released: set[str] = set()
         """Participants whose place was given back (until they come back)."""
+        self.refused: dict[str, int] = {"off": 0, "full": 0, "address": 0}
+        """New IDs refused since the server started, by why: the link off, every place taken,
+        the address's new IDs for the hour used up (the console shows them)."""
         for event in store.events():
             if event.kind == RELEASED and event.participant:
                 self._released.add(event.participant)
@@ -129,16 +132,23 @@ class OpenLink:
         is enrolled); :class:`LinkClosed` while the link is off or full, or ``address`` had
         its new IDs for now."""
         if not self.enabled:
+            self._refuse("off")
             raise LinkClosed("the open link is off")
         if self.used() >= self.cap:
+            self._refuse("full")
             raise LinkClosed(f"all {self.cap} places are taken")
         if self.per_address > 0 and self._recent(address, time.monotonic()) >= self.per_address:
+            self._refuse("address")
             raise LinkClosed(
                 f"{self.per_address} new IDs from one address within {self.window_s:g} s"
             )
         ids = (p.participant for p in self.store.participants())
         numbers = [int(m[1]) for p in ids if (m := LINK_PARTICIPANT.fullmatch(p))]
         return f"L{max(numbers, default=0) + 1:04d}"
+
+    def _refuse(self, why: str) -> None:
+        with self._lock:
+            self.refused[why] += 1
 
     def taken(
         self, participant: str, recruitment: Recruitment, *, address: str = "unknown"

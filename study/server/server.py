@@ -313,6 +313,7 @@ class StudyServer:
             cap=self.open_link.cap,
             used=self.open_link.used(),
             url=self.link_url(),
+            refused=tuple(self.open_link.refused.items()),
         )
 
     def set_link(self, *, enabled: bool, cap: int) -> LinkState:
