@@ -226,10 +226,13 @@ def test_sessions_of_one_store_share_one_commit_and_a_bad_batch_holds_back_only_
     writer whose rows are refused (a duplicate tick) does not stop the others' samples."""
     with open_store(tmp_path / "s.db") as store:
         trials = [new_trial(store, enrol(store, f"P0{n}")) for n in (1, 2, 3)]
+
+        def running() -> set[threading.Thread]:
+            return {t for t in threading.enumerate() if t.name == "sample-committer"}
+
+        before = running()  # other tests' stores in this process may have theirs
         writers = [SampleWriter(store, flush_interval_s=0.05) for _ in trials]
-        committers = {
-            t for t in threading.enumerate() if t.name == "sample-committer" and t.is_alive()
-        }
+        committers = running() - before
         assert len(committers) == 1
         bad = writers[0]
         bad.add(trials[0], 0, tick(0))

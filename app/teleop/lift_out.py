@@ -23,10 +23,12 @@ so the hand never moves sideways while its fingers could touch ``k``: it rises u
 the top by ``c`` (aiming ``m`` higher, since ``U`` slows as it nears its target and would creep
 the last millimetres), and descends toward a low target only once it has left ``k``'s
 footprint. A target that does not leave ``k`` (a grasp of it, centring on it) is followed as
-given. The trial leaves out the object the robot is taking the hand to unless the fingers are
-already around it (:data:`AROUND_M` below its top): above it, its policy keeps the hand clear,
-and a user aiming beside it would only push straight up against the robot lowering the hand (a
-stalemate, Theorem 1's ``p = -u``: 2 timeouts in 304 runs of a simulated pilot).
+given. The trial leaves out the object the robot is taking the hand to (``alpha > 0``): its
+policy keeps the hand clear there; a user aiming beside that object would only push straight up
+against the robot lowering the hand (a stalemate, Theorem 1's ``p = -u``: 2 timeouts in 304 runs
+of a simulated pilot), and in a Hard task the user's target, held at the reach's edge, always
+lies off the object the robot carries the hand to (the gripper stopped 3 cm short of the grasp).
+So a user steering away from the object a timid robot still leans toward is not lifted.
 """
 
 from __future__ import annotations
@@ -42,8 +44,6 @@ LEAVING_M = 0.005
 """``e``: how much farther from the object's axis than the hand a target must lie to leave it."""
 CENTRE_M = 0.01
 """``w``: a target this near the object's axis centres the hand on it, never leaves it."""
-AROUND_M = 0.01
-"""The fingertips this far below an object's top hold it between the fingers."""
 
 Cylinder = tuple[float, float, float, float]
 """An object as ``(x, y, radius, top height)`` in metres (world frame)."""
@@ -78,7 +78,6 @@ def lift_out(
 
 
 __all__ = [
-    "AROUND_M",
     "CENTRE_M",
     "CLEARANCE_M",
     "LEAVING_M",

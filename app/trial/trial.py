@@ -35,7 +35,7 @@ from app.robot.errors import PhysicsError
 from app.robot.scene import Scene, build_scene
 from app.robot.simulation import BodyPoses, Simulation
 from app.teleop.ik_step import IKStep
-from app.teleop.lift_out import AROUND_M, Cylinder, lift_out
+from app.teleop.lift_out import Cylinder, lift_out
 from app.teleop.types import InputSource, TeleopCommand, TrialObservation
 from app.trial.accidents import Accidents
 from app.trial.build_blender import build_blender
@@ -208,17 +208,17 @@ class Trial:
         """Where ``U`` steers this tick: the user's target, or first out of an object the open
         hand is around and the target leaves (``app.teleop.lift_out``). Not out of a lying
         object, nor out of the one the robot is taking the hand to (``alpha > 0`` at the last
-        tick) unless the fingers are around it already (see the module)."""
+        tick): its policy keeps the hand clear there, and in a Hard task the user's target,
+        held at the reach's edge, always lies off the object the robot is carrying the hand to."""
         if self.task.gripper_closed:
             return self.user_target
         down = self.accidents.down
         taking = self._blend.predicted if self._blend.alpha > 0.0 else -1
-        tips = float(self._ee[2]) - self._reach_below
-        cylinders = [
-            c
-            for k, c in enumerate(self._cylinders)
-            if k not in down and (k != taking or tips < c[3] - AROUND_M)
-        ]
+        cylinders = (
+            self._cylinders
+            if not down and taking < 0
+            else [c for k, c in enumerate(self._cylinders) if k not in down and k != taking]
+        )
         out = lift_out(
             self._ee.tolist(),
             self.user_target.tolist(),
