@@ -12,6 +12,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from app.blending import reach_below
 from app.robot import build_scene
 from app.teleop.keyboard import KEY_SPEED_M_S
 from app.teleop.lift_out import CLEARANCE_M, MARGIN_M, lift_out
@@ -101,6 +102,6 @@ def test_a_hand_around_the_wrong_object_rises_out_of_it_and_knocks_nothing(
     top = scene.goals.positions[k][2] + scene.goals.envelopes[k][1]
     sideways = np.linalg.norm(path[:, :2] - path[0, :2], axis=1)
     rose = path[np.argmax(sideways > 0.03)]  # where the hand was once 3 cm across
-    fingertips = max(0.0, -min(layer.lo for layer in scene.hand))  # below the TCP
+    fingertips = reach_below(scene.hand)  # below the TCP
     assert rose[2] - fingertips > top, "it moved across before its fingertips cleared the bottle"
     assert np.linalg.norm(path[-1] - user.stages[2]) < 0.01

@@ -65,7 +65,7 @@ from .errors import BlendingError, ConfigError, InvalidArbitrationError, Invalid
 from .goal_moves import GoalMoves, moved_goals
 from .goals import GoalSet
 from .policy import Policy, StraightLinePolicy, WorkspaceLinePolicy
-from .policy_grasp import ArmModel, GraspApproachPolicy, HandLayer
+from .policy_grasp import ArmModel, GraspApproachPolicy, HandLayer, reach_below
 from .prediction import (
     AmnesicPredictor,
     GoalPrediction,
@@ -130,6 +130,7 @@ __all__ = [
     "moved_goals",
     "policy_from_config",
     "predictor_from_config",
+    "reach_below",
     "register",
     "unregister",
 ]

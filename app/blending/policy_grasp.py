@@ -58,7 +58,7 @@ from ._checks import positive
 from .errors import InvalidInputError
 from .goals import GoalSet
 
-__all__ = ["ArmModel", "GraspApproachPolicy", "HandLayer", "rotation_log"]
+__all__ = ["ArmModel", "GraspApproachPolicy", "HandLayer", "reach_below", "rotation_log"]
 
 ROTATION_TOL = 0.1
 """rad: the gripper must be this close to the grasp rotation to start the approach."""
@@ -123,7 +123,13 @@ class ArmModel:
     @property
     def reach_below(self) -> float:
         """How far the fingertips reach below the TCP (m, >= 0)."""
-        return max(0.0, -min((layer.lo for layer in self.layers), default=0.0))
+        return reach_below(self.layers)
+
+
+def reach_below(layers: Sequence[HandLayer]) -> float:
+    """How far the lowest of the hand's ``layers`` (the fingertips) reaches below the TCP (m,
+    >= 0)."""
+    return max(0.0, -min((layer.lo for layer in layers), default=0.0))
 
 
 _SQRT_HALF = math.sqrt(0.5)

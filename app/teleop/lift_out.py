@@ -34,7 +34,7 @@ So a user steering away from the object a timid robot still leans toward is not 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Container, Iterable
 
 CLEARANCE_M = 0.01
 """``c``: how far the fingertips clear the object's top before the hand moves across."""
@@ -57,12 +57,16 @@ def lift_out(
     reach_below: float,
     slot: float,
     clearance: float = CLEARANCE_M,
+    skip: Container[int] = (),
 ) -> tuple[float, float, float] | None:
     """The target ``U`` steers to instead of ``target`` (module docstring), or ``None`` when
-    the hand is over no object the target leaves."""
+    the hand is over no object the target leaves; the objects whose indices are in ``skip``
+    are not considered."""
     xx, xy, xz = x
     tx, ty, tz = target
-    for ox, oy, radius, top in objects:
+    for k, (ox, oy, radius, top) in enumerate(objects):
+        if k in skip:
+            continue
         near = radius + slot + clearance
         d_x = math.hypot(xx - ox, xy - oy)
         if d_x >= near:

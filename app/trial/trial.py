@@ -30,7 +30,7 @@ import time
 
 import numpy as np
 
-from app.blending import moved_goals
+from app.blending import moved_goals, reach_below
 from app.robot.errors import PhysicsError
 from app.robot.scene import Scene, build_scene
 from app.robot.simulation import BodyPoses, Simulation
@@ -101,7 +101,7 @@ class Trial:
         self._ee = self.sim.ee
         self._object_positions = self.sim.object_positions()
         self._grasp_points = self.scene.goals.positions
-        self._reach_below = max(0.0, -min((layer.lo for layer in self.scene.hand), default=0.0))
+        self._reach_below = reach_below(self.scene.hand)
         self._cylinders = self._object_cylinders()
         self._blend = BlendTick(0.0, 0.0, np.full(n, 1.0 / n), -1, 0.0, math.nan)
         self.records: list[TickRecord] = []
@@ -212,19 +212,14 @@ class Trial:
         held at the reach's edge, always lies off the object the robot is carrying the hand to."""
         if self.task.gripper_closed:
             return self.user_target
-        down = self.accidents.down
         taking = self._blend.predicted if self._blend.alpha > 0.0 else -1
-        cylinders = (
-            self._cylinders
-            if not down and taking < 0
-            else [c for k, c in enumerate(self._cylinders) if k not in down and k != taking]
-        )
         out = lift_out(
             self._ee.tolist(),
             self.user_target.tolist(),
-            cylinders,
+            self._cylinders,
             reach_below=self._reach_below,
             slot=self.scene.spec.gripper_open,
+            skip=(taking, *self.accidents.down),
         )
         return self.user_target if out is None else np.array(out)
 
