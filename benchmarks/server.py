@@ -35,7 +35,8 @@ many windows fell under 95, the sample-commit gaps, the garbage collector's long
 the window, whether the session ever paused, and the load average before and after.
 ``--code DIR`` runs the same measurement against another checkout (``git archive main``),
 side by side; ``--priority N`` gives the server the nice value ``serve --priority`` would
-(``serve``'s default is -10; the benchmark's is none).
+(``serve``'s default is -10; the benchmark's is none) and ``--realtime N`` the control loops'
+real-time priority ``serve --realtime`` would (``serve``'s default is 10; the benchmark's none).
 
 Usage: ``.venv/bin/python benchmarks/server.py [--seconds 10] [--no-browser]
 [--scenario storm|tabs] [--code DIR]``. Last line: one JSON object.
@@ -47,6 +48,7 @@ import argparse
 import gc
 import itertools
 import json
+import multiprocessing
 import os
 import random
 import subprocess
@@ -209,10 +211,15 @@ class GcPauses:
         return [[round(d * 1e3, 1), g] for _, d, g in inside[:n]]
 
 
-def loop_windows(loop, t0: float, t1: float, *, width: float = 0.25) -> dict:
-    """Ticks a second of ``loop`` in consecutive ``width``-s windows of [t0, t1]: the worst
-    window and how many fell under 95."""
-    stamps = np.array([t for t in loop._stamps if t0 <= t <= t1])
+def loop_windows(stamps_seen: list[float], t0: float, t1: float, *, width: float = 0.25) -> dict:
+    """Ticks a second of a loop (its tick stamps, copied at ``t1``) in consecutive ``width``-s
+    windows of [t0, t1]: the worst window and how many fell under 95. The loop keeps only its
+    last 2,048 stamps (20.5 s at 100 Hz): a copy taken later than ``t1`` would have lost the
+    window's first ticks and shown them as a stall, so a copy that does not reach back to ``t0``
+    is refused."""
+    if not stamps_seen or stamps_seen[0] > t0 + width:
+        raise RuntimeError("the loop's stamps do not reach back to the window's start")
+    stamps = np.array([t for t in stamps_seen if t0 <= t <= t1])
     edges = np.arange(t0, t1 - width + 1e-9, width)
     rates = np.array([((stamps >= e) & (stamps < e + width)).sum() for e in edges]) / width
     return {
@@ -222,80 +229,121 @@ def loop_windows(loop, t0: float, t1: float, *, width: float = 0.25) -> dict:
     }
 
 
+def _drive_tabs(conn) -> None:
+    """In a child process: one Chromium; once the parent sends (url, join codes), a tab per
+    code that joins and presses Start, each reported back; then the pages keep drawing until
+    the parent says stop. Playwright runs here and not in the server's process because its
+    client decodes every websocket frame its tabs receive (a third of the server process's
+    GIL time with four tabs, by py-spy), which no participant's browser costs a server."""
+    with sync_playwright() as p:
+        browser = launch(p)
+        url, codes = conn.recv()
+        pages = []
+        for code in codes:
+            page = browser.new_page(viewport={"width": 1000, "height": 700})
+            page.set_default_timeout(120_000)
+            page.goto(url)
+            join(page, code, then="Start")
+            page.get_by_role("button", name="Start").click()  # the trial's own Start
+            pages.append(page)
+            conn.send(code)
+        while not conn.poll():
+            pages[0].wait_for_timeout(200)
+        browser.close()
+
+
+def _wait_for_trial(live, *, timeout_s: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while live.control_loop is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    if live.control_loop is None:
+        raise RuntimeError("the trial did not start")
+
+
 def port_scenario(args: argparse.Namespace) -> dict:
-    """``--scenario storm`` or ``tabs`` (see module docstring). The browser starts first, then
-    (with ``--priority``) this thread takes the server's priority as ``serve`` does, and then
-    the server starts, so its threads inherit the priority and Chromium keeps its own."""
+    """``--scenario storm`` or ``tabs`` (see module docstring). The tabs' browser is a child
+    process started first, so it keeps the default priority (a participant's own machine);
+    then (with ``--priority``) this thread takes the server's priority as ``serve`` does and
+    the server starts, so its threads inherit it."""
     n_tabs = 1 if args.scenario == "storm" else 4
     pauses = GcPauses()
     result: dict = {"scenario": args.scenario, "code": args.code or str(ROOT)}
-    with sync_playwright() as p:
-        browser = launch(p)
-        if args.priority is not None:
-            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), args.priority)
-        if args.switch_ms is not None:
-            sys.setswitchinterval(args.switch_ms / 1000)
-        result["switch_ms"] = round(sys.getswitchinterval() * 1000, 3)
-        result["priority"] = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
-        rs = start_server(
-            tempfile.mkdtemp(prefix="bench-port-"), time_limit_s=600.0, training_runs=1
-        )
-        srv = rs.server
-        try:
-            lives = []
-            for k in range(n_tabs):
-                code = srv.enrol(f"B0{k + 1}")
-                srv.act(code, "start")
-                lives.append(srv.session(code))
-            pages = []
-            for live in lives:
-                live.session.agree()
-                page = browser.new_page(viewport={"width": 1000, "height": 700})
-                page.set_default_timeout(120_000)
-                page.goto(rs.url)
-                join(page, live.code, then="Start")
-                start_trial(live, page)
-                pages.append(page)
-            stop = threading.Event()
-            feeders = [
-                threading.Thread(target=feed_gizmo, args=(live, stop), daemon=True)
-                for live in lives
-            ]
-            for f in feeders:
-                f.start()
-            pages[0].wait_for_timeout(3000)  # the first draws of the scenes
-            attacker = None
-            if args.scenario == "storm" and args.attack != "none":
-                port, seconds = str(srv.participant_port), str(args.seconds + 2)
-                argv = ["tests.attacker", args.attack, "--port", port, "--seconds", seconds]
-                attacker = subprocess.Popen(
-                    [sys.executable, "-m", *argv, "--addresses", "8", "--tasks", "32"],
-                    cwd=ROOT,
-                    stdout=subprocess.PIPE,
-                    text=True,
-                )
-                pages[0].wait_for_timeout(1500)
-            result["load_before"] = [round(x, 2) for x in os.getloadavg()]
-            t0 = time.monotonic()
-            pages[0].wait_for_timeout(args.seconds * 1000)
-            t1 = time.monotonic()
-            result["load_after"] = [round(x, 2) for x in os.getloadavg()]
-            stop.set()
-            if attacker is not None:
-                out, _ = attacker.communicate(timeout=60)
-                result["attacker"] = json.loads(out.strip().splitlines()[-1])
-            result["sessions"] = [
-                {
-                    **loop_windows(live.control_loop, t0, t1),
-                    "batch_gap_ms": batch_gaps([live], t0, t1),
-                    "paused": bool(live.session.paused),
-                }
-                for live in lives
-            ]
-            result["gc_worst_ms"] = pauses.worst(t0, t1)
-        finally:
-            rs.stop()
-            browser.close()
+    here, there = multiprocessing.get_context("spawn").Pipe()
+    driver = multiprocessing.get_context("spawn").Process(target=_drive_tabs, args=(there,))
+    driver.start()
+    if args.priority is not None:
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), args.priority)
+    if args.switch_ms is not None:
+        sys.setswitchinterval(args.switch_ms / 1000)
+    result["switch_ms"] = round(sys.getswitchinterval() * 1000, 3)
+    result["priority"] = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+    if args.realtime:
+        from study.server import realtime
+
+        if not realtime.set_control_realtime(args.realtime):
+            raise SystemExit("the real-time class is not allowed here")
+    result["realtime"] = args.realtime or 0
+    rs = start_server(tempfile.mkdtemp(prefix="bench-port-"), time_limit_s=600.0, training_runs=1)
+    srv = rs.server
+    stop = threading.Event()
+    attacker = None
+    try:
+        lives = []
+        for k in range(n_tabs):
+            code = srv.enrol(f"B0{k + 1}")
+            srv.act(code, "start")
+            lives.append(srv.session(code))
+            lives[-1].session.agree()
+        here.send((rs.url, [live.code for live in lives]))
+        for live in lives:
+            if not here.poll(180):
+                raise RuntimeError("the browser did not open its tabs")
+            here.recv()
+            _wait_for_trial(live)
+        feeders = [
+            threading.Thread(target=feed_gizmo, args=(live, stop), daemon=True) for live in lives
+        ]
+        for f in feeders:
+            f.start()
+        time.sleep(3.0)  # the first draws of the scenes
+        if args.scenario == "storm" and args.attack != "none":
+            port, seconds = str(srv.participant_port), str(args.seconds + 2)
+            argv = ["tests.attacker", args.attack, "--port", port, "--seconds", seconds]
+            attacker = subprocess.Popen(
+                [sys.executable, "-m", *argv, "--addresses", "8", "--tasks", "32"],
+                cwd=ROOT,
+                stdout=subprocess.PIPE,
+                text=True,
+            )
+            time.sleep(1.5)
+        result["load_before"] = [round(x, 2) for x in os.getloadavg()]
+        t0 = time.monotonic()
+        time.sleep(args.seconds)
+        t1 = time.monotonic()
+        stamps_seen = [list(live.control_loop._stamps) for live in lives]
+        result["load_after"] = [round(x, 2) for x in os.getloadavg()]
+        stop.set()
+        if attacker is not None:
+            out, _ = attacker.communicate(timeout=60)
+            result["attacker"] = json.loads(out.strip().splitlines()[-1])
+        result["sessions"] = [
+            {
+                **loop_windows(seen, t0, t1),
+                "batch_gap_ms": batch_gaps([live], t0, t1),
+                "paused": bool(live.session.paused),
+            }
+            for live, seen in zip(lives, stamps_seen, strict=True)
+        ]
+        result["gc_worst_ms"] = pauses.worst(t0, t1)
+    finally:
+        stop.set()
+        if attacker is not None and attacker.poll() is None:
+            attacker.kill()
+        here.send("stop")
+        driver.join(60)
+        if driver.is_alive():
+            driver.kill()
+        rs.stop()
     worst = min(s["worst_hz"] for s in result["sessions"])
     gap = max(s["batch_gap_ms"]["max"] for s in result["sessions"])
     print(
@@ -353,6 +401,13 @@ def main() -> int:
         type=int,
         default=None,
         help="the server's nice value, set as `serve --priority` does (default: unchanged)",
+    )
+    parser.add_argument(
+        "--realtime",
+        type=int,
+        default=None,
+        help="the control loops' real-time priority, as `serve --realtime` sets it"
+        " (default: none, ordinary threads)",
     )
     parser.add_argument(
         "--switch-ms",

@@ -101,7 +101,7 @@ class Sampler:
 
     def sample(self) -> dict:
         now = time.monotonic()
-        windows = [loop_windows(s.control_loop, self._last, now) for s in self.lives]
+        windows = [loop_windows(list(s.control_loop._stamps), self._last, now) for s in self.lives]
         self.windows += windows
         row = {
             "t": round(now - self.t0, 1),

@@ -152,6 +152,15 @@ def _operation_arguments(parser: argparse.ArgumentParser) -> None:
         " machine; below 0 needs the right to raise priority, see README); default:"
         " %(default)s",
     )
+    group.add_argument(
+        "--realtime",
+        type=realtime_priority,
+        default=10,
+        help="the control loops' real-time priority, 1..99 (the kernel's round-robin class:"
+        " a control thread then runs as soon as its tick is due, ahead of browsers and"
+        " ordinary work; same right as --priority below 0), 0 for ordinary threads; default:"
+        " %(default)s",
+    )
     group.add_argument("--verbose", action="store_true", help="log viser connections")
 
 
@@ -203,6 +212,17 @@ def nice_value(text: str) -> int:
     return value
 
 
+def realtime_priority(text: str) -> int:
+    """argparse type: a real-time priority 1..99, or 0 for none."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number 0..99, got {text!r}") from None
+    if not 0 <= value <= 99:
+        raise argparse.ArgumentTypeError(f"must be 0..99, got {value}")
+    return value
+
+
 def main(args: argparse.Namespace) -> int:
     if args.port and args.port == args.experimenter_port:
         print(
@@ -248,6 +268,12 @@ def main(args: argparse.Namespace) -> int:
         print(
             f"note: the server runs at its normal priority (raising it to {args.priority} was"
             " not allowed; see README, 'Priority')",
+            file=sys.stderr,
+        )
+    if args.realtime and not realtime.set_control_realtime(args.realtime):
+        print(
+            "note: the control loops run as ordinary threads (the real-time class was not"
+            " allowed; see README, 'Priority')",
             file=sys.stderr,
         )
     server = StudyServer(

@@ -38,6 +38,7 @@ class PacedLoop:
         name: str = "paced-loop",
         max_lag: float = 25.0,
         history: int = 2048,
+        on_start: Callable[[], None] | None = None,
     ) -> None:
         if not rate_hz > 0:
             raise LoopError(f"rate_hz must be positive, got {rate_hz!r}")
@@ -46,6 +47,8 @@ class PacedLoop:
         self.period = 1.0 / self.rate_hz
         self.name = name
         self.max_lag = max_lag
+        self.on_start = on_start
+        """Called first in the loop's own thread (e.g. to take a scheduling class)."""
         self.ticks = 0
         self.overruns = 0
         self.error: BaseException | None = None
@@ -97,6 +100,8 @@ class PacedLoop:
 
     # -- the loop --------------------------------------------------------------------------
     def _run(self) -> None:
+        if self.on_start is not None:
+            self.on_start()
         next_due = time.monotonic()
         while not self._stop.is_set():
             if not self._running.is_set():

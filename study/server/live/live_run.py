@@ -22,6 +22,7 @@ from app.teleop.keyboard import KEYMAP
 from app.teleop.participant_input import ParticipantInput
 from app.trial import TickRecord, Trial
 from app.trial.events import EventKind, TrialEvent
+from study.server import realtime
 from study.server.live.console import LivePlots
 from study.server.live.control_faults import ControlFaults
 from study.server.live.controls import LiveInput
@@ -83,7 +84,10 @@ class LiveRun:
         self.faults.forget()
         self.view.snap(run, trial.poses())
         self.control = PacedLoop(
-            lambda: self._tick(run, trial), rate_hz=run.config.rate_hz, name=f"control-{self.code}"
+            lambda: self._tick(run, trial),
+            rate_hz=run.config.rate_hz,
+            name=f"control-{self.code}",
+            on_start=realtime.enter_control,
         ).start()
         self.view.start()
         page = self._page()
