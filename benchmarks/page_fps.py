@@ -109,8 +109,25 @@ def main() -> int:
         help="x,y,z (m) the handle's target circles around (0.58,0.04,0.15: near the paper "
         "scenes' box, where the robot is confident enough to show its intent)",
     )
+    parser.add_argument(
+        "--realtime",
+        type=int,
+        default=None,
+        help="real-time scheduling as `serve --realtime N` sets it (the browser, started"
+        " first, stays ordinary; default: none)",
+    )
     args = parser.parse_args()
+    with sync_playwright() as p:
+        browser = launch(p)  # before the server takes its class: Chromium stays ordinary
+        if args.realtime:
+            from study.server import realtime
 
+            if not realtime.set_realtime(args.realtime):
+                raise SystemExit("the real-time class is not allowed here")
+        return _measure(args, browser)
+
+
+def _measure(args: argparse.Namespace, browser) -> int:
     source = {} if args.protocol is None else {"source": Path(args.protocol)}
     rs = start_server(
         tempfile.mkdtemp(prefix="bench-fps-"), time_limit_s=600.0, training_runs=1, **source
@@ -120,71 +137,68 @@ def main() -> int:
         "load_average_1min": float(os.getloadavg()[0]),
         "protocol": args.protocol or "protocols/dragan2013.toml",
         "mode": args.mode,
+        "realtime": args.realtime or 0,
     }
     try:
         code = srv.enrol("B01")
         srv.act(code, "start")
         live = srv.session(code)
-        with sync_playwright() as p:
-            browser = launch(p)
-            width, height = (int(v) for v in args.viewport.split("x"))
-            result["viewport"] = args.viewport
-            page = browser.new_page(viewport={"width": width, "height": height})
-            page.set_default_timeout(120_000)
-            cdp = page.context.new_cdp_session(page)
-            cdp.send("Performance.enable")
-            page.goto(rs.url)
-            page.get_by_text("Connected").first.wait_for()
-            join(page, code)
-            page.get_by_role("button", name=AGREE).click()
-            page.get_by_role("button", name="Start").wait_for()
-            if args.mode is not None:
-                _skip_to(srv, code, live, args.mode)
-            page.wait_for_timeout(1000)
-            page.get_by_role("button", name="Start").click()
-            page.get_by_role("button", name="Close the gripper (G)").wait_for()
-            page.wait_for_timeout(3000)  # the scene's first draw
-            stop = threading.Event()
-            center = tuple(float(v) for v in args.center.split(","))
-            feeder = threading.Thread(
-                target=feed_gizmo, args=(live, stop), kwargs={"center": center}, daemon=True
-            )
-            feeder.start()
-            page.wait_for_timeout(1000)
-            live.control_loop._stamps.clear()  # tick periods of the moving windows only
-            moving = [_window(page, live, args.seconds, cdp) for _ in range(args.repeats)]
-            result["main_thread_ms_per_s_moving"] = list(BUSY)
-            periods = live.control_loop.periods() * 1e3
-            result["control_tick_period_ms_moving"] = {
-                "median": round(float(np.median(periods)), 2),
-                "p99": round(float(np.percentile(periods, 99)), 2),
-                "max": round(float(periods.max()), 1),
+        width, height = (int(v) for v in args.viewport.split("x"))
+        result["viewport"] = args.viewport
+        page = browser.new_page(viewport={"width": width, "height": height})
+        page.set_default_timeout(120_000)
+        cdp = page.context.new_cdp_session(page)
+        cdp.send("Performance.enable")
+        page.goto(rs.url)
+        page.get_by_text("Connected").first.wait_for()
+        join(page, code)
+        page.get_by_role("button", name=AGREE).click()
+        page.get_by_role("button", name="Start").wait_for()
+        if args.mode is not None:
+            _skip_to(srv, code, live, args.mode)
+        page.wait_for_timeout(1000)
+        page.get_by_role("button", name="Start").click()
+        page.get_by_role("button", name="Close the gripper (G)").wait_for()
+        page.wait_for_timeout(3000)  # the scene's first draw
+        stop = threading.Event()
+        center = tuple(float(v) for v in args.center.split(","))
+        feeder = threading.Thread(
+            target=feed_gizmo, args=(live, stop), kwargs={"center": center}, daemon=True
+        )
+        feeder.start()
+        page.wait_for_timeout(1000)
+        live.control_loop._stamps.clear()  # tick periods of the moving windows only
+        moving = [_window(page, live, args.seconds, cdp) for _ in range(args.repeats)]
+        result["main_thread_ms_per_s_moving"] = list(BUSY)
+        periods = live.control_loop.periods() * 1e3
+        result["control_tick_period_ms_moving"] = {
+            "median": round(float(np.median(periods)), 2),
+            "p99": round(float(np.percentile(periods, 99)), 2),
+            "max": round(float(periods.max()), 1),
+        }
+        cue = live.scene_view.intent
+        result["ring_shown"] = cue is not None and cue.visible_goal is not None
+        result["ring_updates"] = 0 if cue is None else cue.updates
+        if cue is not None:  # paired windows in the same run: ring off, ring on
+            pairs = []
+            for _ in range(args.repeats):
+                cue.suppressed = True
+                off = _window(page, live, args.seconds)[0]
+                cue.suppressed = False
+                pairs.append((off, _window(page, live, args.seconds)[0]))
+            result["ring_ab"] = {
+                "fps_without": [round(a, 1) for a, _ in pairs],
+                "fps_with": [round(b, 1) for _, b in pairs],
+                "median_difference": round(float(np.median([b - a for a, b in pairs])), 1),
             }
-            cue = live.scene_view.intent
-            result["ring_shown"] = cue is not None and cue.visible_goal is not None
-            result["ring_updates"] = 0 if cue is None else cue.updates
-            if cue is not None:  # paired windows in the same run: ring off, ring on
-                pairs = []
-                for _ in range(args.repeats):
-                    cue.suppressed = True
-                    off = _window(page, live, args.seconds)[0]
-                    cue.suppressed = False
-                    pairs.append((off, _window(page, live, args.seconds)[0]))
-                result["ring_ab"] = {
-                    "fps_without": [round(a, 1) for a, _ in pairs],
-                    "fps_with": [round(b, 1) for _, b in pairs],
-                    "median_difference": round(float(np.median([b - a for a, b in pairs])), 1),
-                }
-                print(
-                    f"ring A/B (off, on) frames/s: {[(round(a, 1), round(b, 1)) for a, b in pairs]}"
-                )
-            stop.set()
-            feeder.join()
-            page.wait_for_timeout(1500)  # the arm settles
-            BUSY.clear()
-            still = [_window(page, live, args.seconds, cdp) for _ in range(args.repeats)]
-            result["main_thread_ms_per_s_still"] = list(BUSY)
-            browser.close()
+            print(f"ring A/B (off, on) frames/s: {[(round(a, 1), round(b, 1)) for a, b in pairs]}")
+        stop.set()
+        feeder.join()
+        page.wait_for_timeout(1500)  # the arm settles
+        BUSY.clear()
+        still = [_window(page, live, args.seconds, cdp) for _ in range(args.repeats)]
+        result["main_thread_ms_per_s_still"] = list(BUSY)
+        browser.close()
     finally:
         rs.stop()
     for name, rows in (("moving", moving), ("still", still)):

@@ -214,7 +214,7 @@ def refused(module: object, argv: list[str], capsys: pytest.CaptureFixture[str])
         ("render", ["--width", "100000"], "--width: must be 16..4096"),
         ("serve", ["--host", "999.1.1.1"], "--host: must be an IP address"),
         ("serve", ["--priority", "-21"], "--priority: must be -20..19"),
-        ("serve", ["--realtime", "100"], "--realtime: must be 0..99"),
+        ("serve", ["--realtime", "1"], "--realtime: must be 0 or 2..99"),
         ("export", ["--db", "x", "--out", __file__], "is a file, not a folder"),
     ],
 )

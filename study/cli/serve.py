@@ -156,10 +156,10 @@ def _operation_arguments(parser: argparse.ArgumentParser) -> None:
         "--realtime",
         type=realtime_priority,
         default=10,
-        help="the control loops' real-time priority, 1..99 (the kernel's round-robin class:"
-        " a control thread then runs as soon as its tick is due, ahead of browsers and"
-        " ordinary work; same right as --priority below 0), 0 for ordinary threads; default:"
-        " %(default)s",
+        help="real-time scheduling: the control loops' priority, 2..99, the rest of the server"
+        " at 1 (the kernel's round-robin class: the server runs as soon as it can, ahead of"
+        " browsers and ordinary work, a due control tick first; same right as --priority"
+        " below 0), or 0 for none; default: %(default)s",
     )
     group.add_argument("--verbose", action="store_true", help="log viser connections")
 
@@ -213,13 +213,13 @@ def nice_value(text: str) -> int:
 
 
 def realtime_priority(text: str) -> int:
-    """argparse type: a real-time priority 1..99, or 0 for none."""
+    """argparse type: a real-time priority 2..99, or 0 for none."""
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a whole number 0..99, got {text!r}") from None
-    if not 0 <= value <= 99:
-        raise argparse.ArgumentTypeError(f"must be 0..99, got {value}")
+        raise argparse.ArgumentTypeError(f"must be a whole number 0 or 2..99, got {text!r}") from None
+    if not (value == 0 or 2 <= value <= 99):
+        raise argparse.ArgumentTypeError(f"must be 0 or 2..99, got {value}")
     return value
 
 
@@ -270,10 +270,10 @@ def main(args: argparse.Namespace) -> int:
             " not allowed; see README, 'Priority')",
             file=sys.stderr,
         )
-    if args.realtime and not realtime.set_control_realtime(args.realtime):
+    if args.realtime and not realtime.set_realtime(args.realtime):
         print(
-            "note: the control loops run as ordinary threads (the real-time class was not"
-            " allowed; see README, 'Priority')",
+            "note: the server runs as ordinary threads (the real-time class was not allowed;"
+            " see README, 'Priority')",
             file=sys.stderr,
         )
     server = StudyServer(
