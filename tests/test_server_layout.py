@@ -173,6 +173,9 @@ def test_serve_command_prints_both_urls_and_stops_cleanly(tmp_path: Path) -> Non
         assert "participant view:  http://" in text, text
         assert "experimenter view: http://127.0.0.1:" in text, text
         assert (tmp_path / "study.db").exists()
+        # --realtime's default: the server's threads in the real-time class (said if refused)
+        allowed = "the real-time class was not allowed" not in text
+        assert os.sched_getscheduler(proc.pid) == (os.SCHED_RR if allowed else os.SCHED_OTHER)
     finally:
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=30) == 0

@@ -217,10 +217,29 @@ def realtime_priority(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a whole number 0 or 2..99, got {text!r}") from None
+        raise argparse.ArgumentTypeError(
+            f"must be a whole number 0 or 2..99, got {text!r}"
+        ) from None
     if not (value == 0 or 2 <= value <= 99):
         raise argparse.ArgumentTypeError(f"must be 0 or 2..99, got {value}")
     return value
+
+
+def _take_priority(args: argparse.Namespace) -> None:
+    """``--priority`` and ``--realtime`` for the calling thread, which every server thread
+    started later inherits (Linux keeps both per thread); a refusal is said, not fatal."""
+    if realtime.set_priority(args.priority) is None:
+        print(
+            f"note: the server runs at its normal priority (raising it to {args.priority} was"
+            " not allowed; see README, 'Priority')",
+            file=sys.stderr,
+        )
+    if args.realtime and not realtime.set_realtime(args.realtime):
+        print(
+            "note: the server runs as ordinary threads (the real-time class was not allowed;"
+            " see README, 'Priority')",
+            file=sys.stderr,
+        )
 
 
 def main(args: argparse.Namespace) -> int:
@@ -262,20 +281,7 @@ def main(args: argparse.Namespace) -> int:
     except StudyError as exc:  # not a store, another protocol's, damaged, locked, ...
         print(f"error: cannot open the store {args.db}: {exc}", file=sys.stderr)
         return 2
-    # before the servers start their threads, which inherit it (Linux: per thread)
-    reached = realtime.set_priority(args.priority)
-    if reached is None:
-        print(
-            f"note: the server runs at its normal priority (raising it to {args.priority} was"
-            " not allowed; see README, 'Priority')",
-            file=sys.stderr,
-        )
-    if args.realtime and not realtime.set_realtime(args.realtime):
-        print(
-            "note: the server runs as ordinary threads (the real-time class was not allowed;"
-            " see README, 'Priority')",
-            file=sys.stderr,
-        )
+    _take_priority(args)  # before the servers start their threads, which inherit it
     server = StudyServer(
         session_factory(store, protocol),
         condition_words=protocol.condition_words,
