@@ -120,9 +120,9 @@ def main() -> int:
     with sync_playwright() as p:
         browser = launch(p)  # before the server takes its class: Chromium stays ordinary
         if args.realtime:
-            from study.server import realtime
+            from study import scheduling
 
-            if not realtime.set_realtime(args.realtime):
+            if not scheduling.set_realtime(args.realtime):
                 raise SystemExit("the real-time class is not allowed here")
         return _measure(args, browser)
 

@@ -284,9 +284,9 @@ def port_scenario(args: argparse.Namespace) -> dict:
     result["switch_ms"] = round(sys.getswitchinterval() * 1000, 3)
     result["priority"] = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
     if args.realtime:
-        from study.server import realtime
+        from study import scheduling
 
-        if not realtime.set_realtime(args.realtime):
+        if not scheduling.set_realtime(args.realtime):
             raise SystemExit("the real-time class is not allowed here")
     result["realtime"] = args.realtime or 0
     rs = start_server(tempfile.mkdtemp(prefix="bench-port-"), time_limit_s=600.0, training_runs=1)

@@ -1,31 +1,35 @@
-"""``serve --realtime``: the server in the kernel's real-time class, its control loops above the rest."""
+"""``serve --realtime``: the server in the kernel's real-time class, control loops and sample
+committer above the rest."""
 
 from __future__ import annotations
 
 import os
+import threading
 from pathlib import Path
 
 import pytest
 
-from study.server import realtime
+from study import scheduling
 from study.server.loop import PacedLoop
+from study.session import sample_committer
 from tests.browser.harness import start_server, wait_until
 
 
-def _policy(loop: PacedLoop) -> tuple[int, int]:
-    tid = loop._thread.native_id
+def _policy(loop: PacedLoop | threading.Thread) -> tuple[int, int]:
+    thread = loop if isinstance(loop, threading.Thread) else loop._thread
+    tid = thread.native_id
     assert tid is not None
     return os.sched_getscheduler(tid), os.sched_getparam(tid).sched_priority
 
 
 @pytest.fixture
 def allowed() -> bool:
-    ok = realtime.set_realtime(7)
+    ok = scheduling.set_realtime(7)
     yield ok
-    realtime.set_realtime(None)
+    scheduling.set_realtime(None)
 
 
-def test_a_live_trials_control_loop_runs_above_the_rest_of_the_real_time_server(
+def test_a_live_trials_control_loop_and_committer_run_above_the_rest_of_the_server(
     tmp_path: Path, allowed: bool
 ) -> None:
     rs = start_server(tmp_path, time_limit_s=60.0, training_runs=1)
@@ -39,7 +43,11 @@ def test_a_live_trials_control_loop_runs_above_the_rest_of_the_real_time_server(
         control = live.control_loop
         assert wait_until(lambda: control.ticks > 10, timeout=10)
         assert _policy(control) == ((os.SCHED_RR, 7) if allowed else (os.SCHED_OTHER, 0))
-        render = live.view._loop  # started by the server, not a control thread
+        committers = [c._thread for c in sample_committer._REGISTRY.values()]
+        assert committers and all(
+            _policy(t) == ((os.SCHED_RR, 7) if allowed else (os.SCHED_OTHER, 0)) for t in committers
+        )
+        render = live.view._loop  # started by the server, keeps no time
         assert render is not None
         assert _policy(render) == ((os.SCHED_RR, 1) if allowed else (os.SCHED_OTHER, 0))
     finally:
@@ -47,9 +55,9 @@ def test_a_live_trials_control_loop_runs_above_the_rest_of_the_real_time_server(
 
 
 def test_without_a_setting_control_threads_stay_ordinary() -> None:
-    realtime.set_realtime(None)
+    scheduling.set_realtime(None)
     assert os.sched_getscheduler(0) == os.SCHED_OTHER
-    loop = PacedLoop(lambda: None, rate_hz=100.0, on_start=realtime.enter_control).start()
+    loop = PacedLoop(lambda: None, rate_hz=100.0, on_start=scheduling.enter_timekeeping).start()
     try:
         assert wait_until(lambda: loop.ticks > 3, timeout=5)
         assert _policy(loop) == (os.SCHED_OTHER, 0)
@@ -60,5 +68,5 @@ def test_without_a_setting_control_threads_stay_ordinary() -> None:
 def test_a_priority_outside_the_kernels_range_is_refused() -> None:
     for wrong in (1, 100):
         with pytest.raises(ValueError, match=r"2\.\.99"):
-            realtime.set_realtime(wrong)
+            scheduling.set_realtime(wrong)
     assert os.sched_getscheduler(0) == os.SCHED_OTHER

@@ -14,6 +14,7 @@ import threading
 from pathlib import Path
 from urllib.parse import urlsplit
 
+from study import scheduling
 from study.cli.arguments import float_range, rate_hz
 from study.cli.arguments import port as port_number
 from study.cli.dispatch import UsageError
@@ -234,7 +235,7 @@ def _take_priority(args: argparse.Namespace) -> None:
             " not allowed; see README, 'Priority')",
             file=sys.stderr,
         )
-    if args.realtime and not realtime.set_realtime(args.realtime):
+    if args.realtime and not scheduling.set_realtime(args.realtime):
         print(
             "note: the server runs as ordinary threads (the real-time class was not allowed;"
             " see README, 'Priority')",

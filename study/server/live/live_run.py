@@ -22,7 +22,7 @@ from app.teleop.keyboard import KEYMAP
 from app.teleop.participant_input import ParticipantInput
 from app.trial import TickRecord, Trial
 from app.trial.events import EventKind, TrialEvent
-from study.server import realtime
+from study import scheduling
 from study.server.live.console import LivePlots
 from study.server.live.control_faults import ControlFaults
 from study.server.live.controls import LiveInput
@@ -87,7 +87,7 @@ class LiveRun:
             lambda: self._tick(run, trial),
             rate_hz=run.config.rate_hz,
             name=f"control-{self.code}",
-            on_start=realtime.enter_control,
+            on_start=scheduling.enter_timekeeping,
         ).start()
         self.view.start()
         page = self._page()
