@@ -37,7 +37,14 @@ MAX_OBJECTS_PER_TICK = 0.1
 class ManualLoop:
     """Stands in for the control loop's ``PacedLoop``: no thread; the test calls ``step``."""
 
-    def __init__(self, step: Callable[[], bool | None], *, rate_hz: float, name: str) -> None:
+    def __init__(
+        self,
+        step: Callable[[], bool | None],
+        *,
+        rate_hz: float,
+        name: str,
+        on_start: Callable[[], None] | None = None,
+    ) -> None:
         self.step = step
         self.rate_hz = rate_hz
         self.name = name
