@@ -21,8 +21,14 @@ from __future__ import annotations
 import logging
 import os
 
+from study.errors import StudyError
+
 LOGGER = logging.getLogger("study.scheduling")
 _timekeeping: int | None = None
+
+
+class SchedulingError(StudyError, ValueError):
+    """A real-time priority outside what the kernel's class takes: give 2..99."""
 
 
 def set_realtime(control: int | None) -> bool:
@@ -37,7 +43,7 @@ def set_realtime(control: int | None) -> bool:
             os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
         return True
     if not 2 <= control <= 99:
-        raise ValueError(f"a control thread's real-time priority is 2..99, got {control}")
+        raise SchedulingError(f"a control thread's real-time priority is 2..99, got {control}")
     try:
         os.sched_setscheduler(0, os.SCHED_RR, os.sched_param(1))
     except (OSError, AttributeError):  # not permitted, or not Linux

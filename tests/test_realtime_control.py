@@ -67,6 +67,6 @@ def test_without_a_setting_control_threads_stay_ordinary() -> None:
 
 def test_a_priority_outside_the_kernels_range_is_refused() -> None:
     for wrong in (1, 100):
-        with pytest.raises(ValueError, match=r"2\.\.99"):
+        with pytest.raises(scheduling.SchedulingError, match=r"2\.\.99"):
             scheduling.set_realtime(wrong)
     assert os.sched_getscheduler(0) == os.SCHED_OTHER
