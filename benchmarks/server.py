@@ -430,6 +430,11 @@ def main() -> int:
         print(json.dumps(port_scenario(args)))
         return 0
 
+    if args.realtime and (args.find or args.no_browser or args.sessions != 4):
+        from study import scheduling  # no browser to keep ordinary
+
+        if not scheduling.set_realtime(args.realtime):
+            raise SystemExit("the real-time class is not allowed here")
     if args.find:
         print(json.dumps(find_sessions(args)))
         return 0
