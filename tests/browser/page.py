@@ -20,20 +20,28 @@ from tests.browser.harness import (
 AGREE = "I have read this and agree to take part"
 
 
+def wait_connected(page: Any, *, timeout_ms: float = 30_000) -> None:
+    """Wait for viser's green cloud, the sign a participant sees that the tab is connected.
+    Not the word "Connected": the page names itself in that place as soon as its first
+    messages arrive, so the word shows only for a moment (a loaded machine's browser may
+    never see it)."""
+    page.locator("svg.tabler-icon-cloud-check").first.wait_for(timeout=timeout_ms)
+
+
 def connect_page(page: Any, url: str) -> None:
-    """Open ``url`` and wait for viser's "Connected". A page still not connected after 30 s is
-    reloaded once, as a person would; what it showed is printed (seen about once in 850 tests
-    on a loaded machine; not yet explained), and a second failure fails the test with it."""
+    """Open ``url`` and wait until it is connected (:func:`wait_connected`). A page still not
+    connected after 30 s is reloaded once, as a person would; what it showed is printed, and a
+    second failure fails the test with it."""
     page.goto(url)
     try:
-        page.get_by_text("Connected").first.wait_for(timeout=30_000)
+        wait_connected(page)
         return
     except Exception:
         shown = page.inner_text("body")[:300]
         print(f"not connected after 30 s, reloading; the page showed: {shown!r}")
     page.reload()
     try:
-        page.get_by_text("Connected").first.wait_for(timeout=30_000)
+        wait_connected(page)
     except Exception as exc:
         shown = page.inner_text("body")[:300]
         raise AssertionError(f"not connected after a reload; the page showed: {shown!r}") from exc

@@ -25,7 +25,7 @@ from playwright.sync_api import expect
 from study.server.live import session_factory
 from study.server.server import StudyServer
 from tests.browser.harness import RunningServer, start_server, wait_until
-from tests.browser.page import AGREE, connect_page, join, screenshot, text_input
+from tests.browser.page import AGREE, connect_page, join, screenshot, text_input, wait_connected
 from tests.protocol_copies import short_practice
 
 pytestmark = pytest.mark.browser
@@ -122,7 +122,7 @@ def test_a_day_of_two_sessions_from_the_console(
     )
     page.get_by_role("button", name="Continue").click()  # "Run finished"
     page.reload()
-    page.get_by_text("Connected").first.wait_for()
+    wait_connected(page)
     assert wait_until(lambda: "tab reconnected (reload)" in _timeline(console))
     live = srv.session(code1)
     assert wait_until(lambda: live.session.screen().phase == "questions")

@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from tests.browser.harness import RunningServer, start_server, wait_until
-from tests.browser.page import AGREE, connect_page, join, screenshot, text_input
+from tests.browser.page import AGREE, connect_page, join, screenshot, text_input, wait_connected
 
 pytestmark = pytest.mark.browser
 
@@ -58,7 +58,7 @@ def test_console_enrols_and_participant_joins_by_code(
     assert srv.session(code).page is not None and srv.session(other).page is None
 
     page.reload()  # the tab kept its code: straight back into the session
-    page.get_by_text("Connected").first.wait_for()
+    wait_connected(page)
     page.get_by_role("button", name=AGREE).wait_for()
     assert wait_until(lambda: srv.session(code).page is not None)
     kinds = [e.kind for e in study.store.events()]

@@ -35,6 +35,7 @@ from tests.browser.page import (
     join,
     screenshot,
     settle_frames,
+    wait_connected,
     without_client_warning,
 )
 
@@ -171,7 +172,7 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     page.get_by_role("button", name="Close the gripper (G)").wait_for()
     page.wait_for_timeout(1500)
     page.reload()
-    page.get_by_text("Connected").first.wait_for(timeout=30_000)
+    wait_connected(page)
     page.get_by_role("button", name="Continue").wait_for()  # the tab kept its code
     paused_at = time.monotonic()
     text_now()
