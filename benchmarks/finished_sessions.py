@@ -3,8 +3,8 @@
 A study server (``tests.browser.harness.start_server``) serves ``--sessions`` participants one
 after the other, each to a completed session: enrolled, started, consented, every step skipped by
 the experimenter, the debrief finished. With ``--tabs`` each has a tab (a raw websocket client,
-``tests.support.raw_client``; the port's gate on new tabs per address is off, as in
-``tests/test_port_hostile_clients.py``) that joins with the code, consents, waits for the end screen and
+``tests.support.raw_client``; the port's gate on new tabs per address and the throttle on
+typed codes are off, as in ``tests/test_port_hostile_clients.py``) that joins with the code, consents, waits for the end screen and
 leaves, as an online participant's tab does. Every ``--every`` sessions one line: the sessions
 served, the process's threads, the sessions in the server's registry, resident memory (RSS, MB)
 and the objects the collector tracks. At the end it waits ``--grace`` seconds plus a sweep, when
@@ -37,6 +37,7 @@ if "--code" in sys.argv:  # measure another checkout with this script (side by s
     sys.path.insert(0, str(Path(sys.argv[sys.argv.index("--code") + 1]).resolve()))
 
 from study.server.firewall import Firewall, FirewallConfig  # noqa: E402
+from study.server.join import JoinThrottle  # noqa: E402
 from study.server.server import StudyServer  # noqa: E402
 from tests.browser.harness import run_async, start_server, wait_until  # noqa: E402
 from tests.support.raw_client import AGREE, RawClient  # noqa: E402
@@ -106,7 +107,10 @@ def run(args: argparse.Namespace) -> dict:
     has_grace = "finished_grace_s" in inspect.signature(StudyServer).parameters
     # every tab comes from 127.0.0.1, one after another: the new-tab gate (its own tests) is off
     roomy = FirewallConfig(new_tabs_per_s=None, accept_burst=500.0, accept_total_per_s=500.0)
-    kw: dict = {"port_firewall": Firewall(roomy)}
+    kw: dict = {
+        "port_firewall": Firewall(roomy),
+        "throttle": JoinThrottle(per_address=100_000, per_server=100_000),  # one code a tab
+    }
     if has_grace:
         kw["finished_grace_s"] = args.grace
     with tempfile.TemporaryDirectory() as d:
