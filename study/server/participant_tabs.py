@@ -7,7 +7,10 @@ on a kiosk (one machine, one participant at a time) does a tab bind to the one o
 without a code. While the open link is in use, a new tab first says what its URL carries, and
 a tab whose URL carries a recruitment ID joins its ID's session by the link
 (:mod:`study.server.open_link`). A session is bound to one tab at a time; when that tab goes
-away its running trial pauses and the session waits for its code again.
+away its running trial pauses and the session waits for its code again. A finished session's
+tab that reloads (its rejoin cookie) gets the last screen again until the server lets the
+session go (:mod:`study.server.finished_sessions`); afterwards, as for any wrong code, the join
+screen.
 
 The tabs share the study server's lock (``StudyServer._lock``): every change of who holds
 which session happens under it.
