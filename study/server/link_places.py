@@ -9,7 +9,8 @@ count it again. If its recruitment ID comes back, the session is opened again un
 pseudonym and holds a place again, even when the link has filled meanwhile: that person was let
 in first.
 
-``PlaceSweeper`` runs the check every ``SWEEP_S`` while the server runs.
+``PlaceSweeper`` runs the check every ``SWEEP_S`` while the server runs (the study server's
+sweeper also lets finished sessions go: ``study.server.finished_sessions``).
 """
 
 from __future__ import annotations
@@ -51,11 +52,13 @@ class PlaceSweeper:
     """Calls ``sweep`` every ``period_s`` on a daemon thread until ``stop``; an exception is
     logged, never raised (the next sweep tries again)."""
 
-    def __init__(self, sweep: Callable[[], object], *, period_s: float = SWEEP_S) -> None:
+    def __init__(
+        self, sweep: Callable[[], object], *, period_s: float = SWEEP_S, name: str = "link-places"
+    ) -> None:
         self._sweep = sweep
         self._period = period_s
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="link-places", daemon=True)
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self._thread.start()
 
     def stop(self) -> None:
@@ -69,10 +72,11 @@ class PlaceSweeper:
             try:
                 self._sweep()
             except Exception:
-                LOGGER.exception("could not give back the open link's idle places")
+                LOGGER.exception("the sweep of idle link places and finished sessions failed")
             if time.monotonic() - started > self._period:  # pragma: no cover - a stuck store
                 LOGGER.warning(
-                    "giving back the open link's idle places took over %.0f s", self._period
+                    "the sweep of idle link places and finished sessions took over %.0f s",
+                    self._period,
                 )
 
 

@@ -7,7 +7,10 @@ on a kiosk (one machine, one participant at a time) does a tab bind to the one o
 without a code. While the open link is in use, a new tab first says what its URL carries, and
 a tab whose URL carries a recruitment ID joins its ID's session by the link
 (:mod:`study.server.open_link`). A session is bound to one tab at a time; when that tab goes
-away its running trial pauses and the session waits for its code again.
+away its running trial pauses and the session waits for its code again. A finished session's
+tab that reloads (its rejoin cookie) gets the last screen again until the server lets the
+session go (:mod:`study.server.finished_sessions`); afterwards, as for any wrong code, the join
+screen.
 
 The tabs share the study server's lock (``StudyServer._lock``): every change of who holds
 which session happens under it.
@@ -77,7 +80,7 @@ class TabsServer(Protocol):
 
     def by_link(self, code: str) -> bool: ...
 
-    def code_of(self, token: str | None) -> str | None: ...
+    def code_of(self, token: str | None, *, finished: bool = False) -> str | None: ...
 
     def open_sessions(self) -> list[LiveSession]: ...
 
@@ -138,7 +141,8 @@ class ParticipantTabs:
             if client.client_id not in self.server.participant.get_clients():
                 return
             self._pages[client.client_id] = page
-        code = self.server.code_of(self.server.firewall.token_of(client.client_id))
+        token = self.server.firewall.token_of(client.client_id)
+        code = self.server.code_of(token, finished=True)  # finished: its last screen again
         if code is not None and self.server.by_link(code):
             code = None  # the link's tab: its URL's ID decides (another tab is told, not held)
         if code is not None:  # a reload that kept its session's rejoin token
@@ -226,7 +230,8 @@ class ParticipantTabs:
                 page.show_message("Already open", LINK_IN_USE_TEXT)
             with self._lock:
                 gone = page.client.client_id not in self._pages
-            if gone or live.closed or time.monotonic() - start > REJOIN_WAIT_S:
+                let_go = self.server.find(live.code) is not live
+            if gone or let_go or live.closed or time.monotonic() - start > REJOIN_WAIT_S:
                 return
             time.sleep(0.25)
         if live.session.phase() == "waiting":
@@ -311,6 +316,8 @@ class ParticipantTabs:
         code = normalize_code(typed)
         with self._lock:
             live = self.server.find(code)
+        if proven and live is not None and live.closed and self.bind(page, live):
+            return  # a reload of a finished session not yet let go: its last screen again
         if live is None or live.closed or not self.bind(page, live):
             if live is not None and not live.closed:
                 live.note_refused_join(page)
@@ -331,10 +338,13 @@ class ParticipantTabs:
             )
 
     def bind(self, page: ParticipantPage, live: LiveSession) -> bool:
-        """Bind ``page`` to ``live`` unless another tab holds it; True when bound."""
+        """Bind ``page`` to ``live`` unless another tab holds it or the server let it go;
+        True when bound."""
         with self._lock:
             if page.client.client_id not in self._pages:
                 return True  # the tab closed meanwhile: nothing to tell it
+            if self.server.find(live.code) is not live:
+                return False  # let go meanwhile (finished, or its link place given back)
             if live.page is not None and live.page is not page:
                 return False
             if self._page_session.get(page.client.client_id, live.code) != live.code:

@@ -20,6 +20,10 @@
 * Behind a TLS reverse proxy (``trusted_proxies``), limits and logs use the client address
   the proxy forwards and the ``Origin`` check accepts the public host name it forwards
   (:mod:`study.server.forwarded`).
+* A finished session stays while a tab shows its last screen and for a grace after it left (a
+  reload gets that screen again), then it is closed and let go: its threads end, its code and
+  rejoin cookie work no more, and the console lists it from the store
+  (:mod:`study.server.finished_sessions`).
 * Experimenter view: a second ``ViserServer`` on ``127.0.0.1`` only, so the participant's
   machine has no route to it. The two servers share nothing but this object.
 
@@ -32,6 +36,7 @@ import hmac
 import logging
 import threading
 import time
+from collections import deque
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -40,6 +45,12 @@ from study.protocol.blinding import find_words
 from study.server import blinding_guard, firewall, logs, realtime
 from study.server.console_model import LinkState, SessionDetail, SessionSummary, StudyProgress
 from study.server.console_page import ExperimenterConsole
+from study.server.finished_sessions import (
+    FINISHED_GRACE_S,
+    RETIRED_KEPT,
+    Retired,
+    finished_and_left,
+)
 from study.server.firewall import LOOPBACK_NAMES
 from study.server.forwarded import Network
 from study.server.join import JoinThrottle, new_join_code, new_token
@@ -98,6 +109,7 @@ class StudyServer:
         port_firewall: firewall.Firewall | None = None,
         log_path: Path | None = None,
         link_idle_s: float = LINK_IDLE_S,
+        finished_grace_s: float = FINISHED_GRACE_S,
     ) -> None:
         """``open_link``: places of the open-enrolment link (0: off; the console turns it on
         and off); ``public_url``: the participants' address as they reach it (behind a
@@ -106,7 +118,9 @@ class StudyServer:
         the participant port's rules (a default ``Firewall`` if not given; tests and
         benchmarks pass one with other limits); ``log_path``: the server's log file
         (``study.server.logs``), whose disk use the console shows; ``link_idle_s``: how long a
-        link session left before consent keeps its place (``study.server.link_places``)."""
+        link session left before consent keeps its place (``study.server.link_places``);
+        ``finished_grace_s``: how long a finished session stays once no tab shows it
+        (``study.server.finished_sessions``)."""
         self.log_path = log_path
         self.factory = factory
         self.render_hz = render_hz
@@ -116,6 +130,8 @@ class StudyServer:
         self._sessions: dict[str, LiveSession] = {}
         self._tokens: dict[str, str] = {}
         """Each session's rejoin token, by join code."""
+        self._retired: deque[Retired] = deque(maxlen=RETIRED_KEPT)
+        """Finished sessions let go, oldest first (``study.server.finished_sessions``)."""
         self.tabs = ParticipantTabs(self)
         self.public_url = public_url
         self.open_link = OpenLink(factory.store, enabled=open_link > 0, cap=open_link)
@@ -145,8 +161,10 @@ class StudyServer:
         firewall.install(self.experimenter, self.experimenter_firewall)
         self.console = ExperimenterConsole(self.experimenter, self, refresh_hz=console_refresh_hz)
         self.link_idle_s = link_idle_s
+        self.finished_grace_s = finished_grace_s
+        shortest = min(link_idle_s, finished_grace_s)
         self._places = PlaceSweeper(
-            self.reclaim_link_places, period_s=min(SWEEP_S, max(0.05, link_idle_s / 4))
+            self._sweep, period_s=min(SWEEP_S, max(0.05, shortest / 4)), name="sweeper"
         )
         realtime.freeze_heap()  # after start-up: collections never walk it again
 
@@ -224,7 +242,8 @@ class StudyServer:
                 if live.participant == participant and not live.closed:
                     return code
             words = self.guard.words
-            code = new_join_code(set(self._sessions), avoid=words)
+            taken = set(self._sessions) | {r.code for r in self._retired}  # one row per code
+            code = new_join_code(taken, avoid=words)
             live = self.factory(
                 participant,
                 code=code,
@@ -261,9 +280,19 @@ class StudyServer:
     def session(self, code: str) -> LiveSession:
         with self._lock:
             live = self._sessions.get(code)
+            retired = self._retired_by_code(code)
+        if live is None and retired is not None:
+            raise ServerError(
+                f"the session of {retired.participant} (code {code}) is over and no longer live:"
+                " nothing more can be done on it here; its records are in the store"
+                " (`python -m study export` writes them out)"
+            )
         if live is None:
             raise ServerError(f"no session with join code {code!r}; check the console's list")
         return live
+
+    def _retired_by_code(self, code: str) -> Retired | None:
+        return next((r for r in reversed(self._retired) if r.code == code), None)
 
     def sessions(self) -> list[LiveSession]:
         with self._lock:
@@ -274,12 +303,20 @@ class StudyServer:
 
     # Console protocol ------------------------------------------------------------------------
     def summaries(self) -> list[SessionSummary]:
-        return [s.summary() for s in self.sessions()]
+        """The finished sessions let go (the newest ``RETIRED_KEPT``), then the live ones."""
+        with self._lock:
+            retired = [r.summary for r in self._retired]
+        return retired + [s.summary() for s in self.sessions()]
 
     def detail(self, code: str) -> SessionDetail | None:
         with self._lock:
             live = self._sessions.get(code)
-        return None if live is None else live.detail()
+            retired = None if live is not None else self._retired_by_code(code)
+        if live is not None:
+            return live.detail()
+        if retired is not None:
+            return retired.detail(self.factory.store, self.factory.protocol)
+        return None
 
     def health(self) -> str:
         """One line for the console: the participant port's tabs and refusals, the log's size."""
@@ -336,12 +373,14 @@ class StudyServer:
         return live is not None and bool(live.recruitment)
 
     def _proven_token(self, value: str) -> str | None:
-        """``value`` (a tab's rejoin cookie) when it is the token of an open session, else
-        ``None`` (the firewall asks at the door)."""
-        return value if self.code_of(value) is not None else None
+        """``value`` (a tab's rejoin cookie) when it is the token of a session here (open, or
+        finished and not yet let go: a reload gets its last screen), else ``None`` (the
+        firewall asks at the door)."""
+        return value if self.code_of(value, finished=True) is not None else None
 
-    def code_of(self, token: str | None) -> str | None:
-        """The open session whose rejoin token is ``token`` (compared in constant time)."""
+    def code_of(self, token: str | None, *, finished: bool = False) -> str | None:
+        """The open session whose rejoin token is ``token`` (compared in constant time); with
+        ``finished``, a finished one not yet let go too."""
         if not token:
             return None
         # no lock: the firewall asks from the event loop, which must never wait for an
@@ -350,7 +389,7 @@ class StudyServer:
         for code, expected in tokens.items():
             if hmac.compare_digest(token.encode(), expected.encode()):
                 live = self._sessions.get(code)
-                return code if live is not None and not live.closed else None
+                return code if live is not None and (finished or not live.closed) else None
         return None
 
     def _bound_input_dropped(self, client_id: int, reason: str) -> None:
@@ -385,6 +424,38 @@ class StudyServer:
                 self.open_link.returned(participant)
                 live.note_retaken()
             return live, ""
+
+    def _sweep(self) -> None:
+        """The sweeper's round: idle link places back, finished sessions let go (the second
+        even when the first fails; the sweeper logs what was raised)."""
+        try:
+            self.reclaim_link_places()
+        finally:
+            self.drop_finished()
+
+    def drop_finished(self, *, now: float | None = None) -> list[str]:
+        """Close and let go the sessions over for ``finished_grace_s`` with no tab on their
+        last screen (``study.server.finished_sessions``); returns their participants. ``now``
+        (``time.monotonic()``) for tests."""
+        now = time.monotonic() if now is None else now
+        dropped = []
+        for live in finished_and_left(self.sessions(), grace_s=self.finished_grace_s, now=now):
+            record = Retired.of(live)  # its row, read before the lock (the store)
+            with self._lock:  # a tab that binds meanwhile (a reload) keeps the session
+                if live.page is not None or self.tabs.holds(live.code):
+                    continue
+                self._sessions.pop(live.code, None)
+                self._tokens.pop(live.code, None)
+                self._retired.append(record)
+            live.close()
+            dropped.append(live.participant)
+        if dropped:
+            LOGGER.info(
+                "%d finished session(s) let go (no tab on their last screen for %.0f s)",
+                len(dropped),
+                self.finished_grace_s,
+            )
+        return dropped
 
     def reclaim_link_places(self) -> list[str]:
         """Close the open link's sessions left before consent for ``link_idle_s`` and give

@@ -17,11 +17,17 @@ from datetime import UTC, datetime
 import numpy as np
 
 from app.trial import TickRecord
+from study.protocol import Protocol
 from study.server.console_model import SessionDetail, SessionSummary
 from study.server.live.timeline import task_text, timeline
 from study.session import Overview, Session, TrialRun
+from study.session.plan import Plan, build_plan
+from study.store import Store
 
 LOGGER = logging.getLogger("study.server.live")
+
+FINISHED_NOTE = "no longer live: shown from the store (`python -m study export` writes it out)"
+"""Said of a finished session the server has let go (``finished_detail``)."""
 
 PLOT_WINDOW = 1500
 """Ticks kept for the console's live plots (15 s at 100 Hz)."""
@@ -81,6 +87,8 @@ class LiveFacts:
     log: tuple[str, ...]
     fault: str | None
     recruitment: tuple[tuple[str, str], ...] = field(default_factory=tuple)
+    ended_at: datetime | None = None
+    """When the session was over (``None``: not yet): its session time stops there."""
 
 
 def session_summary(session: Session, facts: LiveFacts) -> SessionSummary:
@@ -98,25 +106,18 @@ def _summary(o: Overview, participant: str, facts: LiveFacts) -> SessionSummary:
         connected=facts.connected,
         elapsed_s=None
         if facts.started_at is None
-        else (datetime.now(UTC) - facts.started_at).total_seconds(),
+        else ((facts.ended_at or datetime.now(UTC)) - facts.started_at).total_seconds(),
         source="link" if facts.recruitment else "",
     )
 
 
 def session_detail(session: Session, facts: LiveFacts, plots: LivePlots) -> SessionDetail:
     o = session.overview()
-    schedule = [
-        (
-            f"{s.kind} ({s.phase})" + (f" #{s.trial_number}" if s.trial_number else ""),
-            s.task or "-",
-            (s.mode or "-") + (f", {s.run} run" if s.run else ""),
-        )
-        for s in session.plan.steps
-    ]
+    schedule = _schedule(session.plan)
     condition = condition_line(o)
     t, alpha, conf, probs = plots.arrays()
     run = facts.run
-    rows, tally = _timeline(session)
+    rows, tally = _timeline(session.store, session.session_id)
     return SessionDetail(
         summary=_summary(o, session.participant, facts),
         schedule=schedule,
@@ -131,12 +132,50 @@ def session_detail(session: Session, facts: LiveFacts, plots: LivePlots) -> Sess
         goal_names=plots.goal_names,
         log=facts.log,
         fault=facts.fault or _text(session.samples_error),
-        trials=_trial_rows(session),
+        trials=_trial_rows(session.store, session.participant),
         actions=o.experimenter_actions,
         timeline=rows,
         tally=tally,
         recruitment=facts.recruitment,
     )
+
+
+def finished_detail(
+    store: Store,
+    protocol: Protocol,
+    summary: SessionSummary,
+    *,
+    recruitment: tuple[tuple[str, str], ...] = (),
+) -> SessionDetail:
+    """The detail of a finished session that is no longer live (``summary``: its last row),
+    read from the store: its schedule, attempts and timeline; no actions, no plots."""
+    record = store.session(summary.participant)
+    plan = build_plan(protocol, tuple(store.assignments(summary.participant)))
+    rows, tally = _timeline(store, record.session_id)
+    return SessionDetail(
+        summary=summary,
+        schedule=_schedule(plan),
+        cursor=record.cursor,
+        condition=f"none: the session is {record.status}; {FINISHED_NOTE}",
+        trial_elapsed_s=0.0,
+        paused=False,
+        trials=_trial_rows(store, summary.participant),
+        timeline=rows,
+        tally=tally,
+        recruitment=recruitment,
+    )
+
+
+def _schedule(plan: Plan) -> list[tuple[str, str, str]]:
+    """The console's schedule rows: (step label, task, mode)."""
+    return [
+        (
+            f"{s.kind} ({s.phase})" + (f" #{s.trial_number}" if s.trial_number else ""),
+            s.task or "-",
+            (s.mode or "-") + (f", {s.run} run" if s.run else ""),
+        )
+        for s in plan.steps
+    ]
 
 
 def condition_line(o: Overview) -> str:
@@ -155,20 +194,20 @@ def condition_line(o: Overview) -> str:
     return o.step_kind or o.phase
 
 
-def _timeline(session: Session) -> tuple[tuple[tuple[str, str, str], ...], str]:
+def _timeline(store: Store, session_id: int) -> tuple[tuple[tuple[str, str, str], ...], str]:
     try:
-        events = session.store.events(session_id=session.session_id)
-        trials = session.store.trials(session_id=session.session_id)
+        events = store.events(session_id=session_id)
+        trials = store.trials(session_id=session_id)
     except Exception:
         LOGGER.debug("could not read the session's timeline", exc_info=True)
         return (), ""
     return timeline(events, trials)
 
 
-def _trial_rows(session: Session) -> tuple[tuple[str, int, str, str, str], ...]:
+def _trial_rows(store: Store, participant: str) -> tuple[tuple[str, int, str, str, str], ...]:
     """The console's list of attempts, from the store (runs of earlier processes too)."""
     try:
-        records = session.store.trials(participant=session.participant)
+        records = store.trials(participant=participant)
     except Exception:
         LOGGER.debug("could not read the trials for the console", exc_info=True)
         return ()

@@ -25,7 +25,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Mapping
-from datetime import datetime
+from datetime import UTC, datetime
 from typing import Any
 
 from app.robot import Simulation, build_scene
@@ -52,6 +52,10 @@ from study.session import (
 
 LOGGER = logging.getLogger("study.server.live")
 
+PAGE_STOP_S = 2.0
+"""How long ``close`` waits for the page thread to end (it wakes at once; a screen being built
+on a slow tab may hold it that long)."""
+
 
 class LiveSession:
     """A ``study.session.Session`` served to one participant tab at a time."""
@@ -66,6 +70,10 @@ class LiveSession:
         """A tab has held this session (a kiosk then asks for the code after a drop)."""
         self._unattended_since: float | None = time.monotonic()
         """Since when no tab holds this session (``None`` while one does)."""
+        self._finished_at: float | None = None
+        """When (monotonic) the page thread found the session over and released it."""
+        self.ended_at: datetime | None = None
+        """When the session was over (the console's session time stops there)."""
         self.on_closed: Callable[[], None] | None = None
         self.recruitment: tuple[tuple[str, str], ...] = ()
         """The recruitment IDs the participant came with (open enrolment), for the console."""
@@ -144,11 +152,12 @@ class LiveSession:
     def _event(self, kind: str, detail: Mapping[str, Any]) -> bool:
         """Append an event to the session's log (UI events: tabs, refusals, rejected input),
         through ``Session.record_event``: written only while this process holds the lease.
-        False when the store refused it (it is in the server log then)."""
+        False when the store refused it (it is in the server log then), or when the session is
+        over and released (a tab on its last screen: the console's log only)."""
         where = detail.get("address")
         self.log.append(f"{time.strftime('%H:%M:%S')} {kind}" + (f" ({where})" if where else ""))
-        if self._stop.is_set():
-            return False  # shutting down: the store may already be closed
+        if self._stop.is_set() or self._finished_at is not None:
+            return False  # shutting down (the store may be closed), or over and released
         try:
             self.session.record_event(kind, detail)
         except SessionClosedError as exc:
@@ -201,6 +210,15 @@ class LiveSession:
         while one holds it)."""
         since = self._unattended_since
         return 0.0 if since is None else max(0.0, now - since)
+
+    def over_and_left_s(self, now: float) -> float | None:
+        """Seconds until ``now`` (``time.monotonic()``) that this session has been over with no
+        tab on its last screen: since it was over or since its last tab left, whichever came
+        later; ``None`` while it is not over (or not released yet) or a tab holds it."""
+        over, since = self._finished_at, self._unattended_since
+        if over is None or since is None:
+            return None
+        return max(0.0, now - max(over, since))
 
     def note_released(self, idle_s: float) -> None:
         """Record that the open link took this session's place back (``link_places``)."""
@@ -324,9 +342,11 @@ class LiveSession:
             self._end_run()
         if self.closed and not self._closed_notified:
             self._closed_notified = True
+            self.ended_at = datetime.now(UTC)
             self.view.stop()
             with contextlib.suppress(Exception):
                 self.session.close()  # release the lease; the record stays readable
+            self._finished_at = time.monotonic()
             if self.on_closed is not None:
                 self.on_closed()
         if run is not None and not run.over:
@@ -379,6 +399,7 @@ class LiveSession:
             log=tuple(self.log),
             fault=self.faults.fault,
             recruitment=self.recruitment,
+            ended_at=self.ended_at,
         )
 
     def started_at(self) -> datetime | None:
@@ -398,7 +419,8 @@ class LiveSession:
         return session_detail(self.session, self._facts(), self.plots)
 
     def close(self) -> None:
-        """Stop the threads and release the session (a running trial is marked interrupted)."""
+        """Stop the threads (the page thread too, within ``PAGE_STOP_S``) and release the
+        session (a running trial is marked interrupted)."""
         self._stop.set()
         self._dirty.set()
         self.trial_run.stop()
@@ -406,3 +428,5 @@ class LiveSession:
         self.input.close()
         with contextlib.suppress(Exception):
             self.session.close()
+        if self._page_thread is not threading.current_thread():
+            self._page_thread.join(PAGE_STOP_S)
