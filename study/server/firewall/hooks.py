@@ -2,8 +2,8 @@
 the hooks of :mod:`study.server.viser_door`.
 
 * :func:`start_server` builds and starts a ``ViserServer`` whose websocket server has the
-  firewall's size limit, its accept gate (a socket refused there is reset before its request
-  is read), its door checks, no ``Server`` header (no version strings), and
+  firewall's size limit, its accept gate on the listening socket (a connection refused there
+  is reset as it is accepted, :mod:`study.server.firewall.listener`), its door checks, no ``Server`` header (no version strings), and
   :meth:`Firewall.screened_recv` in front of every connection's reads;
 * :func:`install` screens every message the server receives with
   :meth:`Firewall.screened_decode` *before* it becomes a message object (a refused one becomes
@@ -26,6 +26,7 @@ from websockets.frames import Frame, Opcode
 
 from study.server import viser_door
 from study.server.firewall.limits import FrameBudget
+from study.server.firewall.listener import gate_listener
 from study.server.firewall.notes import OncePerMinute
 from study.server.firewall.rules import ConnectionFlood
 
@@ -72,16 +73,17 @@ def start_server(firewall: Firewall, *, host: str, port: int, verbose: bool) -> 
         kwargs["process_request"] = firewall.process_request(kwargs.get("process_request"))
         kwargs["server_header"] = None
         kwargs["create_connection"] = gated_connection(firewall)
+        gate_listener(asyncio.get_running_loop(), firewall.accepts)  # viser serves in its loop
         return guarded, kwargs
 
     return viser_door.start_server(host=host, port=port, verbose=verbose, adapt_serve=adapt)
 
 
 def gated_connection(firewall: Firewall) -> type[ServerConnection]:
-    """A websockets connection class that asks ``firewall.accepts(peer)`` before anything is
-    read (a refused socket is reset; nothing else runs for it), closes a connection that
-    breaks its ``FrameBudget`` (fragments of one message, pings) before the library keeps or
-    answers more of it, and frees its slot when gone."""
+    """A websockets connection class that closes a connection that breaks its
+    ``FrameBudget`` (fragments of one message, pings) before the library keeps or answers more
+    of it, and frees its slot when gone. (``firewall.accepts`` was asked before: the listening
+    socket's gate, :mod:`study.server.firewall.listener`.)"""
     return type("GatedConnection", (GatedConnection,), {"firewall": firewall})
 
 
@@ -89,17 +91,10 @@ class GatedConnection(ServerConnection):
     """A connection behind ``firewall`` (a subclass per firewall: ``gated_connection``)."""
 
     firewall: Firewall
-    refused = False
     failed = False
     budget: FrameBudget | None = None
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        peer = transport.get_extra_info("peername")
-        address = str(peer[0]) if isinstance(peer, tuple) and peer else "unknown"
-        if not self.firewall.accepts(address):
-            self.refused = True
-            transport.abort()
-            return
         config = self.firewall.config
         self.budget = FrameBudget(
             max_fragments=config.max_fragments,
@@ -131,16 +126,6 @@ class GatedConnection(ServerConnection):
             return budget.ping(time.monotonic())
         return None
 
-    def data_received(self, data: bytes) -> None:
-        if not self.refused:
-            super().data_received(data)
-
-    def eof_received(self) -> None:
-        if not self.refused:
-            super().eof_received()
-
     def connection_lost(self, exc: Exception | None) -> None:
-        if self.refused:
-            return
         self.firewall.connection_lost(self)
         super().connection_lost(exc)
