@@ -53,9 +53,9 @@ def show_screen(
 ) -> None:
     """Build ``screen`` on ``page`` (see module docstring): a held fault, a pause or the last
     run's outcome first, else the screen of the session's phase."""
-    progress: str | None = (
-        screen.progress.text if screen.progress.of and screen.progress.trial else None
-    )  # none before the first run (the questions about the participant)
+    # "Practice run 2 of 3", "Run 5 of 8"; none before the first run (the questions about
+    # the participant)
+    progress: str | None = screen.progress.text or None
     if progress is not None and (progress in screen.title or progress in screen.text):
         progress = None  # said once is enough
     interrupted = _show_interruption(
