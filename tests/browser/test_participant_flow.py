@@ -115,6 +115,7 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     body = text_now()
     # counted as the consent counts: the practice runs apart from the main part's runs, once
     assert body.count("Practice run 1 of 1") == 1 and "Trial" not in body
+    assert "W/S (away / back)" in body  # the keys, before Start
     screenshot(page, screenshots, "03-ready")
     settle_frames(page)  # the scene's first draw is slow in software WebGL
     page.get_by_role("button", name="Start").click()

@@ -18,7 +18,7 @@ from study.server.live.texts import (
     WAITING_TEXT,
     end_screen,
 )
-from study.server.participant_page import ParticipantPage
+from study.server.participant_page import KEYS_BEFORE_START, ParticipantPage
 from study.server.recruitment import redirect_script
 from study.session import PauseCause, Screen
 
@@ -131,10 +131,14 @@ def _show_phase(
         page.show_consent(
             text, on_agree=handlers.agree, agree=agree_label, on_decline=handlers.decline
         )
-    elif screen.phase == "ready":
+    elif screen.phase == "ready":  # the keys too: known before the run's clock starts
         handlers.preview(page)
         page.show_message(
-            title, text, progress=progress, button="Start", on_button=handlers.start_trial
+            title,
+            f"{text}\n\n{KEYS_BEFORE_START}",
+            progress=progress,
+            button="Start",
+            on_button=handlers.start_trial,
         )
     elif screen.phase == "running":
         page.show_trial(
