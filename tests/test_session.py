@@ -106,8 +106,11 @@ def test_whole_session_in_order_with_every_transition_logged(
     assert kinds.count("answer") == 16 and kinds[-1] == "finish"
     assert store.session("P01").status == "completed"
     # progress and screen order as the participant saw them
-    assert ("ready", None, "Trial 3 of 11") in seen
-    assert ("questions", "after_training", "Trial 3 of 11") in seen
+    # practice runs and the main part's runs counted apart, as the consent counts them
+    assert ("ready", None, "Practice run 3 of 3") in seen
+    assert ("questions", "after_training", "Practice run 3 of 3") in seen
+    assert ("ready", None, "Run 1 of 8") in seen and ("questions", "closing", "Run 8 of 8") in seen
+    assert not any("Trial" in text or "of 11" in text for _, _, text in seen)
     moments = [q for p, q, _ in seen if p == "questions"]
     assert moments[0] == "before_training" and moments[-1] == "closing"
     assert (
@@ -191,7 +194,7 @@ def test_answers_outside_scale_or_unknown_items_store_nothing(
     with pytest.raises(UnknownItemError, match="'helpful' was already answered"):
         session.answer({"helpful": 5})
     screen = session.answer({"matched": 5, "teammate": 7})
-    assert screen.phase == "ready" and screen.progress.text == "Trial 4 of 11"
+    assert screen.phase == "ready" and screen.progress.text == "Run 1 of 8"
     assert [(r.item, r.value) for r in store.ratings()] == [
         ("helpful", 6),
         ("matched", 5),
@@ -260,17 +263,17 @@ def test_skip_a_run_skips_its_items_and_the_preference(store: Store, protocol: P
     for _ in range(3):
         finish_run(session)
     session.skip(reason="baseline form not available")  # skip the baseline items
-    assert session.screen().phase == "ready" and session.screen().progress.text == "Trial 4 of 11"
+    assert session.screen().phase == "ready" and session.screen().progress.text == "Run 1 of 8"
     first = session.plan[session.cursor]
     session.skip(reason="robot fault")  # skip the task's first run (not started)
     screen = session.screen()
-    assert screen.phase == "ready" and screen.progress.text == "Trial 5 of 11"
+    assert screen.phase == "ready" and screen.progress.text == "Run 2 of 8"
     run = session.start_trial(input_source=None)
     run.tick()
     session.skip(reason="robot fault again")  # skip the second run while running
     screen = session.screen()
     # both runs' items and the preference are skipped: the next task's first run is next
-    assert screen.phase == "ready" and screen.progress.text == "Trial 6 of 11"
+    assert screen.phase == "ready" and screen.progress.text == "Run 3 of 8"
     task_trials = [t for t in store.trials() if t.phase == "task"]
     assert [(t.task, t.status, t.outcome) for t in task_trials] == [
         (first.task, "skipped", None),
@@ -282,7 +285,7 @@ def test_skip_a_run_skips_its_items_and_the_preference(store: Store, protocol: P
     session.close()
     again = Session.reopen(store, protocol, "P01", trial_factory=stub_factory)
     again.start()
-    assert again.screen().progress.text == "Trial 6 of 11"
+    assert again.screen().progress.text == "Run 3 of 8"
     report = run_headless(again, answerer=ScriptedAnswers(seed=3))
     assert report.trials_completed == 9 and report.ratings == 3 * 6 + 3
     again.close()
@@ -307,10 +310,10 @@ def test_practice_items_fit_practice_and_go_with_every_practice_run(
     skipped = enrol(store, protocol, "P02")
     to_step(skipped, "ready")
     for k in range(3):
-        assert skipped.screen().progress.text == f"Trial {k + 1} of 11"
+        assert skipped.screen().progress.text == f"Practice run {k + 1} of 3"
         skipped.skip(reason="practice not needed")
     screen = skipped.screen()  # straight to the first task run: nothing to rate
-    assert screen.phase == "ready" and screen.progress.text == "Trial 4 of 11"
+    assert screen.phase == "ready" and screen.progress.text == "Run 1 of 8"
     skip_events = [e for e in store.events() if e.kind == "skip"]
     after_training = next(s.index for s in skipped.plan if s.questionnaire == "after_training")
     assert after_training in skip_events[-1].detail["steps"]
@@ -386,7 +389,7 @@ def test_close_mid_trial_marks_it_interrupted_and_resume_repeats_it(
     assert store.trial(run.trial_id).status == "interrupted"
     again = Session.reopen(store, protocol, "P01", trial_factory=stub_factory)
     again.start()
-    assert again.screen().progress.text == "Trial 2 of 11"
+    assert again.screen().progress.text == "Practice run 2 of 3"
     assert again.overview().attempt == 2
     again.close()
 
@@ -526,7 +529,7 @@ def test_end_before_start_and_waiting_screen(store: Store, protocol: Protocol) -
     assert (
         screen.phase == "waiting"
         and screen.actions == ()
-        and screen.progress.text == "Trial 0 of 11"
+        and screen.progress.text == ""  # no run yet
     )
     with pytest.raises(MissingReasonError, match="end needs a reason"):
         session.end(reason="")
@@ -557,5 +560,5 @@ def test_a_failed_commit_at_trial_end_is_retried_by_the_next_tick(
     assert run.tick() is None and run.over  # retried: samples, then the trial, committed
     trial = store.trial(run.trial_id)
     assert trial.status == "completed" and trial.ticks == 5 == store.sample_count(run.trial_id)
-    assert session.screen().progress.text == "Trial 2 of 11"
+    assert session.screen().progress.text == "Practice run 2 of 3"
     session.close()

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 
@@ -120,9 +120,12 @@ class Texts:
 
     ``instructions`` maps a phase (``welcome``, ``training``, ``task``, ``rating``,
     ``preference``, ``pause``, ``after_training``) to its text; ``{target}`` in the training and
-    task texts is replaced by the target object's name. ``completion_code`` (shown at the end of
-    a completed session) and ``redirect_url`` (where the page then goes: an online panel's
-    completion URL) are for online studies; empty when not used.
+    task texts is replaced by the target object's name, ``{first}`` and ``{last}`` in the
+    preference text by the numbers of the runs it compares. ``completion_code`` (shown at the
+    end of a completed session) and ``redirect_url`` (where the page then goes: an online
+    panel's completion URL) are for online studies; empty when not used. ``consent_online`` and
+    ``debrief_online`` are what a participant who came by the open link reads instead (no
+    experimenter to ask); empty: the same texts as in the lab (:meth:`for_link`).
     """
 
     consent: str
@@ -131,3 +134,14 @@ class Texts:
     instructions: Mapping[str, str]
     completion_code: str = ""
     redirect_url: str = ""
+    consent_online: str = ""
+    debrief_online: str = ""
+
+    def for_link(self) -> Texts:
+        """The texts a participant who came by the open link reads: the online consent and
+        debrief where the protocol gives them."""
+        return replace(
+            self,
+            consent=self.consent_online or self.consent,
+            debrief=self.debrief_online or self.debrief,
+        )

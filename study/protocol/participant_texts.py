@@ -32,7 +32,10 @@ INSTRUCTIONS_OPTIONAL = (
 once per participant (``before_training``, ``between_tasks``, ``closing``) needs its own
 introduction when it has items; ``after_training`` introduces the items asked after the
 practice runs (without it, a neutral sentence about the practice runs)."""
-PLACEHOLDERS = {"training": {"target"}, "task": {"target"}}
+PLACEHOLDERS = {"training": {"target"}, "task": {"target"}, "preference": {"first", "last"}}
+"""The placeholders each instruction may hold: ``{target}``, the target object's name;
+``{first}`` and ``{last}``, the numbers ("Run 3 of 8": 3) of the first and last run the
+preference compares, as the participant counted them."""
 _COMPLETION_CODE = re.compile(r"[A-Za-z0-9_-]{1,64}", re.ASCII)
 _URL = re.compile(r"https?://[^\s\\\"'<>`]{1,2000}", re.ASCII)
 REDIRECT_PLACEHOLDERS = ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID", "pid")
@@ -41,11 +44,13 @@ from its own link (``study.server.recruitment``)."""
 
 
 def read_texts(root: Table, *, questionnaire: Questionnaire) -> Texts:
-    """``[consent]`` (text, agree), ``[debrief]`` (text) and ``[instructions]`` per phase."""
+    """``[consent]`` (text, agree, online_text), ``[debrief]`` (text, online_text, completion
+    code, redirect) and ``[instructions]`` per phase. ``online_text``: what a participant who
+    came by the open link reads instead of ``text`` (without it, ``text``)."""
     consent = root.table("consent")
-    consent.only("text", "agree")
+    consent.only("text", "agree", "online_text")
     debrief = root.table("debrief")
-    debrief.only("text", "completion_code", "redirect_url")
+    debrief.only("text", "online_text", "completion_code", "redirect_url")
     t = root.table("instructions")
     t.only(*INSTRUCTIONS_REQUIRED, *INSTRUCTIONS_OPTIONAL)
     instructions: dict[str, str] = {}
@@ -66,6 +71,8 @@ def read_texts(root: Table, *, questionnaire: Questionnaire) -> Texts:
         instructions=MappingProxyType(instructions),
         completion_code=_completion_code(debrief),
         redirect_url=_redirect_url(debrief),
+        consent_online=consent.string("online_text") if "online_text" in consent else "",
+        debrief_online=debrief.string("online_text") if "online_text" in debrief else "",
     )
 
 
@@ -117,7 +124,9 @@ def participant_texts(p: Protocol) -> list[tuple[str, str]]:
     texts = [
         ("consent.text", p.texts.consent),
         ("consent.agree", p.texts.consent_agree),
+        ("consent.online_text", p.texts.consent_online),
         ("debrief.text", p.texts.debrief),
+        ("debrief.online_text", p.texts.debrief_online),
         ("debrief.completion_code", p.texts.completion_code),
         ("debrief.redirect_url", p.texts.redirect_url),
     ]

@@ -129,8 +129,10 @@ def _number(
     page: FieldPage, item: NumberItem, *, current: Callable[[], bool], report: Report
 ) -> None:
     accepts = f"Please enter {item.range_text()}."
+    # no hint: viser shows it as a tooltip over the prompt, and the line under the field
+    # says the same (the tooltip and the line said it twice)
     field = page.client.gui.add_text(
-        check_text(item.unit or "Number", words=page.words), initial_value="", hint=accepts
+        check_text(item.unit or "Number", words=page.words), initial_value=""
     )
     page._handles.append(field)
     note = page._md(accepts + (" You may leave it empty." if item.optional else ""))
@@ -156,9 +158,7 @@ def _number(
 
 def _text(page: FieldPage, item: TextItem, *, current: Callable[[], bool], report: Report) -> None:
     limit = f"at most {item.max_length} characters"
-    field = page.client.gui.add_text(
-        "Answer", initial_value="", multiline=True, hint=limit.capitalize()
-    )
+    field = page.client.gui.add_text("Answer", initial_value="", multiline=True)  # no tooltip
     page._handles.append(field)
     empty = " You may leave it empty." if item.optional else ""
     count = page._md(f"0 of {item.max_length} characters.{empty}")

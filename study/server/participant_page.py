@@ -52,6 +52,13 @@ KEY_HELP = (
     "lifts it. The picture shows the table from above. Drag the background to "
     "look around, scroll to zoom; **V** brings back the starting view."
 )
+KEYS_BEFORE_START = (
+    "Once you press Start: drag the handle above the gripper to move it, or hold the keys "
+    "**W**/**S** (away / back), **A**/**D** (sideways), **R**/**F** (up / down). "
+    "Press **G** to close the gripper around the object; the arm then lifts it."
+)
+"""The keys on the screen before a run (the Start screen), so they are known before the run's
+clock starts; the run's screen shows :data:`KEY_HELP`."""
 INSET_SIZE = (320, 240)
 """Width and height (pixels) of the view from above on the trial screen."""
 DECLINE = "I do not wish to take part"
@@ -247,13 +254,12 @@ class ParticipantPage:
                 )
                 return screen
             self._md(
-                "**Welcome.**\n\nPlease type the join code the experimenter gives you, then"
-                " press Join." + (f"\n\n_{notice}_" if notice else "")
+                "**Welcome.**\n\nPlease type the join code the experimenter gives you (six"
+                " letters and digits), then press Join." + (f"\n\n_{notice}_" if notice else "")
             )
+            # no hint: viser shows it as a tooltip over the lines above, the notice among them
             text = self.client.gui.add_text(
-                check_text("Join code", words=self.words),
-                initial_value="",
-                hint="six letters and digits",
+                check_text("Join code", words=self.words), initial_value=""
             )
             self._handles.append(text)
             b = self._button("Join")

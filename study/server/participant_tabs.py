@@ -219,7 +219,7 @@ class ParticipantTabs:
             page.show_message("Please try again", LINK_FAILED_TEXT)
             return
         if live is None:
-            show_end(page, ended, self.server.factory.protocol.texts)
+            show_end(page, ended, self.server.factory.protocol.texts.for_link())
             return
         start = time.monotonic()
         told = False

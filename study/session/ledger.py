@@ -36,6 +36,9 @@ class SessionInfo:
     seed: int
     schedule_row: int
     assignments: tuple[AssignmentRecord, ...]
+    by_link: bool = False
+    """Enrolled by the open link (its ``enrol`` event holds recruitment IDs): an online
+    participant, with no experimenter beside them (``Texts.for_link``)."""
 
 
 class Ledger:

@@ -21,6 +21,7 @@ from itertools import groupby
 from typing import Literal
 
 from study.protocol import TRAINING_MODE, Item, Protocol, Questionnaire
+from study.session.screen import Progress
 from study.store import AssignmentRecord
 
 StepKind = Literal["consent", "trial", "questions", "debrief"]
@@ -38,8 +39,9 @@ class Step:
 
     ``phase`` is ``"training"`` or ``"task"`` (consent, debrief and the questions asked once
     per participant use ``"session"``);
-    ``trial_number`` counts trial steps 1..n (progress "trial 3 of 11"); ``position`` counts task
-    trials 1..8; ``questionnaire`` is the protocol's questionnaire phase for question steps;
+    ``trial_number`` counts trial steps 1..n (the store's numbering, practice runs included);
+    ``run_number`` is a trial's number as the participant counts it, within its phase ("Practice
+    run 2 of 3", "Run 5 of 8"); ``position`` counts task trials 1..8; ``questionnaire`` is the protocol's questionnaire phase for question steps;
     ``rates_step`` is the trial step an after-run question step is about; ``task_steps`` the trial
     steps an after-task (preference) step compares, or the practice runs an after-training step
     asks about.
@@ -53,6 +55,7 @@ class Step:
     run: str | None = None
     position: int | None = None
     trial_number: int | None = None
+    run_number: int | None = None
     task_number: int | None = None
     questionnaire: str | None = None
     items: tuple[Item, ...] = ()
@@ -62,9 +65,14 @@ class Step:
 
 @dataclass(frozen=True)
 class Plan:
+    """The steps, with how many trials (``n_trials``), tasks, practice runs and task runs
+    (``n_runs``: the main part's runs, as the consent counts them) they hold."""
+
     steps: tuple[Step, ...]
     n_trials: int
     n_tasks: int
+    n_practice: int = 0
+    n_runs: int = 0
 
     def __len__(self) -> int:
         return len(self.steps)
@@ -86,6 +94,16 @@ class Plan:
             return s.questionnaire != "after_training" or gone.issuperset(s.task_steps)
 
         return tuple(s.index for s in self.steps if loses(s))
+
+
+def run_progress(plan: Plan, step: Step) -> Progress:
+    """Trial step ``step`` as the participant's page counts it: "Practice run 2 of 3" among
+    the practice runs, "Run 5 of 8" among the main part's (``run`` 0 for any other step)."""
+    if step.run_number is None:
+        return Progress(0, plan.n_runs)
+    if step.phase == "training":
+        return Progress(step.run_number, plan.n_practice, practice=True)
+    return Progress(step.run_number, plan.n_runs)
 
 
 def build_plan(protocol: Protocol, assignments: Sequence[AssignmentRecord]) -> Plan:
@@ -113,21 +131,31 @@ def build_plan(protocol: Protocol, assignments: Sequence[AssignmentRecord]) -> P
     if q.closing:
         steps.add("questions", "session", questionnaire="closing", items=q.closing)
     steps.add("debrief", "session")
-    return Plan(steps=tuple(steps.steps), n_trials=steps.trials, n_tasks=steps.tasks)
+    return Plan(
+        steps=tuple(steps.steps),
+        n_trials=steps.trials,
+        n_tasks=steps.tasks,
+        n_practice=steps.runs["training"],
+        n_runs=steps.runs["task"],
+    )
 
 
 class _Steps:
-    """The plan's steps as they are added, numbered in order; counts trials and tasks."""
+    """The plan's steps as they are added, numbered in order; counts trials (all, and per
+    phase: the participant's run numbers) and tasks."""
 
     def __init__(self) -> None:
         self.steps: list[Step] = []
         self.trials = 0
         self.tasks = 0
+        self.runs = {"training": 0, "task": 0}
 
     def add(self, kind: StepKind, phase: str, **kw: object) -> Step:
         if kind == "trial":
             self.trials += 1
+            self.runs[phase] += 1
             kw["trial_number"] = self.trials
+            kw["run_number"] = self.runs[phase]
         step = Step(len(self.steps), kind, phase, **kw)  # type: ignore[arg-type]
         self.steps.append(step)
         return step

@@ -23,14 +23,19 @@ to answer; ``done``: completed, withdrawn or ended (see ``Overview.status``)."""
 
 @dataclass(frozen=True)
 class Progress:
-    """``trial`` of ``of`` trial runs (training included), e.g. "Trial 3 of 11"."""
+    """Run ``run`` of ``of`` as the participant counts them, as the consent does: the practice
+    runs ("Practice run 2 of 3", ``practice``) apart from the main part's runs ("Run 5 of 8").
+    ``run`` 0: before the first run (no text)."""
 
-    trial: int
+    run: int
     of: int
+    practice: bool = False
 
     @property
     def text(self) -> str:
-        return f"Trial {self.trial} of {self.of}"
+        if not self.run:
+            return ""
+        return f"{'Practice run' if self.practice else 'Run'} {self.run} of {self.of}"
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ from collections.abc import Callable, Mapping
 from typing import Any, Self
 
 from app.trial import Trial, TrialConfig
-from study.protocol import Protocol
+from study.protocol import Protocol, Texts
 from study.session.closing import close_session
 from study.session.experimenter_actions import ExperimenterActions
 from study.session.lease_keeper import LeaseKeeper
@@ -68,16 +68,18 @@ class Session:
         self.store = store
         self.protocol = protocol
         record = store.session(participant)
+        events = store.events(session_id=record.session_id)
         self.info = SessionInfo(
             participant=participant,
             session_id=record.session_id,
             seed=record.seed,
             schedule_row=store.participant(participant).schedule_row,
             assignments=tuple(store.assignments(participant)),
+            by_link=any(e.kind == "enrol" and e.detail.get("recruitment") for e in events),
         )
         self.plan: Plan = build_plan(protocol, self.info.assignments)
         self._state = RunState(status=record.status, cursor=record.cursor)
-        for event in store.events(session_id=record.session_id):
+        for event in events:
             if event.kind == "skip":
                 self._state.skipped.update(event.detail.get("steps", []))
         self._lock = threading.RLock()
@@ -248,6 +250,12 @@ class Session:
         return self._writer.stats
 
     # ---- views ------------------------------------------------------------------------------------
+    @property
+    def texts(self) -> Texts:
+        """The protocol's texts as this participant reads them (the online consent and
+        debrief for one who came by the open link)."""
+        return self._steps.texts
+
     def phase(self) -> Phase:
         with self._lock:
             return self._steps.phase()

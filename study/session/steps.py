@@ -10,8 +10,8 @@ from app.trial import TrialConfig
 from study.protocol import Item, Protocol
 from study.session.errors import SessionStateError
 from study.session.ledger import Ledger
-from study.session.plan import Plan, Step
-from study.session.screen import Phase
+from study.session.plan import Plan, Step, run_progress
+from study.session.screen import Phase, Progress
 from study.session.state import RunState
 from study.store import Store
 
@@ -37,6 +37,8 @@ class Steps:
         self.ledger = ledger
         self.session_id = ledger.info.session_id
         self.schedule_row = ledger.info.schedule_row
+        self.texts = protocol.texts.for_link() if ledger.info.by_link else protocol.texts
+        """The participant's texts (``Texts.for_link`` for one who came by the open link)."""
 
     # ---- where we are ---------------------------------------------------------------------------
     def current(self) -> Step | None:
@@ -52,10 +54,12 @@ class Steps:
             nxt += 1
         return nxt
 
-    def trial_progress(self) -> int:
-        """The trial number shown: the current trial step's, else the last one passed."""
+    def progress(self) -> Progress:
+        """The run shown: the current trial step's, else the last one passed (practice runs
+        and the main part's runs counted apart, as the consent counts them)."""
         steps = self.plan.steps[: self.state.cursor + 1]
-        return max((s.trial_number for s in steps if s.trial_number), default=0)
+        last = next((s for s in reversed(steps) if s.run_number), None)
+        return Progress(0, self.plan.n_runs) if last is None else run_progress(self.plan, last)
 
     def next_attempt(self, step: int) -> int:
         trials = self.store.trials(session_id=self.session_id)

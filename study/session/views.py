@@ -11,7 +11,8 @@ from collections.abc import Mapping
 from study.protocol import Item
 from study.session.errors import SessionStateError
 from study.session.ledger import SessionInfo
-from study.session.screen import Overview, Progress, Screen
+from study.session.plan import Plan, Step
+from study.session.screen import Overview, Screen
 from study.session.steps import PARTICIPANT_ACTIONS, Steps
 
 EXPERIMENTER_ACTIONS: tuple[str, ...] = (
@@ -42,9 +43,9 @@ def screen(steps: Steps, *, revision: int) -> Screen:
     """What the participant should see now (no condition names anywhere)."""
     state, protocol = steps.state, steps.protocol
     phase = steps.phase()
-    texts = protocol.texts
+    texts = steps.texts
     step = steps.current()
-    progress = Progress(steps.trial_progress(), steps.plan.n_trials)
+    progress = steps.progress()
     items: tuple[Item, ...] = ()
     actions = PARTICIPANT_ACTIONS.get(phase, ())
     if phase == "waiting":
@@ -52,15 +53,14 @@ def screen(steps: Steps, *, revision: int) -> Screen:
     elif phase == "consent":
         title, text = "Consent", texts.consent
     elif phase in ("ready", "running") and step is not None:
+        title = progress.text  # "Practice run 1 of 3", "Run 1 of 8"
         if step.phase == "training":
-            title = f"Practice run {step.trial_number} of {protocol.training.runs}"
             text = protocol.describe_training()
         else:
-            title = progress.text
             text = protocol.describe_trial(step.task or "")
     elif phase == "questions" and step is not None:
         title = "Questions"
-        text = _questions_intro(texts.instructions, step.questionnaire)
+        text = _questions_intro(texts.instructions, step, steps.plan)
         items = tuple(steps.pending_items(step))
     elif phase == "debrief":
         title, text = "Thank you", texts.debrief
@@ -87,11 +87,17 @@ AFTER_TRAINING_TEXT = "Please answer a few questions about the practice runs you
 ``instructions.after_training`` (the after-run text speaks of "the run you just finished")."""
 
 
-def _questions_intro(instructions: Mapping[str, str], questionnaire: str | None) -> str:
-    """The text above a page of items: the protocol's for that moment of the session."""
+def _questions_intro(instructions: Mapping[str, str], step: Step, plan: Plan) -> str:
+    """The text above a page of items: the protocol's for that moment of the session; the
+    preference's names the runs it compares by the numbers the participant saw ("Run 3 of 8")
+    in ``{first}`` and ``{last}`` (their run numbers, never their condition)."""
+    questionnaire = step.questionnaire
     if questionnaire == "after_training":
         return instructions.get("after_training", AFTER_TRAINING_TEXT)
     key = INTRODUCTIONS.get(questionnaire or "", "rating")
+    if key == "preference" and key in instructions:
+        runs = [plan[i].run_number or 0 for i in step.task_steps] or [0]
+        return instructions[key].format(first=runs[0], last=runs[-1])
     return instructions.get(key, instructions["rating"])
 
 

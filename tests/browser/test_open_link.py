@@ -64,6 +64,8 @@ def test_participants_from_a_panel_join_by_the_open_link(
     connect_page(first, _link(online, prolific))
     first.get_by_role("button", name=AGREE).wait_for()  # no join code, started by itself
     assert "join code" not in _body(first)
+    # the online consent: nobody beside them to ask (the lab's says "ask the experimenter")
+    assert "experimenter" not in _body(first) and "site where you found this study" in _body(first)
     assert store.session("L0001").status == "running"
     enrol = next(e for e in store.events(participant="L0001") if e.kind == "enrol")
     assert enrol.detail["recruitment"] == {
@@ -117,6 +119,7 @@ def test_participants_from_a_panel_join_by_the_open_link(
     context.route("https://panel.example.org/**", panel)
     first.get_by_role("button", name="Finish").click()
     first.get_by_text("Your completion code is C0DE1234").wait_for()
+    assert "experimenter" not in _body(first)  # the online debrief
     screenshot(first, screenshots, "link-02-completion-code")
     first.get_by_text("Submission received").wait_for(timeout=30_000)  # by itself, in 8 s
     assert visited == [f"{PANEL}?cc=C0DE1234&who={PID}"]
@@ -125,6 +128,7 @@ def test_participants_from_a_panel_join_by_the_open_link(
     again = context.new_page()  # the link once more: the code again, no new session
     connect_page(again, _link(online, prolific))
     again.get_by_text("Your completion code is C0DE1234").wait_for()
+    assert "experimenter" not in _body(again)
     assert [p.participant for p in store.participants()] == ["L0001", "L0002"]
 
     for log in (frames, marked_frames):

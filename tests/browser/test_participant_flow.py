@@ -113,7 +113,9 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     # Practice run: ready, then the trial screen with the scene and the gizmo.
     page.get_by_role("button", name="Start").wait_for()
     body = text_now()
-    assert body.count("Trial 1 of") == 1
+    # counted as the consent counts: the practice runs apart from the main part's runs, once
+    assert body.count("Practice run 1 of 1") == 1 and "Trial" not in body
+    assert "W/S (away / back)" in body  # the keys, before Start
     screenshot(page, screenshots, "03-ready")
     settle_frames(page)  # the scene's first draw is slow in software WebGL
     page.get_by_role("button", name="Start").click()
@@ -146,7 +148,7 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     # How the run ended (a neutral sentence), then three 7-point rows with anchors.
     page.get_by_text("Run finished").wait_for(timeout=30_000)
     assert "Time is up." in text_now()
-    assert "Trial 2 of" not in text_now()  # the run that finished was trial 1, not the next
+    assert "Run 1 of" not in text_now()  # the run that finished was the practice, not the next
     screenshot(page, screenshots, "04b-outcome")
     page.get_by_role("button", name="Continue").click()
     page.get_by_text("Your answer: none yet").first.wait_for(timeout=30_000)
@@ -167,7 +169,7 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
 
     # First task run: reload mid-trial -> paused (an event), Continue resumes.
     page.get_by_role("button", name="Start").wait_for()
-    assert text_now().count("Trial 2 of") == 1
+    assert text_now().count("Run 1 of 8") == 1
     page.get_by_role("button", name="Start").click()
     page.get_by_role("button", name="Close the gripper (G)").wait_for()
     page.wait_for_timeout(1500)
@@ -221,9 +223,10 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     page.get_by_role("button", name="Continue").click()
     page.get_by_text("Your answer: none yet").first.wait_for(timeout=30_000)
     answer_all(page, 3, 3)
-    page.get_by_text("Which of the two runs of this task did you prefer?").wait_for()
+    page.get_by_text("Which of these two runs did you prefer?").wait_for()
     body = text_now()
     assert "first run" in body and "second run" in body
+    assert "run 1 and run 2" in body and "this task" not in body  # the runs as the page counted
     screenshot(page, screenshots, "08-preference")
     answer_all(page, 1, 2)
     assert wait_until(lambda: any(r.item == "preference" for r in study.store.ratings()))

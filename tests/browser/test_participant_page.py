@@ -121,7 +121,7 @@ def test_enter_joins_no_viewer_notice_panel_stays_and_practice_items_fit(
         other.get_by_role("button", name=AGREE).click()
         other.get_by_role("button", name="Start").wait_for()
         srv.act(code2, "skip", reason="knows the task")
-        other.get_by_text("Trial 2 of").first.wait_for()
+        other.get_by_text("Run 1 of 8").first.wait_for()  # the main part: its first run
         other.get_by_role("button", name="Start").wait_for()
         assert "Your answer" not in other.inner_text("body")
         assert srv.session(code2).session.screen().phase == "ready"

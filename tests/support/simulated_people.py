@@ -20,7 +20,7 @@ def screen(questionnaire: str, *items: str) -> Screen:
         phase="questions",
         title="Questions",
         text="",
-        progress=Progress(1, 11),
+        progress=Progress(1, 8),
         items=tuple(LikertItem(i, i, Scale("agree7", ANCHORS)) for i in items),
         actions=("answer",),
         questionnaire=questionnaire,

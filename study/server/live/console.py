@@ -21,7 +21,7 @@ from study.protocol import Protocol
 from study.server.console_model import SessionDetail, SessionSummary
 from study.server.live.timeline import task_text, timeline
 from study.session import Overview, Session, TrialRun
-from study.session.plan import Plan, build_plan
+from study.session.plan import Plan, build_plan, run_progress
 from study.store import Store
 
 LOGGER = logging.getLogger("study.server.live")
@@ -167,10 +167,12 @@ def finished_detail(
 
 
 def _schedule(plan: Plan) -> list[tuple[str, str, str]]:
-    """The console's schedule rows: (step label, task, mode)."""
+    """The console's schedule rows: (step label, task, mode); a trial's label says what the
+    participant's page calls it ("Run 1 of 8"), to match what they say to the experimenter."""
     return [
         (
-            f"{s.kind} ({s.phase})" + (f" #{s.trial_number}" if s.trial_number else ""),
+            f"{s.kind} ({s.phase})"
+            + (f' #{s.trial_number} ("{run_progress(plan, s).text}")' if s.trial_number else ""),
             s.task or "-",
             (s.mode or "-") + (f", {s.run} run" if s.run else ""),
         )

@@ -381,7 +381,7 @@ class LiveSession:
             agree_label=self.session.protocol.texts.consent_agree or "I agree",
             handlers=self,
             status=self.session.status,
-            texts=self.session.protocol.texts,
+            texts=self.session.texts,  # the online debrief for a participant by the open link
         )
         self._shown = key  # only once shown: a screen that failed is tried again
 

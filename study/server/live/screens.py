@@ -18,7 +18,7 @@ from study.server.live.texts import (
     WAITING_TEXT,
     end_screen,
 )
-from study.server.participant_page import ParticipantPage
+from study.server.participant_page import KEYS_BEFORE_START, ParticipantPage
 from study.server.recruitment import redirect_script
 from study.session import PauseCause, Screen
 
@@ -53,9 +53,9 @@ def show_screen(
 ) -> None:
     """Build ``screen`` on ``page`` (see module docstring): a held fault, a pause or the last
     run's outcome first, else the screen of the session's phase."""
-    progress: str | None = (
-        screen.progress.text if screen.progress.of and screen.progress.trial else None
-    )  # none before the first run (the questions about the participant)
+    # "Practice run 2 of 3", "Run 5 of 8"; none before the first run (the questions about
+    # the participant)
+    progress: str | None = screen.progress.text or None
     if progress is not None and (progress in screen.title or progress in screen.text):
         progress = None  # said once is enough
     interrupted = _show_interruption(
@@ -131,10 +131,14 @@ def _show_phase(
         page.show_consent(
             text, on_agree=handlers.agree, agree=agree_label, on_decline=handlers.decline
         )
-    elif screen.phase == "ready":
+    elif screen.phase == "ready":  # the keys too: known before the run's clock starts
         handlers.preview(page)
         page.show_message(
-            title, text, progress=progress, button="Start", on_button=handlers.start_trial
+            title,
+            f"{text}\n\n{KEYS_BEFORE_START}",
+            progress=progress,
+            button="Start",
+            on_button=handlers.start_trial,
         )
     elif screen.phase == "running":
         page.show_trial(
