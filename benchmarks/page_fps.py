@@ -6,6 +6,8 @@ as a participant would; then for ``--seconds`` each the script counts ``requestA
 callbacks (the browser's frame rate) while
 
 * the arm moves: the handle's target follows a slow circle at 30 poses/s, as a drag does;
+* the participant lets go (one window right after the last pose: the arm's posture settles by
+  less than a pixel, which the server does not send);
 * the arm holds still: no input (the server then sends no scene updates at all).
 
 It also counts the scene frames the server sent in each window, the pictures from above it made
@@ -41,6 +43,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from benchmarks.server import feed_gizmo
 from study.session import SessionStateError
 from tests.browser.harness import launch, start_server
+from tests.browser.page import wait_connected
 from tests.browser.test_participant_flow import AGREE, join
 
 FPS_JS = """(ms) => new Promise((done) => {
@@ -150,7 +153,7 @@ def _measure(args: argparse.Namespace, browser) -> int:
         cdp = page.context.new_cdp_session(page)
         cdp.send("Performance.enable")
         page.goto(rs.url)
-        page.get_by_text("Connected").first.wait_for()
+        wait_connected(page)
         join(page, code)
         page.get_by_role("button", name=AGREE).click()
         page.get_by_role("button", name="Start").wait_for()
@@ -194,14 +197,16 @@ def _measure(args: argparse.Namespace, browser) -> int:
             print(f"ring A/B (off, on) frames/s: {[(round(a, 1), round(b, 1)) for a, b in pairs]}")
         stop.set()
         feeder.join()
-        page.wait_for_timeout(1500)  # the arm settles
+        BUSY.clear()
+        let_go = [_window(page, live, args.seconds, cdp)]  # the posture settling
+        result["main_thread_ms_per_s_let_go"] = list(BUSY)
         BUSY.clear()
         still = [_window(page, live, args.seconds, cdp) for _ in range(args.repeats)]
         result["main_thread_ms_per_s_still"] = list(BUSY)
         browser.close()
     finally:
         rs.stop()
-    for name, rows in (("moving", moving), ("still", still)):
+    for name, rows in (("moving", moving), ("let_go", let_go), ("still", still)):
         fps = np.array([r[0] for r in rows])
         sent = np.array([r[1] for r in rows])
         above = np.array([r[2] for r in rows])
