@@ -68,7 +68,7 @@ def test_a_missed_grasp_shows_closed_fingers_and_a_notice_that_stays(
     page.wait_for_timeout(500)
     hold(page, "g", 0.2)
     wait_until(lambda: trial.sim.gripper_opening < CLOSED_M, timeout=5)
-    screenshot(page, screenshots, "15-missed-grasp")  # the fingers closed on nothing
+    screenshot(page, screenshots, "16-missed-grasp")  # the fingers closed on nothing
     notice = page.get_by_text(MISSED_GRASP)
     notice.first.wait_for(timeout=10_000)
     shown = time.monotonic()
