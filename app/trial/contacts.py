@@ -44,6 +44,11 @@ class ContactLog:
         self._apart: dict[tuple[int, int], float] = {}  # (part, object) -> seconds apart
         self._silent: set[tuple[int, int]] = set()  # grasp touches: tracked, never logged
 
+    @property
+    def touching(self) -> frozenset[tuple[int, int]]:
+        """The ``(part, object)`` pairs in touch now (a break shorter than ``gap_s`` included)."""
+        return frozenset(self._touching)
+
     def update(
         self,
         touches: Sequence[tuple[int, int, float]],

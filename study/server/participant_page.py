@@ -59,6 +59,10 @@ KEYS_BEFORE_START = (
 )
 """The keys on the screen before a run (the Start screen), so they are known before the run's
 clock starts; the run's screen shows :data:`KEY_HELP`."""
+GRASP_LABEL = "Close the gripper (G)"
+GRIPPER_CLOSED_LABEL = "Gripper closed"
+"""The grasp button's label while the gripper is closed (closing, closed on nothing, lifting):
+greyed, so that a participant sees at once that the key or the click was taken."""
 INSET_SIZE = (320, 240)
 """Width and height (pixels) of the view from above on the trial screen."""
 DECLINE = "I do not wish to take part"
@@ -81,6 +85,8 @@ class ParticipantPage:
         self._clock: viser.GuiMarkdownHandle | None = None
         self._clock_text = ""
         self._inset: viser.GuiImageHandle | None = None
+        self._grasp: viser.GuiButtonHandle | None = None
+        self._grasp_closed = False
         self._notice: object | None = None
         self.rejected: deque[str] = deque(maxlen=50)
         self.asks_code = False
@@ -140,8 +146,9 @@ class ParticipantPage:
                 with contextlib.suppress(Exception):
                     h.remove()  # type: ignore[attr-defined]
             self._handles = []
-            self._clock = self._inset = None
+            self._clock = self._inset = self._grasp = None
             self._clock_text = ""
+            self._grasp_closed = False
             self.screen += 1
             self.screen_name = name
             return self.screen
@@ -380,7 +387,7 @@ class ParticipantPage:
                 np.full((h, w, 3), 235, np.uint8), format="jpeg", jpeg_quality=80
             )
             self._handles.append(self._inset)
-            b = self._button("Close the gripper (G)")
+            b = self._grasp = self._button(GRASP_LABEL)
             v = self._button("Back to the starting view (V)")
             self._md(KEY_HELP)
 
@@ -402,6 +409,17 @@ class ParticipantPage:
             if self._clock is not None and text != self._clock_text:
                 self._clock_text = text
                 self._clock.content = check_text(text, words=self.words)
+
+    def show_gripper_closed(self, closed: bool) -> None:
+        """The trial screen's grasp button: :data:`GRIPPER_CLOSED_LABEL` and greyed while the
+        gripper is ``closed``, else :data:`GRASP_LABEL` (sends only on a change)."""
+        with self._lock:
+            b = self._grasp
+            if b is None or closed == self._grasp_closed:
+                return
+            self._grasp_closed = closed
+            b.label = check_text(GRIPPER_CLOSED_LABEL if closed else GRASP_LABEL, words=self.words)
+            b.disabled = closed
 
     @property
     def shows_inset(self) -> bool:

@@ -3,8 +3,9 @@
 Phases: ``reach`` (the user steers) -> a grasp request closes the gripper in physics
 (``closing``; the objects within ``WAKE_M`` of the gripper wake under ``contacts = "grasp"``) ->
 after ``CLOSE_S`` either an object is held (``grasped``; the arm lifts it by itself at
-``LIFT_SPEED``, ``lifting``) or not (``grasp_missed``; the gripper opens again for ``REOPEN_S``,
-``reopening``, then ``reach``). Lifting ends the run once the object is ``lift_height_m`` up
+``LIFT_SPEED``, ``lifting``) or not (``grasp_missed``; the gripper stays closed on nothing for
+``MISSED_HOLD_S``, ``missed``, so that a person watching sees it closed, then opens again for
+``REOPEN_S``, ``reopening``, then ``reach``). Lifting ends the run once the object is ``lift_height_m`` up
 (``lifted``: ``success`` if it is the target, else ``wrong_object``); contact lost for ``DROP_S``
 (``dropped``) or no height within ``LIFT_TIMEOUT_S`` (``lift_failed``) ends it as ``dropped``
 under ``on_knock = "end"``, and under ``"reset"`` opens the gripper for another reach.
@@ -24,21 +25,34 @@ if TYPE_CHECKING:
     from app.trial.config import TrialConfig
     from app.trial.tasks.task import TrialParts
 
-__all__ = ["CLOSE_S", "DROP_S", "LIFT_SPEED", "LIFT_TIMEOUT_S", "REOPEN_S", "WAKE_M", "LiftTask"]
+__all__ = [
+    "CLOSE_S",
+    "DROP_S",
+    "LIFT_SPEED",
+    "LIFT_TIMEOUT_S",
+    "MISSED_HOLD_S",
+    "REOPEN_S",
+    "WAKE_M",
+    "LiftTask",
+]
 
 CLOSE_S = 0.4  # gripper closing time before judging the grasp
+MISSED_HOLD_S = 0.6
+"""After a missed grasp the gripper stays closed this long (s) before it opens: the fingers close
+fully in 0.27 s and took as long to open again, so a page drawing 5-10 frames a second showed a
+closed gripper in a frame or two, which a participant did not notice."""
 REOPEN_S = 0.4  # after a missed grasp, time the gripper takes to open again
 LIFT_TIMEOUT_S = 3.0  # the automatic lift must reach the height within this time
 LIFT_SPEED = 0.1  # m/s, automatic lift
 DROP_S = 0.15  # contact lost this long while lifting = dropped
 WAKE_M = 0.15  # a grasp wakes the objects within this horizontal distance of the gripper
 
-_CLOSED = ("closing", "lifting")
+_CLOSED = ("closing", "missed", "lifting")
 
 
 class LiftTask:
     """Grasp and lift (module docstring); ``phase`` is one of ``reach``, ``closing``,
-    ``lifting``, ``reopening`` and ``done``."""
+    ``lifting``, ``missed``, ``reopening`` and ``done``."""
 
     def __init__(self) -> None:
         self.phase = "reach"
@@ -79,7 +93,8 @@ class LiftTask:
         self, q: np.ndarray, t: float, *, request: bool, events: list[TrialEvent]
     ) -> np.ndarray | None:
         """``None`` while reaching (the user steers); a grasp request holds the arm still; the
-        lift raises it; reopening holds it until the gripper is open, then reaching resumes."""
+        lift raises it; after a miss it holds still, the gripper closed and then opening, until
+        the gripper is open; then reaching resumes."""
         phase = self.phase
         if phase == "reach":
             if not request:
@@ -92,7 +107,9 @@ class LiftTask:
             return q
         if phase == "lifting":
             return self.ik(q, self._lift_target, max_speed=LIFT_SPEED)
-        if phase == "reopening" and t - self._phase_t >= REOPEN_S:
+        if phase == "missed" and t - self._phase_t >= MISSED_HOLD_S:
+            self._enter("reopening", t, events)
+        elif phase == "reopening" and t - self._phase_t >= REOPEN_S:
             if self.sim.objects_at_rest():  # untouched: "grasp" rests them again
                 if self.sim.contacts == "grasp":
                     self.sim.set_grip_contacts(False)
@@ -113,7 +130,7 @@ class LiftTask:
     def _grasp_judged(self, t: float, events: list[TrialEvent]) -> None:
         held = self.sim.held_object()
         if held is None:
-            self._enter("reopening", t, events, TrialEvent(EventKind.GRASP_MISSED))
+            self._enter("missed", t, events, TrialEvent(EventKind.GRASP_MISSED))
             return
         self.held = held
         self._lost_t = None

@@ -1,8 +1,9 @@
 """``LiveRun``: the running trial of a live session, ticked by its own control loop.
 
 A ``PacedLoop`` ticks the session's ``TrialRun`` at the protocol's control rate. Each tick hands
-the bodies' poses to the view (``LiveView.snap``), a missed grasp to the render loop's notice,
-and the arbitration, confidence and goal probabilities to the console's plots. A tick that
+the bodies' poses to the view (``LiveView.snap``), what calls for a notice (a missed grasp, the
+input past the reach, the gripper resting on an object: ``LiveView.notices``) to the render
+loop, and the arbitration, confidence and goal probabilities to the console's plots. A tick that
 raises holds the run (``ControlFaults``), freezes the participant's input and pauses the
 session, and the page is asked to redraw: the loop never dies silently. When the run is over
 (``end``) the loop stops, the input is dropped and the participant's outcome sentence is set.
@@ -21,11 +22,13 @@ import numpy as np
 from app.teleop.keyboard import KEYMAP
 from app.teleop.participant_input import ParticipantInput
 from app.trial import TickRecord, Trial
+from app.trial.contacts import FINGERS
 from app.trial.events import EventKind, TrialEvent
 from study import scheduling
 from study.server.live.console import LivePlots
 from study.server.live.control_faults import ControlFaults
 from study.server.live.controls import LiveInput
+from study.server.live.notices import ResistedDescent
 from study.server.live.texts import outcome_sentence
 from study.server.live.view import LiveView, shows_intent
 from study.server.loop import PacedLoop
@@ -67,6 +70,7 @@ class LiveRun:
         self.control: PacedLoop | None = None
         self.outcome: str | None = None
         """The sentence the participant reads after the last run, until they continue."""
+        self._resisted = ResistedDescent()
 
     @property
     def running(self) -> bool:
@@ -82,6 +86,8 @@ class LiveRun:
         self.view.follow(run)
         self.outcome = None
         self.faults.forget()
+        self.view.notices.forget()
+        self._resisted = ResistedDescent()
         self.view.snap(run, trial.poses())
         self.control = PacedLoop(
             lambda: self._tick(run, trial),
@@ -160,10 +166,21 @@ class LiveRun:
         return not run.over
 
     def _after_tick(self, run: TrialRun, trial: Trial, record: TickRecord) -> None:
+        notices, now = self.view.notices, time.monotonic()  # the render loop shows them
         if TrialEvent(EventKind.GRASP_MISSED) in record.events:
-            self.view.missed_grasp.set()  # the render loop tells the participant
+            notices.missed = now
+        if TrialEvent(EventKind.GRASP_REQUESTED) in record.events:
+            notices.asked = now
         if _held_past_reach(trial, self.input.source, record.events):
-            self.view.at_limit = time.monotonic()
+            notices.at_limit = now
+        if self._resisted.update(
+            record.t,
+            z=float(record.ee[2]),
+            target_z=float(trial.user_target[2]),
+            touching=trial.task.reaching
+            and any(part in FINGERS for part, _ in trial.contacts.touching),
+        ):
+            notices.resting = now
         self.view.snap(run, trial.poses(), (int(record.predicted), float(record.confidence)))
         self.plots.add(record)
 

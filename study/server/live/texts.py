@@ -1,4 +1,4 @@
-"""What the participant reads around a run: how it ended, a missed grasp, waiting, a lost tab.
+"""What the participant reads around a run: how it ended, live notices, waiting, a lost tab.
 
 Neutral sentences only: how the run ended, never a condition.
 """
@@ -21,7 +21,18 @@ instructions name it already). The three accidents end a run only under ``[contr
 "end"``; under ``"reset"`` the object is stood up again and the run goes on."""
 OTHER_OUTCOME = "The run has ended."
 ENDED_BY_EXPERIMENTER = "The experimenter ended this run."
-MISSED_GRASP = "Nothing to grasp there: bring the gripper around the object, then close it."
+MISSED_GRASP = (
+    "The gripper closed on nothing. Move it so that the object is between the two fingers,"
+    " lower it, then close the gripper again."
+)
+"""Held over the scene for a few seconds after a grasp that caught nothing
+(:mod:`study.server.live.notices`)."""
+RESTING_ON_OBJECT = (
+    "A finger is resting on the object, so the gripper cannot go lower here. Move the gripper"
+    " sideways until the object is between the two fingers, then lower it."
+)
+"""Held while a finger rests on an object and the participant's input asks the gripper lower
+(on a mug's rim it sits still: the keys seemed to do nothing)."""
 WAIT_TEXT = "Please wait a moment: the experimenter will continue the session."
 TAB_LOST_TEXT = "Your run was paused while this page was away. Press Continue when you are ready."
 WAITING_TEXT = (
@@ -100,6 +111,7 @@ __all__ = [
     "LINK_IN_USE_TEXT",
     "MISSED_GRASP",
     "OUTCOME_SENTENCES",
+    "RESTING_ON_OBJECT",
     "TAB_LOST_TEXT",
     "TIME_WARNING",
     "TIME_WARNING_S",

@@ -4,8 +4,10 @@ The control thread hands over a snapshot of the run's body poses after each tick
 something (``snap``); the render loop (``step``, up to ``render_hz``) sends the newest snapshot
 to the tab, but only while the view shows that run (``frame_key``): never an earlier run's end
 pose on the next ready screen, whose preview (``draw_preview``) shows the next run's start.
-The render loop also carries the page's small live notices (a missed grasp, the input held past
-the reach, ten seconds left), the trial screen's countdown and the handle following the keys.
+The render loop also carries the page's live notices (the held one of
+:mod:`study.server.live.notices`: the input held past the reach, a finger resting on an object,
+a missed grasp; and ten seconds left), the trial screen's countdown and the handle following
+the keys.
 The view from above (:class:`study.server.inset.InsetLoop`) draws the same snapshots in a thread
 of its own.
 """
@@ -25,16 +27,14 @@ from app.robot import BodyPoses, Scene
 from app.teleop.participant_input import ParticipantInput
 from study.server.inset import InsetJob, InsetLoop
 from study.server.intent_cue import IntentGoals, ring_opacity
-from study.server.live.texts import AT_REACH_LIMIT, MISSED_GRASP, TIME_WARNING, TIME_WARNING_S
+from study.server.live.notices import HeldNotices
+from study.server.live.texts import TIME_WARNING, TIME_WARNING_S
 from study.server.loop import PacedLoop
 from study.server.page_scene import SceneView, frame_scene, reach_footprint
 from study.server.participant_page import ParticipantPage
 from study.session import TrialRun
 
 LOGGER = logging.getLogger("study.server.live")
-
-LIMIT_HOLD_S = 0.4
-"""The reach notice stays this long after the input was last held past the reach."""
 
 MOVED_M = 2e-4
 """Bodies that moved less than this (m; rotation-matrix entries by 10x this) since the last
@@ -83,11 +83,9 @@ class LiveView:
         self._model: mujoco.MjModel | None = None
         self._azimuth = 225.0
         self.inset: InsetLoop | None = None
-        self.missed_grasp = threading.Event()
-        """Set by the control thread; the render loop tells the participant."""
-        self.at_limit = 0.0
-        """When (monotonic) the control thread last saw the input held past the reach."""
-        self._limit_shown = False
+        self.notices = HeldNotices()
+        """Stamped by the control thread; the render loop holds the notice they call for."""
+        self._notice_shown: str | None = None
         self._warned: object = None
 
     # ---- control thread ------------------------------------------------------------------------
@@ -179,10 +177,6 @@ class LiveView:
         """One render-loop period: notices, the newest frame, the handle following the keys."""
         page, source = self._tab()
         view, snap = self.view, self._snapshot
-        if self.missed_grasp.is_set():
-            self.missed_grasp.clear()
-            if page is not None:
-                page.notify(MISSED_GRASP)
         if page is not None:
             self._notices(page)
         if view is not None and snap is not None and snap.seq != self._rendered_seq:
@@ -203,8 +197,9 @@ class LiveView:
                 page.move_gizmo(at)
 
     def _notices(self, page: ParticipantPage) -> None:
-        """The countdown, ten seconds left, and the reach notice while the input is held past
-        the reach (taken down a moment after it no longer is, or when the run is not live)."""
+        """The countdown, ten seconds left, the grasp button's state (greyed while the gripper
+        is closed) and the held notice (:mod:`study.server.live.notices`; taken down when
+        nothing calls for it, or when the run is not live)."""
         run = self._frame_key if isinstance(self._frame_key, TrialRun) else None
         live = run is not None and not run.over and not run.paused
         if live and run is not None:
@@ -214,14 +209,15 @@ class LiveView:
                 self._warned = run
                 if run.config.time_limit_s > 2 * TIME_WARNING_S:
                     page.notify(TIME_WARNING)
-        held = live and time.monotonic() - self.at_limit < LIMIT_HOLD_S
-        if held != self._limit_shown:
-            self._limit_shown = held
-            page.hold_notice(AT_REACH_LIMIT if held else None)
+        page.show_gripper_closed(live and run is not None and run.trial.task.gripper_closed)
+        text = self.notices.text(time.monotonic(), live=live)
+        if text != self._notice_shown:
+            self._notice_shown = text
+            page.hold_notice(text)
 
     def clear_notices(self, page: ParticipantPage | None) -> None:
-        """The run ended or the tab changed: no reach notice stays up."""
-        self._limit_shown = False
+        """The run ended or the tab changed: no held notice stays up."""
+        self._notice_shown = None
         if page is not None:
             page.hold_notice(None)
 

@@ -1,0 +1,100 @@
+"""``HeldNotices``: the one notice the trial screen holds over the scene, and which it is.
+
+The control thread stamps what it saw, in monotonic seconds: the input held past the reach
+(``at_limit``), a missed grasp (``missed``; a new grasp request, ``asked``, takes its notice
+down), the gripper held up by an object it rests on (``resting``, from :class:`ResistedDescent`).
+The render loop asks :meth:`HeldNotices.text` each period and shows the answer with
+``ParticipantPage.hold_notice`` (one notice at a time; ``None`` takes it down). What the
+participant's input does this moment comes first: the reach, then a resting finger, then a miss.
+
+A missed grasp's notice stays ``MISSED_NOTICE_S``: a three-second corner notice went unseen by
+a tester whose eyes were on the gripper (and on a page drawing 10 frames a second, the closing
+fingers showed in a frame or two), who then could not tell whether G had worked at all.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from study.server.live.texts import AT_REACH_LIMIT, MISSED_GRASP, RESTING_ON_OBJECT
+
+LIMIT_HOLD_S = 0.4
+"""The reach notice stays this long after the input was last held past the reach."""
+MISSED_NOTICE_S = 5.0
+"""A missed grasp's notice stays this long (or until the next grasp request)."""
+RESTING_HOLD_S = 1.5
+"""The resting notice stays this long after the gripper was last seen held up: a finger on a
+rim slips on and off it several times a second."""
+
+NEVER = -1e18
+
+
+@dataclass
+class HeldNotices:
+    """When (monotonic s) each situation was last seen; :meth:`text` says which notice shows."""
+
+    at_limit: float = NEVER
+    missed: float = NEVER
+    asked: float = NEVER
+    resting: float = NEVER
+
+    def text(self, now: float, *, live: bool) -> str | None:
+        """The notice to hold at ``now`` (``None``: none), only while the run is ``live``."""
+        if not live:
+            return None
+        if now - self.at_limit < LIMIT_HOLD_S:
+            return AT_REACH_LIMIT
+        if now - self.resting < RESTING_HOLD_S:
+            return RESTING_ON_OBJECT
+        if now - self.missed < MISSED_NOTICE_S and self.asked <= self.missed:
+            return MISSED_GRASP
+        return None
+
+    def forget(self) -> None:
+        """A new run: nothing seen yet."""
+        self.at_limit = self.missed = self.asked = self.resting = NEVER
+
+
+RESISTED_GAP_M = 0.03
+"""The input's target lies this far below the gripper or more: it asks the gripper down (a held
+key leads the gripper by 2 cm; a descent the arm follows stays within that)."""
+RESISTED_DROP_M = 0.005
+"""... and the gripper came down less than this over ``RESISTED_S``."""
+RESISTED_S = 0.5
+
+
+class ResistedDescent:
+    """Whether the gripper is held up by an object: a finger touched one within the last
+    ``RESISTED_S`` (on a rim it slips on and off), the participant's target lies
+    ``RESISTED_GAP_M`` or more below the gripper, and the gripper came down less than
+    ``RESISTED_DROP_M`` in the last ``RESISTED_S``: the arm cannot go lower there, whatever the
+    keys say. Fed once per control tick (:meth:`update`)."""
+
+    def __init__(self) -> None:
+        self._since: tuple[float, float] | None = None  # (t, gripper z) when it began
+        self._touched = NEVER
+
+    def update(self, t: float, *, z: float, target_z: float, touching: bool) -> bool:
+        """One tick at trial time ``t``: the gripper's height ``z``, the target's ``target_z``,
+        whether a finger touches an object. True while the descent is resisted."""
+        if touching:
+            self._touched = t
+        if t - self._touched > RESISTED_S or target_z > z - RESISTED_GAP_M:
+            self._since = None
+            return False
+        if self._since is None or z < self._since[1] - RESISTED_DROP_M:
+            self._since = (t, z)  # (still) coming down: measure from here
+            return False
+        return t - self._since[0] >= RESISTED_S
+
+
+__all__ = [
+    "LIMIT_HOLD_S",
+    "MISSED_NOTICE_S",
+    "RESISTED_DROP_M",
+    "RESISTED_GAP_M",
+    "RESISTED_S",
+    "RESTING_HOLD_S",
+    "HeldNotices",
+    "ResistedDescent",
+]

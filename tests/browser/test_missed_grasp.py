@@ -1,0 +1,107 @@
+"""A grasp that catches nothing says so, long enough to be read, and the fingers show it.
+
+A practice run: the participant lowers the gripper beside the mug (F) and presses G. The
+gripper closes on nothing and stays closed for a moment before it opens again (the store's
+samples), the grasp button saying so meanwhile (greyed: the key was taken); a notice over the scene says what happened and what to do, and is still there four
+seconds later (a three-second corner notice went unseen by a tester, who could not tell whether
+G had worked); it goes by itself a little later. The store has ``grasp_requested`` then
+``grasp_missed``. Then the gripper is put over the mug's rim (2.6 cm off its axis across the
+slot, as a drag of the handle puts it) and F held: a fingertip lands on the rim, the gripper
+cannot go lower, and a notice says so and what to do (the tester's "frozen" gripper).
+Screenshots with the fingers closed and the notice up, and with the finger on the rim.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from app.trial.tasks.lift import MISSED_HOLD_S
+from study.server.live.notices import MISSED_NOTICE_S
+from study.server.live.texts import MISSED_GRASP, RESTING_ON_OBJECT
+from study.server.participant_page import GRASP_LABEL, GRIPPER_CLOSED_LABEL
+from tests.browser.harness import FrameLog, RunningServer, start_server, wait_until
+from tests.browser.page import AGREE, connect_page, hold, join, screenshot, settle_frames
+
+pytestmark = pytest.mark.browser
+
+CLOSED_M = 0.005
+"""Finger travel below this: the gripper is closed."""
+OVER_THE_RIM = np.array([0.5, -0.224, 0.15])
+"""15 cm above the table, 2.6 cm across the slot from the practice mug's axis (radius 2.8 cm;
+the open fingers are 4 cm from the gripper's centre): one fingertip comes down on the rim."""
+
+
+@pytest.fixture
+def study(tmp_path: Path) -> Any:
+    rs = start_server(tmp_path, time_limit_s=60.0, training_runs=1)
+    try:
+        yield rs
+    finally:
+        rs.stop()
+
+
+def _events(study: RunningServer, trial_id: int) -> list[str]:
+    return [e for evs in study.store.samples(trial_id).events for e in json.loads(evs)]
+
+
+def test_a_missed_grasp_shows_closed_fingers_and_a_notice_that_stays(
+    study: RunningServer, context: Any, screenshots: Path
+) -> None:
+    srv = study.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+    live = srv.session(code)
+    page = context.new_page()
+    frames = FrameLog().attach(page)
+    connect_page(page, study.url)
+    join(page, code)
+    page.get_by_role("button", name=AGREE).click()
+    page.get_by_role("button", name="Start").wait_for()
+    settle_frames(page)
+    page.get_by_role("button", name="Start").click()
+    page.get_by_role("button", name=GRASP_LABEL).wait_for()
+    assert wait_until(lambda: live.run is not None and live.scene_view is not None)
+    run = live.run
+    trial = run.trial
+
+    # Down beside the mug (the gripper starts well away from it), then G.
+    hold(page, "f", 0.6)
+    page.wait_for_timeout(500)
+    hold(page, "g", 0.2)
+    wait_until(lambda: trial.sim.gripper_opening < CLOSED_M, timeout=5)
+    screenshot(page, screenshots, "16-missed-grasp")  # the fingers closed on nothing
+    notice = page.get_by_text(MISSED_GRASP)
+    notice.first.wait_for(timeout=10_000)
+    shown = time.monotonic()
+    assert GRIPPER_CLOSED_LABEL in frames.strings(), "the grasp button said nothing"
+    page.get_by_role("button", name=GRASP_LABEL).wait_for(timeout=10_000)  # open again
+
+    # Still up four seconds later; gone by itself a while after its time.
+    page.wait_for_timeout(max(0.0, 4.0 - (time.monotonic() - shown)) * 1000)
+    assert notice.first.is_visible(), "the missed-grasp notice went before it could be read"
+    assert wait_until(lambda: not notice.first.is_visible(), timeout=MISSED_NOTICE_S + 3)
+
+    # The store: the request, the miss, and the fingers closed for a moment in between.
+    assert wait_until(lambda: "grasp_missed" in _events(study, run.trial_id), timeout=10)
+    events = _events(study, run.trial_id)
+    assert events.index("grasp_requested") < events.index("grasp_missed")
+    samples = study.store.samples(run.trial_id)
+    closed_s = float((samples.gripper < CLOSED_M).sum()) / run.config.rate_hz
+    print(f"gripper closed for {closed_s:.2f} s")
+    assert closed_s >= MISSED_HOLD_S
+
+    # Over the rim, F held: the finger rests on it, the gripper stays up, the page says why.
+    live.trial_run.input.on_target(OVER_THE_RIM)  # where a drag of the handle would put it
+    assert wait_until(lambda: np.linalg.norm(trial.sim.ee - OVER_THE_RIM) < 0.01, timeout=10)
+    hold(page, "f", 1.5)
+    resting = page.get_by_text(RESTING_ON_OBJECT)
+    resting.first.wait_for(timeout=10_000)
+    assert float(trial.sim.ee[2]) > float(trial.user_target[2]) + 0.03, "held up by the rim"
+    screenshot(page, screenshots, "17-finger-on-the-rim")
+    assert not run.over
