@@ -5,7 +5,8 @@ participant's lab machine with a GPU draws far faster. The page is joined and a 
 as a participant would; then for ``--seconds`` each the script counts ``requestAnimationFrame``
 callbacks (the browser's frame rate) while
 
-* the arm moves: the handle's target follows a slow circle at 30 poses/s, as a drag does;
+* the arm moves: the handle's target follows a slow circle at 30 poses/s, as a drag does (with
+  ``--keys``: the participant holds A, then D, half a window each);
 * the participant lets go (one window right after the last pose: the arm's posture settles by
   less than a pixel, which the server does not send);
 * the arm holds still: no input (the server then sends no scene updates at all).
@@ -113,6 +114,11 @@ def main() -> int:
         "scenes' box, where the robot is confident enough to show its intent)",
     )
     parser.add_argument(
+        "--keys",
+        action="store_true",
+        help="move the arm with held keys (A, then D: sideways and back) instead of the handle",
+    )
+    parser.add_argument(
         "--realtime",
         type=int,
         default=None,
@@ -166,12 +172,26 @@ def _measure(args: argparse.Namespace, browser) -> int:
         stop = threading.Event()
         center = tuple(float(v) for v in args.center.split(","))
         feeder = threading.Thread(
-            target=feed_gizmo, args=(live, stop), kwargs={"center": center}, daemon=True
+            target=feed_gizmo,
+            args=(live, stop),
+            kwargs={"center": center},
+            daemon=True,
         )
-        feeder.start()
-        page.wait_for_timeout(1000)
+        if not args.keys:
+            feeder.start()
+            page.wait_for_timeout(1000)
         live.control_loop._stamps.clear()  # tick periods of the moving windows only
-        moving = [_window(page, live, args.seconds, cdp) for _ in range(args.repeats)]
+        moving = []
+        for _ in range(args.repeats):
+            if args.keys:
+                page.keyboard.down("a")  # sideways and back: the arm stays in its reach
+                moving.append(_window(page, live, args.seconds / 2, cdp))
+                page.keyboard.up("a")
+                page.keyboard.down("d")
+                moving.append(_window(page, live, args.seconds / 2, cdp))
+                page.keyboard.up("d")
+            else:
+                moving.append(_window(page, live, args.seconds, cdp))
         result["main_thread_ms_per_s_moving"] = list(BUSY)
         periods = live.control_loop.periods() * 1e3
         result["control_tick_period_ms_moving"] = {
@@ -196,7 +216,8 @@ def _measure(args: argparse.Namespace, browser) -> int:
             }
             print(f"ring A/B (off, on) frames/s: {[(round(a, 1), round(b, 1)) for a, b in pairs]}")
         stop.set()
-        feeder.join()
+        if feeder.is_alive():
+            feeder.join()
         BUSY.clear()
         let_go = [_window(page, live, args.seconds, cdp)]  # the posture settling
         result["main_thread_ms_per_s_let_go"] = list(BUSY)
@@ -220,7 +241,8 @@ def _measure(args: argparse.Namespace, browser) -> int:
         }
         print(
             f"arm {name}: page draws {np.median(fps):.1f} frames/s (min {fps.min():.1f},"
-            f" {len(fps)} x {args.seconds:g} s); server sends {np.median(sent):.1f} scene frames/s"
+            f" {len(fps)} x {args.seconds / (2 if args.keys and name == 'moving' else 1):g} s);"
+            f" server sends {np.median(sent):.1f} scene frames/s"
             f" and {np.median(above):.1f} pictures from above/s; control {np.median(ticks):.1f}"
             " ticks/s"
         )
