@@ -15,6 +15,7 @@ from playwright.sync_api import expect
 
 from tests.browser.harness import (
     project,
+    wait_until,
 )
 
 AGREE = "I have read this and agree to take part"
@@ -45,6 +46,25 @@ def connect_page(page: Any, url: str) -> None:
     except Exception as exc:
         shown = page.inner_text("body")[:300]
         raise AssertionError(f"not connected after a reload; the page showed: {shown!r}") from exc
+
+
+def start_first_run(study: Any, page: Any, *, participant: str = "P01") -> Any:
+    """Enrol ``participant`` and take ``page`` through join, consent and Start into the first
+    (practice) run, as the participant would; returns the live session once its run and scene
+    are up."""
+    srv = study.server
+    code = srv.enrol(participant)
+    srv.act(code, "start")
+    live = srv.session(code)
+    connect_page(page, study.url)
+    join(page, code)
+    page.get_by_role("button", name=AGREE).click()
+    page.get_by_role("button", name="Start").wait_for()
+    settle_frames(page)
+    page.get_by_role("button", name="Start").click()
+    page.get_by_role("button", name="Close the gripper (G)").wait_for()
+    assert wait_until(lambda: live.run is not None and live.scene_view is not None)
+    return live
 
 
 def text_input(page: Any, label: str) -> Any:

@@ -43,6 +43,7 @@ from tests.browser.page import (
     pixels_per_m,
     screenshot,
     settle_frames,
+    start_first_run,
     wait_camera_still,
 )
 
@@ -139,20 +140,9 @@ def study(tmp_path: Path) -> Any:
 def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_shown(
     study: RunningServer, wide: Any, screenshots: Path
 ) -> None:
-    srv = study.server
-    code = srv.enrol("P01")
-    srv.act(code, "start")
-    live = srv.session(code)
     page = wide.new_page()
     frames = FrameLog().attach(page)
-    connect_page(page, study.url)
-    join(page, code)
-    page.get_by_role("button", name=AGREE).click()
-    page.get_by_role("button", name="Start").wait_for()
-    settle_frames(page)
-    page.get_by_role("button", name="Start").click()
-    page.get_by_role("button", name="Close the gripper (G)").wait_for()
-    assert wait_until(lambda: live.run is not None and live.scene_view is not None)
+    live = start_first_run(study, page)
     run = live.run
     scene = run.trial.scene
     settle_frames(page)

@@ -26,7 +26,7 @@ from study.server.live.notices import MISSED_NOTICE_S
 from study.server.live.texts import MISSED_GRASP, RESTING_ON_OBJECT
 from study.server.participant_page import GRASP_LABEL, GRIPPER_CLOSED_LABEL
 from tests.browser.harness import FrameLog, RunningServer, start_server, wait_until
-from tests.browser.page import AGREE, connect_page, hold, join, screenshot, settle_frames
+from tests.browser.page import hold, screenshot, start_first_run
 
 pytestmark = pytest.mark.browser
 
@@ -53,20 +53,9 @@ def _events(study: RunningServer, trial_id: int) -> list[str]:
 def test_a_missed_grasp_shows_closed_fingers_and_a_notice_that_stays(
     study: RunningServer, context: Any, screenshots: Path
 ) -> None:
-    srv = study.server
-    code = srv.enrol("P01")
-    srv.act(code, "start")
-    live = srv.session(code)
     page = context.new_page()
     frames = FrameLog().attach(page)
-    connect_page(page, study.url)
-    join(page, code)
-    page.get_by_role("button", name=AGREE).click()
-    page.get_by_role("button", name="Start").wait_for()
-    settle_frames(page)
-    page.get_by_role("button", name="Start").click()
-    page.get_by_role("button", name=GRASP_LABEL).wait_for()
-    assert wait_until(lambda: live.run is not None and live.scene_view is not None)
+    live = start_first_run(study, page)
     run = live.run
     trial = run.trial
 
