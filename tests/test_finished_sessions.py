@@ -259,3 +259,27 @@ def test_thirty_short_sessions_leave_the_threads_and_the_registry_flat(tmp_path:
         assert {r.state for r in srv.summaries()} == {"completed / done"}
     finally:
         rs.stop()
+
+
+def test_a_code_is_never_given_twice_even_after_its_session_left(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A finished participant who types their old code must never join another's session: the
+    server gives no code twice, also after the session (and the console's 500 rows) let go."""
+    from study.server import join
+
+    drawn = iter(["AAAAAA", "AAAAAA", "CCCCCC", "CCCCCC", "DDDDDD"])
+    monkeypatch.setattr(join, "_random", lambda length, words: next(drawn))
+    rs = _server(tmp_path)
+    srv = rs.server
+    try:
+        first = srv.enrol("P01")
+        assert first == "AAAAAA"
+        srv.act(first, "end", reason="test: the participant left")
+        assert wait_until(lambda: _released(srv.session(first)), timeout=10)
+        assert srv.drop_finished(now=_later(GRACE_S + 1)) == ["P01"]
+        srv._retired.clear()  # as if 500 later sessions had pushed its row out of the console
+        assert srv.enrol("P02") == "CCCCCC"  # "AAAAAA" drawn again and refused
+        assert srv.enrol("P03") == "DDDDDD"  # and "CCCCCC" is live
+    finally:
+        rs.stop()

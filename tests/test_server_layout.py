@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import os
+import resource
 import signal
 import socket
 import subprocess
@@ -149,6 +150,12 @@ def test_several_sessions_ask_for_the_code_and_a_wrong_code_is_refused(tmp_path:
         rs.stop()
 
 
+def _usual_open_files_limit() -> None:
+    """The soft limit most systems start a process with (1024), under the hard one."""
+    _, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    resource.setrlimit(resource.RLIMIT_NOFILE, (min(1024, hard), hard))
+
+
 def test_serve_command_prints_both_urls_and_stops_cleanly(tmp_path: Path) -> None:
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
     proc = subprocess.Popen(
@@ -159,6 +166,7 @@ def test_serve_command_prints_both_urls_and_stops_cleanly(tmp_path: Path) -> Non
             "--port", "0", "--experimenter-port", "0",
         ],
         cwd=PAPER_PROTOCOL.parents[1], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        preexec_fn=_usual_open_files_limit,
     )  # fmt: skip
     try:
         lines: list[str] = []
@@ -176,6 +184,9 @@ def test_serve_command_prints_both_urls_and_stops_cleanly(tmp_path: Path) -> Non
         # --realtime's default: the server's threads in the real-time class (said if refused)
         allowed = "the real-time class was not allowed" not in text
         assert os.sched_getscheduler(proc.pid) == (os.SCHED_RR if allowed else os.SCHED_OTHER)
+        # started at the usual 1024 open files, it took what it may have: room for connections
+        soft, hard = resource.prlimit(proc.pid, resource.RLIMIT_NOFILE)
+        assert soft == hard, (soft, hard)
     finally:
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=30) == 0

@@ -25,6 +25,7 @@ from study.server import logs, realtime
 from study.server.forwarded import trusted_networks
 from study.server.link_places import LINK_IDLE_S
 from study.server.live import session_factory
+from study.server.open_files import raise_open_files_limit
 from study.server.server import StudyServer
 from study.session import open_store
 
@@ -283,6 +284,7 @@ def main(args: argparse.Namespace) -> int:
         print(f"error: cannot open the store {args.db}: {exc}", file=sys.stderr)
         return 2
     _take_priority(args)  # before the servers start their threads, which inherit it
+    raise_open_files_limit()  # every connection is an open file
     server = StudyServer(
         session_factory(store, protocol),
         condition_words=protocol.condition_words,

@@ -132,6 +132,11 @@ class StudyServer:
         """Each session's rejoin token, by join code."""
         self._retired: deque[Retired] = deque(maxlen=RETIRED_KEPT)
         """Finished sessions let go, oldest first (``study.server.finished_sessions``)."""
+        self._issued: set[str] = set()
+        """Every join code this server has given out: none is given twice, so a finished
+        participant who types their old code never joins another's session (a few dozen bytes
+        a session). A restart starts afresh: a new code then matches one of 10,000 earlier ones
+        at odds of 1 in 15,000 (23^6 codes)."""
         self.tabs = ParticipantTabs(self)
         self.public_url = public_url
         self.open_link = OpenLink(factory.store, enabled=open_link > 0, cap=open_link)
@@ -242,8 +247,8 @@ class StudyServer:
                 if live.participant == participant and not live.closed:
                     return code
             words = self.guard.words
-            taken = set(self._sessions) | {r.code for r in self._retired}  # one row per code
-            code = new_join_code(taken, avoid=words)
+            code = new_join_code(self._issued, avoid=words)
+            self._issued.add(code)
             live = self.factory(
                 participant,
                 code=code,
