@@ -269,7 +269,12 @@ def test_a_code_is_never_given_twice_even_after_its_session_left(
     from study.server import join
 
     drawn = iter(["AAAAAA", "AAAAAA", "CCCCCC", "CCCCCC", "DDDDDD"])
-    monkeypatch.setattr(join, "_random", lambda length, words: next(drawn))
+    draw = join._random
+
+    def codes_repeat(length: int, words: tuple[str, ...]) -> str:
+        return next(drawn) if length == join.CODE_LENGTH else draw(length, words)  # tokens
+
+    monkeypatch.setattr(join, "_random", codes_repeat)
     rs = _server(tmp_path)
     srv = rs.server
     try:
