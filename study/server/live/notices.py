@@ -5,7 +5,9 @@ The control thread stamps what it saw, in monotonic seconds: the input held past
 down), the gripper held up by an object it rests on (``resting``, from :class:`ResistedDescent`).
 The render loop asks :meth:`HeldNotices.text` each period and shows the answer with
 ``ParticipantPage.hold_notice`` (one notice at a time; ``None`` takes it down). What the
-participant's input does this moment comes first: the reach, then a resting finger, then a miss.
+participant's input does this moment comes first: a resting finger (a held F with a finger on
+a rim also drives the target below the reach's floor; the reach notice would not say why the
+gripper stays up, a new-participant pass found), then the reach, then a miss.
 
 A missed grasp's notice stays ``MISSED_NOTICE_S``: a three-second corner notice went unseen by
 a tester whose eyes were on the gripper (and on a page drawing 10 frames a second, the closing
@@ -42,10 +44,10 @@ class HeldNotices:
         """The notice to hold at ``now`` (``None``: none), only while the run is ``live``."""
         if not live:
             return None
+        if now - self.resting < RESTING_HOLD_S:  # what really holds the gripper up
+            return RESTING_ON_OBJECT
         if now - self.at_limit < LIMIT_HOLD_S:
             return AT_REACH_LIMIT
-        if now - self.resting < RESTING_HOLD_S:
-            return RESTING_ON_OBJECT
         if now - self.missed < MISSED_NOTICE_S and self.asked <= self.missed:
             return MISSED_GRASP
         return None
