@@ -713,10 +713,12 @@ def test_frames_below_a_message_are_bounded_and_the_honest_tab_goes_on(
                 lambda: abs(float(live.run.trial.user_target[1]) + 0.04) < 1e-9, timeout=5
             )
             assert not honest.closed
+            # asked while the honest tab is still open: leaving the block closes it, which
+            # pauses the run (a tab lost), sooner or later as the machine is loaded
+            assert not live.session.paused
             return fragments, pinged, pings
 
     fragments, pinged, pings = run_async(attack())
     assert fragments == 1009, fragments  # message too big: closed, nothing more kept
     assert pinged == 1008 and pings < 200, (pinged, pings)
     assert srv.firewall.closed_connections >= 2
-    assert not live.session.paused

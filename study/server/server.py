@@ -144,26 +144,9 @@ class StudyServer:
             firewall.FirewallConfig(allow_share=allow_share, trusted_proxies=trusted_proxies)
         )
         self._start_participant(host=host, port=port, verbose=verbose, words=condition_words)
-        # the console may use every message type; share links stay off unless asked for, and
-        # no page of another site open in the experimenter's browser may drive it (origin)
-        self.experimenter_firewall = firewall.Firewall(
-            firewall.FirewallConfig(
-                allowed=None,
-                allow_share=allow_share,
-                max_bytes=8 * 2**20,
-                rate_per_s=2000.0,
-                loopback_only=experimenter_host in LOOPBACK_NAMES,
-                shares_per_s=None,  # the experimenter's own tabs: no shares, never idle-closed
-                idle_timeout_s=None,
-            )
+        self._start_experimenter(
+            host=experimenter_host, port=experimenter_port, verbose=verbose, share=allow_share
         )
-        self.experimenter = firewall.start_server(
-            self.experimenter_firewall,
-            host=experimenter_host,
-            port=experimenter_port,
-            verbose=verbose,
-        )
-        firewall.install(self.experimenter, self.experimenter_firewall)
         self.console = ExperimenterConsole(self.experimenter, self, refresh_hz=console_refresh_hz)
         self.link_idle_s = link_idle_s
         self.finished_grace_s = finished_grace_s
@@ -172,6 +155,26 @@ class StudyServer:
             self._sweep, period_s=min(SWEEP_S, max(0.05, shortest / 4)), name="sweeper"
         )
         realtime.freeze_heap()  # after start-up: collections never walk it again
+
+    def _start_experimenter(self, *, host: str, port: int, verbose: bool, share: bool) -> None:
+        """The console's viser server: it may use every message type; share links stay off
+        unless asked for, and no page of another site open in the experimenter's browser may
+        drive it (origin)."""
+        self.experimenter_firewall = firewall.Firewall(
+            firewall.FirewallConfig(
+                allowed=None,
+                allow_share=share,
+                max_bytes=8 * 2**20,
+                rate_per_s=2000.0,
+                loopback_only=host in LOOPBACK_NAMES,
+                shares_per_s=None,  # the experimenter's own tabs: no shares, never idle-closed
+                idle_timeout_s=None,
+            )
+        )
+        self.experimenter = firewall.start_server(
+            self.experimenter_firewall, host=host, port=port, verbose=verbose
+        )
+        firewall.install(self.experimenter, self.experimenter_firewall)
 
     def _start_participant(
         self, *, host: str, port: int, verbose: bool, words: Iterable[str]
