@@ -28,14 +28,6 @@ from study.server.intent_cue import IntentCue, IntentGoals
 
 LOGGER = logging.getLogger("study.server.scene")
 
-STILL_M = 3e-4
-"""A frame in which every body moved less than this (metres) since the last frame sent, and
-every rotation-matrix entry changed less than this (at a link's length, a fraction of a
-millimetre), is not sent: a third of a pixel at the task view's distance (about 0.85 mm a pixel
-at 1 m on a 1366-px-wide page). The arm's posture settling after the participant lets go (the
-IK's null-space pull toward its rest posture, time constant 2 s) kept the page redrawing at its
-moving frame rate for seconds."""
-
 ORBIT_MIN_M = 0.25
 ORBIT_MAX_M = 2.5
 
@@ -249,7 +241,6 @@ class SceneView:
                 receive_shadow=False,
             )
         self.intent = IntentCue(target.scene, goals) if goals is not None else None
-        self._sent: tuple[np.ndarray, np.ndarray] | None = None
         self.frames_sent = 0
         self.render_s: deque[float] = deque(maxlen=4096)
         """Wall time of the last renders (seconds), for the server benchmark."""
@@ -264,22 +255,23 @@ class SceneView:
     ) -> None:
         """Send one frame with body poses ``xpos (nbody,3)``, ``xmat (nbody,9)``, the depth
         cue under ``gripper`` (3,) and, if this view shows intent, the ring for ``intent`` =
-        ``(predicted goal index, confidence)`` (None: no prediction yet, ring hidden). Nothing
-        is sent when no body moved by ``STILL_M`` since the last frame and the ring is unchanged."""
+        ``(predicted goal index, confidence)`` (None: no prediction yet, ring hidden)."""
         t = time.perf_counter()
-        xpos = np.asarray(xpos, float)
-        xmat = np.asarray(xmat, float).reshape(len(xpos), 9)
-        moved = self._moved(xpos, xmat)
-        if moved:
-            self._scene.update_from_arrays(xpos[None], xmat.reshape(1, -1, 3, 3))
-            if gripper is not None:
-                self._place_cue(gripper)
-        updates = self.intent.updates if self.intent is not None else 0
+        self._scene.update_from_arrays(
+            np.asarray(xpos, float)[None], np.asarray(xmat, float).reshape(1, -1, 3, 3)
+        )
+        if gripper is not None and self._drop is not None and self._disc is not None:
+            top = float(self._table_top or 0.0)
+            x, y, z = (float(v) for v in gripper)
+            height = max(z - top, 1e-3)
+            self._drop.position = (x, y, top + height / 2)
+            self._drop.scale = (1.0, 1.0, height)
+            self._disc.position = (x, y, top + 0.001)
+            if not self._drop.visible:
+                self._drop.visible = self._disc.visible = True
         if self.intent is not None:
             predicted, confidence = intent if intent is not None else (-1, 0.0)
             self.intent.update(xpos, predicted, confidence)
-        if not moved and (self.intent is None or self.intent.updates == updates):
-            return  # nothing the participant could see changed: nothing is sent
         # mjviser flushes inside its atomic block, where viser cannot send yet; flushing again
         # here sends the frame now instead of after viser's 1/60 s window.
         self._flush()
@@ -287,30 +279,3 @@ class SceneView:
         self.frames_sent += 1
         if self._on_frame is not None:
             self._on_frame()
-
-    def _moved(self, xpos: np.ndarray, xmat: np.ndarray) -> bool:
-        """Whether any body moved or turned by ``STILL_M`` since the last frame sent (the first
-        frame always has); if so, this frame becomes the one compared against."""
-        sent = self._sent
-        if (
-            sent is not None
-            and sent[0].shape == xpos.shape
-            and float(np.max(np.abs(xpos - sent[0]))) < STILL_M
-            and float(np.max(np.abs(xmat - sent[1]))) < STILL_M
-        ):
-            return False
-        self._sent = (xpos.copy(), xmat.copy())
-        return True
-
-    def _place_cue(self, gripper: np.ndarray) -> None:
-        """The rod from the gripper ``(3,)`` down to the table and the disc where it lands."""
-        if self._drop is None or self._disc is None:
-            return
-        top = float(self._table_top or 0.0)
-        x, y, z = (float(v) for v in gripper)
-        height = max(z - top, 1e-3)
-        self._drop.position = (x, y, top + height / 2)
-        self._drop.scale = (1.0, 1.0, height)
-        self._disc.position = (x, y, top + 0.001)
-        if not self._drop.visible:
-            self._drop.visible = self._disc.visible = True
