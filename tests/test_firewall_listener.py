@@ -32,18 +32,23 @@ class Served:
             def data_received(self, data: bytes) -> None:
                 self.transport.write(data)  # type: ignore[attr-defined]
 
-        self.server = self.loop.run_until_complete(
-            self.loop.create_server(Echo, "127.0.0.1", 0, backlog=1024)
-        )
-        self.port = self.server.sockets[0].getsockname()[1]
+        # the loop runs in its own thread from the start: this thread may already have one
+        # running (Playwright's, in a worker that ran the browser tests)
         self.thread = threading.Thread(target=self.loop.run_forever, daemon=True)
         self.thread.start()
+        self.server = asyncio.run_coroutine_threadsafe(
+            self.loop.create_server(Echo, "127.0.0.1", 0, backlog=1024), self.loop
+        ).result(timeout=10)
+        self.port = self.server.sockets[0].getsockname()[1]
 
     def close(self) -> None:
+        async def shut() -> None:
+            self.server.close()
+            await self.server.wait_closed()
+
+        asyncio.run_coroutine_threadsafe(shut(), self.loop).result(timeout=10)
         self.loop.call_soon_threadsafe(self.loop.stop)
         self.thread.join(5)
-        self.server.close()
-        self.loop.run_until_complete(self.server.wait_closed())
         self.loop.close()
 
 
