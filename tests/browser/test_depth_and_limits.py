@@ -34,11 +34,8 @@ from tests.browser.harness import (
     wait_until,
 )
 from tests.browser.page import (
-    AGREE,
     canvas_box,
-    connect_page,
     hold,
-    join,
     page_pixel,
     pixels_per_m,
     screenshot,
@@ -258,19 +255,9 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
 def test_a_run_that_ends_while_the_handle_is_held_says_why(tmp_path: Path, wide: Any) -> None:
     rs = start_server(tmp_path, time_limit_s=HELD_RUN_S, training_runs=1)
     try:
-        srv = rs.server
-        code = srv.enrol("P01")
-        srv.act(code, "start")
-        live = srv.session(code)
         page = wide.new_page()
-        connect_page(page, rs.url)
-        join(page, code)
-        page.get_by_role("button", name=AGREE).click()
-        page.get_by_role("button", name="Start").wait_for()
-        settle_frames(page)
-        page.get_by_role("button", name="Start").click()
-        page.get_by_role("button", name="Close the gripper (G)").wait_for()
-        assert wait_until(lambda: live.run is not None and live.page.handle.gizmo is not None)
+        live = start_first_run(rs, page)
+        assert wait_until(lambda: live.page.handle.gizmo is not None)
         wait_camera_still(live)  # the scene was drawn on the ready screen already
 
         # Grab the up arrow and keep moving it slowly until the time is up; the countdown runs.
