@@ -52,6 +52,8 @@ def test_a_missed_grasp_notice_stays_until_its_time_or_the_next_grasp() -> None:
 def test_what_the_input_does_now_comes_first() -> None:
     n = HeldNotices(missed=10.0, resting=10.0, at_limit=10.0)
     assert n.text(10.1, live=True) == texts.RESTING_ON_OBJECT  # F held onto a rim: both
+    n = HeldNotices(missed=10.0, at_limit=10.0, above=10.0)
+    assert n.text(10.1, live=True) == texts.HELD_ABOVE  # F held over an object's rim
     n = HeldNotices(missed=10.0, at_limit=10.0)
     assert n.text(10.1, live=True) == texts.AT_REACH_LIMIT
     assert n.text(10.0 + LIMIT_HOLD_S + 0.1, live=True) == texts.MISSED_GRASP
@@ -63,6 +65,7 @@ def test_the_notices_name_no_condition(path) -> None:
     for text in (
         texts.MISSED_GRASP,
         texts.RESTING_ON_OBJECT,
+        texts.HELD_ABOVE,
         texts.AT_REACH_LIMIT,
         GRASP_LABEL,
         GRIPPER_CLOSED_LABEL,
@@ -88,11 +91,14 @@ def _practice(keys: _Keys) -> Trial:
     return Trial(config, keys, keep_records=False)
 
 
-def _resisted(trial: Trial, seconds: float) -> list[float]:
-    """Trial times at which ``ResistedDescent`` (fed as the live run feeds it) said so."""
+def _resisted(trial: Trial, seconds: float, *, held: list[float] | None = None) -> list[float]:
+    """Trial times at which ``ResistedDescent`` (fed as the live run feeds it) said so; the
+    times the trial held the hand above an object go to ``held``."""
     seen, out = ResistedDescent(), []
     while trial.t < seconds and not trial.done:
         rec = trial.tick()
+        if held is not None and trial.held_above is not None:
+            held.append(rec.t)
         touching = any(part in FINGERS for part, _ in trial.contacts.touching)
         if seen.update(
             rec.t,
@@ -104,13 +110,33 @@ def _resisted(trial: Trial, seconds: float) -> list[float]:
     return out
 
 
-def test_a_finger_on_the_mugs_rim_is_seen_holding_the_gripper_up() -> None:
-    """2.2 cm beside the mug's axis across the slot, a fingertip lands on the rim (the mug is
-    2.8 cm in radius, the open fingers 4 cm from the TCP): F held, the gripper stays up."""
+def test_a_gripper_over_the_mugs_rim_is_held_above_it_and_said_so() -> None:
+    """2.2 cm beside the mug's axis across the slot a fingertip would land on the rim (the mug
+    is 2.8 cm in radius, the open fingers 4 cm from the TCP): F held, the gripper is held
+    just clear of the top (``app.teleop.guarded_descent``: ``held_above``, the page's
+    notice) and never rests on it; until the guard, it hopped on the rim and the mug fell."""
     trial = _practice(_Keys((0.0, 0.022), floor=0.02))
-    times = _resisted(trial, 5.0)
-    assert times and times[0] < 4.5, times  # the rim is met at about 3.1 s
-    assert float(trial.sim.ee[2]) > MUG[2] + 0.02 or len(times) > 50
+    held = []
+    assert _resisted(trial, 6.0, held=held) == []  # nothing rests on the rim
+    assert held and held[0] < 4.5, held  # the descent is stopped at about 3 s
+    assert trial.held_above == 0 and trial.accidents.count == 0
+    assert not trial.contacts.touching
+
+
+def test_a_finger_on_a_rim_is_seen_holding_the_gripper_up() -> None:
+    """Fed as the live run feeds it: a finger touching (on and off, as it slips on a rim), the
+    target 5 cm below, the gripper not coming down: held up after ``RESISTED_S``."""
+    seen = ResistedDescent()
+    said = [
+        seen.update(t / 100, z=0.2, target_z=0.15, touching=(t // 20) % 2 == 0) for t in range(100)
+    ]
+    assert not any(said[:45]) and all(said[55:])
+    seen = ResistedDescent()
+    coming_down = [
+        seen.update(t / 100, z=0.2 - 0.05 * t / 100, target_z=0.1, touching=True)
+        for t in range(100)
+    ]
+    assert not any(coming_down)
 
 
 def test_a_gripper_lowered_around_the_mug_is_not_held_up() -> None:

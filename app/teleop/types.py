@@ -44,7 +44,9 @@ class TrialObservation:
     there; defaults to ``goal_positions``); ``knocks``: how many times an object has been
     knocked over or pushed off the table so far in the trial (what a person sees fall);
     ``lying``: the indices of the objects lying now (knocked over or off the table, not yet
-    stood up again). The arrays are shared: read, never write.
+    stood up again); ``held_above``: the object the open gripper is held above because it would
+    come down on it rather than around it (``app.teleop.guarded_descent``; the page says so and
+    what to do). The arrays are shared: read, never write.
     """
 
     t: float
@@ -64,6 +66,7 @@ class TrialObservation:
     grasp_points: np.ndarray | None = None
     knocks: int = 0
     lying: tuple[int, ...] = ()
+    held_above: int | None = None
 
     def __post_init__(self) -> None:
         if self.grasp_points is None:

@@ -34,6 +34,7 @@ from app.blending import moved_goals, reach_below
 from app.robot.errors import PhysicsError
 from app.robot.scene import Scene, build_scene
 from app.robot.simulation import BodyPoses, Simulation
+from app.teleop.guarded_descent import DescentGuard, Footprint
 from app.teleop.ik_step import IKStep
 from app.teleop.lift_out import Cylinder, lift_out
 from app.teleop.types import InputSource, TeleopCommand, TrialObservation
@@ -102,7 +103,11 @@ class Trial:
         self._object_positions = self.sim.object_positions()
         self._grasp_points = self.scene.goals.positions
         self._reach_below = reach_below(self.scene.hand)
+        self._half_widths = tuple(o.grasp_width / 2 for o in self.scene.spec.objects)
+        self.guard = DescentGuard(reach_below=self._reach_below, slot=self.scene.spec.gripper_open)
+        """Holds the open hand above an object it would come down on (``held_above``)."""
         self._cylinders = self._object_cylinders()
+        self._footprints = self._object_footprints()
         self._blend = BlendTick(0.0, 0.0, np.full(n, 1.0 / n), -1, 0.0, math.nan)
         self.records: list[TickRecord] = []
         self.events: list[tuple[float, TrialEvent]] = []
@@ -185,6 +190,7 @@ class Trial:
             grasp_points=self._grasp_points,
             knocks=self.accidents.count,
             lying=self.accidents.down,
+            held_above=self.guard.held,
         )
 
     def _objects_moved(self) -> None:
@@ -193,6 +199,12 @@ class Trial:
         self._object_positions = pos
         self._grasp_points = self.scene.goals.positions + (pos - self.sim.rest_positions)
         self._cylinders = self._object_cylinders()
+        self._footprints = self._object_footprints()
+
+    def _object_footprints(self) -> tuple[Footprint, ...]:
+        """Each object's cylinder with its half-width across the slot
+        (``app.teleop.guarded_descent``)."""
+        return tuple((*c, w) for c, w in zip(self._cylinders, self._half_widths, strict=True))
 
     def _object_cylinders(self) -> tuple[Cylinder, ...]:
         """Each object as ``(x, y, radius, top)`` where it stands now (``app.teleop.lift_out``)."""
@@ -206,22 +218,41 @@ class Trial:
 
     def _steer(self) -> np.ndarray:
         """Where ``U`` steers this tick: the user's target, or first out of an object the open
-        hand is around and the target leaves (``app.teleop.lift_out``). Not out of a lying
+        hand is around and the target leaves (``app.teleop.lift_out``), or held above an object
+        the open hand would come down on rather than around (``app.teleop.guarded_descent``;
+        ``held_above`` names it). Not out of (or above) a lying
         object, nor out of the one the robot is taking the hand to (``alpha > 0`` at the last
         tick): its policy keeps the hand clear there, and in a Hard task the user's target,
         held at the reach's edge, always lies off the object the robot is carrying the hand to."""
+        guard = self.guard
         if self.task.gripper_closed:
+            guard.release()
             return self.user_target
         taking = self._blend.predicted if self._blend.alpha > 0.0 else -1
+        skip = (taking, *self.accidents.down)
+        ee, target = self._ee.tolist(), self.user_target.tolist()
+        t = self.t
+        if guard.held is not None:  # a hold is kept until the guard lets go (its docstring)
+            hold = guard.steer(ee, target, self._footprints, now=t, skip=skip)
+            if hold is not None:
+                return np.array(hold)
         out = lift_out(
-            self._ee.tolist(),
-            self.user_target.tolist(),
+            ee,
+            target,
             self._cylinders,
             reach_below=self._reach_below,
             slot=self.scene.spec.gripper_open,
-            skip=(taking, *self.accidents.down),
+            skip=skip,
         )
-        return self.user_target if out is None else np.array(out)
+        if out is not None:
+            return np.array(out)
+        hold = guard.steer(ee, target, self._footprints, now=t, skip=skip)
+        return self.user_target if hold is None else np.array(hold)
+
+    @property
+    def held_above(self) -> int | None:
+        """The object the open hand is held above (``app.teleop.guarded_descent``), or ``None``."""
+        return self.guard.held
 
     def _follow_objects(self, events: list[TrialEvent]) -> None:
         """Re-aim the robot at objects a grasp moved: ``G_k <-`` object ``k``'s grasp point now,

@@ -111,6 +111,7 @@ class GraspParams:
     retry_pause_s: float  # pause with the gripper open before reaching again
     stall_radius_m: float  # the gripper stopped getting nearer while within this ...
     stall_time_s: float  # ... for this long: close anyway ("as near as it gets")
+    notice_read_s: float  # the gripper held above the object: the page's notice read, re-aim
 
 
 @dataclass(frozen=True)

@@ -126,6 +126,11 @@ class Reaction:
         self.relax += dt * (p.relaxer * p.relax_depth * h * trust - self.relax) / p.relax_time_s
         self.relax = min(max(self.relax, 0.0), 1.0)
 
+    def calm(self) -> None:
+        """No fight left: the user learnt that the robot was not working against them."""
+        self.fight = 0.0
+        self.push = None
+
     def push_offset(self) -> np.ndarray:
         """Displacement of the hand against the robot, ``push f w`` (zero when calm)."""
         if self.push is None or self.fight <= 0.0:

@@ -117,6 +117,8 @@ class SimulatedUser:
         self._best_t = self._best_across_t = 0.0
         self._stopped = False
         self._waiting = False
+        self._held_since: float | None = None
+        self._told_above = False  # read the notice: the gripper is held above the object
 
     @property
     def stopped(self) -> bool:
@@ -153,6 +155,7 @@ class SimulatedUser:
         self.seen_handle = seen.own
         target_name = obs.goal_names[obs.target_index]
         self._perceive(obs, dt, seen)
+        self._read_notice(obs, goal)
         if not self.stopped:
             self._advance_phase(
                 obs.t,
@@ -179,15 +182,19 @@ class SimulatedUser:
         m = self.params.motor
         hi = obs.reach.hi
         err, err_size, lag = self._seen_error(seen.plan, seen.ee, seen.velocity)
+        aim, follow = self._aim, seen.follow
+        if self._told_above:  # the page said why it stays up: over the middle first, then down
+            err, err_size = np.zeros(3), 0.0
+            aim, follow = np.array((aim[0], aim[1], seen.ee[2])), seen.ee
         trust = self.trust
         self.reaction.update(
             dt=dt,
             velocity=seen.velocity,
             ee=seen.ee,
-            aim=self._aim,
+            aim=aim,
             own_target=seen.own,
-            commanded=seen.follow,
-            deviation=self._overridden(seen.follow, seen.ee, seen.velocity),
+            commanded=follow,
+            deviation=self._overridden(follow, seen.ee, seen.velocity),
             trust=trust.level,
             fight_gain=trust.fight_gain,
         )
@@ -382,12 +389,32 @@ class SimulatedUser:
             fitts_time(dist, a=m.fitts_a_s, b=m.fitts_b_s_per_bit, width=m.fitts_width_m), 1e-3
         )
 
-    def _new_attempt(self, goal: np.ndarray, t: float) -> None:
+    def _read_notice(self, obs: TrialObservation, goal: np.ndarray) -> None:
+        """The open gripper held above the object they reach for (``obs.held_above``: the page
+        says it would come down on the object and asks to centre it first): ``notice_read_s``
+        after it began, and again as long as it lasts, they aim afresh at the object's middle;
+        knowing why the gripper stays up, they stop fighting it and no longer correct its
+        height: they take it over the object's middle (``_react``)."""
+        if obs.held_above != obs.target_index or self.phase != REACH or self.stopped:
+            self._held_since = None
+            self._told_above = False
+            return
+        if self._held_since is None:
+            self._held_since = obs.t
+        elif obs.t - self._held_since >= self.params.grasp.notice_read_s:
+            self._held_since = obs.t
+            self._told_above = True
+            self.reaction.calm()  # the robot was not fighting them: it said what to do
+            self._new_attempt(goal, obs.t, careful=True)
+
+    def _new_attempt(self, goal: np.ndarray, t: float, *, careful: bool = False) -> None:
+        """A new reach for ``goal``; it may be impatient, and unless ``careful`` (told where to
+        go) it may misjudge depth."""
         g = self.params.grasp
         self.attempts += 1
         self._early = bool(self.rng.random() < g.early_grasp_p)
         offset = np.zeros(3)
-        if self.rng.random() < g.miss_p:  # misjudged depth: aims beside the object
+        if self.rng.random() < g.miss_p and not careful:  # misjudged depth: aims beside it
             angle = self.rng.uniform(0.0, 2.0 * math.pi)
             offset[:2] = g.miss_offset_m * np.array([math.cos(angle), math.sin(angle)])
         self._best = self._best_across = math.inf

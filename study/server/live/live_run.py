@@ -173,6 +173,8 @@ class LiveRun:
             notices.asked = now
         if _held_past_reach(trial, self.input.source, record.events):
             notices.at_limit = now
+        if trial.held_above is not None:
+            notices.above = now
         if self._resisted.update(
             record.t,
             z=float(record.ee[2]),

@@ -27,6 +27,13 @@ MISSED_GRASP = (
 )
 """Held over the scene for a few seconds after a grasp that caught nothing
 (:mod:`study.server.live.notices`)."""
+HELD_ABOVE = (
+    "The gripper stays above the object until the object is between its two fingers. Move it"
+    " sideways over the middle of the object, then lower it."
+)
+"""Held while the open gripper is kept above an object it would come down on rather than
+around (``app.teleop.guarded_descent``) and the participant's input asks it lower."""
+
 RESTING_ON_OBJECT = (
     "A finger is resting on the object, so the gripper cannot go lower here. Move the gripper"
     " sideways until the object is between the two fingers, then lower it."
@@ -105,6 +112,7 @@ __all__ = [
     "AT_REACH_LIMIT",
     "CLOSE_TEXT",
     "ENDED_BY_EXPERIMENTER",
+    "HELD_ABOVE",
     "LINK_CLOSED_TEXT",
     "LINK_FAILED_TEXT",
     "LINK_INVALID_TEXT",

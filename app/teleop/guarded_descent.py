@@ -1,0 +1,161 @@
+"""The open hand comes down over an object only where the object fits between its fingers.
+
+A participant lowering the open hand a couple of centimetres off an object's axis, across the
+fingers' slot, put a fingertip on its rim: the contact pushed the hand, the lift-out rule
+(``app.teleop.lift_out``) switched on and off with it, the hand hopped on the rim several times
+a second and the object went over (a new-participant pass; ``benchmarks/rim_descent.py``: the
+practice mug knocked or pushed at 4 of 7 offsets from 0 to 4.5 cm; 13 practice mugs knocked by
+40 simulated participants). A person steering a real gripper stops above the object and
+centres it first; so does ``U``.
+
+For object ``k`` with its axis at ``o_k``, footprint radius ``r_k``, top at ``h_k`` and
+half-width across the slot ``a_k`` (the slot lies along world y), the open slot's half-width
+``s``, the fingertips ``b`` below the TCP ``x`` and a ``clearance`` ``c``, with
+``z_k = h_k + b + c``: a point ``p`` (the hand, the target) *clears* ``k`` with margin ``g``
+when the object fits between the fingers there (``|p_y - o_y| <= s - a_k - g``) or lies beside
+them (``|p_x - o_x| >= r_k + PAD_M + g``). The guard *takes* ``k`` when the hand is over it
+(``|x_xy - o_k,xy| < r_k + s + c``), its fingertips no lower than ``SINK_M`` below the top
+(``x_z - b >= h_k - SINK_M``: above it, or on its rim), the user's target ``t`` lower than
+``z_k``, and the hand and the target do not both clear ``k`` (``g = 0``). While it holds ``k``,
+``U`` steers to
+
+    (t_x, t_y, z_k + HOVER_M)
+
+holding the hand just clear of the top while it follows the target sideways. The hold is a
+state, not a test made afresh each tick: it lets go once the hand and the target have both
+cleared ``k`` for ``SETTLE_S`` (then the hand comes down around it), once the hand has left
+``k``'s footprint by ``MARGIN_M``, or once the target rises to ``z_k``. Over an object it let
+go of, it takes the hand again only if a point no longer clears ``k`` with ``g = -MARGIN_M``
+(clearly off). So a noisy target near the edge of clearing, or a finger brushing the rim, no
+longer switches it (and the lift-out rule with it) on and off several times a second.
+A hand already around the object (fingertips lower) is left to ``lift_out``. The trial leaves
+out the object the robot is taking the hand to (``alpha > 0``), as ``lift_out`` does: its
+policy centres the hand there, and a user's target held off it would only push against the
+robot lowering the hand.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Container, Sequence
+
+from app.teleop.lift_out import CLEARANCE_M
+
+PAD_M = 0.012
+"""The fingers' pads' half-width (along world x): an object farther than its radius plus this
+from the hand's x lies beside the fingers."""
+SINK_M = 0.005
+"""Fingertips this far below the object's top or more are around it (or beside it), not on it."""
+HOVER_M = 0.005
+"""How far above ``z_k`` the hand is held: the tracking lag under a target pressed lower stays
+above ``z_k``, where the lift-out rule has nothing to lift."""
+SETTLE_S = 0.15
+"""How long the hand and the target must both clear the held object before the hold lets go."""
+MARGIN_M = 0.003
+"""The hold's hysteresis: the footprint it lets go beyond, and how clearly off a point must be
+to take the hand again over an object it let go of (the simulated hand's noise is 2 mm)."""
+
+Footprint = tuple[float, float, float, float, float]
+"""An object as ``(x, y, footprint radius, top height, half-width across the slot)`` (m)."""
+
+
+def _clears(px: float, py: float, obj: Footprint, *, slot: float, margin: float) -> bool:
+    ox, oy, radius, _, half_width = obj
+    return abs(py - oy) <= slot - half_width - margin or abs(px - ox) >= radius + PAD_M + margin
+
+
+class DescentGuard:
+    """Holds the open hand above an object it would come down on (module docstring); one per
+    trial, for a hand whose fingertips are ``reach_below`` under the TCP and whose open slot's
+    half-width is ``slot``. ``held`` is the index of the object held above, or ``None``."""
+
+    def __init__(self, *, reach_below: float, slot: float, clearance: float = CLEARANCE_M) -> None:
+        self.reach_below = reach_below
+        self.slot = slot
+        self.clearance = clearance
+        self.held: int | None = None
+        self._cleared: int | None = None  # the object last let go of, the hand still over it
+        self._clear_since: float | None = None
+
+    def steer(
+        self,
+        x: Sequence[float],
+        target: Sequence[float],
+        objects: Sequence[Footprint],
+        *,
+        now: float,
+        skip: Container[int] = (),
+    ) -> tuple[float, float, float] | None:
+        """Where ``U`` steers instead of ``target`` at time ``now`` (s) while the guard holds an
+        object (``None``: it holds none). A hold it lets go of this call returns ``None``
+        without looking for a new one: the caller asks the lift-out rule first, then calls
+        again."""
+        xx, xy, xz = x
+        tx, ty, tz = target
+        if self.held is not None:
+            return self._keep(self.held, x, target, objects[self.held], now, skip)
+        reach_below, slot, clearance = self.reach_below, self.slot, self.clearance
+        cleared = self._cleared
+        for k, obj in enumerate(objects):
+            ox, oy, radius, top, _ = obj
+            near = radius + slot + clearance
+            over = math.hypot(xx - ox, xy - oy) < near
+            if k == cleared and not over:
+                self._cleared = None  # the hand has left the object it came down on
+            z_k = top + reach_below + clearance
+            if not over or tz >= z_k or xz - reach_below < top - SINK_M or k in skip:
+                continue
+            loose = MARGIN_M if k == cleared else 0.0
+            if _clears(xx, xy, obj, slot=slot, margin=-loose) and _clears(
+                tx, ty, obj, slot=slot, margin=-loose
+            ):
+                continue
+            self.held, self._cleared, self._clear_since = k, None, None
+            return (tx, ty, z_k + HOVER_M)
+        return None
+
+    def _keep(
+        self,
+        k: int,
+        x: Sequence[float],
+        target: Sequence[float],
+        obj: Footprint,
+        now: float,
+        skip: Container[int],
+    ) -> tuple[float, float, float] | None:
+        """The held object ``k``'s hold this tick, or ``None`` once it lets go."""
+        xx, xy, _ = x
+        tx, ty, tz = target
+        reach_below, slot, clearance = self.reach_below, self.slot, self.clearance
+        if k not in skip:
+            ox, oy, radius, top, _ = obj
+            z_k = top + reach_below + clearance
+            if math.hypot(xx - ox, xy - oy) < radius + slot + clearance + MARGIN_M and tz < z_k:
+                if not (
+                    _clears(xx, xy, obj, slot=slot, margin=0.0)
+                    and _clears(tx, ty, obj, slot=slot, margin=0.0)
+                ):
+                    self._clear_since = None
+                    return (tx, ty, z_k + HOVER_M)
+                if self._clear_since is None:
+                    self._clear_since = now
+                if now - self._clear_since < SETTLE_S:
+                    return (tx, ty, z_k + HOVER_M)
+                self._cleared = k  # centred: the hand comes down around it
+        self.held = self._clear_since = None
+        return None
+
+    def release(self) -> None:
+        """Hold nothing (the gripper closed)."""
+        self.held = self._cleared = self._clear_since = None
+
+
+__all__ = [
+    "HOVER_M",
+    "MARGIN_M",
+    "PAD_M",
+    "SETTLE_S",
+    "SINK_M",
+    "DescentGuard",
+    "Footprint",
+]

@@ -1,0 +1,92 @@
+"""The open hand comes down over an object only where the object fits between its fingers.
+
+A new participant lowered the open gripper beside the practice mug's axis: a fingertip landed
+on the rim, the hand hopped on it several times a second and the mug went over (headless: the
+mug knocked or pushed at every offset from 2.5 to 4.5 cm across the slot). Now the hand stops
+just clear of the top, follows the target sideways, says so (``Trial.held_above``), and comes
+down once the mug fits between the fingers.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from app.teleop.guarded_descent import HOVER_M, SETTLE_S, DescentGuard
+from benchmarks.rim_descent import run
+
+MUG = (0.5, -0.25, 0.028, 0.12, 0.028)  # x, y, radius, top, half-width across the slot
+FLOOR = 0.12 + 0.05 + 0.01  # top + fingertips + clearance
+HOLD = FLOOR + HOVER_M
+LOW_BESIDE = (0.5, -0.22, 0.05)  # 3 cm off the axis across the slot, below the top
+
+
+def _guard() -> DescentGuard:
+    return DescentGuard(reach_below=0.05, slot=0.04)
+
+
+def _takes(x, target, **kw) -> tuple | None:
+    """What a fresh guard steers to (it holds nothing yet)."""
+    return _guard().steer(x, target, [MUG], now=0.0, **kw)
+
+
+def test_the_hand_is_held_just_clear_of_the_top_until_the_object_fits_between_the_fingers() -> None:
+    above = (0.5, -0.22, 0.25)  # 3 cm off the axis across the slot, fingertips 8 cm over the top
+    assert _takes(above, LOW_BESIDE) == (0.5, -0.22, HOLD)
+    on_rim = (0.5, -0.22, 0.12 + 0.05)  # fingertips on the top
+    assert _takes(on_rim, LOW_BESIDE) is not None
+    centred = (0.5, -0.255, 0.05)  # the mug fits between the fingers (5 mm off)
+    assert _takes(above, centred) is not None  # the hand is not there yet
+    assert _takes((0.5, -0.252, 0.25), centred) is None  # it is: down
+    beside = (0.56, -0.22, 0.05)  # the mug is beside the fingers' pads, along x
+    assert _takes((0.56, -0.22, 0.25), beside) is None
+    around = (0.5, -0.23, 0.12 + 0.05 - 0.02)  # fingertips already below the top
+    assert _takes(around, LOW_BESIDE) is None  # lift_out's business
+    assert _takes(above, (0.5, -0.22, 0.20)) is None  # not asked down
+    assert _takes(above, LOW_BESIDE, skip=(0,)) is None  # the robot's goal
+    assert _takes((0.3, 0.0, 0.25), LOW_BESIDE) is None  # not over it
+
+
+def test_a_hold_outlasts_noise_and_a_sagging_hand_and_lets_go_once_both_are_centred() -> None:
+    guard = _guard()
+    assert guard.steer((0.5, -0.22, 0.25), LOW_BESIDE, [MUG], now=0.0) is not None
+    # the hand sags onto the rim (a fresh guard would leave it to lift_out): still held
+    sagged = (0.5, -0.235, 0.12 + 0.05 - 0.01)
+    assert _takes(sagged, LOW_BESIDE) is None
+    assert guard.steer(sagged, LOW_BESIDE, [MUG], now=0.1) == (0.5, -0.22, HOLD)
+    # hand and target centred, but a noisy target leaves the fit now and then: still held
+    centred, off = (0.5, -0.245, 0.05), (0.5, -0.236, 0.05)
+    hand = (0.5, -0.246, 0.2)
+    for i, target in enumerate([centred, off, centred, off, centred]):
+        assert guard.steer(hand, target, [MUG], now=0.2 + 0.05 * i) is not None
+    # centred for SETTLE_S: let go, and the hand comes down around the mug
+    assert guard.steer(hand, centred, [MUG], now=0.4 + SETTLE_S - 0.01) is not None
+    assert guard.steer(hand, centred, [MUG], now=0.4 + SETTLE_S + 0.01) is None
+    assert guard.held is None
+    # coming down, the noisy target just off the fit does not take it again; clearly off does
+    lower = (0.5, -0.246, 0.19)
+    assert guard.steer(lower, off, [MUG], now=0.6) is None
+    assert guard.steer(lower, (0.5, -0.232, 0.05), [MUG], now=0.61) is not None
+    # a target raised to the top's height, a hand gone from over the mug, the robot's goal
+    for hand, target, skip in (
+        ((0.5, -0.22, 0.2), (0.5, -0.22, FLOOR), ()),
+        ((0.5, -0.15, 0.2), LOW_BESIDE, ()),
+        ((0.5, -0.22, 0.2), LOW_BESIDE, (0,)),
+    ):
+        guard = _guard()
+        guard.steer((0.5, -0.22, 0.25), LOW_BESIDE, [MUG], now=0.0)
+        assert guard.steer(hand, target, [MUG], now=0.01, skip=skip) is None
+        assert guard.held is None
+
+
+@pytest.mark.parametrize("offset_m", [0.025, 0.035])
+def test_lowering_beside_the_practice_mug_leaves_it_standing(offset_m: float) -> None:
+    row = run(offset_m, axis=1, seconds=6.0)
+    assert row["knocked_or_pushed"] == 0 and row["contacts"] == 0, row
+    assert row["hand_z_range_m"] < 0.002, row  # held still above it, no hopping
+
+
+def test_lowered_over_the_mug_the_hand_still_goes_down_around_it() -> None:
+    held = run(0.035, axis=1, seconds=6.0)
+    row = run(0.01, axis=1, seconds=6.0)  # 1 cm off: the mug fits between the fingers
+    assert row["knocked_or_pushed"] == 0 and row["object_moved_m"] < 0.005, row
+    assert row["hand_z_end_m"] < held["hand_z_end_m"] - 0.05, (row, held)  # around it
