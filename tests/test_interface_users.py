@@ -13,9 +13,10 @@ import pytest
 from analysis.decoy_share import decoy_shares
 from app.teleop.keyboard import KEY_SPEED_M_S, KEYMAP, TAP_S
 from app.trial import Trial
-from study.protocol import trial_config_from_protocol
+from study.protocol import load_protocol, trial_config_from_protocol
 from study.simulated import load_population
 from study.simulated.interface import InterfaceUser, choose_handle, view_direction
+from study.simulated.participant import SimulatedParticipant
 from study.simulated.population import DEFAULT_POPULATION_PATH, Population
 
 
@@ -139,3 +140,32 @@ def test_the_robot_predicts_the_decoy_for_at_least_half_of_a_wrong_trial(
         samples += [{"trial_id": index, "predicted": names[r.predicted]} for r in trial.records]
     shares = decoy_shares(pd.DataFrame(rows), pd.DataFrame(samples))
     assert len(shares) == 3 and shares["decoy_share"].median() >= 0.5
+
+
+@pytest.mark.parametrize("keyboard", [True, False], ids=["keys", "gizmo"])
+def test_a_user_aiming_beside_the_mug_is_held_above_it_reads_why_and_centres(
+    keyboard: bool,
+) -> None:
+    """Every reach misjudged 3.5 cm beside the practice mug (``miss_p = 1``): the open gripper
+    would come down on the rim. It is held above instead (``Trial.held_above``), the user reads
+    the page's notice, re-aims at the mug's middle and picks it up; the mug is never knocked
+    over. Before the hold, a finger on the rim knocked it over; with a hold but users who did
+    not read it, the run timed out at 120 s."""
+    config = load_protocol("protocols/dragan2013.toml").training_config()
+    held_runs = 0
+    for index in range(4):
+        params = _person(index, keyboard=keyboard)
+        params = dataclasses.replace(
+            params, grasp=dataclasses.replace(params.grasp, miss_p=1.0, early_grasp_p=0.0)
+        )
+        user = SimulatedParticipant(params)(config, index)
+        trial = Trial(config, user)
+        held = 0
+        while not trial.done:
+            trial.tick()
+            held += trial.held_above is not None
+        assert trial.success, (index, trial.outcome, trial.t)
+        assert trial.accidents.count == 0, index
+        assert trial.t < 30.0, (index, trial.t)
+        held_runs += held > 0
+    assert held_runs >= 2  # the misjudged aims that land on the rim were held, then centred
