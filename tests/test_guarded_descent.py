@@ -9,10 +9,15 @@ down once the mug fits between the fingers.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
-from app.teleop.guarded_descent import HOVER_M, SETTLE_S, DescentGuard
+from app.teleop.guarded_descent import HOVER_M, PALM_CLEAR_M, SETTLE_S, DescentGuard
+from app.teleop.scripted import IdleInput
+from app.trial import Trial
 from benchmarks.rim_descent import run
+from study.protocol import load_protocol
 
 MUG = (0.5, -0.25, 0.028, 0.12, 0.028)  # x, y, radius, top, half-width across the slot
 FLOOR = 0.12 + 0.05 + 0.01  # top + fingertips + clearance
@@ -21,7 +26,7 @@ LOW_BESIDE = (0.5, -0.22, 0.05)  # 3 cm off the axis across the slot, below the 
 
 
 def _guard() -> DescentGuard:
-    return DescentGuard(reach_below=0.05, slot=0.04)
+    return DescentGuard(reach_below=0.05, slot=0.04, palm_above=0.0374)
 
 
 def _takes(x, target, **kw) -> tuple | None:
@@ -57,15 +62,20 @@ def test_a_hold_outlasts_noise_and_a_sagging_hand_and_lets_go_once_both_are_cent
     centred, off = (0.5, -0.245, 0.05), (0.5, -0.236, 0.05)
     hand = (0.5, -0.246, 0.2)
     for i, target in enumerate([centred, off, centred, off, centred]):
-        assert guard.steer(hand, target, [MUG], now=0.2 + 0.05 * i) is not None
-    # centred for SETTLE_S: let go, and the hand comes down around the mug
-    assert guard.steer(hand, centred, [MUG], now=0.4 + SETTLE_S - 0.01) is not None
-    assert guard.steer(hand, centred, [MUG], now=0.4 + SETTLE_S + 0.01) is None
+        assert guard.steer(hand, target, [MUG], now=0.1 + 0.04 * i) is not None
+    # a hand sweeping across the fit (a fast drag) is not let down on its way
+    for i in range(6):
+        sweep = (0.5, -0.262 + 0.004 * i, 0.2)
+        assert guard.steer(sweep, centred, [MUG], now=0.3 + 0.05 * i) is not None
+    # centred for SETTLE_S, the hand settled: let go, and it comes down around the mug
+    assert guard.steer(hand, centred, [MUG], now=0.6) is not None
+    assert guard.steer(hand, centred, [MUG], now=0.6 + SETTLE_S - 0.01) is not None
+    assert guard.steer(hand, centred, [MUG], now=0.6 + SETTLE_S + 0.01) is None
     assert guard.held is None
     # coming down, the noisy target just off the fit does not take it again; clearly off does
     lower = (0.5, -0.246, 0.19)
-    assert guard.steer(lower, off, [MUG], now=0.6) is None
-    assert guard.steer(lower, (0.5, -0.232, 0.05), [MUG], now=0.61) is not None
+    assert guard.steer(lower, off, [MUG], now=0.9) is None
+    assert guard.steer(lower, (0.5, -0.232, 0.05), [MUG], now=0.91) is not None
     # a target raised to the top's height, a hand gone from over the mug, the robot's goal
     for hand, target, skip in (
         ((0.5, -0.22, 0.2), (0.5, -0.22, FLOOR), ()),
@@ -76,6 +86,35 @@ def test_a_hold_outlasts_noise_and_a_sagging_hand_and_lets_go_once_both_are_cent
         guard.steer((0.5, -0.22, 0.25), LOW_BESIDE, [MUG], now=0.0)
         assert guard.steer(hand, target, [MUG], now=0.01, skip=skip) is None
         assert guard.held is None
+
+
+def test_lowered_around_the_mug_the_palm_stops_clear_of_its_top() -> None:
+    guard = _guard()
+    rest = 0.12 - 0.0374 + PALM_CLEAR_M  # the top, less the palm's height over the TCP
+    centred, floor = (0.5, -0.25, 0.09), (0.5, -0.251, 0.02)  # F held to the reach's floor
+    assert guard.rest(centred, floor, [MUG]) == ((0.5, -0.251, rest), 0)
+    assert guard.rest(centred, (0.5, -0.251, rest + 0.001), [MUG]) is None  # not asked lower
+    assert guard.rest((0.5, -0.22, 0.2), floor, [MUG]) is None  # on the rim: the hold's case
+    assert guard.rest((0.545, -0.25, 0.09), floor, [MUG]) is None  # beside the finger pads
+    assert guard.rest(centred, floor, [MUG], skip=(0,)) is None  # the robot's goal
+
+
+def test_the_palm_stops_above_every_shipped_grasp_point() -> None:
+    """The palm's stop lies under every grasp point of every shipped protocol's scenes: the
+    hand always reaches the grasp."""
+    for path in sorted(Path("protocols").glob("*.toml")):
+        if path.name == "population.toml":
+            continue
+        protocol = load_protocol(path)
+        modes = protocol.mode_names[:1]
+        configs = [protocol.training_config()] + [
+            protocol.trial_config(task, modes[0]) for task in protocol.task_names
+        ]
+        for config in configs:
+            trial = Trial(config, IdleInput(), keep_records=False)
+            palm = trial.guard.palm_above
+            for (_, _, _, top, _), g in zip(trial._footprints, trial._grasp_points, strict=True):
+                assert top - palm + PALM_CLEAR_M < g[2] - 0.001, (path.name, top, g)
 
 
 @pytest.mark.parametrize("offset_m", [0.025, 0.035])
@@ -89,4 +128,5 @@ def test_lowered_over_the_mug_the_hand_still_goes_down_around_it() -> None:
     held = run(0.035, axis=1, seconds=6.0)
     row = run(0.01, axis=1, seconds=6.0)  # 1 cm off: the mug fits between the fingers
     assert row["knocked_or_pushed"] == 0 and row["object_moved_m"] < 0.005, row
+    assert row["contacts"] == 0, row  # the palm stops clear of the top (it landed on it)
     assert row["hand_z_end_m"] < held["hand_z_end_m"] - 0.05, (row, held)  # around it

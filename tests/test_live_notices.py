@@ -54,6 +54,8 @@ def test_what_the_input_does_now_comes_first() -> None:
     assert n.text(10.1, live=True) == texts.RESTING_ON_OBJECT  # F held onto a rim: both
     n = HeldNotices(missed=10.0, at_limit=10.0, above=10.0)
     assert n.text(10.1, live=True) == texts.HELD_ABOVE  # F held over an object's rim
+    n = HeldNotices(missed=10.0, at_limit=10.0, lowest=10.0)
+    assert n.text(10.1, live=True) == texts.AS_LOW_AS_IT_GOES  # F held down around an object
     n = HeldNotices(missed=10.0, at_limit=10.0)
     assert n.text(10.1, live=True) == texts.AT_REACH_LIMIT
     assert n.text(10.0 + LIMIT_HOLD_S + 0.1, live=True) == texts.MISSED_GRASP
@@ -66,6 +68,7 @@ def test_the_notices_name_no_condition(path) -> None:
         texts.MISSED_GRASP,
         texts.RESTING_ON_OBJECT,
         texts.HELD_ABOVE,
+        texts.AS_LOW_AS_IT_GOES,
         texts.AT_REACH_LIMIT,
         GRASP_LABEL,
         GRIPPER_CLOSED_LABEL,
@@ -158,3 +161,22 @@ def test_a_missed_grasp_keeps_the_gripper_closed_a_moment_then_opens_it() -> Non
     assert max(closed) - min(closed) >= MISSED_HOLD_S
     assert phases["reopening"] == pytest.approx(miss + MISSED_HOLD_S, abs=0.03)
     assert trial.task.phase == "reach" and trial.sim.gripper_opening > 0.035
+
+
+def test_f_held_to_the_table_around_the_mug_stops_the_palm_above_it_and_says_press_g() -> None:
+    """F held until the target reaches the reach's floor, the mug between the fingers: the
+    palm stops clear of the mug's top (it landed on it, and the hand bounced there by itself),
+    the trial says so (``resting_on``: the page's "as low as it goes" notice), and G grasps."""
+    trial = _practice(_Keys((0.0, 0.004), floor=0.02, grasp_t=5.5))
+    resting, lowest = [], 1.0
+    while trial.t < 5.4:
+        trial.tick()
+        lowest = min(lowest, float(trial.sim.ee[2]))
+        if trial.resting_on is not None:
+            resting.append(trial.t)
+        assert not trial.contacts.touching, (trial.t, trial.contacts.touching)
+    assert resting and resting[0] < 4.5 and trial.resting_on == 0
+    assert lowest > MUG[2] - 0.01  # a few millimetres under the grasp point, not on the table
+    while not trial.done and trial.t < 10.0:
+        trial.tick()
+    assert trial.outcome == "success" and trial.accidents.count == 0

@@ -23,12 +23,21 @@ them (``|p_x - o_x| >= r_k + PAD_M + g``). The guard *takes* ``k`` when the hand
 
 holding the hand just clear of the top while it follows the target sideways. The hold is a
 state, not a test made afresh each tick: it lets go once the hand and the target have both
-cleared ``k`` for ``SETTLE_S`` (then the hand comes down around it), once the hand has left
+cleared ``k`` for ``SETTLE_S`` with the hand within ``MARGIN_M`` of where it was when they
+began to (then it comes down around it; a drag sweeping across is not let down midway), once the hand has left
 ``k``'s footprint by ``MARGIN_M``, or once the target rises to ``z_k``. Over an object it let
 go of, it takes the hand again only if a point no longer clears ``k`` with ``g = -MARGIN_M``
 (clearly off). So a noisy target near the edge of clearing, or a finger brushing the rim, no
 longer switches it (and the lift-out rule with it) on and off several times a second.
-A hand already around the object (fingertips lower) is left to ``lift_out``. The trial leaves
+A hand already around the object (fingertips lower) is left to ``lift_out``.
+
+Around the object, the open hand comes down only until its palm, ``p`` above the TCP, is
+``PALM_CLEAR_M`` above the top: while the hand is over ``k`` with the object between its
+fingers (the hand clears ``k``, not beside it), ``U`` steers to ``(t_x, t_y, max(t_z, r_k))``
+with ``r_k = h_k - p + PALM_CLEAR_M`` (``rest``; a few millimetres under the grasp point, which
+lies at most 3 cm under the top). A participant holding F to the table's reach put the palm
+on the mug's top, the hand bounced on it by itself, and the mug went over (a new-participant
+pass: the palm on the top after every one of 7 descents). The trial leaves
 out the object the robot is taking the hand to (``alpha > 0``), as ``lift_out`` does: its
 policy centres the hand there, and a user's target held off it would only push against the
 robot lowering the hand.
@@ -50,10 +59,14 @@ HOVER_M = 0.005
 """How far above ``z_k`` the hand is held: the tracking lag under a target pressed lower stays
 above ``z_k``, where the lift-out rule has nothing to lift."""
 SETTLE_S = 0.15
-"""How long the hand and the target must both clear the held object before the hold lets go."""
+"""How long the hand and the target must both clear the held object, the hand settled, before
+the hold lets go."""
 MARGIN_M = 0.003
 """The hold's hysteresis: the footprint it lets go beyond, and how clearly off a point must be
 to take the hand again over an object it let go of (the simulated hand's noise is 2 mm)."""
+
+PALM_CLEAR_M = 0.005
+"""How far above the object's top the palm stays when the open hand is lowered around it."""
 
 Footprint = tuple[float, float, float, float, float]
 """An object as ``(x, y, footprint radius, top height, half-width across the slot)`` (m)."""
@@ -66,16 +79,24 @@ def _clears(px: float, py: float, obj: Footprint, *, slot: float, margin: float)
 
 class DescentGuard:
     """Holds the open hand above an object it would come down on (module docstring); one per
-    trial, for a hand whose fingertips are ``reach_below`` under the TCP and whose open slot's
-    half-width is ``slot``. ``held`` is the index of the object held above, or ``None``."""
+    trial, for a hand whose fingertips are ``reach_below`` under the TCP, whose palm is
+    ``palm_above`` over it, and whose open slot's half-width is ``slot``. ``held`` is the index of the object held above, or ``None``."""
 
-    def __init__(self, *, reach_below: float, slot: float, clearance: float = CLEARANCE_M) -> None:
+    def __init__(
+        self,
+        *,
+        reach_below: float,
+        slot: float,
+        palm_above: float,
+        clearance: float = CLEARANCE_M,
+    ) -> None:
         self.reach_below = reach_below
+        self.palm_above = palm_above
         self.slot = slot
         self.clearance = clearance
         self.held: int | None = None
         self._cleared: int | None = None  # the object last let go of, the hand still over it
-        self._clear_since: float | None = None
+        self._clear_since: tuple[float, float, float] | None = None  # (t, x, y) it began
 
     def steer(
         self,
@@ -137,12 +158,38 @@ class DescentGuard:
                 ):
                     self._clear_since = None
                     return (tx, ty, z_k + HOVER_M)
-                if self._clear_since is None:
-                    self._clear_since = now
-                if now - self._clear_since < SETTLE_S:
+                since = self._clear_since
+                if since is None or math.hypot(xx - since[1], xy - since[2]) > MARGIN_M:
+                    since = self._clear_since = (now, xx, xy)  # a hand sweeping across restarts
+                if now - since[0] < SETTLE_S:
                     return (tx, ty, z_k + HOVER_M)
                 self._cleared = k  # centred: the hand comes down around it
         self.held = self._clear_since = None
+        return None
+
+    def rest(
+        self,
+        x: Sequence[float],
+        target: Sequence[float],
+        objects: Sequence[Footprint],
+        *,
+        skip: Container[int] = (),
+    ) -> tuple[tuple[float, float, float], int] | None:
+        """``U``'s target no lower than where the palm clears the top of the object the open
+        hand is lowered around (module docstring), and that object's index; ``None`` when the
+        target is not below any such height."""
+        xx, xy, _ = x
+        tx, ty, tz = target
+        slot, clearance = self.slot, self.clearance
+        for k, obj in enumerate(objects):
+            ox, oy, radius, top, half_width = obj
+            rest_z = top - self.palm_above + PALM_CLEAR_M
+            if tz >= rest_z or k in skip:
+                continue
+            if math.hypot(xx - ox, xy - oy) >= radius + slot + clearance:
+                continue
+            if abs(xy - oy) <= slot - half_width and abs(xx - ox) < radius + PAD_M:
+                return (tx, ty, rest_z), k
         return None
 
     def release(self) -> None:
@@ -154,6 +201,7 @@ __all__ = [
     "HOVER_M",
     "MARGIN_M",
     "PAD_M",
+    "PALM_CLEAR_M",
     "SETTLE_S",
     "SINK_M",
     "DescentGuard",

@@ -104,7 +104,14 @@ class Trial:
         self._grasp_points = self.scene.goals.positions
         self._reach_below = reach_below(self.scene.hand)
         self._half_widths = tuple(o.grasp_width / 2 for o in self.scene.spec.objects)
-        self.guard = DescentGuard(reach_below=self._reach_below, slot=self.scene.spec.gripper_open)
+        self.guard = DescentGuard(
+            reach_below=self._reach_below,
+            slot=self.scene.spec.gripper_open,
+            palm_above=min((layer.lo for layer in self.scene.hand[1:]), default=math.inf),
+        )
+        self.resting_on: int | None = None
+        """The object around which the open hand is as low as it goes this tick, the input asking
+        it lower (the guard's ``rest``), or ``None``."""
         """Holds the open hand above an object it would come down on (``held_above``)."""
         self._cylinders = self._object_cylinders()
         self._footprints = self._object_footprints()
@@ -220,11 +227,13 @@ class Trial:
         """Where ``U`` steers this tick: the user's target, or first out of an object the open
         hand is around and the target leaves (``app.teleop.lift_out``), or held above an object
         the open hand would come down on rather than around (``app.teleop.guarded_descent``;
-        ``held_above`` names it). Not out of (or above) a lying
+        ``held_above`` names it), or no lower than its palm clears the top of an object it is
+        lowered around (``resting_on`` names it). Not out of (or above) a lying
         object, nor out of the one the robot is taking the hand to (``alpha > 0`` at the last
         tick): its policy keeps the hand clear there, and in a Hard task the user's target,
         held at the reach's edge, always lies off the object the robot is carrying the hand to."""
         guard = self.guard
+        self.resting_on = None
         if self.task.gripper_closed:
             guard.release()
             return self.user_target
@@ -247,7 +256,14 @@ class Trial:
         if out is not None:
             return np.array(out)
         hold = guard.steer(ee, target, self._footprints, now=t, skip=skip)
-        return self.user_target if hold is None else np.array(hold)
+        if hold is not None:
+            return np.array(hold)
+        rest = guard.rest(ee, target, self._footprints, skip=skip)
+        if rest is None:
+            return self.user_target
+        if ee[2] <= rest[0][2] + 0.005:  # there: as low as it goes
+            self.resting_on = rest[1]
+        return np.array(rest[0])
 
     @property
     def held_above(self) -> int | None:

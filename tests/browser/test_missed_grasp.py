@@ -8,8 +8,10 @@ G had worked); it goes by itself a little later. The store has ``grasp_requested
 ``grasp_missed``. Then the gripper is put over the mug's rim (2.6 cm off its axis across the
 slot, as a drag of the handle puts it) and F held: a fingertip would land on the rim (it did, and
 the gripper hopped on it: the tester's "frozen" gripper), so the gripper stops just clear of
-the top and a notice says why and what to do. Screenshots with the fingers closed and the
-notice up, and with the gripper held above the rim.
+the top and a notice says why and what to do. Centred over the mug, it comes down around it
+until its palm would touch the top (the palm landed on it, and the hand bounced there), a
+notice says to close the gripper, and G lifts the mug. Screenshots with the fingers closed and
+the notice up, with the gripper held above the rim, and as low as it goes around the mug.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ import pytest
 
 from app.trial.tasks.lift import MISSED_HOLD_S
 from study.server.live.notices import MISSED_NOTICE_S
-from study.server.live.texts import HELD_ABOVE, MISSED_GRASP
+from study.server.live.texts import AS_LOW_AS_IT_GOES, HELD_ABOVE, MISSED_GRASP
 from study.server.participant_page import GRASP_LABEL, GRIPPER_CLOSED_LABEL
 from tests.browser.harness import FrameLog, RunningServer, start_server, wait_until
 from tests.browser.page import hold, screenshot, start_first_run
@@ -33,6 +35,8 @@ pytestmark = pytest.mark.browser
 
 CLOSED_M = 0.005
 """Finger travel below this: the gripper is closed."""
+MUG_AXIS = np.array([0.5, -0.25])
+"""The practice mug's axis (x, y)."""
 OVER_THE_RIM = np.array([0.5, -0.224, 0.15])
 """15 cm above the table, 2.6 cm across the slot from the practice mug's axis (radius 2.8 cm;
 the open fingers are 4 cm from the gripper's centre): one fingertip would come down on the rim."""
@@ -95,3 +99,15 @@ def test_a_missed_grasp_shows_closed_fingers_and_a_notice_that_stays(
     assert not trial.contacts.touching and trial.accidents.count == 0
     screenshot(page, screenshots, "17-held-above-the-rim")
     assert not run.over
+
+    # Centred over the mug (a drag of the handle), the target still low: the gripper comes down
+    # around the mug until its palm would touch the top, and the page says to close it.
+    low = float(trial.user_target[2])
+    live.trial_run.input.on_target(np.array([MUG_AXIS[0], MUG_AXIS[1], low]))
+    page.get_by_text(AS_LOW_AS_IT_GOES).first.wait_for(timeout=10_000)
+    assert float(trial.sim.ee[2]) < OVER_THE_RIM[2] - 0.05, "came down around the mug"
+    assert not trial.contacts.touching and trial.accidents.count == 0
+    screenshot(page, screenshots, "18-as-low-as-it-goes")
+    hold(page, "g", 0.2)
+    assert wait_until(lambda: run.over, timeout=20)
+    assert trial.outcome == "success"

@@ -175,6 +175,8 @@ class LiveRun:
             notices.at_limit = now
         if trial.held_above is not None:
             notices.above = now
+        if trial.resting_on is not None:
+            notices.lowest = now
         if self._resisted.update(
             record.t,
             z=float(record.ee[2]),

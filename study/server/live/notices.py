@@ -4,13 +4,15 @@ The control thread stamps what it saw, in monotonic seconds: the input held past
 (``at_limit``), a missed grasp (``missed``; a new grasp request, ``asked``, takes its notice
 down), the gripper held up by an object it rests on (``resting``, from :class:`ResistedDescent`),
 the open gripper kept above an object it would come down on (``above``, the trial's
-``held_above`` while the input asks it lower).
+``held_above`` while the input asks it lower), the open gripper as low as it goes around an
+object (``lowest``, the trial's ``resting_on``).
 The render loop asks :meth:`HeldNotices.text` each period and shows the answer with
 ``ParticipantPage.hold_notice`` (one notice at a time; ``None`` takes it down). What the
 participant's input does this moment comes first: a resting finger (a held F with a finger on
 a rim also drives the target below the reach's floor; the reach notice would not say why the
-gripper stays up, a new-participant pass found), the gripper kept above an object, then the
-reach, then a miss.
+gripper stays up, a new-participant pass found), the gripper kept above an object, the
+gripper as low as it goes around one (F held on, the target also reaches the reach's floor,
+where the reach notice would only mislead), then the reach, then a miss.
 
 A missed grasp's notice stays ``MISSED_NOTICE_S``: a three-second corner notice went unseen by
 a tester whose eyes were on the gripper (and on a page drawing 10 frames a second, the closing
@@ -21,7 +23,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from study.server.live.texts import AT_REACH_LIMIT, HELD_ABOVE, MISSED_GRASP, RESTING_ON_OBJECT
+from study.server.live.texts import (
+    AS_LOW_AS_IT_GOES,
+    AT_REACH_LIMIT,
+    HELD_ABOVE,
+    MISSED_GRASP,
+    RESTING_ON_OBJECT,
+)
 
 LIMIT_HOLD_S = 0.4
 """The reach notice stays this long after the input was last held past the reach."""
@@ -43,6 +51,7 @@ class HeldNotices:
     asked: float = NEVER
     resting: float = NEVER
     above: float = NEVER
+    lowest: float = NEVER
 
     def text(self, now: float, *, live: bool) -> str | None:
         """The notice to hold at ``now`` (``None``: none), only while the run is ``live``."""
@@ -52,6 +61,8 @@ class HeldNotices:
             return RESTING_ON_OBJECT
         if now - self.above < LIMIT_HOLD_S:
             return HELD_ABOVE
+        if now - self.lowest < LIMIT_HOLD_S:
+            return AS_LOW_AS_IT_GOES
         if now - self.at_limit < LIMIT_HOLD_S:
             return AT_REACH_LIMIT
         if now - self.missed < MISSED_NOTICE_S and self.asked <= self.missed:
@@ -60,7 +71,7 @@ class HeldNotices:
 
     def forget(self) -> None:
         """A new run: nothing seen yet."""
-        self.at_limit = self.missed = self.asked = self.resting = self.above = NEVER
+        self.at_limit = self.missed = self.asked = self.resting = self.above = self.lowest = NEVER
 
 
 RESISTED_GAP_M = 0.03

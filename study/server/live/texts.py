@@ -34,6 +34,13 @@ HELD_ABOVE = (
 """Held while the open gripper is kept above an object it would come down on rather than
 around (``app.teleop.guarded_descent``) and the participant's input asks it lower."""
 
+AS_LOW_AS_IT_GOES = (
+    "The gripper is as low as it goes here. If the object is between the two fingers, press G"
+    " to close the gripper."
+)
+"""Held while the open gripper, lowered around an object, is kept from putting its palm on the
+object's top (``app.teleop.guarded_descent``) and the participant's input asks it lower."""
+
 RESTING_ON_OBJECT = (
     "A finger is resting on the object, so the gripper cannot go lower here. Move the gripper"
     " sideways until the object is between the two fingers, then lower it."
@@ -109,6 +116,7 @@ def outcome_sentence(run: TrialRun, *, target: str, session_finished: bool) -> s
 
 
 __all__ = [
+    "AS_LOW_AS_IT_GOES",
     "AT_REACH_LIMIT",
     "CLOSE_TEXT",
     "ENDED_BY_EXPERIMENTER",
