@@ -50,6 +50,8 @@ def test_a_missed_grasp_notice_stays_until_its_time_or_the_next_grasp() -> None:
 
 
 def test_what_the_input_does_now_comes_first() -> None:
+    n = HeldNotices(missed=10.0, resting=10.0, at_limit=10.0, fallen=10.0)
+    assert n.text(10.1, live=True) == texts.FELL_OVER  # nothing else, until it stands again
     n = HeldNotices(missed=10.0, resting=10.0, at_limit=10.0)
     assert n.text(10.1, live=True) == texts.RESTING_ON_OBJECT  # F held onto a rim: both
     n = HeldNotices(missed=10.0, at_limit=10.0, above=10.0)
@@ -69,6 +71,7 @@ def test_the_notices_name_no_condition(path) -> None:
         texts.RESTING_ON_OBJECT,
         texts.HELD_ABOVE,
         texts.AS_LOW_AS_IT_GOES,
+        texts.FELL_OVER,
         texts.AT_REACH_LIMIT,
         GRASP_LABEL,
         GRIPPER_CLOSED_LABEL,

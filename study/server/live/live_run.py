@@ -177,6 +177,8 @@ class LiveRun:
             notices.above = now
         if trial.resting_on is not None:
             notices.lowest = now
+        if trial.accidents.down and trial.accidents.reset_objects:
+            notices.fallen = now
         if self._resisted.update(
             record.t,
             z=float(record.ee[2]),

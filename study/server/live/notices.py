@@ -5,10 +5,12 @@ The control thread stamps what it saw, in monotonic seconds: the input held past
 down), the gripper held up by an object it rests on (``resting``, from :class:`ResistedDescent`),
 the open gripper kept above an object it would come down on (``above``, the trial's
 ``held_above`` while the input asks it lower), the open gripper as low as it goes around an
-object (``lowest``, the trial's ``resting_on``).
+object (``lowest``, the trial's ``resting_on``), an object down and waiting to be put back
+(``fallen``).
 The render loop asks :meth:`HeldNotices.text` each period and shows the answer with
 ``ParticipantPage.hold_notice`` (one notice at a time; ``None`` takes it down). What the
-participant's input does this moment comes first: a resting finger (a held F with a finger on
+participant's input does this moment comes first, after a fallen object (nothing else matters
+until it stands again, and it waits for the gripper to leave its spot): a resting finger (a held F with a finger on
 a rim also drives the target below the reach's floor; the reach notice would not say why the
 gripper stays up, a new-participant pass found), the gripper kept above an object, the
 gripper as low as it goes around one (F held on, the target also reaches the reach's floor,
@@ -26,6 +28,7 @@ from dataclasses import dataclass
 from study.server.live.texts import (
     AS_LOW_AS_IT_GOES,
     AT_REACH_LIMIT,
+    FELL_OVER,
     HELD_ABOVE,
     MISSED_GRASP,
     RESTING_ON_OBJECT,
@@ -52,11 +55,14 @@ class HeldNotices:
     resting: float = NEVER
     above: float = NEVER
     lowest: float = NEVER
+    fallen: float = NEVER
 
     def text(self, now: float, *, live: bool) -> str | None:
         """The notice to hold at ``now`` (``None``: none), only while the run is ``live``."""
         if not live:
             return None
+        if now - self.fallen < LIMIT_HOLD_S:
+            return FELL_OVER
         if now - self.resting < RESTING_HOLD_S:  # what really holds the gripper up
             return RESTING_ON_OBJECT
         if now - self.above < LIMIT_HOLD_S:
@@ -72,6 +78,7 @@ class HeldNotices:
     def forget(self) -> None:
         """A new run: nothing seen yet."""
         self.at_limit = self.missed = self.asked = self.resting = self.above = self.lowest = NEVER
+        self.fallen = NEVER
 
 
 RESISTED_GAP_M = 0.03

@@ -34,6 +34,13 @@ HELD_ABOVE = (
 """Held while the open gripper is kept above an object it would come down on rather than
 around (``app.teleop.guarded_descent``) and the participant's input asks it lower."""
 
+FELL_OVER = (
+    "An object fell over. It is put back where it stood as soon as the gripper is out of the"
+    " way there."
+)
+"""Held while an object knocked over or off the table waits to be put back (``on_knock =
+"reset"``): a tester's mug lay 29 s without a word while the gripper hovered over its spot."""
+
 AS_LOW_AS_IT_GOES = (
     "The gripper is as low as it goes here. If the object is between the two fingers, press G"
     " to close the gripper."
@@ -120,6 +127,7 @@ __all__ = [
     "AT_REACH_LIMIT",
     "CLOSE_TEXT",
     "ENDED_BY_EXPERIMENTER",
+    "FELL_OVER",
     "HELD_ABOVE",
     "LINK_CLOSED_TEXT",
     "LINK_FAILED_TEXT",
