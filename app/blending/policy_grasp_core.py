@@ -29,7 +29,7 @@ import numpy as np
 
 from app.compiled import jit, solve_spd
 
-__all__ = ["grasp_step", "rotation_log"]
+__all__ = ["grasp_step", "rotation_log", "warm_up"]
 
 _SQRT_HALF = math.sqrt(0.5)
 # from policy_grasp (kept equal by tests/test_tick_fast_path.py)
@@ -381,3 +381,26 @@ def grasp_step(
             lo = dq[i] if dq[i] >= lower[i] else lower[i]  # np.maximum, then np.minimum
             dq[i] = lo if lo <= upper[i] else upper[i]
     return dq, transit, info
+
+
+def warm_up() -> None:
+    """Compile :func:`grasp_step` (or load it from numba's cache) with the argument types of a
+    tick, on a dummy arm (a hand of one layer, two objects, limits)."""
+    z = np.zeros
+    grasp_step(
+        z(7),
+        z(3),
+        np.eye(3),
+        z((6, 7)),
+        z(21),
+        np.eye(3),
+        z(7),
+        0,
+        False,
+        z((2, 4)),
+        z((1, 9)),
+        np.ones(9),
+        np.eye(6),
+        -np.ones(7),
+        np.ones(7),
+    )

@@ -16,7 +16,7 @@ import numpy as np
 
 from app.compiled import jit, solve_spd
 
-__all__ = ["ik_step"]
+__all__ = ["ik_step", "warm_up"]
 
 
 @jit
@@ -70,3 +70,10 @@ def ik_step(
         lo = dq[i] if dq[i] >= lower[i] else lower[i]
         dq[i] = lo if lo <= upper[i] else upper[i]
     return dq
+
+
+def warm_up() -> None:
+    """Compile :func:`ik_step` (or load it from numba's cache) with the argument types of a
+    tick, on a dummy arm."""
+    z = np.zeros
+    ik_step(z(7), z(3), z(3), z(3), z((6, 7)), z(7), np.eye(6), -np.ones(7), np.ones(7), z(7), 0.3)
