@@ -1,9 +1,12 @@
 """What the control tick's compiled kernels share: numba's ``njit`` as used here, and LAPACK.
 
 ``jit``: ``numba.njit`` with the machine code cached beside the source (``__pycache__``), so
-only the first process after a change compiles (about a second per kernel); IEEE arithmetic
-as written (no ``fastmath``: no reordering, no fused multiply-adds), so a kernel gives the very
-numbers its Python gives. ``nogil``: a kernel lets other sessions' threads run meanwhile.
+only the first process after a change compiles (``app.warm_up``); IEEE arithmetic as written
+(no ``fastmath``: no reordering, no fused multiply-adds), so a kernel gives the very numbers
+its Python gives. The GIL is kept: a kernel runs for microseconds, and a thread that lets it go
+may wait a switch interval (5 ms) to have it back while another thread computes.
+numba keys a kernel's cache on its own source file only: after editing this module, delete the
+caches (``find app -name '*.nb[ic]' -delete``) or a kernel keeps the old ``solve_spd``.
 
 ``solve_spd(a, b)``: ``b <- A^-1 b`` for a symmetric positive definite ``A`` (its upper
 triangle read) by LAPACK's ``dposv``, the very routine ``scipy.linalg.lapack.dposv`` calls
@@ -19,7 +22,7 @@ from numba.extending import get_cython_function_address
 
 __all__ = ["jit", "solve_spd"]
 
-jit = njit(cache=True, nogil=True)
+jit = njit(cache=True)
 
 llvm.add_symbol(
     "shared_control_dposv", get_cython_function_address("scipy.linalg.cython_lapack", "dposv")
