@@ -102,7 +102,7 @@ class IKStep:
             kin.lower,
             kin.upper,
             self._params,
-            self.max_speed if max_speed is None else max_speed,
+            float(self.max_speed if max_speed is None else max_speed),
         )
 
     def _reference(
