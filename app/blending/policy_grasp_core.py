@@ -135,7 +135,6 @@ def _overlap(
 @jit
 def _swept(
     spans: np.ndarray,
-    share: bool,
     j: int,
     i: int,
     px: float,
@@ -145,9 +144,8 @@ def _swept(
     f: np.ndarray,
     rho: float,
 ) -> tuple[bool, float, float]:
-    """``_overlap``, kept in ``spans[j, i]`` for the sweep when ``share``."""
-    if not share:
-        return _overlap(px, py, mx, my, f, rho)
+    """``_overlap``, kept in ``spans[j, i]`` for the sweep (the same ``a``, the same
+    horizontal motion)."""
     c = spans[j, i]
     if c[0] == _UNKNOWN:
         hit, s0, s1 = _overlap(px, py, mx, my, f, rho)
@@ -168,9 +166,10 @@ def _freedom(
     skip: int,
     m: float,
     spans: np.ndarray,
-    share: bool,
 ) -> float:
-    """How much of the TCP segment ``a -> b`` the hand may take (``_freedom``)."""
+    """How much of the TCP segment ``a -> b`` the hand may take (``_freedom``); ``skip``: an
+    object's index, or the number of objects for none. ``spans`` kept for the sweep (cleared,
+    it stands for the reference's unshared test: one test works out each span once)."""
     low = az if az < bz else bz
     rising = bz >= az
     mx, my = bx - ax, by - ay
@@ -185,9 +184,7 @@ def _freedom(
             need = top - bottom
             if low >= need:
                 continue
-            hit, s0, s1 = _swept(
-                spans, share, j, i, cx - ax - ox, cy - ay - oy, mx, my, f, radius + grow
-            )
+            hit, s0, s1 = _swept(spans, j, i, cx - ax - ox, cy - ay - oy, mx, my, f, radius + grow)
             if not hit:
                 continue
             if az + s0 * (bz - az) >= need and az + s1 * (bz - az) >= need:
@@ -223,7 +220,7 @@ def _pass_height(
     spans: np.ndarray,
 ) -> float:
     """The lowest TCP height at which the hand passes from above ``a`` to above ``b``
-    (``_pass_height``; ``spans`` shared)."""
+    (``_pass_height``; ``skip`` and ``spans`` as in ``_freedom``)."""
     mx, my = bx - ax, by - ay
     height = -math.inf
     for j in range(objects.shape[0]):
@@ -236,7 +233,7 @@ def _pass_height(
             if need <= height:
                 continue
             hit, _, _ = _swept(
-                spans, True, j, i, cx - ax - f[1], cy - ay - f[2], mx, my, f, radius + f[3]
+                spans, j, i, cx - ax - f[1], cy - ay - f[2], mx, my, f, radius + f[3]
             )
             if hit:
                 height = need
@@ -293,12 +290,12 @@ def _carrot(
             have_frames = True
             if abs(ey) + abs(ex) * rot_err <= tol and abs(ex) <= slot_reach:
                 # toward down's xy: the three tests share their spans
-                f = _freedom(xs[0], xs[1], xs[2], d0, d1, d2, frames, objects, k, m, spans, True)
+                f = _freedom(xs[0], xs[1], xs[2], d0, d1, d2, frames, objects, k, m, spans)
                 if f >= 1.0:
                     return d0, d1, d2, False
                 floor = _pass_height(xs[0], xs[1], d0, d1, frames, objects, k, spans)
                 s2 = floor if floor > d2 else d2
-                f = _freedom(xs[0], xs[1], xs[2], d0, d1, s2, frames, objects, k, m, spans, True)
+                f = _freedom(xs[0], xs[1], xs[2], d0, d1, s2, frames, objects, k, m, spans)
                 if f > 0.0:
                     c0, c1, c2 = _toward(xs, d0, d1, s2, f)
                     return c0, c1, c2, False
@@ -307,7 +304,8 @@ def _carrot(
                 and ex * ex + ey * ey <= near * near
             ):
                 l0, l1, l2 = g0 - above * a0, g1 - above * a1, g2 - above * a2
-                f = _freedom(xs[0], xs[1], xs[2], l0, l1, l2, frames, objects, k, m, spans, False)
+                spans[:, :, 0] = _UNKNOWN  # a test of its own
+                f = _freedom(xs[0], xs[1], xs[2], l0, l1, l2, frames, objects, k, m, spans)
                 if f > 0.0:
                     c0, c1, c2 = _toward(xs, l0, l1, l2, f)
                     return c0, c1, c2, False
@@ -315,16 +313,17 @@ def _carrot(
         frames = _frames(q, rot, layers, params)
     p0, p1, p2 = goal[3], goal[4], goal[5]
     spans[:, :, 0] = _UNKNOWN  # toward p's xy: a new sweep
-    f = _freedom(xs[0], xs[1], xs[2], p0, p1, p2, frames, objects, -1, m, spans, True)
+    none = objects.shape[0]  # skip no object
+    f = _freedom(xs[0], xs[1], xs[2], p0, p1, p2, frames, objects, none, m, spans)
     if f > 0.0:
         c0, c1, c2 = _toward(xs, p0, p1, p2, f)
         return c0, c1, c2, True
-    ph = _pass_height(xs[0], xs[1], p0, p1, frames, objects, -1, spans)
+    ph = _pass_height(xs[0], xs[1], p0, p1, frames, objects, none, spans)
     zt = ph if ph > p2 else p2
     f = (
         1.0
         if xs[2] >= zt
-        else _freedom(xs[0], xs[1], xs[2], p0, p1, zt, frames, objects, -1, m, spans, True)
+        else _freedom(xs[0], xs[1], xs[2], p0, p1, zt, frames, objects, none, m, spans)
     )
     c0, c1, c2 = _toward(xs, p0, p1, zt, f)
     return c0, c1, c2, True
