@@ -261,3 +261,13 @@ def test_compiled_rotation_log_equals_the_reference() -> None:
         assert policy_grasp_core.rotation_log(m) == rotation_log(m.tolist())
     for m in (np.eye(3), np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, -1.0, 1.0])):
         assert policy_grasp_core.rotation_log(m) == rotation_log(m.tolist())
+
+
+def test_the_compiled_policy_uses_the_reference_constants() -> None:
+    """numba freezes module constants into the machine code: the kernel's copies of the
+    policy's thresholds are the policy's."""
+    from app.blending import policy_grasp
+
+    assert policy_grasp_core._ROTATION_TOL == policy_grasp.ROTATION_TOL
+    assert policy_grasp_core._ALIGN_MARGIN == policy_grasp.ALIGN_MARGIN
+    assert policy_grasp_core._HOLD_WIDEN == policy_grasp.HOLD_WIDEN

@@ -32,7 +32,7 @@ from app.compiled import jit, solve_spd
 __all__ = ["grasp_step", "rotation_log", "warm_up"]
 
 _SQRT_HALF = math.sqrt(0.5)
-# from policy_grasp (kept equal by tests/test_tick_fast_path.py)
+# policy_grasp's thresholds (this module cannot import it; tests/test_tick_fast_path.py checks them)
 _ROTATION_TOL = 0.1
 _ALIGN_MARGIN = 0.002
 _HOLD_WIDEN = 0.003
