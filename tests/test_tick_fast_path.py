@@ -1,13 +1,15 @@
 """The control tick's fast paths give what the reference computations give, tick by tick.
 
 Fast paths (issue 24): the IK step (``U``) and the grasp policy (``P``) share one kinematics
-pass at ``Q`` (``Kinematics.pose_and_jacobian`` keeps its last pass); the policy's clearance
-tests toward the same xy share their overlap spans; the blender works out the agreement of
-``P - Q`` and ``U - Q`` only when it is read. References: each step on its own kinematics (no
-shared pass), a policy whose every test works out its own spans, the IK step's formula written
-out with ``numpy.linalg``, the agreement's cosine with numpy. Amnesic prediction from 3-D
-points in scalars equals the metric and softmax it stands for. Compared on every tick of headless trials (recorded ticks) and on
-random configurations.
+pass at ``Q`` (``Kinematics.pose_and_jacobian`` keeps its last pass); both run their numbers
+compiled (numba: ``app.teleop.ik_step_core``, ``app.blending.policy_grasp_core``), bit for bit
+their Python references (``compiled=False``); the policy's clearance tests toward the same xy
+share their overlap spans; the blender works out the agreement of ``P - Q`` and ``U - Q`` only
+when it is read. References: each step in Python on its own kinematics (no shared pass), a
+policy whose every test works out its own spans, the IK step's formula written out with
+``numpy.linalg``, the agreement's cosine with numpy. Amnesic prediction from 3-D points in
+scalars equals the metric and softmax it stands for. Compared on every tick of headless trials
+(recorded ticks) and on random configurations, goals and rotations.
 """
 
 from __future__ import annotations
@@ -19,7 +21,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from app.blending import GraspApproachPolicy, policy_from_config
+from app.blending import GraspApproachPolicy, policy_from_config, policy_grasp_core
+from app.blending.policy_grasp import rotation_log
 from app.blending.prediction.amnesic import AmnesicPredictor, euclidean
 from app.blending.prediction.base import softmax
 from app.robot.kinematics import Kinematics
@@ -100,7 +103,12 @@ def test_every_tick_u_p_and_agreement_equal_the_reference(
         trial_config_from_protocol(protocol_path, task, mode), time_limit_s=12.0
     )
     trial = Trial(config, ScriptedInput(seed=seed), seed=seed)
-    own_ik = IKStep(trial.kinematics.copy(), rate_hz=config.rate_hz, posture=trial.scene.start_q)
+    own_ik = IKStep(
+        trial.kinematics.copy(),
+        rate_hz=config.rate_hz,
+        posture=trial.scene.start_q,
+        compiled=False,
+    )
     policy = trial.blender.policy
     own_policy = policy_from_config(
         dict(config.policy),
@@ -109,7 +117,9 @@ def test_every_tick_u_p_and_agreement_equal_the_reference(
         arm=trial.scene.arm_model(trial.kinematics.copy()),
     )
     assert type(own_policy) is GraspApproachPolicy
+    assert trial.ik.compiled and policy.compiled
     own_policy.__class__ = _UnsharedSpans
+    own_policy.compiled = False
     own_policy.set_goals(trial.blender.goals)
     checked = {"u": 0, "p": 0, "agreement": 0}
 
@@ -118,7 +128,7 @@ def test_every_tick_u_p_and_agreement_equal_the_reference(
 
     def ik(q: np.ndarray, target: np.ndarray) -> np.ndarray:
         u = tick_ik(q, target)
-        assert np.array_equal(u, own_ik(q, target))  # the same step on its own pass
+        assert np.array_equal(u, own_ik(q, target))  # the same step in Python, on its own pass
         np.testing.assert_allclose(u, _reference_u(own_ik, q, target), rtol=0, atol=1e-12)
         checked["u"] += 1
         return u
@@ -126,6 +136,7 @@ def test_every_tick_u_p_and_agreement_equal_the_reference(
     def policy_step(q: np.ndarray, target: Any) -> np.ndarray:
         p = tick_policy(q, target)
         assert np.array_equal(p, own_policy.step(q, target))
+        assert policy._approaching == own_policy._approaching  # the same hysteresis
         checked["p"] += 1
         return p
 
@@ -166,3 +177,97 @@ def test_amnesic_prediction_in_scalars_equals_the_metrics_softmin() -> None:
     logits = euclidean(x, predictor.points)
     logits *= -1.0 / predictor.temperature
     assert predictor.update(x).probabilities.tolist() == softmax(logits).probabilities.tolist()
+
+
+def _policies(protocol_path: Any, task: str) -> tuple[Trial, GraspApproachPolicy, Any]:
+    """A trial's compiled grasp policy and a reference one (Python, spans unshared)."""
+    config = trial_config_from_protocol(protocol_path, task, "aggressive")
+    trial = Trial(config, ScriptedInput(seed=0), seed=0)
+    ref = policy_from_config(
+        dict(config.policy),
+        rate_hz=config.rate_hz,
+        where="policy",
+        arm=trial.scene.arm_model(trial.kinematics.copy()),
+    )
+    ref.__class__ = _UnsharedSpans
+    ref.compiled = False
+    ref.set_goals(trial.blender.goals)
+    return trial, trial.blender.policy, ref
+
+
+@pytest.mark.parametrize("task", ["easy-wrong", "hard-right"])
+def test_compiled_grasp_policy_equals_the_reference_on_random_configurations(
+    protocol_path: Any, task: str
+) -> None:
+    """Configurations near each grasp (every branch of the carrot: corridor, slot plane,
+    aligning, pre-grasp, over the top, straight up) and anywhere within the limits, with the
+    hysteresis on or off, and goals moved about: the same ``P`` and the same hysteresis."""
+    trial, fast, ref = _policies(protocol_path, task)
+    kin = trial.kinematics
+    rng = np.random.default_rng(11)
+    base = trial.blender.goals
+    seen_transit = seen_approach = 0
+    for n in range(1500):
+        if n % 300 == 299:  # goals moved (and objects with them)
+            goals = dataclasses.replace(
+                base, positions=base.positions + rng.normal(0.0, 0.03, base.positions.shape)
+            )
+            fast.set_goals(goals)
+            ref.set_goals(goals)
+        k = int(rng.integers(len(base)))
+        scale = (0.002, 0.02, 0.1, 0.4)[n % 4]
+        q = np.clip(base.configurations[k] + rng.normal(0.0, scale, 7), kin.lower, kin.upper)
+        if n % 7 == 0:
+            q = rng.uniform(kin.lower, kin.upper)
+        held = {k} if rng.random() < 0.5 else set()
+        fast._approaching, ref._approaching = set(held), set(held)
+        p = fast.step(q, k)
+        assert np.array_equal(p, ref.step(q, k))
+        assert fast._approaching == ref._approaching
+        seen_approach += k in fast._approaching
+        seen_transit += k not in fast._approaching
+    assert seen_approach > 100 and seen_transit > 100
+
+
+def test_compiled_ik_step_equals_the_reference_on_random_inputs(protocol_path: Any) -> None:
+    config = trial_config_from_protocol(protocol_path, "easy-right", "timid")
+    kin = Trial(config, ScriptedInput(seed=0)).kinematics
+    rng = np.random.default_rng(5)
+    for posture in (None, rng.uniform(kin.lower, kin.upper)):
+        fast = IKStep(kin, rate_hz=100.0, posture=posture)
+        ref = IKStep(kin.copy(), rate_hz=100.0, posture=posture, compiled=False)
+        for n in range(800):
+            q = rng.uniform(kin.lower, kin.upper)
+            target = rng.uniform(-0.8, 0.8, 3) * (0.01 if n % 3 == 0 else 1.0)
+            target = target + (kin.pose_and_jacobian(q)[0] if n % 3 == 0 else 0.0)
+            kw: dict[str, Any] = {}
+            if n % 5 == 0:
+                kw["max_speed"] = 0.1
+            if n % 4 == 0:
+                kw["rotation"] = pin.exp3(rng.normal(0.0, 0.5, 3))
+            assert np.array_equal(fast(q, target, **kw), ref(q, target, **kw))
+
+
+def test_compiled_rotation_log_equals_the_reference() -> None:
+    """Random rotations, and ones near 0 and near pi (the branches of the log)."""
+    rng = np.random.default_rng(2)
+    for n in range(3000):
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        angle = (rng.uniform(0.0, np.pi), rng.uniform(0.0, 1e-6), np.pi - rng.uniform(0, 1e-6))[
+            n % 3
+        ]
+        m = pin.exp3(angle * axis)
+        assert policy_grasp_core.rotation_log(m) == rotation_log(m.tolist())
+    for m in (np.eye(3), np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, -1.0, 1.0])):
+        assert policy_grasp_core.rotation_log(m) == rotation_log(m.tolist())
+
+
+def test_the_compiled_policy_uses_the_reference_constants() -> None:
+    """numba freezes module constants into the machine code: the kernel's copies of the
+    policy's thresholds are the policy's."""
+    from app.blending import policy_grasp
+
+    assert policy_grasp_core._ROTATION_TOL == policy_grasp.ROTATION_TOL
+    assert policy_grasp_core._ALIGN_MARGIN == policy_grasp.ALIGN_MARGIN
+    assert policy_grasp_core._HOLD_WIDEN == policy_grasp.HOLD_WIDEN

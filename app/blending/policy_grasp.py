@@ -41,7 +41,9 @@ object's top. The model assumes an approach axis near vertical (top-down grasps)
 hand inflates every layer by its tilt.
 
 Pure numpy: the arm comes in as an :class:`ArmModel` (a ``pose_jacobian`` callable and plain
-numbers), so this module imports no kinematics library.
+numbers), so this module imports no kinematics library. The tick runs compiled
+(:mod:`app.blending.policy_grasp_core`, the same operations in the same order: the same ``P``
+bit for bit); ``compiled=False`` runs the reference methods below, in Python.
 """
 
 from __future__ import annotations
@@ -57,6 +59,7 @@ from scipy.linalg.lapack import dposv
 from ._checks import positive
 from .errors import InvalidInputError
 from .goals import GoalSet
+from .policy_grasp_core import grasp_step
 
 __all__ = ["ArmModel", "GraspApproachPolicy", "HandLayer", "reach_below", "rotation_log"]
 
@@ -172,6 +175,8 @@ class GraspApproachPolicy:
         rotation_step: gripper rotation per tick (rad).
         damping: ``lambda`` of the damped least squares.
         posture_step: null-space gain per tick toward the grasp configuration.
+        compiled: run the tick compiled (the same numbers; ``False``: the reference methods,
+            in Python).
     """
 
     target_space = "goal"
@@ -187,6 +192,7 @@ class GraspApproachPolicy:
         rotation_step: float = 0.01,
         damping: float = 1e-3,
         posture_step: float = 0.01,
+        compiled: bool = True,
     ) -> None:
         if not isinstance(arm, ArmModel):
             raise InvalidInputError(f"arm: expected an ArmModel, got {type(arm).__name__}")
@@ -228,6 +234,17 @@ class GraspApproachPolicy:
         self._goals: tuple[_Goal, ...] = ()
         self._approaching: set[int] = set()  # goals it is approaching (hysteresis)
         self._objects: tuple[tuple[float, float, float, float], ...] = ()
+        self.compiled = bool(compiled)
+        self._layer_rows = np.array([(*row[:8], float(row[8])) for row in self._layers])
+        limits = self._lower is not None and self._upper is not None
+        self._limits = (
+            (np.asarray(self._lower, dtype=np.float64), np.asarray(self._upper, dtype=np.float64))
+            if limits
+            else (np.empty(0), np.empty(0))
+        )
+        self._packed: tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...] = ()
+        self._object_rows = np.empty((0, 4))
+        self._numbers = self._params()
 
     # ---- goals -------------------------------------------------------------------------
     def set_goals(self, goals: GoalSet) -> None:
@@ -270,12 +287,63 @@ class GraspApproachPolicy:
             (float(pos[0]), float(pos[1]), float(env[0]), float(pos[2] + env[1]))
             for pos, env in zip(goals.positions, goals.envelopes, strict=True)
         )
+        self._object_rows = np.array(self._objects, dtype=np.float64).reshape(-1, 4)
+        self._packed = tuple(_packed(goal) for goal in self._goals)
+
+    def _params(self) -> np.ndarray:
+        """The compiled tick's numbers (``policy_grasp_core``'s ``params``), fixed when built."""
+        return np.array(
+            (
+                self._drop,
+                self.clearance,
+                self.tcp_step,
+                self.approach_step,
+                self.rotation_step,
+                self.posture_step,
+                self.max_step,
+                float(self._turns),
+                float(self._lower is not None and self._upper is not None),
+            )
+        )
 
     # ---- the step ------------------------------------------------------------------------
     def step(self, q: np.ndarray, target: Any) -> np.ndarray:
         """``P``, the next configuration from ``Q`` toward goal ``target`` (an index)."""
         if not self._goals:
             raise InvalidInputError("set_goals(goals) must be called before step(Q, goal)")
+        if not self.compiled:
+            return self._reference_step(q, target)
+        k = int(target)
+        row, goal_rot, posture = self._packed[k]
+        if type(q) is not np.ndarray or q.dtype != _F64:
+            q = np.asarray(q, dtype=np.float64)
+        x, rot, jac = self._pose_jacobian(q)
+        p, transit, info = grasp_step(
+            q,
+            _contiguous(x),
+            _contiguous(rot),
+            _contiguous(jac),
+            row,
+            goal_rot,
+            posture,
+            k,
+            k in self._approaching,
+            self._object_rows,
+            self._layer_rows,
+            self._numbers,
+            self._lam2,
+            *self._limits,
+        )
+        if info != 0:  # pragma: no cover - J J^T + lambda^2 I is positive definite
+            raise InvalidInputError("arm.pose_jacobian: returned a Jacobian that is not finite")
+        if transit:
+            self._approaching.discard(k)
+        else:
+            self._approaching.add(k)
+        return p
+
+    def _reference_step(self, q: np.ndarray, target: Any) -> np.ndarray:
+        """``step`` in Python: the reference the compiled tick is tested equal to."""
         goal = self._goals[int(target)]
         x, rot, jac = self._pose_jacobian(q)
         xs = x.tolist()
@@ -499,6 +567,39 @@ class GraspApproachPolicy:
             f"GraspApproachPolicy(max_step={self.max_step}, tcp_step={self.tcp_step},"
             f" approach_step={self.approach_step}, clearance={self.clearance})"
         )
+
+
+_F64 = np.dtype(np.float64)
+
+
+def _contiguous(a: Any) -> np.ndarray:
+    """``a`` as a C-contiguous float array (itself when it is one)."""
+    if type(a) is np.ndarray and a.dtype == _F64 and a.flags.c_contiguous:
+        return a
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def _packed(goal: _Goal) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A goal as the compiled tick takes it: its row (``policy_grasp_core``'s ``goal``), its
+    grasp rotation and its posture (empty when it has none)."""
+    row = np.array(
+        (
+            *goal.g,
+            *goal.p,
+            *goal.a,
+            *goal.x,
+            *goal.y,
+            goal.standoff,
+            goal.top,
+            goal.tol_entry,
+            goal.tol_deep,
+            goal.slot_reach,
+            goal.near,
+        ),
+        dtype=np.float64,
+    )
+    posture = np.empty(0) if goal.posture is None else np.ascontiguousarray(goal.posture, float)
+    return row, np.ascontiguousarray(goal.rotation, dtype=np.float64), posture
 
 
 def _toward(x: Sequence[float], c: Sequence[float], f: float) -> tuple[float, float, float]:

@@ -4,6 +4,10 @@
 ``J^+ = J^T (J J^T + l^2 I)^-1``, ``v = k (x* - phi(Q))`` capped at ``max_speed`` (m/s) and
 ``w = k_r log(R* R^T)`` keeps the gripper pointing down, fingers closing along world y (the
 orientation of the start and of every grasp pose). Each joint moves at most ``max_joint_speed / rate_hz`` per tick.
+
+The numbers after the kinematics pass and ``log3`` run compiled (:mod:`app.teleop.ik_step_core`,
+the same operations in the same order: the same ``U`` bit for bit); ``compiled=False`` runs the
+reference below, in Python.
 """
 
 from __future__ import annotations
@@ -15,6 +19,9 @@ import pinocchio as pin
 from scipy.linalg.lapack import dposv
 
 from app.robot.kinematics import Kinematics, downward_rotation
+from app.teleop.ik_step_core import ik_step
+
+_F64 = np.dtype(np.float64)
 
 GAIN_PER_S = 5.0
 """``k``: the TCP's speed toward its target is ``k`` times the distance (below ``max_speed``)."""
@@ -37,6 +44,7 @@ class IKStep:
         posture: np.ndarray | None = None,
         posture_gain: float = 0.5,
         rotation: np.ndarray | None = None,
+        compiled: bool = True,
     ) -> None:
         self.kin = kinematics
         self.dt = 1.0 / rate_hz
@@ -50,6 +58,20 @@ class IKStep:
         self.posture_gain = posture_gain
         self.rotation = downward_rotation(0.0) if rotation is None else np.asarray(rotation)
         self._z = np.zeros(kinematics.nq)  # scratch: posture velocity times dt
+        self.compiled = compiled
+        # the compiled step's numbers (ik_step_core's params), fixed when built
+        self._params = np.array(
+            (
+                self.dt,
+                gain,
+                rotation_gain,
+                max_angular_speed,
+                posture_gain,
+                self.max_joint_step,
+                float(self.posture is not None),
+            )
+        )
+        self._posture = np.empty(0) if self.posture is None else self.posture
 
     def __call__(
         self,
@@ -60,6 +82,38 @@ class IKStep:
         max_speed: float | None = None,
     ) -> np.ndarray:
         """Next configuration ``U`` (7,) moving the TCP from ``phi(q)`` toward ``target`` (3,)."""
+        if not self.compiled:
+            return self._reference(q, target, rotation=rotation, max_speed=max_speed)
+        kin = self.kin
+        if type(q) is not np.ndarray or q.dtype != _F64:
+            q = np.asarray(q, dtype=np.float64)
+        if type(target) is not np.ndarray or target.dtype != _F64:
+            target = np.asarray(target, dtype=np.float64)
+        x, rotation_now, jac = kin.pose_and_jacobian(q)
+        rot = self.rotation if rotation is None else rotation
+        return ik_step(
+            q,
+            target,
+            x,
+            pin.log3(rot.dot(rotation_now.T)),
+            jac,
+            self._posture,
+            self._damp,
+            kin.lower,
+            kin.upper,
+            self._params,
+            float(self.max_speed if max_speed is None else max_speed),
+        )
+
+    def _reference(
+        self,
+        q: np.ndarray,
+        target: np.ndarray,
+        *,
+        rotation: np.ndarray | None = None,
+        max_speed: float | None = None,
+    ) -> np.ndarray:
+        """``__call__`` in Python: the reference the compiled step is tested equal to."""
         kin = self.kin
         dt = self.dt
         # one kinematics pass, shared with whatever asks at the same Q next (the tick's policy)

@@ -40,6 +40,7 @@ from collections import deque
 from collections.abc import Iterable
 from pathlib import Path
 
+from app.warm_up import warm_up
 from study.errors import StudyError
 from study.protocol.blinding import find_words
 from study.server import blinding_guard, firewall, logs, realtime
@@ -122,6 +123,8 @@ class StudyServer:
         ``finished_grace_s``: how long a finished session stays once no tab shows it
         (``study.server.finished_sessions``)."""
         self.log_path = log_path
+        # the control tick's compiled kernels now, not at a participant's first tick
+        LOGGER.info("the control tick's kernels ready in %.2f s", warm_up())
         self.factory = factory
         self.render_hz = render_hz
         self.kiosk = kiosk
