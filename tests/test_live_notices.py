@@ -49,6 +49,14 @@ def test_a_missed_grasp_notice_stays_until_its_time_or_the_next_grasp() -> None:
     assert n.text(103.5, live=True) is None
 
 
+def test_a_slipped_object_is_said_until_the_next_grasp() -> None:
+    n = HeldNotices(slipped=20.0, missed=19.0)
+    assert n.text(20.1, live=True) == texts.SLIPPED_OUT
+    assert n.text(20.0 + MISSED_NOTICE_S + 0.1, live=True) is None
+    n.asked = 21.0
+    assert n.text(21.1, live=True) is None
+
+
 def test_what_the_input_does_now_comes_first() -> None:
     n = HeldNotices(missed=10.0, resting=10.0, at_limit=10.0, fallen=10.0)
     assert n.text(10.1, live=True) == texts.FELL_OVER  # nothing else, until it stands again
@@ -72,6 +80,7 @@ def test_the_notices_name_no_condition(path) -> None:
         texts.HELD_ABOVE,
         texts.AS_LOW_AS_IT_GOES,
         texts.FELL_OVER,
+        texts.SLIPPED_OUT,
         texts.AT_REACH_LIMIT,
         GRASP_LABEL,
         GRIPPER_CLOSED_LABEL,

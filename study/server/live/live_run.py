@@ -171,6 +171,8 @@ class LiveRun:
             notices.missed = now
         if TrialEvent(EventKind.GRASP_REQUESTED) in record.events:
             notices.asked = now
+        if any(e.kind in _SLIPPED for e in record.events):
+            notices.slipped = now
         if _held_past_reach(trial, self.input.source, record.events):
             notices.at_limit = now
         if trial.held_above is not None:
@@ -204,6 +206,10 @@ class LiveRun:
 
 
 _PAST_REACH = (TrialEvent(EventKind.TARGET_CLAMPED), TrialEvent(EventKind.TARGET_FAR_OUTSIDE))
+
+
+_SLIPPED = (EventKind.DROPPED, EventKind.LIFT_FAILED)
+"""A grasped object out of the gripper again (``app.trial.tasks.lift``)."""
 
 
 def _held_past_reach(

@@ -6,7 +6,8 @@ down), the gripper held up by an object it rests on (``resting``, from :class:`R
 the open gripper kept above an object it would come down on (``above``, the trial's
 ``held_above`` while the input asks it lower), the open gripper as low as it goes around an
 object (``lowest``, the trial's ``resting_on``), an object down and waiting to be put back
-(``fallen``).
+(``fallen``), a grasped object that slipped out (``slipped``; like a miss, until the next
+grasp request).
 The render loop asks :meth:`HeldNotices.text` each period and shows the answer with
 ``ParticipantPage.hold_notice`` (one notice at a time; ``None`` takes it down). What the
 participant's input does this moment comes first, after a fallen object (nothing else matters
@@ -32,6 +33,7 @@ from study.server.live.texts import (
     HELD_ABOVE,
     MISSED_GRASP,
     RESTING_ON_OBJECT,
+    SLIPPED_OUT,
 )
 
 LIMIT_HOLD_S = 0.4
@@ -56,6 +58,7 @@ class HeldNotices:
     above: float = NEVER
     lowest: float = NEVER
     fallen: float = NEVER
+    slipped: float = NEVER
 
     def text(self, now: float, *, live: bool) -> str | None:
         """The notice to hold at ``now`` (``None``: none), only while the run is ``live``."""
@@ -71,6 +74,8 @@ class HeldNotices:
             return AS_LOW_AS_IT_GOES
         if now - self.at_limit < LIMIT_HOLD_S:
             return AT_REACH_LIMIT
+        if now - self.slipped < MISSED_NOTICE_S and self.asked <= self.slipped:
+            return SLIPPED_OUT
         if now - self.missed < MISSED_NOTICE_S and self.asked <= self.missed:
             return MISSED_GRASP
         return None
@@ -78,7 +83,7 @@ class HeldNotices:
     def forget(self) -> None:
         """A new run: nothing seen yet."""
         self.at_limit = self.missed = self.asked = self.resting = self.above = self.lowest = NEVER
-        self.fallen = NEVER
+        self.fallen = self.slipped = NEVER
 
 
 RESISTED_GAP_M = 0.03

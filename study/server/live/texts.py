@@ -34,6 +34,13 @@ HELD_ABOVE = (
 """Held while the open gripper is kept above an object it would come down on rather than
 around (``app.teleop.guarded_descent``) and the participant's input asks it lower."""
 
+SLIPPED_OUT = (
+    "The object slipped out of the gripper. Lower the open gripper around the middle of the"
+    " object and close it again."
+)
+"""Held over the scene for a few seconds after a grasped object slipped out of the gripper
+(a tester saw the mug caught and dropped within 0.16 s, and no word about it)."""
+
 FELL_OVER = (
     "An object fell over. It is put back where it stood as soon as the gripper is out of the"
     " way there."
@@ -136,6 +143,7 @@ __all__ = [
     "MISSED_GRASP",
     "OUTCOME_SENTENCES",
     "RESTING_ON_OBJECT",
+    "SLIPPED_OUT",
     "TAB_LOST_TEXT",
     "TIME_WARNING",
     "TIME_WARNING_S",
