@@ -66,6 +66,10 @@ def test_what_the_input_does_now_comes_first() -> None:
     assert n.text(10.1, live=True) == texts.HELD_ABOVE  # F held over an object's rim
     n = HeldNotices(missed=10.0, at_limit=10.0, lowest=10.0)
     assert n.text(10.1, live=True) == texts.AS_LOW_AS_IT_GOES  # F held down around an object
+    n.off_centre = n.lowest = 10.2  # ... off its middle along the fingers
+    assert n.text(10.3, live=True) == texts.NOT_CENTRED
+    n.lowest = 10.4  # centred again
+    assert n.text(10.5, live=True) == texts.AS_LOW_AS_IT_GOES
     n = HeldNotices(missed=10.0, at_limit=10.0)
     assert n.text(10.1, live=True) == texts.AT_REACH_LIMIT
     assert n.text(10.0 + LIMIT_HOLD_S + 0.1, live=True) == texts.MISSED_GRASP
@@ -81,6 +85,7 @@ def test_the_notices_name_no_condition(path) -> None:
         texts.AS_LOW_AS_IT_GOES,
         texts.FELL_OVER,
         texts.SLIPPED_OUT,
+        texts.NOT_CENTRED,
         texts.AT_REACH_LIMIT,
         GRASP_LABEL,
         GRIPPER_CLOSED_LABEL,
@@ -192,3 +197,35 @@ def test_f_held_to_the_table_around_the_mug_stops_the_palm_above_it_and_says_pre
     while not trial.done and trial.t < 10.0:
         trial.tick()
     assert trial.outcome == "success" and trial.accidents.count == 0
+
+
+@pytest.mark.parametrize(("dx", "centred"), [(0.003, True), (0.015, False)])
+def test_as_low_as_it_goes_says_whether_the_object_is_in_the_middle_of_the_fingers(
+    dx: float, centred: bool
+) -> None:
+    """Off the mug's axis along the fingers by 1.5 cm, closing squeezes the mug away
+    (``benchmarks/grasp_offsets.py``): the trial says the hand is not centred there (the page's
+    ``NOT_CENTRED`` notice) rather than inviting G."""
+    trial = _practice(_Keys((dx, 0.0), floor=0.02))
+    while trial.t < 5.0:
+        trial.tick()
+    assert trial.resting_on == 0 and trial.resting_centred is centred
+
+
+def test_f_held_to_the_floor_around_the_robots_object_is_as_low_as_it_goes() -> None:
+    """Over the box with the robot taking the hand there (its policy sets the height, not the
+    palm's stop), F held to the reach's floor: the hand is as low as it goes all the same (the
+    page said "only inside the frame", which a tester read as the outline they were inside)."""
+    config = load_protocol(PAPER_PROTOCOL).config_for("easy-right", "aggressive")
+    probe = Trial(config, _Keys((0.0, 0.0), floor=1.0), keep_records=False)
+    k = probe.scene.object_names.index("box")
+    box = probe._grasp_points[k]
+    keys = _Keys((float(box[0] - MUG[0]), float(box[1] - MUG[1])), floor=0.0)
+    trial = Trial(config, keys, keep_records=False)
+    resting = []
+    while trial.t < 6.0 and not trial.done:
+        trial.tick()
+        if trial.resting_on is not None:
+            resting.append((trial.resting_on, round(trial.t, 2)))
+    assert resting and resting[-1][0] == k, resting[-3:]
+    assert not any(obj == k for _, obj in trial.contacts.touching)

@@ -67,6 +67,10 @@ to take the hand again over an object it let go of (the simulated hand's noise i
 
 PALM_CLEAR_M = 0.005
 """How far above the object's top the palm stays when the open hand is lowered around it."""
+CENTRED_M = 0.008
+"""The hand this near the object's axis along the slot (world x) is centred for a grasp: the
+17.6-mm finger pads cover the axis, and the simulated fingers hold a cylinder up to about 0.8 cm
+off it (``benchmarks/grasp_offsets.py``; farther off they squeeze it away)."""
 
 Footprint = tuple[float, float, float, float, float]
 """An object as ``(x, y, footprint radius, top height, half-width across the slot)`` (m)."""
@@ -167,6 +171,20 @@ class DescentGuard:
         self.held = self._clear_since = None
         return None
 
+    def around(
+        self, x: Sequence[float], objects: Sequence[Footprint], *, skip: Container[int] = ()
+    ) -> int | None:
+        """The object the open hand at ``x`` is over with the object between its fingers (not
+        on its rim, not beside it), or ``None``."""
+        xx, xy, _ = x
+        slot, clearance = self.slot, self.clearance
+        for k, (ox, oy, radius, _, half_width) in enumerate(objects):
+            if k in skip or math.hypot(xx - ox, xy - oy) >= radius + slot + clearance:
+                continue
+            if abs(xy - oy) <= slot - half_width and abs(xx - ox) < radius + PAD_M:
+                return k
+        return None
+
     def rest(
         self,
         x: Sequence[float],
@@ -177,20 +195,13 @@ class DescentGuard:
     ) -> tuple[tuple[float, float, float], int] | None:
         """``U``'s target no lower than where the palm clears the top of the object the open
         hand is lowered around (module docstring), and that object's index; ``None`` when the
-        target is not below any such height."""
-        xx, xy, _ = x
+        target is not below that height (or the hand is around no object)."""
+        k = self.around(x, objects, skip=skip)
+        if k is None:
+            return None
         tx, ty, tz = target
-        slot, clearance = self.slot, self.clearance
-        for k, obj in enumerate(objects):
-            ox, oy, radius, top, half_width = obj
-            rest_z = top - self.palm_above + PALM_CLEAR_M
-            if tz >= rest_z or k in skip:
-                continue
-            if math.hypot(xx - ox, xy - oy) >= radius + slot + clearance:
-                continue
-            if abs(xy - oy) <= slot - half_width and abs(xx - ox) < radius + PAD_M:
-                return (tx, ty, rest_z), k
-        return None
+        rest_z = objects[k][3] - self.palm_above + PALM_CLEAR_M
+        return None if tz >= rest_z else ((tx, ty, rest_z), k)
 
     def release(self) -> None:
         """Hold nothing (the gripper closed)."""
@@ -198,6 +209,7 @@ class DescentGuard:
 
 
 __all__ = [
+    "CENTRED_M",
     "HOVER_M",
     "MARGIN_M",
     "PAD_M",

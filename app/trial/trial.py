@@ -34,7 +34,7 @@ from app.blending import moved_goals, reach_below
 from app.robot.errors import PhysicsError
 from app.robot.scene import Scene, build_scene
 from app.robot.simulation import BodyPoses, Simulation
-from app.teleop.guarded_descent import DescentGuard, Footprint
+from app.teleop.guarded_descent import CENTRED_M, DescentGuard, Footprint
 from app.teleop.ik_step import IKStep
 from app.teleop.lift_out import Cylinder, lift_out
 from app.teleop.types import InputSource, TeleopCommand, TrialObservation
@@ -111,7 +111,10 @@ class Trial:
         )
         self.resting_on: int | None = None
         """The object around which the open hand is as low as it goes this tick, the input asking
-        it lower (the guard's ``rest``), or ``None``."""
+        it lower (the guard's palm stop, or the reach's floor), or ``None``."""
+        self.resting_centred = False
+        """Whether the hand is then centred on that object along the slot (``CENTRED_M``)."""
+        self._last_ee_z = math.inf
         """Holds the open hand above an object it would come down on (``held_above``)."""
         self._cylinders = self._object_cylinders()
         self._footprints = self._object_footprints()
@@ -233,7 +236,7 @@ class Trial:
         tick): its policy keeps the hand clear there, and in a Hard task the user's target,
         held at the reach's edge, always lies off the object the robot is carrying the hand to."""
         guard = self.guard
-        self.resting_on = None
+        self.resting_on, self.resting_centred = None, False
         if self.task.gripper_closed:
             guard.release()
             return self.user_target
@@ -259,11 +262,27 @@ class Trial:
         if hold is not None:
             return np.array(hold)
         rest = guard.rest(ee, target, self._footprints, skip=skip)
-        if rest is None:
-            return self.user_target
-        if ee[2] <= rest[0][2] + 0.005:  # there: as low as it goes
-            self.resting_on = rest[1]
-        return np.array(rest[0])
+        steer = self.user_target if rest is None else np.array(rest[0])
+        self._note_resting(ee, float(steer[2]))
+        return steer
+
+    def _note_resting(self, ee: list[float], z: float) -> None:
+        """``resting_on``: the object the open hand is around once it is as low as it goes --
+        come down to ``z``, the lowest it is let go (the palm's stop), or, with the input pushed
+        to the reach's floor, no longer coming down (the robot may be carrying the hand to that
+        object: its policy sets the height then); ``resting_centred``: centred on it along the
+        slot (``CENTRED_M``)."""
+        target_z = float(self.user_target[2])
+        floor = float(self.scene.reach.lo[2]) + 1e-6
+        last, self._last_ee_z = self._last_ee_z, ee[2]
+        if target_z > max(z, floor):
+            return  # the input does not ask it lower than it is let go
+        if ee[2] > z + 0.005 and not (target_z <= floor and abs(ee[2] - last) < 2e-4):
+            return  # still coming down
+        k = self.guard.around(ee, self._footprints, skip=self.accidents.down)
+        if k is not None:
+            self.resting_on = k
+            self.resting_centred = abs(ee[0] - self._footprints[k][0]) <= CENTRED_M
 
     @property
     def held_above(self) -> int | None:

@@ -179,6 +179,8 @@ class LiveRun:
             notices.above = now
         if trial.resting_on is not None:
             notices.lowest = now
+            if not trial.resting_centred:
+                notices.off_centre = now
         if trial.accidents.down and trial.accidents.reset_objects:
             notices.fallen = now
         if self._resisted.update(

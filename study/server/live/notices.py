@@ -5,7 +5,8 @@ The control thread stamps what it saw, in monotonic seconds: the input held past
 down), the gripper held up by an object it rests on (``resting``, from :class:`ResistedDescent`),
 the open gripper kept above an object it would come down on (``above``, the trial's
 ``held_above`` while the input asks it lower), the open gripper as low as it goes around an
-object (``lowest``, the trial's ``resting_on``), an object down and waiting to be put back
+object (``lowest``, the trial's ``resting_on``; ``off_centre`` when not centred on it along the
+fingers), an object down and waiting to be put back
 (``fallen``), a grasped object that slipped out (``slipped``; like a miss, until the next
 grasp request).
 The render loop asks :meth:`HeldNotices.text` each period and shows the answer with
@@ -32,6 +33,7 @@ from study.server.live.texts import (
     FELL_OVER,
     HELD_ABOVE,
     MISSED_GRASP,
+    NOT_CENTRED,
     RESTING_ON_OBJECT,
     SLIPPED_OUT,
 )
@@ -57,6 +59,7 @@ class HeldNotices:
     resting: float = NEVER
     above: float = NEVER
     lowest: float = NEVER
+    off_centre: float = NEVER
     fallen: float = NEVER
     slipped: float = NEVER
 
@@ -71,7 +74,7 @@ class HeldNotices:
         if now - self.above < LIMIT_HOLD_S:
             return HELD_ABOVE
         if now - self.lowest < LIMIT_HOLD_S:
-            return AS_LOW_AS_IT_GOES
+            return NOT_CENTRED if self.off_centre >= self.lowest else AS_LOW_AS_IT_GOES
         if now - self.at_limit < LIMIT_HOLD_S:
             return AT_REACH_LIMIT
         if now - self.slipped < MISSED_NOTICE_S and self.asked <= self.slipped:
@@ -83,7 +86,7 @@ class HeldNotices:
     def forget(self) -> None:
         """A new run: nothing seen yet."""
         self.at_limit = self.missed = self.asked = self.resting = self.above = self.lowest = NEVER
-        self.fallen = self.slipped = NEVER
+        self.fallen = self.slipped = self.off_centre = NEVER
 
 
 RESISTED_GAP_M = 0.03

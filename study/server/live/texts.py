@@ -55,6 +55,14 @@ AS_LOW_AS_IT_GOES = (
 """Held while the open gripper, lowered around an object, is kept from putting its palm on the
 object's top (``app.teleop.guarded_descent``) and the participant's input asks it lower."""
 
+NOT_CENTRED = (
+    "The gripper is as low as it goes, but the object is not in the middle between the fingers."
+    " Move the gripper away or back (W/S) until it is, then press G."
+)
+"""Held instead of ``AS_LOW_AS_IT_GOES`` while the hand, as low as it goes around an object, is
+off its middle along the fingers: closed there the fingers squeeze the object away (a tester:
+5 of 5 grasps 0.9-3.1 cm off failed after the "press G" notice)."""
+
 RESTING_ON_OBJECT = (
     "A finger is resting on the object, so the gripper cannot go lower here. Move the gripper"
     " sideways until the object is between the two fingers, then lower it."
@@ -141,6 +149,7 @@ __all__ = [
     "LINK_INVALID_TEXT",
     "LINK_IN_USE_TEXT",
     "MISSED_GRASP",
+    "NOT_CENTRED",
     "OUTCOME_SENTENCES",
     "RESTING_ON_OBJECT",
     "SLIPPED_OUT",
