@@ -72,12 +72,13 @@ def test_a_missed_grasp_shows_closed_fingers_and_a_notice_that_stays(
     screenshot(page, screenshots, "16-missed-grasp")  # the fingers closed on nothing
     notice = page.get_by_text(MISSED_GRASP)
     notice.first.wait_for(timeout=10_000)
-    shown = time.monotonic()
+    missed = live.view.notices.missed  # monotonic, when the control thread saw the miss
     assert GRIPPER_CLOSED_LABEL in frames.strings(), "the grasp button said nothing"
     page.get_by_role("button", name=GRASP_LABEL).wait_for(timeout=10_000)  # open again
 
-    # Still up four seconds later; gone by itself a while after its time.
-    page.wait_for_timeout(max(0.0, 4.0 - (time.monotonic() - shown)) * 1000)
+    # Still up four seconds after the miss (counted from the miss itself: a loaded machine's page
+    # may show it a second late); gone by itself a while after its time.
+    page.wait_for_timeout(max(0.0, 4.0 - (time.monotonic() - missed)) * 1000)
     assert notice.first.is_visible(), "the missed-grasp notice went before it could be read"
     assert wait_until(lambda: not notice.first.is_visible(), timeout=MISSED_NOTICE_S + 3)
 
