@@ -109,13 +109,14 @@ class Trial:
             slot=self.scene.spec.gripper_open,
             palm_above=min((layer.lo for layer in self.scene.hand[1:]), default=math.inf),
         )
+        """Holds the open hand above an object it would come down on (``held_above``) and
+        stops it, lowered around one, with its palm just over the top."""
         self.resting_on: int | None = None
         """The object around which the open hand is as low as it goes this tick, the input asking
         it lower (the guard's palm stop, or the reach's floor), or ``None``."""
         self.resting_centred = False
         """Whether the hand is then centred on that object along the slot (``CENTRED_M``)."""
-        self._last_ee_z = math.inf
-        """Holds the open hand above an object it would come down on (``held_above``)."""
+        self._last_ee_z = math.inf  # the TCP's height at the last tick (``_note_resting``)
         self._cylinders = self._object_cylinders()
         self._footprints = self._object_footprints()
         self._blend = BlendTick(0.0, 0.0, np.full(n, 1.0 / n), -1, 0.0, math.nan)
