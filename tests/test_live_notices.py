@@ -229,3 +229,12 @@ def test_f_held_to_the_floor_around_the_robots_object_is_as_low_as_it_goes() -> 
             resting.append((trial.resting_on, round(trial.t, 2)))
     assert resting and resting[-1][0] == k, resting[-3:]
     assert not any(obj == k for _, obj in trial.contacts.touching)
+
+
+def test_a_hand_high_over_an_object_is_not_as_low_as_it_goes() -> None:
+    """Over the mug at 15 cm, the input held there: nothing is said (the hand, 18 cm over the
+    box at the reach's edge, once showed "as low as it goes" over the reach notice)."""
+    trial = _practice(_Keys((0.0, 0.0), floor=0.15))
+    while trial.t < 3.0:
+        trial.tick()
+        assert trial.resting_on is None, trial.t

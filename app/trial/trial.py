@@ -263,23 +263,25 @@ class Trial:
         if hold is not None:
             return np.array(hold)
         rest = guard.rest(ee, target, self._footprints, skip=skip)
-        steer = self.user_target if rest is None else np.array(rest[0])
-        self._note_resting(ee, float(steer[2]))
-        return steer
+        self._note_resting(ee, None if rest is None else rest[0][2])
+        return self.user_target if rest is None else np.array(rest[0])
 
-    def _note_resting(self, ee: list[float], z: float) -> None:
+    def _note_resting(self, ee: list[float], rest_z: float | None) -> None:
         """``resting_on``: the object the open hand is around once it is as low as it goes --
-        come down to ``z``, the lowest it is let go (the palm's stop), or, with the input pushed
-        to the reach's floor, no longer coming down (the robot may be carrying the hand to that
-        object: its policy sets the height then); ``resting_centred``: centred on it along the
-        slot (``CENTRED_M``)."""
-        target_z = float(self.user_target[2])
-        floor = float(self.scene.reach.lo[2]) + 1e-6
+        come down to ``rest_z``, the palm's stop the input asks below, or, with the input
+        pushed to the reach's floor, there or no longer coming down (the robot may be carrying
+        the hand to that object: its policy sets the height then); ``resting_centred``: centred
+        on it along the slot (``CENTRED_M``)."""
         last, self._last_ee_z = self._last_ee_z, ee[2]
-        if target_z > max(z, floor):
-            return  # the input does not ask it lower than it is let go
-        if ee[2] > z + 0.005 and not (target_z <= floor and abs(ee[2] - last) < 2e-4):
-            return  # still coming down
+        if rest_z is not None:
+            if ee[2] > rest_z + 0.005:
+                return  # still coming down to the palm's stop
+        else:
+            target_z = float(self.user_target[2])
+            if target_z > float(self.scene.reach.lo[2]) + 1e-6:
+                return  # the input does not ask it lower than it goes
+            if ee[2] > target_z + 0.005 and abs(ee[2] - last) >= 2e-4:
+                return  # still coming down
         k = self.guard.around(ee, self._footprints, skip=self.accidents.down)
         if k is not None:
             self.resting_on = k
