@@ -30,6 +30,7 @@ import viser
 import websockets
 
 from study.server.firewall import Firewall, FirewallConfig
+from study.server.page_script import KEY_RESEND_MS
 from tests.attacker import CAMERA
 from tests.browser.harness import RunningServer, run_async, start_server
 from tests.support.raw_client import AGREE, RawClient
@@ -101,7 +102,9 @@ class Honest:
         before = np.array(trial.user_target)
         await self.keys("w")
         assert await until(lambda: source.keyboard.held == frozenset("w"), timeout=2.0)
-        await asyncio.sleep(0.5)
+        for _ in range(2):  # held, the page resends its key state every KEY_RESEND_MS
+            await asyncio.sleep(KEY_RESEND_MS / 1000)
+            await self.keys("w")
         await self.keys("")
         assert await until(lambda: not source.keyboard.moving, timeout=2.0), "release lost"
         moved = float(np.linalg.norm(np.array(trial.user_target) - before))
