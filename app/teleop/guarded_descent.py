@@ -24,11 +24,12 @@ them (``|p_x - o_x| >= r_k + PAD_M + g``). The guard *takes* ``k`` when the hand
 holding the hand just clear of the top while it follows the target sideways. The hold is a
 state, not a test made afresh each tick: it lets go once the hand and the target have both
 cleared ``k`` for ``SETTLE_S`` with the hand within ``MARGIN_M`` of where it was when they
-began to (then it comes down around it; a drag sweeping across is not let down midway), once the hand has left
-``k``'s footprint by ``MARGIN_M``, or once the target rises to ``z_k``. Over an object it let
-go of, it takes the hand again only if a point no longer clears ``k`` with ``g = -MARGIN_M``
-(clearly off). So a noisy target near the edge of clearing, or a finger brushing the rim, no
-longer switches it (and the lift-out rule with it) on and off several times a second.
+began to (then it comes down around it; a drag sweeping across is not let down midway), once
+the hand has left ``k``'s footprint by ``MARGIN_M``, or once the target rises to ``z_k``.
+Over an object it let go of, it takes the hand again only if a point no longer clears ``k``
+with ``g = -MARGIN_M`` (clearly off). So a noisy target near the edge of clearing, or a
+finger brushing the rim, no longer switches it (and the lift-out rule with it) on and off
+several times a second.
 A hand already around the object (fingertips lower) is left to ``lift_out``.
 
 Around the object, the open hand comes down only until its palm, ``p`` above the TCP, is
@@ -77,14 +78,25 @@ Footprint = tuple[float, float, float, float, float]
 
 
 def _clears(px: float, py: float, obj: Footprint, *, slot: float, margin: float) -> bool:
+    """Whether the point ``p`` clears ``obj`` with ``margin`` ``g`` (module docstring)."""
     ox, oy, radius, _, half_width = obj
     return abs(py - oy) <= slot - half_width - margin or abs(px - ox) >= radius + PAD_M + margin
 
 
+def _both_clear(
+    x: Sequence[float], target: Sequence[float], obj: Footprint, *, slot: float, margin: float
+) -> bool:
+    """Whether the hand ``x`` and the target both clear ``obj`` with ``margin``."""
+    return _clears(x[0], x[1], obj, slot=slot, margin=margin) and _clears(
+        target[0], target[1], obj, slot=slot, margin=margin
+    )
+
+
 class DescentGuard:
-    """Holds the open hand above an object it would come down on (module docstring); one per
-    trial, for a hand whose fingertips are ``reach_below`` under the TCP, whose palm is
-    ``palm_above`` over it, and whose open slot's half-width is ``slot``. ``held`` is the index of the object held above, or ``None``."""
+    """Holds the open hand above an object it would come down on and stops it, lowered around
+    one, with its palm just over the top (module docstring); one per trial, for a hand whose
+    fingertips are ``reach_below`` under the TCP, whose palm is ``palm_above`` over it, and
+    whose open slot's half-width is ``slot``. ``held``: the object held above, or ``None``."""
 
     def __init__(
         self,
@@ -131,9 +143,7 @@ class DescentGuard:
             if not over or tz >= z_k or xz - reach_below < top - SINK_M or k in skip:
                 continue
             loose = MARGIN_M if k == cleared else 0.0
-            if _clears(xx, xy, obj, slot=slot, margin=-loose) and _clears(
-                tx, ty, obj, slot=slot, margin=-loose
-            ):
+            if _both_clear(x, target, obj, slot=slot, margin=-loose):
                 continue
             self.held, self._cleared, self._clear_since = k, None, None
             return (tx, ty, z_k + HOVER_M)
@@ -156,10 +166,7 @@ class DescentGuard:
             ox, oy, radius, top, _ = obj
             z_k = top + reach_below + clearance
             if math.hypot(xx - ox, xy - oy) < radius + slot + clearance + MARGIN_M and tz < z_k:
-                if not (
-                    _clears(xx, xy, obj, slot=slot, margin=0.0)
-                    and _clears(tx, ty, obj, slot=slot, margin=0.0)
-                ):
+                if not _both_clear(x, target, obj, slot=slot, margin=0.0):
                     self._clear_since = None
                     return (tx, ty, z_k + HOVER_M)
                 since = self._clear_since
