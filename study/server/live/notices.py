@@ -12,11 +12,12 @@ grasp request).
 The render loop asks :meth:`HeldNotices.text` each period and shows the answer with
 ``ParticipantPage.hold_notice`` (one notice at a time; ``None`` takes it down). What the
 participant's input does this moment comes first, after a fallen object (nothing else matters
-until it stands again, and it waits for the gripper to leave its spot): a resting finger (a held F with a finger on
-a rim also drives the target below the reach's floor; the reach notice would not say why the
-gripper stays up, a new-participant pass found), the gripper kept above an object, the
-gripper as low as it goes around one (F held on, the target also reaches the reach's floor,
-where the reach notice would only mislead), then the reach, then a miss.
+until it stands again, and it waits for the gripper to leave its spot): a resting finger (a
+held F with a finger on a rim also drives the target below the reach's floor; the reach notice
+would not say why the gripper stays up, a new-participant pass found), the gripper kept above
+an object, the gripper as low as it goes around one (F held on, the target also reaches the
+reach's floor, where the reach notice would only mislead), then the reach, then a slipped
+object, then a miss.
 
 A missed grasp's notice stays ``MISSED_NOTICE_S``: a three-second corner notice went unseen by
 a tester whose eyes were on the gripper (and on a page drawing 10 frames a second, the closing
