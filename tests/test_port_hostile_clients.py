@@ -593,14 +593,22 @@ def test_many_sockets_under_their_own_rate_cannot_slow_the_control_loop(
     """56 sockets from 7 addresses, each under the per-connection rate (about 10,000 messages a
     second in all, from another process): none of them holds a session, so they share the
     unbound budget and wait for it (their frames stay in the kernel), and the 100 Hz control
-    loop keeps its rate."""
+    loop keeps the rate it had before the flood.
+
+    Compared with the rate just before, as the attack tests do: the flooder shares 2 cores with
+    the server and with other tests (CI once saw 89 ticks/s against a fixed bound of 90, the
+    flooder itself taking a core). Without the unbound budget the loop fell to 14-37 ticks/s;
+    ``benchmarks/server.py`` holds the strict figure, with the server in the real-time class."""
     srv, code, live = _started(study)
     seconds = 6.0
 
-    async def session_under_flood() -> float:
+    async def session_under_flood() -> tuple[float, float]:
         async with RawClient(srv.participant_port) as honest:
             await _running(honest, code)
             assert wait_until(lambda: live.control_loop is not None, timeout=10)
+            ticks, t0 = live.control_loop.ticks, time.monotonic()
+            await asyncio.sleep(2.0)
+            before = (live.control_loop.ticks - ticks) / (time.monotonic() - t0)
             argv = [str(srv.participant_port), "7", "8", "180", str(seconds)]
             flooder = subprocess.Popen([sys.executable, "-c", FLOOD_SCRIPT, *argv])
             try:
@@ -611,11 +619,11 @@ def test_many_sockets_under_their_own_rate_cannot_slow_the_control_loop(
             finally:
                 flooder.wait(timeout=30)
             assert not honest.closed
-            return rate
+            return before, rate
 
-    rate = run_async(session_under_flood())
-    print(f"control loop under the flood: {rate:.1f} ticks/s")
-    assert rate >= 0.9 * live.control_loop.rate_hz
+    before, rate = run_async(session_under_flood())
+    print(f"control loop: {before:.1f} ticks/s before the flood, {rate:.1f} under it")
+    assert rate >= 0.8 * before and rate >= 0.5 * live.control_loop.rate_hz
     assert srv.firewall.shares is not None and srv.firewall.shares.delayed > 1000
 
 
