@@ -101,6 +101,7 @@ class Trial:
         self._q = self.sim.q
         self._ee = self.sim.ee
         self._object_positions = self.sim.object_positions()
+        self._objects_key: tuple[bytes, object] = (b"", None)  # what they were refreshed from
         self._grasp_points = self.scene.goals.positions
         self._reach_below = reach_below(self.scene.hand)
         self._half_widths = tuple(o.grasp_width / 2 for o in self.scene.spec.objects)
@@ -205,8 +206,14 @@ class Trial:
         )
 
     def _objects_moved(self) -> None:
-        """Refresh the objects' positions and the grasp points that move with them."""
+        """Refresh the objects' positions and the grasp points that move with them (kept as
+        they are when no object moved since the last refresh: resting objects sleep, so most
+        ticks see the very same positions)."""
         pos = self.sim.object_positions()
+        key = (pos.tobytes(), self.sim.rest_positions)
+        if key[0] == self._objects_key[0] and key[1] is self._objects_key[1]:
+            return
+        self._objects_key = key
         self._object_positions = pos
         self._grasp_points = self.scene.goals.positions + (pos - self.sim.rest_positions)
         self._cylinders = self._object_cylinders()
