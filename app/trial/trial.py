@@ -42,7 +42,7 @@ from app.trial.accidents import Accidents
 from app.trial.build_blender import build_blender
 from app.trial.config import TrialConfig
 from app.trial.contacts import ContactLog
-from app.trial.events import EventKind, TrialEvent
+from app.trial.events import EventKind, TrialEvent, mark
 from app.trial.records import BlendTick, TickRecord, TrialResult
 from app.trial.tasks import LiftTask, Task
 
@@ -417,17 +417,15 @@ class Trial:
     def _set_user_target(self, cmd: TeleopCommand, events: list[TrialEvent]) -> None:
         target, outside = self._clamped(cmd.target)
         if target is None:
-            events.append(TrialEvent(EventKind.INVALID_TARGET))
+            events.append(mark(EventKind.INVALID_TARGET))
             return
         if outside > 0.0:
             far = outside > FAR_OUTSIDE_M
-            events.append(
-                TrialEvent(EventKind.TARGET_FAR_OUTSIDE if far else EventKind.TARGET_CLAMPED)
-            )
+            events.append(mark(EventKind.TARGET_FAR_OUTSIDE if far else EventKind.TARGET_CLAMPED))
         self.user_target = target
         path = None if cmd.path is None else self._clamped(cmd.path)[0]
         if cmd.path is not None and path is None:
-            events.append(TrialEvent(EventKind.INVALID_TARGET))
+            events.append(mark(EventKind.INVALID_TARGET))
         self.user_input = target if path is None else path
 
     def _clamped(self, value: object) -> tuple[np.ndarray | None, float]:
