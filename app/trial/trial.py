@@ -251,7 +251,7 @@ class Trial:
         taking = self._blend.predicted if self._blend.alpha > 0.0 else -1
         skip = (taking, *self.accidents.down)
         ee, target = self._ee.tolist(), self.user_target.tolist()
-        t = self.t
+        t = self.ticks * self._dt
         if guard.held is not None:  # a hold is kept until the guard lets go (its docstring)
             hold = guard.steer(ee, target, self._footprints, now=t, skip=skip)
             if hold is not None:
@@ -270,13 +270,13 @@ class Trial:
         if hold is not None:
             return np.array(hold)
         rest = guard.rest(ee, target, self._footprints, skip=skip)
-        self._note_resting(ee, None if rest is None else rest[0][2])
+        self._note_resting(ee, target[2], None if rest is None else rest[0][2])
         return self.user_target if rest is None else np.array(rest[0])
 
-    def _note_resting(self, ee: list[float], rest_z: float | None) -> None:
+    def _note_resting(self, ee: list[float], target_z: float, rest_z: float | None) -> None:
         """``resting_on``: the object the open hand is around once it is as low as it goes --
         come down to ``rest_z``, the palm's stop the input asks below, or, with the input
-        pushed to the reach's floor, there or no longer coming down (the robot may be carrying
+        (at height ``target_z``) pushed to the reach's floor, there or no longer coming down (the robot may be carrying
         the hand to that object: its policy sets the height then); ``resting_centred``: centred
         on it along the slot (``CENTRED_M``)."""
         last, self._last_ee_z = self._last_ee_z, ee[2]
@@ -284,8 +284,7 @@ class Trial:
             if ee[2] > rest_z + 0.005:
                 return  # still coming down to the palm's stop
         else:
-            target_z = float(self.user_target[2])
-            if target_z > float(self.scene.reach.lo[2]) + 1e-6:
+            if target_z > self._reach_box[0][2] + 1e-6:
                 return  # the input does not ask it lower than it goes
             if ee[2] > target_z + 0.005 and abs(ee[2] - last) >= 2e-4:
                 return  # still coming down
