@@ -16,7 +16,7 @@ import numpy as np
 
 from .._checks import as_points, positive
 from ..errors import InvalidInputError
-from .base import GoalPoints, GoalPrediction, check_x, softmax, softmax_of
+from .base import GoalPoints, GoalPrediction, check_x, softmax
 
 __all__ = ["AmnesicPredictor", "Metric", "euclidean"]
 
@@ -83,7 +83,7 @@ class AmnesicPredictor(GoalPoints):
             for gx, gy, gz in rows[1]:
                 dx, dy, dz = gx - px, gy - py, gz - pz
                 logits.append(math.sqrt(dx * dx + dy * dy + dz * dz) * s)
-            return softmax_of(logits)
+            return softmax(np.array(logits))
         d = np.asarray(self.metric(x, self.points), dtype=np.float64)
         if d.shape != (self.points.shape[0],):
             raise InvalidInputError(

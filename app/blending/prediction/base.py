@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 
-__all__ = ["GoalPoints", "GoalPrediction", "Predictor", "softmax", "softmax_of"]
+__all__ = ["GoalPoints", "GoalPrediction", "Predictor", "softmax"]
 
 
 class GoalPrediction(NamedTuple):
@@ -67,20 +67,6 @@ def softmax(logits: np.ndarray) -> GoalPrediction:
     np.exp(logits, out=logits)
     logits /= np.add.reduce(logits)  # logits.sum() without its Python wrapper (per tick)
     return GoalPrediction(logits, k)
-
-
-def softmax_of(logits: list[float]) -> GoalPrediction:
-    """``softmax(np.array(logits))`` -- the very numbers -- for logits in a list: the argmax
-    and the shift by the top in scalars, the exponential and the sum still numpy's (its SIMD
-    ``exp`` is not the C library's in the last bit). Logits that are not all finite go through
-    ``softmax``."""
-    if not math.isfinite(sum(logits)):
-        return softmax(np.array(logits))
-    top = max(logits)
-    p = np.array([v - top for v in logits])
-    np.exp(p, out=p)
-    p /= np.add.reduce(p)
-    return GoalPrediction(p, logits.index(top))  # the first of the largest, as argmax
 
 
 def check_x(x: object, dim: int, name: str = "x") -> np.ndarray:
