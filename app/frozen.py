@@ -56,10 +56,11 @@ def quick_init(cls: type[T]) -> type[T]:
         body = [f"    _set(self, '__dict__', {{{items}}})"]
     if hasattr(cls, "__post_init__"):
         body.append("    self.__post_init__()")
-    source = f"def __init__(self, {', '.join(args)}) -> None:\n" + "\n".join(body) + "\n"
+    source = f"def __init__(self, {', '.join(args)}):\n" + "\n".join(body) + "\n"
     exec(source, namespace)  # our own source, from the dataclass's fields
     init = namespace["__init__"]
     init.__qualname__ = f"{cls.__qualname__}.__init__"
     init.__doc__ = cls.__init__.__doc__  # type: ignore[misc]
+    init.__annotations__ = dict(cls.__init__.__annotations__)  # type: ignore[misc]
     cls.__init__ = init  # type: ignore[misc]
     return cls

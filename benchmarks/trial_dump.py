@@ -74,8 +74,15 @@ def main() -> int:
                     out.write(text)
                     digest.update(text.encode())
                     ticks += len(result.records)
-    print(json.dumps({"trials": len(TASKS) * len(MODES) * len(SEEDS), "ticks": ticks,
-                      "sha256": digest.hexdigest()}))
+    print(
+        json.dumps(
+            {
+                "trials": len(TASKS) * len(MODES) * len(SEEDS),
+                "ticks": ticks,
+                "sha256": digest.hexdigest(),
+            }
+        )
+    )
     return 0
 
 
