@@ -352,7 +352,9 @@ class PolicyBlender:
         d = self.rationality.direction
         if d is None:
             return 0.0
-        heading = self._points[i] - np.asarray(robot_x, dtype=np.float64)
+        if type(robot_x) is not np.ndarray or robot_x.dtype != _F64:
+            robot_x = np.asarray(robot_x, dtype=np.float64)
+        heading = self._points[i] - robot_x
         n = math.sqrt(float(heading.dot(heading)))
         return float(d.dot(heading)) / n if n > 0.0 else 0.0
 
