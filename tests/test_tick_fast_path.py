@@ -9,12 +9,17 @@ when it is read. References: each step in Python on its own kinematics (no share
 policy whose every test works out its own spans, the IK step's formula written out with
 ``numpy.linalg``, the agreement's cosine with numpy. Amnesic prediction from 3-D points in
 scalars equals the metric and softmax it stands for. Compared on every tick of headless trials
-(recorded ticks) and on random configurations, goals and rotations.
+(recorded ticks) and on random configurations, goals and rotations. The trial loop's own
+shortcuts (issue 24.1, second pass): the objects' derived state kept while no object moved, the
+scripted user's noise drawn ahead, the rationality estimate's scalar test for clearly short
+steps -- each equal to the computation it stands for. Whole trials are compared across two
+trees by ``benchmarks/trial_dump.py``.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 import numpy as np
@@ -25,9 +30,11 @@ from app.blending import GraspApproachPolicy, policy_from_config, policy_grasp_c
 from app.blending.policy_grasp import rotation_log
 from app.blending.prediction.amnesic import AmnesicPredictor, euclidean
 from app.blending.prediction.base import softmax
+from app.blending.prediction.rationality import GRID, RationalityEstimator
 from app.robot.kinematics import Kinematics
 from app.teleop import ScriptedInput
 from app.teleop.ik_step import IKStep
+from app.teleop.scripted import NOISE_BATCH
 from app.trial import Trial
 from study.protocol import trial_config_from_protocol
 
@@ -271,3 +278,99 @@ def test_the_compiled_policy_uses_the_reference_constants() -> None:
     assert policy_grasp_core._ROTATION_TOL == policy_grasp.ROTATION_TOL
     assert policy_grasp_core._ALIGN_MARGIN == policy_grasp.ALIGN_MARGIN
     assert policy_grasp_core._HOLD_WIDEN == policy_grasp.HOLD_WIDEN
+
+
+def test_kept_object_state_is_the_state_worked_out_afresh_every_tick(protocol_path: Any) -> None:
+    """The trial keeps the objects' grasp points, cylinders and footprints while no object
+    moved (``Trial._objects_moved``) and copies their positions as a slice
+    (``Simulation.object_positions``): after every tick they equal what the positions give."""
+    config = dataclasses.replace(
+        trial_config_from_protocol(protocol_path, "hard-right", "aggressive"), time_limit_s=12.0
+    )
+    trial = Trial(config, ScriptedInput(seed=3), seed=3)
+    sim, goals = trial.sim, trial.scene.goals
+    assert sim._objects_xpos is not None  # the scene's objects are consecutive bodies
+    kept = moved = 0
+    while not trial.done:
+        before = trial._grasp_points
+        trial.tick()
+        pos = sim.data.xpos[sim._object_bodies]
+        assert np.array_equal(sim.object_positions(), pos)
+        if not sim.objects_live:
+            continue
+        points = goals.positions + (pos - sim.rest_positions)
+        assert np.array_equal(trial._grasp_points, points)
+        cylinders = tuple(
+            (g[0], g[1], env[0], g[2] + env[1])
+            for g, env in zip(points.tolist(), goals.envelopes.tolist(), strict=True)
+        )
+        assert trial._cylinders == cylinders
+        assert trial._footprints == tuple(
+            (*c, o.grasp_width / 2)
+            for c, o in zip(cylinders, trial.scene.spec.objects, strict=True)
+        )
+        kept += trial._grasp_points is before
+        moved += trial._grasp_points is not before
+    assert kept > 100 and moved > 10, (kept, moved)
+
+
+def test_scripted_noise_drawn_ahead_is_the_noise_drawn_each_tick() -> None:
+    """``ScriptedInput._normals``: three numbers a tick, the very numbers of
+    ``rng.standard_normal(3)`` tick by tick, across the batches it draws."""
+    for seed in (0, 7):
+        user, rng = ScriptedInput(seed=seed), np.random.default_rng(seed)
+        for _ in range(3 * (NOISE_BATCH // 3) + 5):  # three batches and some
+            assert list(user._normals()) == rng.standard_normal(3).tolist()
+
+
+def _reference_rationality_update(est: Any, x: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """``RationalityEstimator.update`` with every step told by the dot product (as before the
+    scalar test for clearly short steps)."""
+    anchor = est._anchor
+    if est._loglik.shape[0] != points.shape[0]:
+        est._loglik = np.zeros((points.shape[0], GRID.size))
+        est.estimate = est._estimate()
+    step = x - anchor
+    ss = float(step.dot(step))
+    if ss < est._min_step2:
+        return est.estimate
+    s = math.sqrt(ss)
+    to_goal = points - anchor
+    cos = to_goal @ step
+    cos /= np.maximum(np.sqrt(np.einsum("ij,ij->i", to_goal, to_goal)), 1e-12) * s
+    kappa = GRID * s
+    est._loglik *= math.exp(-s / est.memory_m)
+    est._loglik += np.log(kappa) - kappa - np.log1p(-np.exp(-2.0 * kappa))
+    est._loglik += np.multiply.outer(cos, kappa)
+    est._anchor = x.copy()
+    est._anchor_list = est._anchor.tolist()
+    est.direction = step / s
+    est.estimate = est._estimate()
+    return est.estimate
+
+
+def test_rationality_tells_short_steps_as_the_dot_product_does() -> None:
+    """Steps of every length and steps within a few ulps of ``min_step_m``: the same steps
+    count as evidence, the same estimates and directions come out."""
+    rng = np.random.default_rng(4)
+    points = rng.normal(size=(3, 3))
+    fast, ref = RationalityEstimator(), RationalityEstimator()
+    start = rng.normal(size=3)
+    fast.reset(start)
+    ref.reset(start)
+    x = start.copy()
+    counted = 0
+    for n in range(4000):
+        direction = rng.normal(size=3)
+        direction /= np.linalg.norm(direction)
+        if n % 2:  # just around min_step_m from the anchor
+            length = fast.min_step_m * (1.0 + rng.integers(-8, 9) * 2.0**-52)
+            x = fast._anchor + direction * length
+        else:
+            x = x + direction * rng.uniform(0.0, 0.004)
+        got = fast.update(x, points)
+        want = _reference_rationality_update(ref, x, points)
+        assert got.tolist() == want.tolist()
+        assert fast._anchor.tolist() == ref._anchor.tolist()
+        counted += fast.direction is not None and fast._anchor_list == x.tolist()
+    assert counted > 500

@@ -10,7 +10,7 @@ import pytest
 
 from analysis.prediction_eval import goal_moves, trial_trajectories
 from app.trial import records_from_samples
-from app.trial.events import EventKind, TrialEvent, TrialEventError, decode, encode
+from app.trial.events import EventKind, TrialEvent, TrialEventError, decode, encode, mark
 from study.export import tidy_tables
 from study.session.sample_writer import sample_row
 from study.store import SAMPLE_COLUMNS, Store
@@ -45,6 +45,20 @@ TODAY = (
 
 ADDED = ("object_reset:box",)
 """One string of every kind added since (an object stood up again after a knock)."""
+
+
+def test_a_shared_mark_is_the_event_built_afresh() -> None:
+    """``mark(kind)``: the payload-free event of ``kind``, built once and shared; a kind with a
+    payload must be built."""
+    for kind in EventKind:
+        try:
+            fresh = TrialEvent(kind)
+        except TrialEventError:
+            with pytest.raises(TrialEventError, match="payload"):
+                mark(kind)
+            continue
+        assert mark(kind) == fresh and mark(kind) is mark(kind)
+        assert encode(mark(kind)) == kind.value
 
 
 def test_every_kind_round_trips_byte_for_byte() -> None:

@@ -41,12 +41,12 @@ def check_arbitration(
     """Raise :class:`InvalidArbitrationError` unless ``fn`` maps [0, 1] into [0, 1] and never
     decreases, checked on 1001 evenly spaced confidences plus ``extra`` (e.g. breakpoints,
     approached from both sides)."""
-    pts = [float(c) for c in _GRID]
+    pts = _GRID.tolist()
     for b in extra:
         pts.extend(float(x) for x in (b - 1e-9, b, b + 1e-9) if 0.0 <= x <= 1.0)
     cs = np.unique(np.array(pts))
     try:
-        vals = np.array([float(fn(float(c))) for c in cs])
+        vals = np.array([float(fn(c)) for c in cs.tolist()])
     except (TypeError, ValueError) as exc:
         raise InvalidArbitrationError(f"{name}: could not evaluate on [0, 1]: {exc}") from None
     bad = ~np.isfinite(vals) | (vals < 0.0) | (vals > 1.0)

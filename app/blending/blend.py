@@ -28,6 +28,8 @@ from .prediction.rationality import RationalityEstimator
 
 __all__ = ["BlendRecord", "PolicyBlender", "blend"]
 
+_F64 = np.dtype(np.float64)
+
 MAX_ABS_INPUT = 1e100
 """Per-tick inputs (Q, U, x) must be finite and below this in magnitude: no configuration or
 position is anywhere near it, and the bound keeps squared distances from overflowing."""
@@ -180,6 +182,9 @@ class PolicyBlender:
         )
         self._started = False
         self.dof: int | None = None
+        self._q_shape: tuple[int, ...] = ()  # (dof,) once known
+        self._arbitration_seen: object = None
+        self._stateful = False
         self._install_goals(goals)
 
     def _install_goals(self, goals: GoalSet) -> None:
@@ -223,6 +228,8 @@ class PolicyBlender:
         self.xdim = points.shape[1]
         if dof is not None:
             self.dof = dof
+            self._q_shape = (dof,)
+        self._x_shape = (self.xdim,)
 
     def set_goals(self, goals: GoalSet, *, predictor: Predictor | None = None) -> None:
         """Change the goals at run time (number and place). Without ``predictor`` the current
@@ -273,14 +280,14 @@ class PolicyBlender:
         is in the predictor's space (e.g. its end effector), ``x`` when not given."""
         if not self._started:
             raise InvalidInputError("reset(start_x) must be called before step(Q, U)")
-        q = np.asarray(Q, dtype=np.float64)
-        u = np.asarray(U, dtype=np.float64)
+        q = Q if type(Q) is np.ndarray and Q.dtype == _F64 else np.asarray(Q, dtype=np.float64)
+        u = U if type(U) is np.ndarray and U.dtype == _F64 else np.asarray(U, dtype=np.float64)
         dof = self._dof(q, u)
         if x is None:
             x = u if self.feature is None else np.asarray(self.feature(u), dtype=np.float64)
-        else:
+        elif type(x) is not np.ndarray or x.dtype != _F64:
             x = np.asarray(x, dtype=np.float64)
-        if x.shape != (self.xdim,):
+        if x.shape != self._x_shape:
             raise InvalidInputError(
                 f"x: expected shape ({self.xdim},) in {self.space} space, got {x.shape}"
             )
@@ -306,7 +313,10 @@ class PolicyBlender:
         ps = _checked_policy(p, dof)
         arb = self.arbitration
         agreement = None  # worked out when read (BlendRecord.agreement), unless needed now
-        if isinstance(arb, StatefulArbitration):
+        if arb is not self._arbitration_seen:  # whether it is stateful, asked once per object
+            self._arbitration_seen = arb
+            self._stateful = isinstance(arb, StatefulArbitration)
+        if self._stateful:
             agreement = _agreement(ps, qs, us)
             alpha = float(arb.update(TickSignals(c, agreement, motion, i, b)))
         else:
@@ -325,10 +335,13 @@ class PolicyBlender:
         """The robot's degrees of freedom (from the first ``Q`` seen), ``Q`` and ``U`` checked
         against it."""
         dof = self.dof
+        if dof is not None and q.shape == u.shape == self._q_shape:
+            return dof
         if dof is None:
             if q.ndim != 1:
                 raise InvalidInputError(f"Q: expected a 1-D configuration, got shape {q.shape}")
             dof = self.dof = q.shape[0]
+            self._q_shape = (dof,)
         if q.shape != (dof,):
             raise InvalidInputError(f"Q: expected shape ({dof},), got {q.shape}")
         if u.shape != (dof,):
@@ -339,14 +352,16 @@ class PolicyBlender:
         d = self.rationality.direction
         if d is None:
             return 0.0
-        heading = self._points[i] - np.asarray(robot_x, dtype=np.float64)
+        if type(robot_x) is not np.ndarray or robot_x.dtype != _F64:
+            robot_x = np.asarray(robot_x, dtype=np.float64)
+        heading = self._points[i] - robot_x
         n = math.sqrt(float(heading.dot(heading)))
         return float(d.dot(heading)) / n if n > 0.0 else 0.0
 
 
 def _checked_policy(p: Any, dof: int) -> list[float]:
     """The policy's ``P`` as a list, after checking that it has ``dof`` finite values."""
-    pa = np.asarray(p, dtype=np.float64)
+    pa = p if type(p) is np.ndarray and p.dtype == _F64 else np.asarray(p, dtype=np.float64)
     if pa.ndim != 1 or pa.shape[0] != dof:
         raise BlendingError(f"policy: returned P of {pa.size} values, the robot has {dof}")
     ps = pa.tolist()

@@ -56,11 +56,13 @@ class Kinematics:
         self._tcp = tcp_frame
         self._pose_q = b""  # the configuration of the last pose_and_jacobian pass (bytes)
         self._pose: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._placement = self.data.oMf[self.frame_id]  # a reference: each pass updates it
 
     def copy(self) -> Kinematics:
         other = object.__new__(Kinematics)
         other.__dict__.update(self.__dict__)
         other.data = self.model.createData()
+        other._placement = other.data.oMf[other.frame_id]
         other._pose_q, other._pose = b"", None
         return other
 
@@ -107,7 +109,7 @@ class Kinematics:
         jac = pin.computeFrameJacobian(
             self.model, self.data, q, self.frame_id, pin.LOCAL_WORLD_ALIGNED
         )
-        placement = self.data.oMf[self.frame_id]
+        placement = self._placement  # data.oMf[frame_id], updated by the pass
         pose = self._pose = (placement.translation.copy(), placement.rotation.copy(), jac)
         self._pose_q = key
         return pose

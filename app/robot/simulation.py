@@ -93,6 +93,13 @@ class Simulation:
         self._ctrl_vel = d.ctrl[8:15]
         self._ctrl = d.ctrl
         self._tcp = d.site_xpos[scene.tcp_site_id]
+        bodies = self._object_bodies.tolist()
+        first = bodies[0] if bodies else 0
+        self._objects_xpos = (  # the objects' rows of xpos as a view when they are consecutive
+            d.xpos[first : first + len(bodies)]
+            if bodies == list(range(first, first + len(bodies)))
+            else None
+        )
         self._dt = physics_dt
         # body id -> arm part index (-1: not an arm part), object index (-1: not an object)
         nbody = self.model.nbody
@@ -263,6 +270,9 @@ class Simulation:
 
     def object_positions(self) -> np.ndarray:
         """Object centres (n, 3) in the order of the scene's objects (a new array)."""
+        view = self._objects_xpos
+        if view is not None:
+            return view.copy()  # a slice copied: cheaper than indexing by an array
         return self.data.xpos[self._object_bodies]  # indexing by an array copies
 
     def object_heights(self) -> np.ndarray:

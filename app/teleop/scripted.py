@@ -18,6 +18,10 @@ import numpy as np
 
 from app.teleop.types import TeleopCommand, TrialObservation
 
+NOISE_BATCH = 3 * 256
+"""Normal numbers drawn at a time for the noise (a multiple of 3; a generator's draws of ``n``
+numbers are its draws of ``n / 3`` threes, one after the other)."""
+
 
 class ScriptedInput:
     """Seeded scripted user; ``goal`` (index) defaults to the trial's target object."""
@@ -54,6 +58,8 @@ class ScriptedInput:
         self._last_grasp_t = -math.inf
         self._stall_ref: tuple[float, list[float]] | None = None
         self._noise_cache: tuple[float, float, float] | None = None
+        self._drawn: list[float] = []  # normal numbers drawn ahead (``_normals``)
+        self._next_drawn = 0
 
     @property
     def phase(self) -> str:
@@ -104,11 +110,23 @@ class ScriptedInput:
         self._target = tx, ty, tz = tx + sx, ty + sy, tz + sz
         if self.noise > 0:
             a, b = self._noise_factors(dt)
-            nx, ny, nz = self.rng.standard_normal(3).tolist()
+            nx, ny, nz = self._normals()
             ox, oy, oz = self._offset
             self._offset = (a * ox + b * nx, a * oy + b * ny, a * oz + b * nz)
         ox, oy, oz = self._offset
         return TeleopCommand(np.array((tx + ox, ty + oy, tz + oz)), grasp)
+
+    def _normals(self) -> tuple[float, float, float]:
+        """The next three standard normal numbers of ``rng``: the very numbers of
+        ``rng.standard_normal(3)`` each tick, drawn ``NOISE_BATCH`` at a time (one draw and one
+        ``tolist`` per 256 ticks instead of per tick)."""
+        drawn = self._drawn
+        i = self._next_drawn
+        if i == len(drawn):
+            drawn = self._drawn = self.rng.standard_normal(NOISE_BATCH).tolist()
+            i = 0
+        self._next_drawn = i + 3
+        return drawn[i], drawn[i + 1], drawn[i + 2]
 
     def _noise_factors(self, dt: float) -> tuple[float, float]:
         """Ornstein-Uhlenbeck step ``o' = a o + b n``: ``a = exp(-dt / tau)``,

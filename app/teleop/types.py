@@ -13,9 +13,11 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from app.frozen import quick_init
 from app.teleop.reach import ReachRegion
 
 
+@quick_init
 @dataclass(frozen=True)
 class TeleopCommand:
     """The user's wish this tick: end-effector ``target`` (3,) and ``grasp`` (True = close).
@@ -31,6 +33,7 @@ class TeleopCommand:
     path: np.ndarray | None = None
 
 
+@quick_init
 @dataclass(frozen=True)
 class TrialObservation:
     """The state an input source may look at (server side only; never sent to a browser as is).

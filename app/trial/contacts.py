@@ -62,6 +62,8 @@ class ContactLog:
         ``grasping``: fingers touching an object are part of the grasp (``held``, if known,
         narrows it to that object); their touches are not logged.
         """
+        if not touches and not self._touching:
+            return []  # no touch now and none going on (most ticks)
         force: dict[tuple[int, int], float] = {}
         for part, obj, f in touches:
             key = (part, obj)

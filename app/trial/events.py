@@ -149,6 +149,19 @@ class TrialEvent:
             object.__setattr__(self, "impulse_ns", float(f"{float(self.impulse_ns):.4f}"))
 
 
+_MARKS = {kind: TrialEvent(kind) for kind in EventKind if not _payload(kind)}
+
+
+def mark(kind: EventKind) -> TrialEvent:
+    """The event of a kind that carries no payload (``TrialEvent(kind)``), built once: a tick
+    that logs one (a hard task's user pushes past the reach on most ticks: ``target_clamped``)
+    shares it rather than building and checking a new one."""
+    try:
+        return _MARKS[kind]
+    except KeyError:
+        raise TrialEventError(f"a {kind!r} event carries a payload: build it") from None
+
+
 def encode(event: TrialEvent) -> str:
     """The stored text of ``event`` (the module table)."""
     kind = event.kind

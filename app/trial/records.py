@@ -9,6 +9,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from app.frozen import quick_init
 from app.trial.events import EventKind, TrialEvent, encode
 
 OUTCOMES = (
@@ -44,6 +45,7 @@ class BlendTick(NamedTuple):
     rationality: float = math.nan
 
 
+@quick_init
 @dataclass(frozen=True, slots=True)
 class TickRecord:
     """One control tick, after physics.

@@ -42,7 +42,7 @@ from app.trial.accidents import Accidents
 from app.trial.build_blender import build_blender
 from app.trial.config import TrialConfig
 from app.trial.contacts import ContactLog
-from app.trial.events import EventKind, TrialEvent
+from app.trial.events import EventKind, TrialEvent, mark
 from app.trial.records import BlendTick, TickRecord, TrialResult
 from app.trial.tasks import LiftTask, Task
 
@@ -101,6 +101,7 @@ class Trial:
         self._q = self.sim.q
         self._ee = self.sim.ee
         self._object_positions = self.sim.object_positions()
+        self._objects_key: tuple[bytes, object] = (b"", None)  # what they were refreshed from
         self._grasp_points = self.scene.goals.positions
         self._reach_below = reach_below(self.scene.hand)
         self._half_widths = tuple(o.grasp_width / 2 for o in self.scene.spec.objects)
@@ -205,8 +206,14 @@ class Trial:
         )
 
     def _objects_moved(self) -> None:
-        """Refresh the objects' positions and the grasp points that move with them."""
+        """Refresh the objects' positions and the grasp points that move with them (kept as
+        they are when no object moved since the last refresh: resting objects sleep, so most
+        ticks see the very same positions)."""
         pos = self.sim.object_positions()
+        key = (pos.tobytes(), self.sim.rest_positions)
+        if key[0] == self._objects_key[0] and key[1] is self._objects_key[1]:
+            return
+        self._objects_key = key
         self._object_positions = pos
         self._grasp_points = self.scene.goals.positions + (pos - self.sim.rest_positions)
         self._cylinders = self._object_cylinders()
@@ -244,7 +251,7 @@ class Trial:
         taking = self._blend.predicted if self._blend.alpha > 0.0 else -1
         skip = (taking, *self.accidents.down)
         ee, target = self._ee.tolist(), self.user_target.tolist()
-        t = self.t
+        t = self.ticks * self._dt
         if guard.held is not None:  # a hold is kept until the guard lets go (its docstring)
             hold = guard.steer(ee, target, self._footprints, now=t, skip=skip)
             if hold is not None:
@@ -263,13 +270,13 @@ class Trial:
         if hold is not None:
             return np.array(hold)
         rest = guard.rest(ee, target, self._footprints, skip=skip)
-        self._note_resting(ee, None if rest is None else rest[0][2])
+        self._note_resting(ee, target[2], None if rest is None else rest[0][2])
         return self.user_target if rest is None else np.array(rest[0])
 
-    def _note_resting(self, ee: list[float], rest_z: float | None) -> None:
+    def _note_resting(self, ee: list[float], target_z: float, rest_z: float | None) -> None:
         """``resting_on``: the object the open hand is around once it is as low as it goes --
         come down to ``rest_z``, the palm's stop the input asks below, or, with the input
-        pushed to the reach's floor, there or no longer coming down (the robot may be carrying
+        (at height ``target_z``) pushed to the reach's floor, there or no longer coming down (the robot may be carrying
         the hand to that object: its policy sets the height then); ``resting_centred``: centred
         on it along the slot (``CENTRED_M``)."""
         last, self._last_ee_z = self._last_ee_z, ee[2]
@@ -277,8 +284,7 @@ class Trial:
             if ee[2] > rest_z + 0.005:
                 return  # still coming down to the palm's stop
         else:
-            target_z = float(self.user_target[2])
-            if target_z > float(self.scene.reach.lo[2]) + 1e-6:
+            if target_z > self._reach_box[0][2] + 1e-6:
                 return  # the input does not ask it lower than it goes
             if ee[2] > target_z + 0.005 and abs(ee[2] - last) >= 2e-4:
                 return  # still coming down
@@ -410,17 +416,15 @@ class Trial:
     def _set_user_target(self, cmd: TeleopCommand, events: list[TrialEvent]) -> None:
         target, outside = self._clamped(cmd.target)
         if target is None:
-            events.append(TrialEvent(EventKind.INVALID_TARGET))
+            events.append(mark(EventKind.INVALID_TARGET))
             return
         if outside > 0.0:
             far = outside > FAR_OUTSIDE_M
-            events.append(
-                TrialEvent(EventKind.TARGET_FAR_OUTSIDE if far else EventKind.TARGET_CLAMPED)
-            )
+            events.append(mark(EventKind.TARGET_FAR_OUTSIDE if far else EventKind.TARGET_CLAMPED))
         self.user_target = target
         path = None if cmd.path is None else self._clamped(cmd.path)[0]
         if cmd.path is not None and path is None:
-            events.append(TrialEvent(EventKind.INVALID_TARGET))
+            events.append(mark(EventKind.INVALID_TARGET))
         self.user_input = target if path is None else path
 
     def _clamped(self, value: object) -> tuple[np.ndarray | None, float]:

@@ -52,8 +52,10 @@ class RationalityEstimator:
         self.memory_m = positive(memory_m, name="memory_m")
         self.min_step_m = positive(min_step_m, name="min_step_m")
         self._min_step2 = self.min_step_m**2
+        self._clearly_short = self.min_step_m * (1.0 - 1e-9)  # far beyond rounding's few ulps
         self._log_b = np.log(GRID)
         self._anchor: np.ndarray | None = None
+        self._anchor_list: list[float] = []
         self._loglik = np.zeros((0, GRID.size))
         self.estimate = np.zeros(0)
         self.direction: np.ndarray | None = None
@@ -61,6 +63,7 @@ class RationalityEstimator:
     def reset(self, start: Any) -> None:
         """Forget the past; the next evidence is motion away from ``start``."""
         self._anchor = np.array(start, dtype=np.float64)
+        self._anchor_list = self._anchor.tolist()
         self._loglik = np.zeros((0, GRID.size))
         self.estimate = np.zeros(0)
         self.direction = None
@@ -74,6 +77,10 @@ class RationalityEstimator:
         if self._loglik.shape[0] != points.shape[0]:  # the goals changed in number: start over
             self._loglik = np.zeros((points.shape[0], GRID.size))
             self.estimate = self._estimate()
+        # a step clearly shorter than min_step_m, told in scalars (most ticks); a step near it
+        # is told as before, by the dot product, so the same steps count as evidence
+        if math.dist(x.tolist(), self._anchor_list) < self._clearly_short:
+            return self.estimate
         step = x - anchor
         ss = float(step.dot(step))
         if ss < self._min_step2:
@@ -89,6 +96,7 @@ class RationalityEstimator:
         loglik += np.log(kappa) - kappa - np.log1p(-np.exp(-2.0 * kappa))
         loglik += np.multiply.outer(cos, kappa)
         self._anchor = x.copy()
+        self._anchor_list = self._anchor.tolist()
         self.direction = step / s
         self.estimate = self._estimate()
         return self.estimate
