@@ -33,34 +33,62 @@ def short_protocol(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return _short_protocol(tmp_path_factory.mktemp("protocol"))
 
 
+BROWSER_TESTS = "tests/browser/"
+BROWSER_LANES = {
+    "tests/browser/test_whole_session_by_hand.py": "browser-1",
+    "tests/browser/test_depth_and_limits.py": "browser-1",
+    "tests/browser/test_open_link.py": "browser-1",
+    "tests/browser/test_participant_page.py": "browser-1",
+    "tests/browser/test_key_state.py": "browser-1",
+    "tests/browser/test_tls_proxy.py": "browser-1",
+    "tests/browser/test_join_and_console.py": "browser-1",
+}
+"""The browser tests' two lanes, each run by one worker one test after another; a module not
+listed runs in ``browser-2``. Balanced by ``--durations`` (2 cores, December 2026: about 340 s
+and 400 s of a loaded machine's 750). A lane's Chromium draws on demand and its tests mostly
+wait for what a person waits for (holding a key, a run's time limit): the lane used 0.28 CPU
+seconds a second (197 CPU s in 695 s), so two lanes at once draw no slower than one."""
+
+
+def _group(nodeid: str) -> str:
+    """The xdist group of a test: its browser lane, or its module (module fixtures, such as a
+    simulated reference store, are built once)."""
+    path = nodeid.split("::", 1)[0]
+    if path.startswith(BROWSER_TESTS):
+        return BROWSER_LANES.get(path, "browser-2")
+    return path
+
+
 @pytest.hookimpl(tryfirst=True)  # before xdist reads the groups into the test ids
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Under pytest-xdist each test module runs whole on one worker (its module-scoped fixtures,
-    such as a simulated reference store, are built once), and the browser tests run one after
-    another on one worker: two software-WebGL Chromiums at once on two cores would each draw
-    at half speed, and their tests steer by what they see."""
+    """Under pytest-xdist each test module runs whole on one worker, and the browser tests in
+    two lanes (:data:`BROWSER_LANES`)."""
     for item in items:
-        if item.get_closest_marker("xdist_group") is not None:
-            continue
-        module = item.nodeid.split("::", 1)[0]
-        group = "browser" if item.get_closest_marker("browser") else module
-        item.add_marker(pytest.mark.xdist_group(group))
+        if item.get_closest_marker("xdist_group") is None:
+            item.add_marker(pytest.mark.xdist_group(_group(item.nodeid)))
 
 
-BROWSER_TESTS = "tests/browser/"
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
+    """``-n auto``: two workers a core (``--maxprocesses`` caps it). The suite mostly waits --
+    on paced control loops, attack scripts' seconds, browsers, subprocesses: measured on 2
+    cores, the browser lane used 0.28 CPU s a second and the other tests 0.45 -- so twice as
+    many workers as cores keep the cores busy."""
+    return 2 * (os.cpu_count() or 1)
+
+
 LONGEST_FIRST = (
-    "browser",
-    "tests/test_simulate_resume.py",
+    "browser-1",
+    "browser-2",
     "tests/test_simulate_dask.py",
+    "tests/test_simulate_resume.py",
     "tests/test_examples.py",
     "tests/test_sweep.py",
     "tests/test_simulate_workers.py",
     "tests/test_adaptive_protocol.py",
 )
 """The groups that take longest (``--durations``, 2 cores, December 2026), handed out first:
-the browser lane alone is about half the suite's time, so it must not wait behind short
-modules (xdist otherwise starts the groups with the most tests first). Order only: a group
-missing here runs after these, in xdist's order."""
+the browser lanes must not wait behind short modules (xdist otherwise starts the groups with
+the most tests first). Order only: a group missing here runs after these, in xdist's order."""
 
 
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
@@ -68,9 +96,8 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
     read the groups: xdist 3.8 writes each test's group into ``item._nodeid``, which pytest 9
     no longer reads (a test's id comes from ``item._id``), so every test was scheduled alone
     -- a module's tests on both workers, each building its module fixtures (a simulated
-    reference store twice), and browser tests on both workers at once. The group is read from
-    the test's id: xdist's ``@group`` suffix where it is there, else ``browser`` for every test
-    under tests/browser/ (the only browser tests) and the module's path for the others."""
+    reference store twice), and browser tests on every worker at once. The group is read from
+    the test's id: xdist's ``@group`` suffix where it is there, else :func:`_group`'s."""
     if config.getvalue("dist") != "loadgroup":
         return None
     from xdist.scheduler import LoadGroupScheduling
@@ -79,8 +106,7 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
         def _split_scope(self, nodeid: str) -> str:
             if nodeid.rfind("@") > nodeid.rfind("]"):
                 return nodeid.rsplit("@", 1)[-1]
-            path = nodeid.split("::", 1)[0]
-            return "browser" if path.startswith(BROWSER_TESTS) else path
+            return _group(nodeid)
 
         def _assign_work_unit(self, node: Any) -> None:
             for group in reversed(LONGEST_FIRST):
