@@ -50,6 +50,10 @@ WORLD_CONTYPE, WORLD_CONAFFINITY = 1, 3
 LOW_LINKS = ("panda_link6", "panda_link7", "panda_hand", "panda_leftfinger", "panda_rightfinger")
 OBJECT_CONTYPE, OBJECT_CONAFFINITY, OBJECT_GRIP_BIT = 1, 1, 4
 OBJECT_ARM_BIT = 2
+# Each fingertip's inner face: a grid of spheres (along the slot, along the finger) of this
+# radius, the tip's box recessed behind them by the same radius (see ``_pad_spheres``).
+PAD_GRID = (3, 3)
+PAD_SPHERE_RADIUS = 0.003  # m
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,6 +130,7 @@ def _arm_spec(urdf: str, kin: Kinematics) -> mujoco.MjSpec:
             geom.condim = 4
             geom.priority = 1
             geom.rgba = [0.25, 0.25, 0.28, 1.0]
+        _pad_spheres(spec.body(finger))
     placement = kin.tcp_in_last_joint
     site = spec.body(LAST_ARM_BODY).add_site()
     site.name = TCP_SITE
@@ -159,6 +164,36 @@ def _arm_spec(urdf: str, kin: Kinematics) -> mujoco.MjSpec:
         act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
     _add_finger_servo(spec, GRIPPER_MIRROR, FINGER_JOINTS[1])
     return spec
+
+
+def _pad_spheres(finger: mujoco.MjsBody) -> None:
+    """The fingertip box's inner face as ``PAD_GRID`` spheres, the box recessed behind them.
+
+    A box meets a cylinder in MuJoCo's general convex collider, whose normal at the box's edge
+    is the box's side: closed a centimetre or more off a mug's axis along the slot, the pads'
+    edges squeezed the mug out sideways. Sphere-cylinder and sphere-box contacts are analytic,
+    each normal through the sphere's centre, as at a real pad's edge. The spheres' tops lie in
+    the old face and within its outline (the hand's bounding boxes are unchanged); the box,
+    shortened by a radius, keeps the tip's outer faces for everything else.
+    """
+    tip = max(finger.geoms, key=lambda g: g.pos[2])  # the URDF's fingertip box
+    hx, hy, hz = tip.size
+    inward = -1.0 if tip.pos[1] > 0 else 1.0  # from the tip's centre toward the other finger
+    face = tip.pos[1] + inward * hy
+    r = PAD_SPHERE_RADIUS
+    tip.size = [hx, hy - r / 2, hz]
+    tip.pos = [tip.pos[0], tip.pos[1] - inward * r / 2, tip.pos[2]]
+    nx, nz = PAD_GRID
+    for x in np.linspace(tip.pos[0] - hx + r, tip.pos[0] + hx - r, nx):
+        for z in np.linspace(tip.pos[2] - hz + r, tip.pos[2] + hz - r, nz):
+            sphere = finger.add_geom()
+            sphere.type = mujoco.mjtGeom.mjGEOM_SPHERE
+            sphere.size = [r, 0.0, 0.0]
+            sphere.pos = [x, face - inward * r, z]
+            for attr in ("friction", "contype", "conaffinity", "solref", "solimp", "condim"):
+                setattr(sphere, attr, getattr(tip, attr))
+            sphere.priority = tip.priority
+            sphere.rgba = tip.rgba
 
 
 def _add_finger_servo(spec: mujoco.MjSpec, name: str, joint: str) -> None:
