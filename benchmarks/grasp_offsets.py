@@ -119,7 +119,9 @@ def main() -> None:
         print(json.dumps(row))
     lifted = sum(1 for r in rows if r["outcome"] == "success")
     carried = sum(1 for r in rows if r.get("carry", {}).get("held"))
-    print(f"lifted: {lifted} of {len(rows)} offsets along the slot; still held after the carry: {carried}")
+    print(
+        f"lifted: {lifted} of {len(rows)} offsets along the slot; still held after the carry: {carried}"
+    )
 
 
 if __name__ == "__main__":

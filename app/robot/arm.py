@@ -9,7 +9,8 @@ Each joint servo is a position actuator (``ctrl[0:7]``, stiffness ``KP``) plus a
 actuator (``ctrl[8:15]``, damping ``KV``): torque ``= KP (q_cmd - q) + KV (qd_cmd - qd)``.
 A command ``U = Q + u`` per tick is tracked at its own speed (``qd_cmd = u / dt``) instead of
 lagging behind a damper that pulls toward rest. ``ctrl[7]`` and ``ctrl[15]`` are the finger
-openings (the same value).
+openings (the same value). Each fingertip's inner face is a grid of small spheres
+(``_pad_spheres``): an object closed on off its axis along the slot is held as by a real pad.
 """
 
 from __future__ import annotations
@@ -54,6 +55,16 @@ OBJECT_ARM_BIT = 2
 # radius, the tip's box recessed behind them by the same radius (see ``_pad_spheres``).
 PAD_GRID = (3, 3)
 PAD_SPHERE_RADIUS = 0.003  # m
+_PAD_ATTRIBUTES = (
+    "friction",
+    "contype",
+    "conaffinity",
+    "solref",
+    "solimp",
+    "condim",
+    "priority",
+    "rgba",
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -190,10 +201,8 @@ def _pad_spheres(finger: mujoco.MjsBody) -> None:
             sphere.type = mujoco.mjtGeom.mjGEOM_SPHERE
             sphere.size = [r, 0.0, 0.0]
             sphere.pos = [x, face - inward * r, z]
-            for attr in ("friction", "contype", "conaffinity", "solref", "solimp", "condim"):
+            for attr in _PAD_ATTRIBUTES:
                 setattr(sphere, attr, getattr(tip, attr))
-            sphere.priority = tip.priority
-            sphere.rgba = tip.rgba
 
 
 def _add_finger_servo(spec: mujoco.MjSpec, name: str, joint: str) -> None:
