@@ -3,7 +3,7 @@
 A participant closes the gripper where they see the object between the fingers, often a
 centimetre or two off its axis along the slot (world x). For each offset the script runs the
 practice run headless (the paper protocol's mug, no assistance): the user's target goes to the
-point ``offset`` off the grasp point (``--dz`` below it), G once the TCP is within 3 mm and
+point ``offset`` off the grasp point (``--dz`` above it), G once the TCP is within 3 mm and
 0.5 s later. A lifted mug is then carried (``carry``: the TCP ``CARRY`` further at ``CARRY_SPEED``,
 the gripper closed). Printed per offset: the outcome, the time, the grasp's events, how far the
 mug moved on the table, its fastest speed, and after the carry whether it is still held and how
@@ -60,7 +60,7 @@ class GraspAt:
 
 
 def grasp_trial(offset_m: float, *, dz: float = 0.0, seconds: float = 15.0) -> Trial:
-    """The practice run with the user's grasp ``offset_m`` along the slot, ``dz`` below."""
+    """The practice run with the user's grasp ``offset_m`` along the slot, ``dz`` above."""
     config = load_protocol(ROOT / "protocols" / "dragan2013.toml").training_config()
     config = dataclasses.replace(config, time_limit_s=seconds)
     scene = build_scene(config.scene)
@@ -112,7 +112,12 @@ def run(offset_m: float, *, dz: float, seconds: float = 15.0) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--offsets", default="0,0.01,0.015,0.02,0.025,0.03")
-    parser.add_argument("--dz", type=float, default=0.0, help="below the grasp point (m)")
+    parser.add_argument(
+        "--dz",
+        type=float,
+        default=0.0,
+        help="above the grasp point (m); below it the palm stop (2.4 mm under) holds the hand",
+    )
     args = parser.parse_args()
     rows = [run(float(o), dz=args.dz) for o in args.offsets.split(",")]
     for row in rows:

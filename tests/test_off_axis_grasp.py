@@ -20,6 +20,7 @@ from benchmarks.grasp_offsets import carry, grasp_trial
 def test_the_mug_closed_on_off_its_axis_along_the_slot_is_lifted_and_carried(
     offset_m: float, dz: float
 ) -> None:
+    """At the grasp height and 1 cm above it (``dz``), 1 and 2 cm off the axis."""
     trial = grasp_trial(offset_m, dz=dz, seconds=6.0)
     while not trial.done:
         trial.tick()
