@@ -4,7 +4,7 @@ A participant closes the gripper where they see the mug between the fingers, oft
 its axis along the slot (world x; the pads are 17.6 mm wide). A real parallel gripper holds a
 5.6-cm cylinder there (the pad's contact normal within the friction cone); in MuJoCo the pad's
 box edge squeezed the mug out sideways (``benchmarks/grasp_offsets.py``, README "A grasp closed
-off the object's axis along the slot"), which the spheres of ``app.robot.arm._pad_spheres`` fix.
+off the object's axis along the slot"), which the capsules of ``app.robot.arm._pad_capsules`` fix.
 """
 
 from __future__ import annotations

@@ -9,13 +9,14 @@ Each joint servo is a position actuator (``ctrl[0:7]``, stiffness ``KP``) plus a
 actuator (``ctrl[8:15]``, damping ``KV``): torque ``= KP (q_cmd - q) + KV (qd_cmd - qd)``.
 A command ``U = Q + u`` per tick is tracked at its own speed (``qd_cmd = u / dt``) instead of
 lagging behind a damper that pulls toward rest. ``ctrl[7]`` and ``ctrl[15]`` are the finger
-openings (the same value). Each fingertip's inner face is a grid of small spheres
-(``_pad_spheres``): an object closed on off its axis along the slot is held as by a real pad.
+openings (the same value). Each fingertip's inner face is two capsules along the slot
+(``_pad_capsules``): an object closed on off its axis along the slot is held as by a real pad.
 """
 
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 import mujoco
@@ -51,20 +52,13 @@ WORLD_CONTYPE, WORLD_CONAFFINITY = 1, 3
 LOW_LINKS = ("panda_link6", "panda_link7", "panda_hand", "panda_leftfinger", "panda_rightfinger")
 OBJECT_CONTYPE, OBJECT_CONAFFINITY, OBJECT_GRIP_BIT = 1, 1, 4
 OBJECT_ARM_BIT = 2
-# Each fingertip's inner face: a grid of spheres (along the slot, along the finger) of this
-# radius, the tip's box recessed behind them by the same radius (see ``_pad_spheres``).
-PAD_GRID = (3, 3)
-PAD_SPHERE_RADIUS = 0.003  # m
-_PAD_ATTRIBUTES = (
-    "friction",
-    "contype",
-    "conaffinity",
-    "solref",
-    "solimp",
-    "condim",
-    "priority",
-    "rgba",
-)
+# Each fingertip's inner face: PAD_ROWS capsules along the slot of radius PAD_RADIUS, the tip's
+# box recessed behind them by a radius, contacts with time constant PAD_TIMECONST (see
+# ``_pad_capsules``).
+PAD_ROWS = 2
+PAD_RADIUS = 0.003  # m
+PAD_TIMECONST = 0.007  # s
+_PAD_ATTRIBUTES = ("friction", "contype", "conaffinity", "solimp", "condim", "priority", "rgba")
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,7 +135,7 @@ def _arm_spec(urdf: str, kin: Kinematics) -> mujoco.MjSpec:
             geom.condim = 4
             geom.priority = 1
             geom.rgba = [0.25, 0.25, 0.28, 1.0]
-        _pad_spheres(spec.body(finger))
+        _pad_capsules(spec.body(finger))
     placement = kin.tcp_in_last_joint
     site = spec.body(LAST_ARM_BODY).add_site()
     site.name = TCP_SITE
@@ -177,32 +171,35 @@ def _arm_spec(urdf: str, kin: Kinematics) -> mujoco.MjSpec:
     return spec
 
 
-def _pad_spheres(finger: mujoco.MjsBody) -> None:
-    """The fingertip box's inner face as ``PAD_GRID`` spheres, the box recessed behind them.
+def _pad_capsules(finger: mujoco.MjsBody) -> None:
+    """The fingertip box's inner face as ``PAD_ROWS`` capsules along the slot, the box recessed.
 
     A box meets a cylinder in MuJoCo's general convex collider, whose normal at the box's edge
     is the box's side: closed a centimetre or more off a mug's axis along the slot, the pads'
-    edges squeezed the mug out sideways. Sphere-cylinder and sphere-box contacts are analytic,
-    each normal through the sphere's centre, as at a real pad's edge. The spheres' tops lie in
-    the old face and within its outline (the hand's bounding boxes are unchanged); the box,
-    shortened by a radius, keeps the tip's outer faces for everything else.
+    edges squeezed the mug out sideways. A capsule's rounded end gives the mug's own normal
+    there, as a real pad's edge; on a flat face each capsule meets a box at its two ends
+    (MuJoCo's capsule-box collider), four contacts as the old box. Their time constant is 7 ms
+    (the box's 4 ms is raised to 5 at the 2.5-ms step): at 5 ms a box dragged on the table lost
+    a finger's contacts for a tick as it left it. The capsules lie within the face's outline
+    (the hand's bounding boxes are unchanged); the box keeps the tip's outer faces.
     """
     tip = max(finger.geoms, key=lambda g: g.pos[2])  # the URDF's fingertip box
     hx, hy, hz = tip.size
     inward = -1.0 if tip.pos[1] > 0 else 1.0  # from the tip's centre toward the other finger
     face = tip.pos[1] + inward * hy
-    r = PAD_SPHERE_RADIUS
+    r = PAD_RADIUS
     tip.size = [hx, hy - r / 2, hz]
     tip.pos = [tip.pos[0], tip.pos[1] - inward * r / 2, tip.pos[2]]
-    nx, nz = PAD_GRID
-    for x in np.linspace(tip.pos[0] - hx + r, tip.pos[0] + hx - r, nx):
-        for z in np.linspace(tip.pos[2] - hz + r, tip.pos[2] + hz - r, nz):
-            sphere = finger.add_geom()
-            sphere.type = mujoco.mjtGeom.mjGEOM_SPHERE
-            sphere.size = [r, 0.0, 0.0]
-            sphere.pos = [x, face - inward * r, z]
-            for attr in _PAD_ATTRIBUTES:
-                setattr(sphere, attr, getattr(tip, attr))
+    along_slot = [math.cos(math.pi / 4), 0.0, math.sin(math.pi / 4), 0.0]  # capsule z -> x
+    for z in np.linspace(tip.pos[2] - hz + r, tip.pos[2] + hz - r, PAD_ROWS):
+        capsule = finger.add_geom()
+        capsule.type = mujoco.mjtGeom.mjGEOM_CAPSULE
+        capsule.size = [r, hx - r, 0.0]
+        capsule.pos = [tip.pos[0], face - inward * r, z]
+        capsule.quat = along_slot
+        for attr in _PAD_ATTRIBUTES:
+            setattr(capsule, attr, getattr(tip, attr))
+        capsule.solref = [PAD_TIMECONST, 1.0]
 
 
 def _add_finger_servo(spec: mujoco.MjSpec, name: str, joint: str) -> None:
