@@ -174,14 +174,11 @@ def _arm_spec(urdf: str, kin: Kinematics) -> mujoco.MjSpec:
 def _pad_capsules(finger: mujoco.MjsBody) -> None:
     """The fingertip box's inner face as ``PAD_ROWS`` capsules along the slot, the box recessed.
 
-    A box meets a cylinder in MuJoCo's general convex collider, whose normal at the box's edge
-    is the box's side: closed a centimetre or more off a mug's axis along the slot, the pads'
-    edges squeezed the mug out sideways. A capsule's rounded end gives the mug's own normal
-    there, as a real pad's edge; on a flat face each capsule meets a box at its two ends
-    (MuJoCo's capsule-box collider), four contacts as the old box. Their time constant is 7 ms
-    (the box's 4 ms is raised to 5 at the 2.5-ms step): at 5 ms a box dragged on the table lost
-    a finger's contacts for a tick as it left it. The capsules lie within the face's outline
-    (the hand's bounding boxes are unchanged); the box keeps the tip's outer faces.
+    MuJoCo's convex collider gives a box's edge on a cylinder the box's side as normal (a mug
+    closed on 1 cm or more off its axis was squeezed out along the slot); a capsule's rounded end
+    gives the mug's own normal and meets a flat face at its two ends (four contacts, as the box).
+    7-ms contacts: at 5 ms (the box's 4 ms, raised at the 2.5-ms step) a box lifted off the table
+    lost a finger's contacts for a tick. Within the old outline: the hand's bounding boxes hold.
     """
     tip = max(finger.geoms, key=lambda g: g.pos[2])  # the URDF's fingertip box
     hx, hy, hz = tip.size
