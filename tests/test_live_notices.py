@@ -199,13 +199,14 @@ def test_f_held_to_the_table_around_the_mug_stops_the_palm_above_it_and_says_pre
     assert trial.outcome == "success" and trial.accidents.count == 0
 
 
-@pytest.mark.parametrize(("dx", "centred"), [(0.003, True), (0.015, False)])
+@pytest.mark.parametrize(("dx", "centred"), [(0.003, True), (0.015, True), (0.027, False)])
 def test_as_low_as_it_goes_says_whether_the_object_is_in_the_middle_of_the_fingers(
     dx: float, centred: bool
 ) -> None:
-    """Off the mug's axis along the fingers by 1.5 cm, closing squeezes the mug away
-    (``benchmarks/grasp_offsets.py``): the trial says the hand is not centred there (the page's
-    ``NOT_CENTRED`` notice) rather than inviting G."""
+    """Off the mug's axis along the fingers by 2.7 cm, closing lets the mug slip out on the lift
+    (``benchmarks/grasp_offsets.py``: it slips at 3 cm, holds to 2.5): the trial says the hand
+    is not centred there (the page's ``NOT_CENTRED`` notice) rather than inviting G; 1.5 cm off
+    it holds, and G is invited."""
     trial = _practice(_Keys((dx, 0.0), floor=0.02))
     while trial.t < 5.0:
         trial.tick()

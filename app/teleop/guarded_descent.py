@@ -68,10 +68,10 @@ to take the hand again over an object it let go of (the simulated hand's noise i
 
 PALM_CLEAR_M = 0.005
 """How far above the object's top the palm stays when the open hand is lowered around it."""
-CENTRED_M = 0.008
+CENTRED_M = 0.02
 """The hand this near the object's axis along the slot (world x) is centred for a grasp: the
-17.6-mm finger pads cover the axis, and the simulated fingers hold a cylinder up to about 0.8 cm
-off it (``benchmarks/grasp_offsets.py``; farther off they squeeze it away)."""
+fingers' capsule pads lift and carry the practice mug closed on up to 2.5 cm off its axis, and
+let it slip out at 3 cm (``benchmarks/grasp_offsets.py``); 2 cm leaves a participant's drift."""
 
 Footprint = tuple[float, float, float, float, float]
 """An object as ``(x, y, footprint radius, top height, half-width across the slot)`` (m)."""
