@@ -6,6 +6,7 @@ import asyncio
 import importlib
 import inspect
 import math
+import threading
 import time
 
 import msgspec
@@ -242,8 +243,10 @@ def test_the_viser_internals_the_door_reaches_are_where_it_expects() -> None:
         viser_door.set_image_bytes(image, b"jpeg")
         assert image._data == b"jpeg"
         assert viser_door.connection_of(server, 12345) is None
+        assert isinstance(ws._server_thread, threading.Thread)
     finally:
-        server.stop()
+        assert viser_door.stop_server(server)
+    assert not ws._server_thread.is_alive()
 
 
 def test_the_doors_hooks_reach_only_the_servers_that_use_them() -> None:

@@ -43,7 +43,7 @@ from pathlib import Path
 from app.warm_up import warm_up
 from study.errors import StudyError
 from study.protocol.blinding import find_words
-from study.server import blinding_guard, firewall, logs, realtime
+from study.server import blinding_guard, firewall, logs, realtime, viser_door
 from study.server.console_model import LinkState, SessionDetail, SessionSummary, StudyProgress
 from study.server.console_page import ExperimenterConsole
 from study.server.finished_sessions import (
@@ -238,8 +238,8 @@ class StudyServer:
         # only the firewalls' sweepers end before, on the loops that run them
         self.firewall.stop_sweeper()
         self.experimenter_firewall.stop_sweeper()
-        self.participant.stop()
-        self.experimenter.stop()
+        viser_door.stop_server(self.participant)
+        viser_door.stop_server(self.experimenter)
         blinding_guard.uninstall(self.participant)
         firewall.uninstall(self.participant)
         firewall.uninstall(self.experimenter)
