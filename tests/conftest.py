@@ -42,12 +42,13 @@ BROWSER_LANES = {
     "tests/browser/test_key_state.py": "browser-1",
     "tests/browser/test_tls_proxy.py": "browser-1",
     "tests/browser/test_join_and_console.py": "browser-1",
+    "tests/browser/test_keys_and_pause.py": "browser-1",
 }
 """The browser tests' two lanes, each run by one worker one test after another; a module not
-listed runs in ``browser-2``. Balanced by ``--durations`` (2 cores, December 2026: about 340 s
-and 400 s of a loaded machine's 750). A lane's Chromium draws on demand and its tests mostly
-wait for what a person waits for (holding a key, a run's time limit): the lane used 0.28 CPU
-seconds a second (197 CPU s in 695 s), so two lanes at once draw no slower than one."""
+listed runs in ``browser-2``. Balanced by ``--durations`` (2 cores, 4 workers, December 2026:
+about 450 s each). A lane's Chromium draws on demand and its tests mostly wait for what a
+person waits for (holding a key, a run's time limit): one lane alone used 0.28 CPU seconds a
+second (197 CPU s in 695 s, `-n 0`), and the whole suite on 4 workers 1.25 of the 2 cores."""
 
 
 def _group(nodeid: str) -> str:
