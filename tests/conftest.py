@@ -69,24 +69,6 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.xdist_group(_group(item.nodeid)))
 
 
-OTHERS_NICE = 5
-"""The nice value a worker takes for its first test outside the browser lanes."""
-
-
-@pytest.fixture(autouse=True)
-def _browser_lanes_first(request: pytest.FixtureRequest) -> None:
-    """Under pytest-xdist, a worker running anything but a browser test runs it at nice
-    ``OTHERS_NICE``: the browser lanes set the suite's pace (their tests wait for what a page
-    draws, in real time), so the kernel gives a lane's Chromium and server the cores first and
-    the other tests the rest. Each lane starts a worker (``LONGEST_FIRST``), so a lane's worker
-    is niced only once its lane is done; nice values only go up, as the kernel allows."""
-    if "PYTEST_XDIST_WORKER" not in os.environ or _group(request.node.nodeid).startswith("browser"):
-        return
-    current = os.nice(0)
-    if current < OTHERS_NICE:
-        os.nice(OTHERS_NICE - current)
-
-
 def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
     """``-n auto``: two workers a core (``--maxprocesses`` caps it). The suite mostly waits --
     on paced control loops, attack scripts' seconds, browsers, subprocesses: measured on 2
