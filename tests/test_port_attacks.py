@@ -90,6 +90,20 @@ class Honest:
             "GuiUpdateMessage", uuid=self.keys_uuid, updates={"value": f"{self.seq} {held}"}
         )
 
+    async def comes_to_rest(self, trial: Any, *, timeout: float = 2.0) -> bool:
+        """Whether the user's target stops moving within ``timeout``: unchanged over 3 ticks."""
+        loop = self.live.control_loop
+        end = time.monotonic() + timeout
+        ticks, seen = loop.ticks, np.array(trial.user_target)
+        while time.monotonic() < end:
+            await asyncio.sleep(0.02)
+            if loop.ticks >= ticks + 3:
+                now = np.array(trial.user_target)
+                if np.array_equal(now, seen):
+                    return True
+                ticks, seen = loop.ticks, now
+        return False
+
     async def inputs_land(self) -> None:
         """A pose lands; W held half a second moves the target; its release stops it."""
         y = 0.05 + 0.01 * len(self.landed)
@@ -107,6 +121,9 @@ class Honest:
             await self.keys("w")
         await self.keys("")
         assert await until(lambda: not source.keyboard.moving, timeout=2.0), "release lost"
+        # ticks begun while W was held may still be writing their steps (a starved loop catches
+        # up in a burst): the target comes to rest within a few ticks, then stays
+        assert await self.comes_to_rest(trial), "still moving after the release"
         moved = float(np.linalg.norm(np.array(trial.user_target) - before))
         await asyncio.sleep(0.3)
         after = float(np.linalg.norm(np.array(trial.user_target) - before))
