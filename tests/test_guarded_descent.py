@@ -99,6 +99,20 @@ def test_lowered_around_the_mug_the_palm_stops_clear_of_its_top() -> None:
     assert guard.rest(centred, floor, [MUG], skip=(0,)) is None  # the robot's goal
 
 
+def test_beside_the_mug_the_palm_stops_clear_of_its_top_where_it_overlaps_it() -> None:
+    """Beside the finger pads (no longer around the mug) the palm, 3.2 cm to each side along
+    the slot and 10.2 cm across it, still covers the mug's rim until 6 cm off its axis."""
+    guard = DescentGuard(reach_below=0.05, slot=0.04, palm_above=0.0374, palm_half=(0.032, 0.102))
+    rest = 0.12 - 0.0374 + PALM_CLEAR_M
+    floor = (0.55, -0.25, 0.02)
+    assert guard.around((0.55, -0.25, 0.09), [MUG]) is None  # the fingers pass beside it
+    assert guard.under_palm((0.55, -0.25, 0.09), [MUG]) == 0
+    assert guard.rest((0.55, -0.25, 0.09), floor, [MUG]) == ((0.55, -0.25, rest), 0)
+    assert guard.rest((0.561, -0.25, 0.09), floor, [MUG]) is None  # the palm clears it
+    assert guard.rest((0.5, -0.25 + 0.135, 0.09), floor, [MUG]) is None  # across, clear
+    assert guard.rest((0.55, -0.25, 0.09), floor, [MUG], skip=(0,)) is None  # the robot's goal
+
+
 def test_the_palm_stops_above_every_shipped_grasp_point() -> None:
     """The palm's stop lies under every grasp point of every shipped protocol's scenes: the
     hand always reaches the grasp."""

@@ -239,3 +239,20 @@ def test_a_hand_high_over_an_object_is_not_as_low_as_it_goes() -> None:
     while trial.t < 3.0:
         trial.tick()
         assert trial.resting_on is None, trial.t
+
+
+@pytest.mark.parametrize("dx", [0.045, 0.055])
+def test_f_held_beside_the_mug_stops_the_palm_above_it_and_says_not_in_the_middle(
+    dx: float,
+) -> None:
+    """4.5-5.5 cm off the mug's axis along the slot the fingers pass beside the mug, but the
+    palm (3.2 cm to each side of the TCP along the slot, 4.7 cm above the fingertips) does not:
+    a tester's hand came down there with its palm on the mug's rim for 5 s. F held to the
+    table: the palm stops clear of the top, nothing touches, and the trial says the hand is
+    not centred (the page's "not in the middle ... W/S" notice)."""
+    trial = _practice(_Keys((dx, 0.0), floor=0.02))
+    while trial.t < 6.0:
+        trial.tick()
+        assert not trial.contacts.touching, (trial.t, trial.contacts.touching)
+    assert trial.resting_on == 0 and trial.resting_centred is False
+    assert trial.accidents.count == 0

@@ -38,7 +38,11 @@ fingers (the hand clears ``k``, not beside it), ``U`` steers to ``(t_x, t_y, max
 with ``r_k = h_k - p + PALM_CLEAR_M`` (``rest``; a few millimetres under the grasp point, which
 lies at most 3 cm under the top). A participant holding F to the table's reach put the palm
 on the mug's top, the hand bounced on it by itself, and the mug went over (a new-participant
-pass: the palm on the top after every one of 7 descents). The trial leaves
+pass: the palm on the top after every one of 7 descents). The same stop holds while the palm's
+footprint, ``palm_half`` ``(h_x, h_y)`` to each side of the TCP, overlaps ``k``'s
+(``|x_x - o_x| < r_k + h_x`` and ``|x_y - o_y| < r_k + h_y``: ``under_palm``) with the fingers
+beside it: the palm is wider than the pads, and a tester's hand lowered 4.5-5 cm off the mug's
+axis along the slot came down with its palm on the rim for 5 s. The trial leaves
 out the object the robot is taking the hand to (``alpha > 0``), as ``lift_out`` does: its
 policy centres the hand there, and a user's target held off it would only push against the
 robot lowering the hand.
@@ -96,7 +100,8 @@ class DescentGuard:
     """Holds the open hand above an object it would come down on and stops it, lowered around
     one, with its palm just over the top (module docstring); one per trial, for a hand whose
     fingertips are ``reach_below`` under the TCP, whose palm is ``palm_above`` over it, and
-    whose open slot's half-width is ``slot``. ``held``: the object held above, or ``None``."""
+    whose open slot's half-width is ``slot`` and whose palm reaches ``palm_half`` to each side
+    of the TCP along world x and y. ``held``: the object held above, or ``None``."""
 
     def __init__(
         self,
@@ -104,10 +109,12 @@ class DescentGuard:
         reach_below: float,
         slot: float,
         palm_above: float,
+        palm_half: tuple[float, float] = (0.0, 0.0),
         clearance: float = CLEARANCE_M,
     ) -> None:
         self.reach_below = reach_below
         self.palm_above = palm_above
+        self.palm_half = palm_half
         self.slot = slot
         self.clearance = clearance
         self.held: int | None = None
@@ -192,6 +199,21 @@ class DescentGuard:
                 return k
         return None
 
+    def under_palm(
+        self, x: Sequence[float], objects: Sequence[Footprint], *, skip: Container[int] = ()
+    ) -> int | None:
+        """The object whose footprint the palm of the hand at ``x`` overlaps (the object
+        between the fingers first, ``around``), or ``None``."""
+        k = self.around(x, objects, skip=skip)
+        if k is not None:
+            return k
+        xx, xy, _ = x
+        hx, hy = self.palm_half
+        for k, (ox, oy, radius, _, _) in enumerate(objects):
+            if k not in skip and abs(xx - ox) < radius + hx and abs(xy - oy) < radius + hy:
+                return k
+        return None
+
     def rest(
         self,
         x: Sequence[float],
@@ -201,9 +223,9 @@ class DescentGuard:
         skip: Container[int] = (),
     ) -> tuple[tuple[float, float, float], int] | None:
         """``U``'s target no lower than where the palm clears the top of the object the open
-        hand is lowered around (module docstring), and that object's index; ``None`` when the
-        target is not below that height (or the hand is around no object)."""
-        k = self.around(x, objects, skip=skip)
+        hand is lowered around or beside, under its palm (module docstring), and that object's
+        index; ``None`` when the target is not below that height (or no object is there)."""
+        k = self.under_palm(x, objects, skip=skip)
         if k is None:
             return None
         tx, ty, tz = target

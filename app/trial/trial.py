@@ -31,6 +31,7 @@ import time
 import numpy as np
 
 from app.blending import moved_goals, reach_below
+from app.blending.policy_grasp import HandLayer
 from app.robot.errors import PhysicsError
 from app.robot.scene import Scene, build_scene
 from app.robot.simulation import BodyPoses, Simulation
@@ -105,16 +106,19 @@ class Trial:
         self._grasp_points = self.scene.goals.positions
         self._reach_below = reach_below(self.scene.hand)
         self._half_widths = tuple(o.grasp_width / 2 for o in self.scene.spec.objects)
+        palm = min(self.scene.hand[1:], key=lambda layer: layer.lo, default=None)
         self.guard = DescentGuard(
             reach_below=self._reach_below,
             slot=self.scene.spec.gripper_open,
-            palm_above=min((layer.lo for layer in self.scene.hand[1:]), default=math.inf),
+            palm_above=palm.lo if palm is not None else math.inf,
+            palm_half=_half_extent(palm),
         )
         """Holds the open hand above an object it would come down on (``held_above``) and
         stops it, lowered around one, with its palm just over the top."""
         self.resting_on: int | None = None
-        """The object around which the open hand is as low as it goes this tick, the input asking
-        it lower (the guard's palm stop, or the reach's floor), or ``None``."""
+        """The object around (or beside, under the palm) which the open hand is as low as it
+        goes this tick, the input asking it lower (the guard's palm stop, or the reach's
+        floor), or ``None``."""
         self.resting_centred = False
         """Whether the hand is then centred on that object along the slot (``CENTRED_M``)."""
         self._last_ee_z = math.inf  # the TCP's height at the last tick (``_note_resting``)
@@ -288,10 +292,13 @@ class Trial:
                 return  # the input does not ask it lower than it goes
             if ee[2] > target_z + 0.005 and abs(ee[2] - last) >= 2e-4:
                 return  # still coming down
-        k = self.guard.around(ee, self._footprints, skip=self.accidents.down)
+        k = self.guard.under_palm(ee, self._footprints, skip=self.accidents.down)
         if k is not None:
             self.resting_on = k
-            self.resting_centred = abs(ee[0] - self._footprints[k][0]) <= CENTRED_M
+            self.resting_centred = (
+                abs(ee[0] - self._footprints[k][0]) <= CENTRED_M
+                and self.guard.around(ee, self._footprints, skip=self.accidents.down) == k
+            )
 
     @property
     def held_above(self) -> int | None:
@@ -529,6 +536,14 @@ class Trial:
         if self.keep_records:
             self.records.append(rec)
         return rec
+
+
+def _half_extent(layer: HandLayer | None) -> tuple[float, float]:
+    """How far ``layer`` reaches to each side of the TCP along world x and y (its box about
+    its centre; the TCP's x and y are the world's for the top-down hand)."""
+    if layer is None:
+        return (0.0, 0.0)
+    return (abs(layer.center[0]) + layer.half[0], abs(layer.center[1]) + layer.half[1])
 
 
 def run_trial(
