@@ -131,6 +131,26 @@ def test_the_palm_stops_above_every_shipped_grasp_point() -> None:
                 assert top - palm + PALM_CLEAR_M < g[2] - 0.001, (path.name, top, g)
 
 
+def test_a_hand_centred_on_any_shipped_object_has_no_other_object_under_its_palm() -> None:
+    """The palm's stop beside an object never keeps the hand from a grasp: in every shipped
+    protocol's scenes, the palm of a hand centred on one object clears every other one."""
+    for path in sorted(Path("protocols").glob("*.toml")):
+        if path.name == "population.toml":
+            continue
+        protocol = load_protocol(path)
+        configs = [protocol.training_config()] + [
+            protocol.trial_config(task, protocol.mode_names[0]) for task in protocol.task_names
+        ]
+        for config in configs:
+            trial = Trial(config, IdleInput(), keep_records=False)
+            for k, (ox, oy, _, top, _) in enumerate(trial._footprints):
+                hand = (ox, oy, top + 0.05)
+                assert trial.guard.under_palm(hand, trial._footprints, skip=(k,)) is None, (
+                    path.name,
+                    k,
+                )
+
+
 @pytest.mark.parametrize("offset_m", [0.025, 0.035])
 def test_lowering_beside_the_practice_mug_leaves_it_standing(offset_m: float) -> None:
     row = run(offset_m, axis=1, seconds=6.0)
