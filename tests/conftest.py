@@ -72,8 +72,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
     """``-n auto``: two workers a core (``--maxprocesses`` caps it). The suite mostly waits --
     on paced control loops, attack scripts' seconds, browsers, subprocesses: measured on 2
-    cores, the browser lane used 0.28 CPU s a second and the other tests 0.45 -- so twice as
-    many workers as cores keep the cores busy."""
+    cores, the browser lane alone used 0.28 CPU s a second and the other tests 0.45 (under other
+    jobs' load: a lower bound) -- so twice as many workers as cores keep the cores busier."""
     return 2 * (os.cpu_count() or 1)
 
 
