@@ -145,6 +145,25 @@ def drag(page: Any, start: tuple[float, float], end: tuple[float, float], *, ste
     page.mouse.up()
 
 
+def drag_until(
+    page: Any,
+    start: tuple[float, float],
+    end: tuple[float, float],
+    moved: Any,
+    *,
+    steps: int = 12,
+    tries: int = 2,
+    timeout: float = 10.0,
+) -> bool:
+    """Drag from ``start`` to ``end`` until ``moved()`` holds, as a person who missed the
+    handle tries again: software WebGL under load can pick nothing on the first press."""
+    for _ in range(tries):
+        drag(page, start, end, steps=steps)
+        if wait_until(moved, timeout=timeout):
+            return True
+    return False
+
+
 def wait_until(predicate: Any, *, timeout: float = 20.0, interval: float = 0.05) -> bool:
     """Poll ``predicate()`` until truthy or ``timeout`` seconds pass; return its last value."""
     deadline = time.monotonic() + timeout

@@ -22,8 +22,7 @@ import pytest
 from tests.browser.harness import (
     FrameLog,
     RunningServer,
-    drag,
-    project,
+    drag_until,
     start_server,
     wait_until,
 )
@@ -33,8 +32,10 @@ from tests.browser.page import (
     connect_page,
     hold,
     join,
+    page_pixel,
     screenshot,
     settle_frames,
+    wait_camera_still,
     wait_connected,
     without_client_warning,
 )
@@ -131,11 +132,19 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     run = live.run
     start = np.array(run.trial.user_target, float)
     cam = live.page.client.camera
-    grab = project(cam, start + np.array([0.0, 0.0, 0.2]))
+    wait_camera_still(live)
+    grab = tuple(page_pixel(page, cam, start + np.array([0.0, 0.0, 0.2])))
     t_drag = time.monotonic()
-    drag(page, grab, (grab[0], grab[1] - 40), steps=5)
+    lifted = drag_until(
+        page,
+        grab,
+        (grab[0], grab[1] - 40),
+        lambda: run.trial.user_target[2] > start[2] + 0.03,
+        steps=5,
+        timeout=5,
+    )
     print(f"drag took {time.monotonic() - t_drag:.1f} s; trial time {run.trial.t:.1f} s")
-    assert wait_until(lambda: run.trial.user_target[2] > start[2] + 0.03, timeout=5)
+    assert lifted, "dragging the handle's up arrow did not raise the target"
     # Keyboard: holding F lowers the target while it is held (0.1 m/s).
     before = float(run.trial.user_target[2])
     hold(page, "f", 0.6)

@@ -11,8 +11,17 @@ import numpy as np
 import pytest
 
 from study.server.page_handle import HANDLE_OFFSET_M
-from tests.browser.harness import drag, project, start_server, wait_until
-from tests.browser.page import AGREE, connect_page, join, screenshot, settle_frames
+from tests.browser.harness import drag_until, start_server, wait_until
+from tests.browser.page import (
+    AGREE,
+    canvas_box,
+    connect_page,
+    join,
+    page_pixel,
+    screenshot,
+    settle_frames,
+    wait_camera_still,
+)
 from tests.protocol_copies import relative_copy
 
 pytestmark = pytest.mark.browser
@@ -43,12 +52,11 @@ def test_a_released_handle_returns_to_the_gripper(
         start = trial.poses().gripper.copy()
         cam = live.page.client.camera
         # grab the vertical arrow above the gripper and pull it 30 cm down, through the table
-        grab = project(cam, start + np.array([0.0, 0.0, 0.2]))
-        end = project(cam, start + np.array([0.0, 0.0, -0.1]))
-        for _ in range(2):  # software WebGL under load can miss the first grab
-            drag(page, grab, end, steps=8)
-            if wait_until(lambda: trial.poses().gripper[2] < start[2] - 0.1, timeout=10):
-                break
+        wait_camera_still(live)
+        box = canvas_box(page)
+        grab = tuple(page_pixel(page, cam, start + np.array([0.0, 0.0, 0.2]), box=box))
+        end = tuple(page_pixel(page, cam, start + np.array([0.0, 0.0, -0.1]), box=box))
+        drag_until(page, grab, end, lambda: trial.poses().gripper[2] < start[2] - 0.1, steps=8)
         floor = trial.scene.reach.lo[2]
         assert trial.poses().gripper[2] < start[2] - 0.1, "the handle was not dragged"
 
