@@ -255,6 +255,41 @@ def test_a_held_object_dropped_is_grasped_again_under_reset(config) -> None:
     assert len(grasps) == 2 and grasps[1] > dropped[0]  # the gripper opened, the user tried again
 
 
+def test_a_dropped_object_is_put_back_where_it_stood(config) -> None:
+    """A drop that leaves the mug away from its spot (6 cm aside and turned, as one that
+    slipped into another object's way): once it has settled it is put back at its start pose,
+    as an experimenter would, before the user's next grasp; it is not a fallen object (the
+    page's fell-over notice), and the run then succeeds."""
+    trial = Trial(config("training", "none", time_limit_s=30), ScriptedInput())
+    k = trial.scene.target_index
+    body = trial.scene.object_body_ids[k]
+    adr = int(trial.scene.object_qpos_addr[k])
+    spot = trial.sim.data.qpos[adr : adr + 7].copy()
+    grasps, dropped, reset, waiting = [], [], [], []
+    while not trial.done:
+        rec = trial.tick()
+        kinds = {e.kind for e in rec.events}
+        if EventKind.GRASPED in kinds:
+            grasps.append(rec.t)
+            if len(grasps) == 1:
+                trial.sim.data.xfrc_applied[body, 2] = -60.0
+        if EventKind.DROPPED in kinds:
+            dropped.append(rec.t)
+            trial.sim.data.xfrc_applied[body, 2] = 0.0
+            q = trial.sim.data.qpos
+            q[adr : adr + 2] = spot[:2] + np.array([0.0, 0.06])  # where it came to rest, turned 30°
+            q[adr + 3 : adr + 7] = (np.cos(np.pi / 12), 0.0, 0.0, np.sin(np.pi / 12))
+        if TrialEvent(EventKind.OBJECT_RESET, obj="mug") in rec.events:
+            reset.append(rec.t)
+            np.testing.assert_allclose(trial.sim.data.qpos[adr : adr + 7], spot, atol=1e-9)
+        elif dropped and not reset:
+            waiting.append((trial.accidents.down, trial.accidents.fallen))
+    assert len(dropped) == 1 and len(reset) == 1 and len(grasps) == 2
+    assert dropped[0] < reset[0] < grasps[1]
+    assert waiting and all(down == (k,) and fallen == () for down, fallen in waiting)
+    assert trial.outcome == "success" and trial.accidents.resets["mug"] == 1
+
+
 def test_timeout_and_abort(config) -> None:
     result = run_trial(config("easy-right", "timid", time_limit_s=2), IdleInput())
     assert result.outcome == "timeout" and result.ticks == 200

@@ -9,7 +9,9 @@ check and, under ``on_knock = "end"``, the outcome the trial ends with:
   a knock).
 
 Under ``on_knock = "reset"`` (the default: what an experimenter does) the run goes on and the
-object is put back: once it has settled (slower than ``SETTLE_SPEED_M_S`` and
+object is put back; so is a held object that slipped out of the gripper (``slipped``: where a
+drop leaves it, turned or against another object, a top-down grasp may no longer be possible,
+and the scene is no longer the one the condition defines). It is put back once it has settled (slower than ``SETTLE_SPEED_M_S`` and
 ``SETTLE_SPIN_RAD_S`` for ``SETTLE_S``, or ``MAX_SETTLE_S`` after the accident; an object off the
 table after ``PICKUP_S``), nothing holds it, no arm part touches it and its start pose is free,
 its free joint is set to the start pose at rest (``qpos = qpos_0``, ``qvel = 0``, forward) and
@@ -22,7 +24,8 @@ each knock counts.
 Under ``on_knock = "end"`` the first accident ends the trial: outcome ``knocked_over`` or
 ``pushed_off`` (the scene is no longer the one the condition defines).
 
-``knocks`` and ``pushes`` count the accidents per object, ``resets`` the objects put back.
+``knocks`` and ``pushes`` count the accidents per object, ``resets`` the objects put back;
+``down`` names the objects waiting to be put back, ``fallen`` those of them knocked or pushed.
 """
 
 from __future__ import annotations
@@ -78,7 +81,10 @@ class Accidents:
         self.count = 0
         """Accidents so far (knocks and falls off the table, every object)."""
         self.down: tuple[int, ...] = ()
-        """The objects lying now (knocked over or off the table, not yet put back)."""
+        """The objects waiting to be put back (knocked over, off the table, or slipped out of
+        the gripper)."""
+        self.fallen: tuple[int, ...] = ()
+        """Those of ``down`` knocked over or off the table (not a drop)."""
         model, data = sim.model, sim.data
         bodies = sim.scene.object_body_ids
         self._qadr = [int(a) for a in sim.scene.object_qpos_addr]
@@ -89,8 +95,16 @@ class Accidents:
         self._ignore = frozenset({table, model.geom("floor").id})
 
     def lying(self, k: int) -> bool:
-        """Object ``k`` was knocked over or pushed off and has not been put back yet."""
+        """Object ``k`` waits to be put back (knocked over, pushed off or dropped)."""
         return k in self._down
+
+    def slipped(self, k: int, t: float) -> None:
+        """Object ``k`` slipped out of the gripper at ``t`` (dropped, or it would not come up):
+        under ``on_knock = "reset"`` it is put back at its start pose like a knocked object,
+        once it has settled and its spot is free (the drop itself is the task's event)."""
+        if self.reset_objects and k not in self._down:
+            self._down[k] = _Down(EventKind.DROPPED, t)
+            self._note_down()
 
     def check(self, t: float, *, held: int | None) -> tuple[list[TrialEvent], str | None]:
         """This check's events and, under ``on_knock = "end"``, the outcome to end with."""
@@ -113,7 +127,7 @@ class Accidents:
                 outcome = outcome or "knocked_over"
         if events:
             self.count = sum(self.knocks.values()) + sum(self.pushes.values())
-            self.down = tuple(sorted(self._down))
+            self._note_down()
         if not self.reset_objects:
             return events, outcome
         if self._down:
@@ -121,12 +135,16 @@ class Accidents:
             for k in sorted(self._down):
                 if k != held and k not in touched and self._settled(k, t) and self._place(k):
                     del self._down[k]
-                    self.down = tuple(sorted(self._down))
+                    self._note_down()
                     self.resets[self.names[k]] += 1
                     events.append(TrialEvent(EventKind.OBJECT_RESET, obj=self.names[k]))
         return events, None
 
     # ---- internals -----------------------------------------------------------------------------
+    def _note_down(self) -> None:
+        self.down = tuple(sorted(self._down))
+        self.fallen = tuple(k for k in self.down if self._down[k].reason is not EventKind.DROPPED)
+
     def _settled(self, k: int, t: float) -> bool:
         down = self._down[k]
         if down.reason is EventKind.PUSHED_OFF:
@@ -177,7 +195,9 @@ ACCIDENT_MEASURES: dict[str, str] = {
     "target_knocks": "of those, the target object",
     "pushes_off": "objects pushed off the table",
     "drops": "held objects that slipped out of the gripper (or would not come up)",
-    "object_resets": "objects stood up again at their start pose (on_knock = reset)",
+    "object_resets": (
+        "objects put back at their start pose, knocked, off the table or dropped (on_knock = reset)"
+    ),
 }
 """The per-trial accident counts a reader of the logged events gets (``accident_totals``)."""
 

@@ -11,7 +11,7 @@ succeeds when the target is ``lift_height_m`` above its rest height. Outcomes (`
 accidents, each with its own event: a held object that falls out of the gripper (``dropped``),
 an object knocked over (``knocked_over``) or pushed off the table (``pushed_off``). Under
 ``on_knock = "reset"`` (the default) no accident ends the run: the gripper opens after a drop,
-and a knocked or fallen object is stood up again at its start pose once it has settled
+and a knocked, fallen or dropped object is put back at its start pose once it has settled
 (``app.trial.accidents``), while the run and its clock go on (meanwhile a robot whose
 predicted goal lies holds back, alpha = 0: it would take the gripper to the very place the
 object must be stood up in, and its own hand would keep it lying); under ``"end"`` the first
@@ -50,6 +50,7 @@ from app.trial.tasks import LiftTask, Task
 FAR_OUTSIDE_M = 0.5  # a raw target this far outside the reach region is logged as such
 _FLOAT = np.dtype(float)
 GOAL_MOVED_M = 0.005  # a goal follows its object once the object has moved this far from it
+_LOST = (EventKind.DROPPED, EventKind.LIFT_FAILED)  # the task let go of what it held
 
 
 class Trial:
@@ -480,12 +481,15 @@ class Trial:
 
     def _judge(self, events: list[TrialEvent]) -> None:
         """The task's verdict, then every tenth tick the objects (knocked, fallen, stood up)."""
-        outcome = self.task.judge(self.t, events)
+        task = self.task
+        held = task.held
+        outcome = task.judge(self.t, events)
         if outcome is not None:
             self._finish(outcome, events)
             return
+        if held is not None and task.held is None and any(e.kind in _LOST for e in events):
+            self.accidents.slipped(held, self.t)  # put back, as a knocked object is
         if self.ticks % 10 == 0:
-            task = self.task
             held = task.held if task.gripper_closed else None
             found, outcome = self.accidents.check(self.t, held=held)
             if found:

@@ -155,7 +155,7 @@ class LiftTask:
     def _lost(self, t: float, event: TrialEvent, events: list[TrialEvent]) -> str | None:
         """The held object fell out of the gripper (or would not come up): the run ends as
         ``dropped`` under ``on_knock = "end"``; under ``"reset"`` the gripper opens and the
-        user may reach again (the object, if it lies, is stood up like any knocked object)."""
+        user may reach again (the trial puts the object back: ``Accidents.slipped``)."""
         events.append(event)
         if self.config.on_knock == "end":
             return "dropped"

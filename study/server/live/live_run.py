@@ -181,7 +181,7 @@ class LiveRun:
             notices.lowest = now
             if not trial.resting_centred:
                 notices.off_centre = now
-        if trial.accidents.down and trial.accidents.reset_objects:
+        if trial.accidents.fallen and trial.accidents.reset_objects:
             notices.fallen = now
         if self._resisted.update(
             record.t,

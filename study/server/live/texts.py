@@ -35,11 +35,12 @@ HELD_ABOVE = (
 around (``app.teleop.guarded_descent``) and the participant's input asks it lower."""
 
 SLIPPED_OUT = (
-    "The object slipped out of the gripper. Lower the open gripper around the middle of the"
-    " object and close it again."
+    "The object slipped out of the gripper. It is put back where it stood; then lower the open"
+    " gripper around its middle and close it again."
 )
 """Held over the scene for a few seconds after a grasped object slipped out of the gripper
-(a tester saw the mug caught and dropped within 0.16 s, and no word about it)."""
+(a tester saw the mug caught and dropped within 0.16 s, and no word about it); the trial puts
+it back at its start pose once it has settled (``app.trial.accidents``)."""
 
 FELL_OVER = (
     "An object fell over. It is put back where it stood as soon as the gripper is out of the"
