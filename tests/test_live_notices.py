@@ -60,6 +60,9 @@ def test_a_slipped_object_is_said_until_the_next_grasp() -> None:
 def test_what_the_input_does_now_comes_first() -> None:
     n = HeldNotices(missed=10.0, resting=10.0, at_limit=10.0, fallen=10.0)
     assert n.text(10.1, live=True) == texts.FELL_OVER  # nothing else, until it stands again
+    n = HeldNotices(above=10.0, lowest=10.0, at_limit=10.0, dropped=10.0, slipped=9.0)
+    assert n.text(10.1, live=True) == texts.SLIPPED_OUT  # ... nor until a dropped one is back
+    assert n.text(10.0 + LIMIT_HOLD_S + 0.1, live=True) == texts.SLIPPED_OUT  # then as a miss
     n = HeldNotices(missed=10.0, resting=10.0, at_limit=10.0)
     assert n.text(10.1, live=True) == texts.RESTING_ON_OBJECT  # F held onto a rim: both
     n = HeldNotices(missed=10.0, at_limit=10.0, above=10.0)

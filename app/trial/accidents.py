@@ -101,7 +101,9 @@ class Accidents:
     def slipped(self, k: int, t: float) -> None:
         """Object ``k`` slipped out of the gripper at ``t`` (dropped, or it would not come up):
         under ``on_knock = "reset"`` it is put back at its start pose like a knocked object,
-        once it has settled and its spot is free (the drop itself is the task's event)."""
+        once it has settled and its spot is free (the drop itself is the task's event); if it
+        falls over meanwhile, that is a knock. Standing, it is still an object the open hand is
+        guarded around (it is in ``down``, not in ``fallen``)."""
         if self.reset_objects and k not in self._down:
             self._down[k] = _Down(EventKind.DROPPED, t)
             self._note_down()
@@ -120,7 +122,11 @@ class Accidents:
                 self._down[k] = _Down(EventKind.PUSHED_OFF, t)
                 events.append(TrialEvent(EventKind.PUSHED_OFF, obj=name))
                 outcome = outcome or "pushed_off"
-            elif down is None and k != held and tilts[k] > TILT_RAD:
+            elif (
+                (down is None or down.reason is EventKind.DROPPED)
+                and k != held
+                and (tilts[k] > TILT_RAD)
+            ):  # a dropped object that then falls over is knocked over too
                 self.knocks[name] += 1
                 self._down[k] = _Down(EventKind.KNOCKED_OVER, t)
                 events.append(TrialEvent(EventKind.KNOCKED_OVER, obj=name))

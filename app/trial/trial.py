@@ -254,7 +254,7 @@ class Trial:
             guard.release()
             return self.user_target
         taking = self._blend.predicted if self._blend.alpha > 0.0 else -1
-        skip = (taking, *self.accidents.down)
+        skip = (taking, *self.accidents.fallen)  # a dropped object still stands: guarded
         ee, target = self._ee.tolist(), self.user_target.tolist()
         t = self.ticks * self._dt
         if guard.held is not None:  # a hold is kept until the guard lets go (its docstring)
@@ -293,12 +293,12 @@ class Trial:
                 return  # the input does not ask it lower than it goes
             if ee[2] > target_z + 0.005 and abs(ee[2] - last) >= 2e-4:
                 return  # still coming down
-        k = self.guard.under_palm(ee, self._footprints, skip=self.accidents.down)
+        k = self.guard.under_palm(ee, self._footprints, skip=self.accidents.fallen)
         if k is not None:
             self.resting_on = k
             self.resting_centred = (
                 abs(ee[0] - self._footprints[k][0]) <= CENTRED_M
-                and self.guard.around(ee, self._footprints, skip=self.accidents.down) == k
+                and self.guard.around(ee, self._footprints, skip=self.accidents.fallen) == k
             )
 
     @property

@@ -154,12 +154,14 @@ class LiftTask:
 
     def _lost(self, t: float, event: TrialEvent, events: list[TrialEvent]) -> str | None:
         """The held object fell out of the gripper (or would not come up): the run ends as
-        ``dropped`` under ``on_knock = "end"``; under ``"reset"`` the gripper opens and the
-        user may reach again (the trial puts the object back: ``Accidents.slipped``)."""
+        ``dropped`` under ``on_knock = "end"``; under ``"reset"`` the gripper opens where the
+        arm is (it went back to where the grasp began at up to 1 m/s, a tester saw it jerk),
+        and the user may reach again (the trial puts the object back: ``Accidents.slipped``)."""
         events.append(event)
         if self.config.on_knock == "end":
             return "dropped"
         self.held = None
         self._lost_t = None
+        self._hold_q = self.sim.q  # the arm stays where it lost the object while it opens
         self._enter("reopening", t, events)
         return None

@@ -181,8 +181,12 @@ class LiveRun:
             notices.lowest = now
             if not trial.resting_centred:
                 notices.off_centre = now
-        if trial.accidents.fallen and trial.accidents.reset_objects:
-            notices.fallen = now
+        accidents = trial.accidents
+        if accidents.down and accidents.reset_objects:
+            if accidents.fallen:
+                notices.fallen = now
+            if len(accidents.fallen) < len(accidents.down):  # slipped out, standing
+                notices.dropped = now
         if self._resisted.update(
             record.t,
             z=float(record.ee[2]),

@@ -8,11 +8,12 @@ the open gripper kept above an object it would come down on (``above``, the tria
 object (``lowest``, the trial's ``resting_on``; ``off_centre`` when not centred on it along the
 fingers), an object down and waiting to be put back
 (``fallen``), a grasped object that slipped out (``slipped``; like a miss, until the next
-grasp request).
+grasp request) and, standing, still waits to be put back (``dropped``).
 The render loop asks :meth:`HeldNotices.text` each period and shows the answer with
 ``ParticipantPage.hold_notice`` (one notice at a time; ``None`` takes it down). What the
-participant's input does this moment comes first, after a fallen object (nothing else matters
-until it stands again, and it waits for the gripper to leave its spot): a resting finger (a
+participant's input does this moment comes first, after a fallen or dropped object (nothing
+else matters until it stands at its spot again, and it waits for the gripper to leave the spot;
+the slipped notice says so): a resting finger (a
 held F with a finger on a rim also drives the target below the reach's floor; the reach notice
 would not say why the gripper stays up, a new-participant pass found), the gripper kept above
 an object, the gripper as low as it goes around one (F held on, the target also reaches the
@@ -63,6 +64,7 @@ class HeldNotices:
     off_centre: float = NEVER
     fallen: float = NEVER
     slipped: float = NEVER
+    dropped: float = NEVER
 
     def text(self, now: float, *, live: bool) -> str | None:
         """The notice to hold at ``now`` (``None``: none), only while the run is ``live``."""
@@ -70,6 +72,8 @@ class HeldNotices:
             return None
         if now - self.fallen < LIMIT_HOLD_S:
             return FELL_OVER
+        if now - self.dropped < LIMIT_HOLD_S:
+            return SLIPPED_OUT
         if now - self.resting < RESTING_HOLD_S:  # what really holds the gripper up
             return RESTING_ON_OBJECT
         if now - self.above < LIMIT_HOLD_S:
@@ -87,7 +91,7 @@ class HeldNotices:
     def forget(self) -> None:
         """A new run: nothing seen yet."""
         self.at_limit = self.missed = self.asked = self.resting = self.above = self.lowest = NEVER
-        self.fallen = self.slipped = self.off_centre = NEVER
+        self.fallen = self.slipped = self.dropped = self.off_centre = NEVER
 
 
 RESISTED_GAP_M = 0.03

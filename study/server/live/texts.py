@@ -35,12 +35,14 @@ HELD_ABOVE = (
 around (``app.teleop.guarded_descent``) and the participant's input asks it lower."""
 
 SLIPPED_OUT = (
-    "The object slipped out of the gripper. It is put back where it stood; then lower the open"
-    " gripper around its middle and close it again."
+    "The object slipped out of the gripper. It is put back where it stood as soon as the"
+    " gripper is out of the way there; then lower the open gripper around its middle and close"
+    " it again."
 )
 """Held over the scene for a few seconds after a grasped object slipped out of the gripper
-(a tester saw the mug caught and dropped within 0.16 s, and no word about it); the trial puts
-it back at its start pose once it has settled (``app.trial.accidents``)."""
+(a tester saw the mug caught and dropped within 0.16 s, and no word about it), and while it
+waits to be put back at its start pose (``app.trial.accidents``: once it has settled and the
+gripper is out of the way there; a tester who waited with the gripper low saw nothing happen)."""
 
 FELL_OVER = (
     "An object fell over. It is put back where it stood as soon as the gripper is out of the"
