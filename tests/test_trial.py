@@ -257,24 +257,29 @@ def test_a_held_object_dropped_is_grasped_again_under_reset(config) -> None:
 
 def test_a_dropped_object_is_put_back_where_it_stood(config) -> None:
     """A drop that leaves the mug away from its spot (6 cm aside and turned, as one that
-    slipped into another object's way): once it has settled it is put back at its start pose,
-    as an experimenter would, before the user's next grasp; it is not a fallen object (the
-    page's fell-over notice), and the run then succeeds."""
+    slipped into another object's way): the arm holds where it lost it, nothing touches it, and
+    once it has settled it is put back at its start pose, as an experimenter would, before the
+    user's next grasp; it is not a fallen object (the page's fell-over notice), and the run then
+    succeeds."""
     trial = Trial(config("training", "none", time_limit_s=30), ScriptedInput())
     k = trial.scene.target_index
     body = trial.scene.object_body_ids[k]
     adr = int(trial.scene.object_qpos_addr[k])
     spot = trial.sim.data.qpos[adr : adr + 7].copy()
-    grasps, dropped, reset, waiting = [], [], [], []
+    grasps, dropped, reset, waiting, moved = [], [], [], [], []
+    at_drop = np.zeros(3)
     while not trial.done:
         rec = trial.tick()
         kinds = {e.kind for e in rec.events}
+        if dropped and trial.task.phase == "reopening":  # the arm stays where it lost the mug
+            moved.append(float(np.linalg.norm(rec.ee - at_drop)))
         if EventKind.GRASPED in kinds:
             grasps.append(rec.t)
             if len(grasps) == 1:
                 trial.sim.data.xfrc_applied[body, 2] = -60.0
         if EventKind.DROPPED in kinds:
             dropped.append(rec.t)
+            at_drop = rec.ee.copy()
             trial.sim.data.xfrc_applied[body, 2] = 0.0
             q = trial.sim.data.qpos
             q[adr : adr + 2] = spot[:2] + np.array([0.0, 0.06])  # where it came to rest, turned 30°
@@ -287,6 +292,10 @@ def test_a_dropped_object_is_put_back_where_it_stood(config) -> None:
     assert len(dropped) == 1 and len(reset) == 1 and len(grasps) == 2
     assert dropped[0] < reset[0] < grasps[1]
     assert waiting and all(down == (k,) and fallen == () for down, fallen in waiting)
+    assert moved and max(moved) < 0.005  # it went back to the grasp pose at up to 1 m/s
+    assert trial.accidents.knocks["mug"] == 0 and not any(
+        e.kind is EventKind.CONTACT for t, e in trial.events if dropped[0] < t < reset[0]
+    )  # nothing touched the mug meanwhile
     assert trial.outcome == "success" and trial.accidents.resets["mug"] == 1
 
 
