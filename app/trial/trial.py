@@ -44,6 +44,7 @@ from app.trial.build_blender import build_blender
 from app.trial.config import TrialConfig
 from app.trial.contacts import ContactLog
 from app.trial.events import EventKind, TrialEvent, mark
+from app.trial.fused_control import fused_control
 from app.trial.records import BlendTick, TickRecord, TrialResult
 from app.trial.tasks import LiftTask, Task
 
@@ -84,6 +85,9 @@ class Trial:
         self.ik = IKStep(kin, rate_hz=config.rate_hz, posture=self.scene.start_q)
         self.blender = build_blender(config, self.scene, kin)
         self.blender.reset(self.scene.start_ee)
+        self.fused = fused_control(self.ik, self.blender)
+        """``U``, ``P`` and the command in one compiled call (``app.trial.fused_control``), or
+        ``None``: the components' own calls (a configuration other than the study's)."""
         self._lock = threading.RLock()
         self._paused = False
         self._pause_events: list[TrialEvent] = []
@@ -463,8 +467,12 @@ class Trial:
         held = self.task.control(q, self.t, request=request, events=events)
         if held is not None:
             return held, held, held
-        u = self.ik(q, self._steer())
-        rec = self.blender.step(q, u, x=self.user_input, robot_x=self._ee)
+        fused = self.fused
+        if fused is not None:
+            u, rec = fused.step(q, self._steer(), x=self.user_input, robot_x=self._ee)
+        else:
+            u = self.ik(q, self._steer())
+            rec = self.blender.step(q, u, x=self.user_input, robot_x=self._ee)
         alpha, command = rec.alpha, rec.command
         if self.accidents.lying(rec.predicted):  # its goal lies, to be stood up where the
             alpha, command = 0.0, u  # robot would take the gripper: it holds back meanwhile
