@@ -20,9 +20,9 @@ from __future__ import annotations
 import numpy as np
 
 from app.blending import PolicyBlender, StatefulArbitration
-from app.blending.policy_grasp import GraspApproachPolicy
 from app.blending.blend import BlendRecord
 from app.blending.errors import InvalidInputError
+from app.blending.policy_grasp import GraspApproachPolicy
 from app.teleop.ik_step import IKStep
 from app.trial.fused_control_core import control_step
 
@@ -83,7 +83,7 @@ class FusedControl:
         """``(U, P, command)`` toward goal ``k`` with ``alpha`` (``PolicyBlender.step_joint``)."""
         policy = self.policy
         args = policy.kernel_inputs(k)
-        u, p, cmd, transit, info = control_step(
+        out, transit, info = control_step(
             self._q,
             self._target,
             alpha,
@@ -95,5 +95,5 @@ class FusedControl:
         if info != 0:  # pragma: no cover - J J^T + lambda^2 I is positive definite
             raise InvalidInputError("the kinematics pass gave a Jacobian that is not finite")
         policy.note_transit(k, transit)
-        self._u = u
-        return u, p, cmd
+        u = self._u = out[0]
+        return u, out[1], out[2]

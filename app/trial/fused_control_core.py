@@ -8,19 +8,23 @@ before, in Python: none of them reads ``U`` or ``P``):
     P = grasp policy step toward G*           (app.blending.policy_grasp_core)
     command = (1 - alpha) U + alpha P
 
-each kernel the very one its component's compiled path runs; only the kinematics pass (and
-the IK's ``log``) differ from the components' own (pinocchio's ``computeFrameJacobian`` and
-``log3``), by a few ulps (``tests/test_fused_control.py``).
+each step's maths the very functions its component's compiled path runs (the twist, then the
+caps and limits); what differs is the arithmetic's library: the kinematics pass composed here
+rather than by pinocchio's ``computeFrameJacobian``, the IK's ``log`` the policy's rather than
+pinocchio's ``log3``, and the damped least squares, the products and ``|dq|`` in plain loops
+(``app.compiled.dls_loops``) rather than by BLAS and LAPACK (code that MuJoCo's step evicts
+from the caches each tick). So ``U``, ``P`` and the command equal the components' to a few
+ulps, not bit for bit (``tests/test_fused_control.py``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from app.blending.policy_grasp_core import grasp_step, rotation_log
-from app.compiled import jit
+from app.blending.policy_grasp_core import grasp_finish, grasp_twist, rotation_log
+from app.compiled import dls_loops, jit
 from app.robot.kinematics_core import tcp_pose_jacobian
-from app.teleop.ik_step_core import ik_step
+from app.teleop.ik_step_core import ik_finish, ik_twist
 
 __all__ = ["control_step", "warm_up"]
 
@@ -50,20 +54,43 @@ def control_step(
     lam2: np.ndarray,
     lower: np.ndarray,
     upper: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool, int]:
-    """``(U, P, command, in transit, LAPACK info of P's solve)``; the arguments after ``tcp``
+) -> tuple[np.ndarray, bool, int]:
+    """``([U; P; command], in transit, LAPACK info of P's solve)``; the arguments after ``tcp``
     are ``ik_step``'s (from ``ik_rot``, the IK's ``R*``) and ``grasp_step``'s (from ``goal``)."""
     x, rot, jac = tcp_pose_jacobian(q, chain, tcp)
-    w0, w1, w2 = rotation_log(np.dot(ik_rot, rot.T))
-    w = np.array((w0, w1, w2))
-    u = ik_step(q, target, x, w, jac, ik_posture, ik_damp, ik_lower, ik_upper, ik_params, ik_limit)
-    p, transit, info = grasp_step(
-        q, x, rot, jac, goal, goal_rot, posture, k, held, objects, layers, params, lam2, lower, upper
+    twist, z, pull = ik_twist(q, target, x, _log_of(ik_rot, rot), ik_posture, ik_params, ik_limit)
+    dq, info = dls_loops(jac, twist, z, pull, ik_damp)
+    u = q.copy() if info != 0 else ik_finish(q, dq, ik_lower, ik_upper, ik_params)
+    e = _log_of(goal_rot, rot)
+    twist, z, pull, transit = grasp_twist(
+        q, x, rot, (e[0], e[1], e[2]), goal, posture, k, held, objects, layers, params
     )
-    cmd = u * (1.0 - alpha)
-    if alpha != 0.0:  # as the blender: alpha = 0 gives U itself
-        cmd += alpha * p
-    return u, p, cmd, transit, info
+    dq, info = dls_loops(jac, twist, z, pull, lam2)
+    dq2 = 0.0
+    for i in range(dq.shape[0]):
+        dq2 += dq[i] * dq[i]
+    p = grasp_finish(q, dq, dq2, params, lower, upper)
+    out = np.empty((3, q.shape[0]))  # one array for Python: each one returned costs a box
+    out[0] = u
+    out[1] = p
+    cmd = out[2]
+    keep = 1.0 - alpha
+    for i in range(cmd.shape[0]):
+        cmd[i] = u[i] * keep
+        if alpha != 0.0:  # as the blender: alpha = 0 gives U itself
+            cmd[i] += alpha * p[i]
+    return out, transit, info
+
+
+@jit
+def _log_of(a: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``log(A R^T)`` (3,) of two rotations, the product in plain loops."""
+    m = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            m[i, j] = a[i, 0] * r[j, 0] + a[i, 1] * r[j, 1] + a[i, 2] * r[j, 2]
+    w0, w1, w2 = rotation_log(m)
+    return np.array((w0, w1, w2))
 
 
 def warm_up() -> None:
