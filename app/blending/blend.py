@@ -307,10 +307,7 @@ class PolicyBlender:
         ps = _checked_policy(p, dof)
         arb = self.arbitration
         agreement = None  # worked out when read (BlendRecord.agreement), unless needed now
-        if arb is not self._arbitration_seen:  # whether it is stateful, asked once per object
-            self._arbitration_seen = arb
-            self._stateful = isinstance(arb, StatefulArbitration)
-        if self._stateful:
+        if self.stateful:
             agreement = _agreement(ps, qs, us)
             alpha = float(arb.update(TickSignals(c, agreement, motion, i, b)))
         else:
@@ -347,26 +344,38 @@ class PolicyBlender:
                 f" {x.shape}"
             )
         qs, xs = Q.tolist(), x.tolist()
-        if not sum(map(abs, qs + xs)) < MAX_ABS_INPUT:  # as in step: NaN, inf, absurd values
+        if (  # as in step: NaN, inf, absurd values
+            not sum(map(abs, qs + xs)) < MAX_ABS_INPUT
+            and not np.abs(np.concatenate((Q, x))).max() < MAX_ABS_INPUT
+        ):
             raise self._bad_input(Q, Q, x)
-        arb = self.arbitration
-        if isinstance(arb, StatefulArbitration):
+        if self.stateful:
             raise InvalidInputError("step_joint: a stateful arbitration needs step(Q, U)")
         pred, b, motion, distance, c = self.assess(x, xs, robot_x)
         i = pred.index
-        alpha = float(arb(c))
+        alpha = float(self.arbitration(c))
         if not 0.0 <= alpha <= 1.0:
             raise BlendingError(f"arbitration: returned alpha = {alpha!r}, outside [0, 1]")
         u, p, cmd = act(self._targets[i], alpha)
-        if (
-            not (u.shape == p.shape == self._q_shape)
-            or not sum(map(abs, u.tolist() + p.tolist())) < MAX_ABS_INPUT
+        if not (u.shape == p.shape == self._q_shape) or (
+            not sum(map(abs, u.tolist() + p.tolist())) < MAX_ABS_INPUT
+            and not np.abs(np.concatenate((u, p))).max() < MAX_ABS_INPUT
         ):
             raise BlendingError(f"act: returned a U or P that is not {self.dof} finite values")
         probs = pred.probabilities.copy()
         return BlendRecord(
             cmd, p, alpha, c, distance, probs, i, None, float(b[i]), motion, qu=(qs, u)
         )
+
+    @property
+    def stateful(self) -> bool:
+        """Whether the arbitration keeps a state (it then reads the agreement of ``U`` and
+        ``P``: :meth:`step_joint` is not for it)."""
+        arb = self.arbitration
+        if arb is not self._arbitration_seen:  # asked once per object
+            self._arbitration_seen = arb
+            self._stateful = isinstance(arb, StatefulArbitration)
+        return self._stateful
 
     def assess(
         self, x: np.ndarray, xs: list[float], robot_x: Any

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.blending import PolicyBlender, StatefulArbitration
+from app.blending import PolicyBlender
 from app.blending.blend import BlendRecord
 from app.blending.errors import InvalidInputError
 from app.blending.policy_grasp import GraspApproachPolicy
@@ -70,9 +70,7 @@ class FusedControl:
         """``U`` toward ``target`` (3,) and the blender's record of this tick (``Q``, ``target``
         and ``x`` float arrays)."""
         blender = self.blender
-        if isinstance(blender.arbitration, StatefulArbitration) or blender.policy is not (
-            self.policy
-        ):
+        if blender.stateful or blender.policy is not self.policy:
             u = self.ik(q, target)
             return u, blender.step(q, u, x=x, robot_x=robot_x)
         self._q, self._target = q, target
