@@ -163,3 +163,26 @@ def test_a_stateful_arbitration_takes_the_components_calls(protocol_path: Any) -
         a, b = trial.tick(), twin.tick()
         assert a is not None and b is not None
         assert np.array_equal(a.command, b.command) and a.alpha == b.alpha
+
+
+def test_step_joint_checks_what_step_checks(protocol_path: Any) -> None:
+    """``x`` before the prediction advances; ``Q``, ``U`` and ``P`` as ``act`` reports them; a
+    stateful arbitration refused."""
+    from app.blending import BlendingError, InvalidInputError, Yielding
+
+    config = trial_config_from_protocol(protocol_path, "easy-wrong", "timid")
+    trial = Trial(config, ScriptedInput(seed=0))
+    blender, q = trial.blender, trial.sim.q
+    x = trial.user_input.copy()
+    fine = (q, q, q, True)
+    rec = blender.step_joint(q, x=x, act=lambda k, alpha: fine)
+    assert rec.command is q and 0.0 <= rec.confidence <= 1.0
+    with pytest.raises(InvalidInputError, match="x: contains NaN"):
+        blender.step_joint(q, x=np.array([np.nan, 0.0, 0.0]), act=lambda k, alpha: fine)
+    with pytest.raises(InvalidInputError, match="expected shapes"):
+        blender.step_joint(q[:3], x=x, act=lambda k, alpha: fine)
+    with pytest.raises(BlendingError, match="not 7 finite values"):
+        blender.step_joint(q, x=x, act=lambda k, alpha: (q, q, q, False))
+    blender.arbitration = Yielding(threshold=0.4, floor=0.2, rate_hz=100.0)
+    with pytest.raises(InvalidInputError, match="stateful"):
+        blender.step_joint(q, x=x, act=lambda k, alpha: fine)

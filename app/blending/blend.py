@@ -264,8 +264,9 @@ class PolicyBlender:
             self.arbitration.reset()
         self._started = True
 
-    def _bad_input(self, q: np.ndarray, u: np.ndarray, x: np.ndarray) -> BlendingError:
-        for name, arr in (("Q", q), ("U", u), ("x", x)):
+    def _bad_input(self, *named: tuple[str, np.ndarray]) -> BlendingError:
+        """The error for the first of these inputs that is not finite or is absurdly large."""
+        for name, arr in named:
             if not np.isfinite(arr).all():
                 return InvalidInputError(f"{name}: contains NaN or infinite values: {arr!r}")
             if (np.abs(arr) >= MAX_ABS_INPUT).any():
@@ -299,7 +300,7 @@ class PolicyBlender:
             < MAX_ABS_INPUT
             and not np.abs(np.concatenate((q, u, x))).max() < MAX_ABS_INPUT
         ):
-            raise self._bad_input(q, u, x)
+            raise self._bad_input(("Q", q), ("U", u), ("x", x))
 
         pred, b, motion, distance, c = self.assess(x, xs, robot_x)
         i = pred.index
@@ -328,14 +329,16 @@ class PolicyBlender:
         *,
         x: np.ndarray,
         robot_x: Any = None,
-        act: Callable[[Any, float], tuple[np.ndarray, np.ndarray, np.ndarray]],
+        act: Callable[[Any, float], tuple[np.ndarray, np.ndarray, np.ndarray, bool]],
     ) -> BlendRecord:
         """:meth:`step` for a caller that works out ``U``, ``P`` and the command together (the
-        trial's compiled step): ``act(target, alpha) -> (U, P, command)``, ``target`` the
-        policy's target for G* and ``command = (1 - alpha) U + alpha P``. The same prediction,
-        confidence, arbitration and record as :meth:`step` (``Q`` and ``x`` float arrays); not
-        for a stateful arbitration, which reads the agreement of ``U`` and ``P`` before
-        ``alpha``: use :meth:`step` there."""
+        trial's compiled step): ``act(target, alpha) -> (U, P, command, finite)``, ``target``
+        the policy's target for G*, ``command = (1 - alpha) U + alpha P`` and ``finite``
+        whether ``Q``, ``U`` and ``P`` are finite and below ``MAX_ABS_INPUT`` (checked in the
+        same pass). The same prediction, confidence, arbitration and record as :meth:`step`
+        (``Q`` and ``x`` float arrays; ``x`` is checked before the prediction advances, ``Q``
+        with ``U`` and ``P`` after). Not for a stateful arbitration, which reads the agreement
+        of ``U`` and ``P`` before ``alpha``: use :meth:`step` there."""
         if not self._started:
             raise InvalidInputError("reset(start_x) must be called before step(Q, U)")
         if Q.shape != self._q_shape or x.shape != self._x_shape:
@@ -343,12 +346,9 @@ class PolicyBlender:
                 f"Q, x: expected shapes {self._q_shape} and {self._x_shape}, got {Q.shape} and"
                 f" {x.shape}"
             )
-        qs, xs = Q.tolist(), x.tolist()
-        if (  # as in step: NaN, inf, absurd values
-            not sum(map(abs, qs + xs)) < MAX_ABS_INPUT
-            and not np.abs(np.concatenate((Q, x))).max() < MAX_ABS_INPUT
-        ):
-            raise self._bad_input(Q, Q, x)
+        xs = x.tolist()
+        if not sum(map(abs, xs)) < MAX_ABS_INPUT:  # as in step: NaN, inf, absurd values
+            raise self._bad_input(("x", x))
         if self.stateful:
             raise InvalidInputError("step_joint: a stateful arbitration needs step(Q, U)")
         pred, b, motion, distance, c = self.assess(x, xs, robot_x)
@@ -356,15 +356,15 @@ class PolicyBlender:
         alpha = float(self.arbitration(c))
         if not 0.0 <= alpha <= 1.0:
             raise BlendingError(f"arbitration: returned alpha = {alpha!r}, outside [0, 1]")
-        u, p, cmd = act(self._targets[i], alpha)
-        if not (u.shape == p.shape == self._q_shape) or (
-            not sum(map(abs, u.tolist() + p.tolist())) < MAX_ABS_INPUT
-            and not np.abs(np.concatenate((u, p))).max() < MAX_ABS_INPUT
-        ):
-            raise BlendingError(f"act: returned a U or P that is not {self.dof} finite values")
+        u, p, cmd, finite = act(self._targets[i], alpha)
+        if not finite or not (u.shape == p.shape == self._q_shape):
+            raise BlendingError(
+                f"Q, U or P: not {self.dof} finite values each (or of magnitude >="
+                f" {MAX_ABS_INPUT:g}): Q {Q!r}, U {u!r}, P {p!r}"
+            )
         probs = pred.probabilities.copy()
         return BlendRecord(
-            cmd, p, alpha, c, distance, probs, i, None, float(b[i]), motion, qu=(qs, u)
+            cmd, p, alpha, c, distance, probs, i, None, float(b[i]), motion, qu=(Q, u)
         )
 
     @property

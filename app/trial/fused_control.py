@@ -77,11 +77,12 @@ class FusedControl:
         rec = blender.step_joint(q, x=x, robot_x=robot_x, act=self._act)
         return self._u, rec
 
-    def _act(self, k: int, alpha: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(U, P, command)`` toward goal ``k`` with ``alpha`` (``PolicyBlender.step_joint``)."""
+    def _act(self, k: int, alpha: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+        """``(U, P, command, finite)`` toward goal ``k`` with ``alpha``
+        (``PolicyBlender.step_joint``)."""
         policy = self.policy
         args = policy.kernel_inputs(k)
-        out, transit, info = control_step(
+        out, transit, info, finite = control_step(
             self._q,
             self._target,
             alpha,
@@ -94,4 +95,4 @@ class FusedControl:
             raise InvalidInputError("the kinematics pass gave a Jacobian that is not finite")
         policy.note_transit(k, transit)
         u = self._u = out[0]
-        return u, out[1], out[2]
+        return u, out[1], out[2], finite

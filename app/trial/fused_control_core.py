@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from app.blending.blend import MAX_ABS_INPUT
 from app.blending.policy_grasp_core import grasp_finish, grasp_twist, rotation_log
 from app.compiled import dls_loops, jit
 from app.robot.kinematics_core import tcp_pose_jacobian
@@ -54,8 +55,9 @@ def control_step(
     lam2: np.ndarray,
     lower: np.ndarray,
     upper: np.ndarray,
-) -> tuple[np.ndarray, bool, int]:
-    """``([U; P; command], in transit, LAPACK info of P's solve)``; the arguments after ``tcp``
+) -> tuple[np.ndarray, bool, int, bool]:
+    """``([U; P; command], in transit, LAPACK info of P's solve, whether Q, U and P are finite
+    and below the blender's MAX_ABS_INPUT)``; the arguments after ``tcp``
     are ``ik_step``'s (from ``ik_rot``, the IK's ``R*``) and ``grasp_step``'s (from ``goal``)."""
     x, rot, jac = tcp_pose_jacobian(q, chain, tcp)
     twist, z, pull = ik_twist(q, target, x, _log_of(ik_rot, rot), ik_posture, ik_params, ik_limit)
@@ -70,6 +72,9 @@ def control_step(
     for i in range(dq.shape[0]):
         dq2 += dq[i] * dq[i]
     p = grasp_finish(q, dq, dq2, params, lower, upper)
+    size = 0.0  # sum of |Q|, |U| and |P|: finite and below MAX_ABS_INPUT, or not (NaN: not)
+    for i in range(q.shape[0]):
+        size += abs(q[i]) + abs(u[i]) + abs(p[i])
     out = np.empty((3, q.shape[0]))  # one array for Python: each one returned costs a box
     out[0] = u
     out[1] = p
@@ -79,7 +84,7 @@ def control_step(
         cmd[i] = u[i] * keep
         if alpha != 0.0:  # as the blender: alpha = 0 gives U itself
             cmd[i] += alpha * p[i]
-    return out, transit, info
+    return out, transit, info, size < MAX_ABS_INPUT
 
 
 @jit
