@@ -95,6 +95,24 @@ def dls_loops(
             for j in range(n):
                 s += jac[i, j] * z[j]
             twist[i] -= s
+    low, info = _cholesky_of_jjt(jac, lam2)
+    if info != 0:
+        return np.zeros(n), info
+    y = _cholesky_solve(low, twist)
+    dq = np.empty(n)
+    for j in range(n):
+        s = 0.0
+        for i in range(m):
+            s += jac[i, j] * y[i]
+        dq[j] = s + z[j] if pull else s
+    return dq, 0
+
+
+@jit
+def _cholesky_of_jjt(jac: np.ndarray, lam2: np.ndarray) -> tuple[np.ndarray, int]:
+    """``L`` with ``L L^T = J J^T + l^2 I`` (lower triangle filled), and ``info`` as
+    :func:`dls_loops` gives it."""
+    m, n = jac.shape
     low = np.empty((m, m))
     for i in range(m):
         for j in range(i + 1):
@@ -106,13 +124,20 @@ def dls_loops(
                 s -= low[i, k] * low[j, k]
             if i == j:
                 if not s > 0.0:
-                    return np.zeros(n), i + 1
+                    return low, i + 1
                 low[i, i] = math.sqrt(s)
             else:
                 low[i, j] = s / low[j, j]
+    return low, 0
+
+
+@jit
+def _cholesky_solve(low: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``y`` with ``L L^T y = b``: forward, then back substitution."""
+    m = b.shape[0]
     y = np.empty(m)
-    for i in range(m):  # L y' = twist
-        s = twist[i]
+    for i in range(m):  # L y' = b
+        s = b[i]
         for k in range(i):
             s -= low[i, k] * y[k]
         y[i] = s / low[i, i]
@@ -121,10 +146,4 @@ def dls_loops(
         for k in range(i + 1, m):
             s -= low[k, i] * y[k]
         y[i] = s / low[i, i]
-    dq = np.empty(n)
-    for j in range(n):
-        s = 0.0
-        for i in range(m):
-            s += jac[i, j] * y[i]
-        dq[j] = s + z[j] if pull else s
-    return dq, 0
+    return y

@@ -6,6 +6,8 @@ predict (``P(G | xi)``, ``G*``) -> confidence -> policy (``P``) -> agreement -> 
 (``alpha``) -> blend, returning a :class:`BlendRecord` for logging. Alongside, it estimates the
 user's rationality toward each goal from their recent inputs (``RationalityEstimator``), which
 it logs and which a :class:`StatefulArbitration` may use with the agreement.
+:meth:`PolicyBlender.step_joint` is the same tick for a caller that works out ``U``, ``P`` and
+the command together (the trial's compiled step, ``app.trial.fused_control``).
 """
 
 from __future__ import annotations

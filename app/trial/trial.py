@@ -3,7 +3,8 @@
 Each ``tick()`` asks the input source for a target, clamps it to the reach region, turns it
 into ``U`` with a velocity-limited IK step, blends ``U`` with the policy's ``P`` (prediction
 from the user target, confidence ``c = max(0, 1 - d / D)``, arbitration ``alpha(c)``), servos
-the arm to ``(1 - alpha) U + alpha P`` and advances the physics. What the ticks mean is the
+the arm to ``(1 - alpha) U + alpha P`` and advances the physics (with the study's components
+``U``, ``P`` and the command come from one compiled call: ``app.trial.fused_control``). What the ticks mean is the
 trial's task (``app.trial.tasks``; by default :class:`~app.trial.tasks.lift.LiftTask`): a grasp
 request closes the gripper in physics; holding an object, the arm lifts it by itself; the trial
 succeeds when the target is ``lift_height_m`` above its rest height. Outcomes (``app.trial.records.OUTCOMES``):
@@ -468,7 +469,7 @@ class Trial:
         if held is not None:
             return held, held, held
         fused = self.fused
-        if fused is not None:
+        if fused is not None and fused.ik is self.ik:
             u, rec = fused.step(q, self._steer(), x=self.user_input, robot_x=self._ee)
         else:
             u = self.ik(q, self._steer())
