@@ -186,3 +186,34 @@ def test_step_joint_checks_what_step_checks(protocol_path: Any) -> None:
     blender.arbitration = Yielding(threshold=0.4, floor=0.2, rate_hz=100.0)
     with pytest.raises(InvalidInputError, match="stateful"):
         blender.step_joint(q, x=x, act=lambda k, alpha: fine)
+
+
+def test_trial_dump_diff_reports_each_columns_largest_difference(
+    protocol_path: Any, tmp_path: Any
+) -> None:
+    """``benchmarks/trial_dump.py --diff``: zero for equal dumps; a column moved by ``d`` on one
+    tick reads ``d``; a changed outcome is told."""
+    from benchmarks.trial_dump import diff, record_line
+
+    config = dataclasses.replace(
+        trial_config_from_protocol(protocol_path, "easy-right", "timid"), time_limit_s=0.1
+    )
+    trial = Trial(config, ScriptedInput(seed=0))
+    while not trial.done:
+        trial.tick()
+    records = trial.records
+    moved = dataclasses.replace(records[3], command=records[3].command + 2e-15, alpha=0.5)
+    head = "trial easy-right timid 0 timeout 10"
+    before, after = tmp_path / "before.txt", tmp_path / "after.txt"
+    before.write_text("\n".join([head, *map(record_line, records)]) + "\n")
+    lines = [record_line(r) for r in records]
+    lines[3] = record_line(moved)
+    after.write_text("\n".join([head, *lines]) + "\n")
+    same = diff(before, before)
+    assert all(same["same"].values()) and not any(same["max_abs_difference"].values())
+    out = diff(before, after)
+    assert out["same"]["outcomes_and_ticks"]
+    assert out["max_abs_difference"]["command"] == pytest.approx(2e-15, rel=0.5)
+    assert out["max_abs_difference"]["alpha"] == abs(0.5 - records[3].alpha)
+    after.write_text("\n".join([head.replace("timeout", "success"), *lines]) + "\n")
+    assert not diff(before, after)["same"]["outcomes_and_ticks"]

@@ -7,7 +7,7 @@ predict (``P(G | xi)``, ``G*``) -> confidence -> policy (``P``) -> agreement -> 
 user's rationality toward each goal from their recent inputs (``RationalityEstimator``), which
 it logs and which a :class:`StatefulArbitration` may use with the agreement.
 :meth:`PolicyBlender.step_joint` is the same tick for a caller that works out ``U``, ``P`` and
-the command together (the trial's compiled step, ``app.trial.fused_control``).
+the command together (a compiled step: the trial's).
 """
 
 from __future__ import annotations
