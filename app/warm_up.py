@@ -11,7 +11,9 @@ from __future__ import annotations
 import time
 
 from app.blending import policy_grasp_core
+from app.robot import kinematics_core
 from app.teleop import ik_step_core
+from app.trial import fused_control_core
 
 __all__ = ["warm_up"]
 
@@ -21,6 +23,8 @@ def warm_up() -> float:
     start = time.perf_counter()
     policy_grasp_core.warm_up()
     ik_step_core.warm_up()
+    kinematics_core.warm_up()
+    fused_control_core.warm_up()
     return time.perf_counter() - start
 
 

@@ -5,7 +5,10 @@ velocity-limited IK step (``U``), blending (prediction, confidence, arbitration,
 policy ``P`` -- or the one ``--policy`` names --, blend), servo + ``physics_dt``-substeps of
 MuJoCo, outcome checks and the tick record.
 Each tick is timed on its own (``perf_counter_ns``) across trials of every task and mode of the
-protocol; the parts (IK step, blending step, physics substeps) are timed separately too.
+protocol; the parts (IK step, blending step, physics substeps) are timed separately too, and
+the fused control step the trial's tick runs instead of the first two with the study's
+components (``app.trial.fused_control``: IK step, blending and the blend in one compiled call),
+each after physics as in the tick.
 The real-time factor is simulated seconds per wall second over whole ``run_trial`` calls,
 including building each trial (scene from the cache, fresh ``MjData``); because the machine is
 shared, the factor per second of this process's CPU time and the load average are printed too.
@@ -79,6 +82,7 @@ def main() -> int:
     ticks: list[int] = []
     ik_ns: list[int] = []
     blend_ns: list[int] = []
+    fused_ns: list[int] = []
     physics_ns: list[int] = []
     setup_ns: list[int] = []
     gc.disable()
@@ -107,6 +111,14 @@ def main() -> int:
                     blend_ns.append(t2 - t1)
                     physics_ns.append(t3 - t2)
                     q = trial.sim.q
+                # what the tick runs instead of the first two, with the study's components
+                fused = trial.fused
+                for _ in range(50 if fused is not None else 0):
+                    t0 = time.perf_counter_ns()
+                    u, _ = fused.step(q, target, x=target, robot_x=trial.sim.ee)  # type: ignore[union-attr]
+                    fused_ns.append(time.perf_counter_ns() - t0)
+                    trial.sim.step(u, gripper_closed=False, substeps=cfg.substeps)
+                    q = trial.sim.q
     finally:
         gc.enable()
 
@@ -133,6 +145,8 @@ def main() -> int:
         "blending": {k: v / 1e3 for k, v in stats(blend_ns).items()},
         "physics": {k: v / 1e3 for k, v in stats(physics_ns).items()},
     }
+    if fused_ns:
+        parts["control_step (fused)"] = {k: v / 1e3 for k, v in stats(fused_ns).items()}
     print(f"{'measure':<28}{'median':>12}{'p99':>12}")
     print(f"{'control tick (ms)':<28}{tick['median']:>12.3f}{tick['p99']:>12.3f}")
     for name, s in parts.items():

@@ -12,6 +12,14 @@ control tick that should not change what a study stores leaves the dump byte-ide
 
 Prints the number of ticks and the dump's SHA-256 as one JSON line. Bit-equality holds on one
 machine (the same MuJoCo, BLAS and CPU); another machine may round differently in both trees.
+
+A change meant to move the numbers by rounding only (the fused control step,
+``app.trial.fused_control``) is compared column by column instead::
+
+    python benchmarks/trial_dump.py --diff /tmp/before.txt /tmp/after.txt
+
+which prints, as one JSON line, whether every trial's outcome, tick count and events are the
+same, and the largest absolute difference of every logged column over every tick.
 """
 
 from __future__ import annotations
@@ -19,6 +27,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Any
@@ -55,10 +64,65 @@ def record_line(record: TickRecord) -> str:
     return " ".join(_exact(getattr(record, name)) for name in record.__slots__)
 
 
+def _value(text: str) -> Any:
+    """A field of a dump line back as numbers (``_exact``'s inverse for arrays, floats, ints)."""
+    if text.startswith("<f8"):
+        return np.frombuffer(bytes.fromhex(text.split(":", 1)[1]), dtype="<f8")
+    if text.startswith("f:"):
+        return float.fromhex(text[2:])
+    if text.startswith("int:"):
+        return int(text[4:])
+    return text
+
+
+def _trials(path: Path) -> dict[str, dict[str, Any]]:
+    """A dump's trials: their header, tick lines (fields split) and event lines."""
+    out: dict[str, dict[str, Any]] = {}
+    current: dict[str, Any] = {}
+    for line in path.read_text().splitlines():
+        if line.startswith("trial "):
+            current = out[line.rsplit(" ", 2)[0]] = {"head": line, "rows": [], "events": []}
+        elif line.startswith("event "):
+            current["events"].append(line)
+        else:
+            current["rows"].append(line.split(" "))
+    return out
+
+
+def diff(before: Path, after: Path) -> dict[str, Any]:
+    """Per logged column, the largest absolute difference over every tick of every trial (the
+    trials paired by task, mode and seed); and whether outcomes, tick counts and events match."""
+    a, b = _trials(before), _trials(after)
+    names = [n for n in TickRecord.__slots__ if n != "events"]
+    worst = dict.fromkeys(names, 0.0)
+    same = {"outcomes_and_ticks": a.keys() == b.keys(), "events": True, "tick_events": True}
+    for key in a.keys() & b.keys():
+        same["outcomes_and_ticks"] &= a[key]["head"] == b[key]["head"]
+        same["events"] &= a[key]["events"] == b[key]["events"]
+        for row_a, row_b in zip(a[key]["rows"], b[key]["rows"], strict=False):
+            for name, x, y in zip(TickRecord.__slots__, row_a, row_b, strict=True):
+                if x == y:
+                    continue
+                if name == "events":
+                    same["tick_events"] = False
+                    continue
+                d = np.abs(np.asarray(_value(x), float) - np.asarray(_value(y), float)).max()
+                worst[name] = max(worst[name], float(d) if d == d else math.inf)
+    return {"same": same, "max_abs_difference": worst}
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--out", type=Path, required=True, help="the dump file to write")
+    parser.add_argument("--out", type=Path, help="the dump file to write")
+    parser.add_argument(
+        "--diff", type=Path, nargs=2, metavar=("BEFORE", "AFTER"), help="compare two dumps"
+    )
     args = parser.parse_args()
+    if args.diff:
+        print(json.dumps(diff(*args.diff)))
+        return 0
+    if args.out is None:
+        parser.error("give --out FILE (or --diff BEFORE AFTER)")
     digest = hashlib.sha256()
     ticks = 0
     with args.out.open("w") as out:

@@ -110,6 +110,7 @@ def test_every_tick_u_p_and_agreement_equal_the_reference(
         trial_config_from_protocol(protocol_path, task, mode), time_limit_s=12.0
     )
     trial = Trial(config, ScriptedInput(seed=seed), seed=seed)
+    trial.fused = None  # the components' own calls (the fused step: tests/test_fused_control.py)
     own_ik = IKStep(
         trial.kinematics.copy(),
         rate_hz=config.rate_hz,

@@ -6,6 +6,8 @@ predict (``P(G | xi)``, ``G*``) -> confidence -> policy (``P``) -> agreement -> 
 (``alpha``) -> blend, returning a :class:`BlendRecord` for logging. Alongside, it estimates the
 user's rationality toward each goal from their recent inputs (``RationalityEstimator``), which
 it logs and which a :class:`StatefulArbitration` may use with the agreement.
+:meth:`PolicyBlender.step_joint` is the same tick for a caller that works out ``U``, ``P`` and
+the command together (a compiled step: the trial's).
 """
 
 from __future__ import annotations
@@ -58,8 +60,8 @@ class BlendRecord:
     Fig. 15's "dot product between the robot's policy and the user's motion", which, unlike
     ``agreement``, stays positive when an assisting robot merely runs ahead of the user.
 
-    ``agreement`` is worked out when first read, from ``Q`` and ``U`` as lists (``qu``), unless
-    given: the study's tick does not read it (a :class:`StatefulArbitration` does, and gets it).
+    ``agreement`` is worked out when first read, from ``Q`` and ``U`` (``qu``: lists or float
+    arrays), unless given: the study's tick does not read it (a :class:`StatefulArbitration` does, and gets it).
     """
 
     __slots__ = (
@@ -89,7 +91,7 @@ class BlendRecord:
         rationality: float = math.nan,
         motion_agreement: float = 0.0,
         *,
-        qu: tuple[list[float], list[float]] | None = None,
+        qu: tuple[list[float] | np.ndarray, list[float] | np.ndarray] | None = None,
     ) -> None:
         if agreement is None and qu is None:
             raise InvalidInputError("BlendRecord: give agreement, or Q and U (qu) to work it out")
@@ -109,7 +111,7 @@ class BlendRecord:
     def agreement(self) -> float:
         """Cosine of ``P - Q`` and ``U - Q`` (0 when either is zero), clipped to [-1, 1]."""
         if self._agreement is None:
-            qs, us = self._qu  # type: ignore[misc]
+            qs, us = (v.tolist() if type(v) is np.ndarray else v for v in self._qu)  # type: ignore[union-attr]
             self._agreement = _agreement(np.asarray(self.P, dtype=np.float64).tolist(), qs, us)
         return self._agreement
 
@@ -264,8 +266,9 @@ class PolicyBlender:
             self.arbitration.reset()
         self._started = True
 
-    def _bad_input(self, q: np.ndarray, u: np.ndarray, x: np.ndarray) -> BlendingError:
-        for name, arr in (("Q", q), ("U", u), ("x", x)):
+    def _bad_input(self, *named: tuple[str, np.ndarray]) -> BlendingError:
+        """The error for the first of these inputs that is not finite or is absurdly large."""
+        for name, arr in named:
             if not np.isfinite(arr).all():
                 return InvalidInputError(f"{name}: contains NaN or infinite values: {arr!r}")
             if (np.abs(arr) >= MAX_ABS_INPUT).any():
@@ -299,24 +302,15 @@ class PolicyBlender:
             < MAX_ABS_INPUT
             and not np.abs(np.concatenate((q, u, x))).max() < MAX_ABS_INPUT
         ):
-            raise self._bad_input(q, u, x)
+            raise self._bad_input(("Q", q), ("U", u), ("x", x))
 
-        pred = self._update(x)
+        pred, b, motion, distance, c = self.assess(x, xs, robot_x)
         i = pred.index
-        b = self.rationality.update(x, self._points)
-        motion = self._motion_agreement(x if robot_x is None else robot_x, i)
-        distance = math.dist(xs, self._point_lists[i])
-        c = float(self.confidence(pred, distance))
-        if not 0.0 <= c <= 1.0:
-            raise BlendingError(f"confidence: returned {c!r}, outside [0, 1]")
         p = self.policy.step(q, self._targets[i])
         ps = _checked_policy(p, dof)
         arb = self.arbitration
         agreement = None  # worked out when read (BlendRecord.agreement), unless needed now
-        if arb is not self._arbitration_seen:  # whether it is stateful, asked once per object
-            self._arbitration_seen = arb
-            self._stateful = isinstance(arb, StatefulArbitration)
-        if self._stateful:
+        if self.stateful:
             agreement = _agreement(ps, qs, us)
             alpha = float(arb.update(TickSignals(c, agreement, motion, i, b)))
         else:
@@ -330,6 +324,78 @@ class PolicyBlender:
         return BlendRecord(
             cmd, p, alpha, c, distance, probs, i, agreement, float(b[i]), motion, qu=(qs, us)
         )
+
+    def step_joint(
+        self,
+        Q: np.ndarray,
+        *,
+        x: np.ndarray,
+        robot_x: Any = None,
+        act: Callable[[Any, float], tuple[np.ndarray, np.ndarray, np.ndarray, bool]],
+    ) -> BlendRecord:
+        """:meth:`step` for a caller that works out ``U``, ``P`` and the command together (the
+        trial's compiled step): ``act(target, alpha) -> (U, P, command, finite)``, ``target``
+        the policy's target for G*, ``command = (1 - alpha) U + alpha P`` and ``finite``
+        whether ``Q``, ``U`` and ``P`` are finite and below ``MAX_ABS_INPUT`` (checked in the
+        same pass). The same prediction, confidence, arbitration and record as :meth:`step`
+        (``Q`` and ``x`` float arrays; ``x`` is checked before the prediction advances, ``Q``
+        with ``U`` and ``P`` after). Not for a stateful arbitration, which reads the agreement
+        of ``U`` and ``P`` before ``alpha``: use :meth:`step` there."""
+        if not self._started:
+            raise InvalidInputError("reset(start_x) must be called before step(Q, U)")
+        if Q.shape != self._q_shape or x.shape != self._x_shape:
+            raise InvalidInputError(
+                f"Q, x: expected shapes {self._q_shape} and {self._x_shape}, got {Q.shape} and"
+                f" {x.shape}"
+            )
+        xs = x.tolist()
+        if not sum(map(abs, xs)) < MAX_ABS_INPUT:  # as in step: NaN, inf, absurd values
+            raise self._bad_input(("x", x))
+        if self.stateful:
+            raise InvalidInputError("step_joint: a stateful arbitration needs step(Q, U)")
+        pred, b, motion, distance, c = self.assess(x, xs, robot_x)
+        i = pred.index
+        alpha = float(self.arbitration(c))
+        if not 0.0 <= alpha <= 1.0:
+            raise BlendingError(f"arbitration: returned alpha = {alpha!r}, outside [0, 1]")
+        u, p, cmd, finite = act(self._targets[i], alpha)
+        if not finite or not (u.shape == p.shape == self._q_shape):
+            raise BlendingError(
+                f"Q, U or P: not {self.dof} finite values each (or of magnitude >="
+                f" {MAX_ABS_INPUT:g}): Q {Q!r}, U {u!r}, P {p!r}"
+            )
+        probs = pred.probabilities.copy()
+        return BlendRecord(
+            cmd, p, alpha, c, distance, probs, i, None, float(b[i]), motion, qu=(Q, u)
+        )
+
+    @property
+    def stateful(self) -> bool:
+        """Whether the arbitration keeps a state (it then reads the agreement of ``U`` and
+        ``P``: :meth:`step_joint` is not for it)."""
+        arb = self.arbitration
+        if arb is not self._arbitration_seen:  # asked once per object
+            self._arbitration_seen = arb
+            self._stateful = isinstance(arb, StatefulArbitration)
+        return self._stateful
+
+    def assess(
+        self, x: np.ndarray, xs: list[float], robot_x: Any
+    ) -> tuple[GoalPrediction, np.ndarray, float, float, float]:
+        """What a tick reads from the user's input alone, before ``P`` and ``alpha``:
+        ``(prediction, rationality per goal, motion agreement, distance d to G*, confidence)``
+        for ``x`` (a checked float array, ``xs`` its list) with the robot at ``robot_x``
+        (``None``: at ``x``). Advances the predictor and the rationality estimate: once per
+        tick (``step`` calls it; a compiled fast path calls it instead of ``step``)."""
+        pred = self._update(x)
+        i = pred.index
+        b = self.rationality.update(x, self._points)
+        motion = self._motion_agreement(x if robot_x is None else robot_x, i)
+        distance = math.dist(xs, self._point_lists[i])
+        c = float(self.confidence(pred, distance))
+        if not 0.0 <= c <= 1.0:
+            raise BlendingError(f"confidence: returned {c!r}, outside [0, 1]")
+        return pred, b, motion, distance, c
 
     def _dof(self, q: np.ndarray, u: np.ndarray) -> int:
         """The robot's degrees of freedom (from the first ``Q`` seen), ``Q`` and ``U`` checked

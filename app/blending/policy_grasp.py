@@ -342,6 +342,33 @@ class GraspApproachPolicy:
             self._approaching.add(k)
         return p
 
+    def kernel_inputs(self, k: int) -> tuple[Any, ...]:
+        """What a fused compiled step hands :func:`~app.blending.policy_grasp_core.grasp_step`
+        for goal ``k`` besides ``Q`` and the kinematics pass (its arguments from ``goal`` on);
+        then :meth:`note_transit` with the ``transit`` it returned."""
+        if not self._goals:
+            raise InvalidInputError("set_goals(goals) must be called before step(Q, goal)")
+        row, goal_rot, posture = self._packed[k]
+        return (
+            row,
+            goal_rot,
+            posture,
+            k,
+            k in self._approaching,
+            self._object_rows,
+            self._layer_rows,
+            self._numbers,
+            self._lam2,
+            *self._limits,
+        )
+
+    def note_transit(self, k: int, transit: bool) -> None:
+        """After a compiled step toward goal ``k``: its hysteresis, as :meth:`step` keeps it."""
+        if transit:
+            self._approaching.discard(k)
+        else:
+            self._approaching.add(k)
+
     def _reference_step(self, q: np.ndarray, target: Any) -> np.ndarray:
         """``step`` in Python: the reference the compiled tick is tested equal to."""
         goal = self._goals[int(target)]

@@ -27,9 +27,9 @@ import math
 
 import numpy as np
 
-from app.compiled import jit, solve_spd
+from app.compiled import dls, jit
 
-__all__ = ["grasp_step", "rotation_log", "warm_up"]
+__all__ = ["grasp_finish", "grasp_step", "grasp_twist", "rotation_log", "warm_up"]
 
 _SQRT_HALF = math.sqrt(0.5)
 # policy_grasp's thresholds (this module cannot import it; tests/test_tick_fast_path.py checks them)
@@ -350,10 +350,34 @@ def grasp_step(
     """``(P, in transit, LAPACK info)`` from ``Q`` toward goal ``k`` (``GraspApproachPolicy.
     step``); ``posture`` empty when the goal has none; ``lower``/``upper`` read only when
     ``params[8]``."""
-    e0, e1, e2 = rotation_log(np.dot(goal_rot, rot.T))
+    e = rotation_log(np.dot(goal_rot, rot.T))
+    twist, z, pull, transit = grasp_twist(
+        q, x, rot, e, goal, posture, k, held, objects, layers, params
+    )
+    dq, info = dls(jac, twist, z, pull, lam2)
+    return grasp_finish(q, dq, np.dot(dq, dq), params, lower, upper), transit, info
+
+
+@jit
+def grasp_twist(
+    q: np.ndarray,
+    x: np.ndarray,
+    rot: np.ndarray,
+    e: tuple[float, float, float],
+    goal: np.ndarray,
+    posture: np.ndarray,
+    k: int,
+    held: bool,
+    objects: np.ndarray,
+    layers: np.ndarray,
+    params: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, bool, bool]:
+    """``([v; w], posture pull z, whether to pull, in transit)`` toward goal ``k``, ``e =
+    log(R_g R^T)``."""
+    e0, e1, e2 = e
     rot_err = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
     c0, c1, c2, transit = _carrot(q, x, rot, goal, k, rot_err, held, objects, layers, params)
-    speed, rotation_step, posture_step, max_step = params[2], params[4], params[5], params[6]
+    speed, rotation_step, posture_step = params[2], params[4], params[5]
     v0, v1, v2 = c0 - x[0], c1 - x[1], c2 - x[2]
     n = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
     sv = speed / n if n > speed else 1.0
@@ -364,22 +388,29 @@ def grasp_step(
     if pull:
         z = posture - q
         z *= posture_step
-        twist -= np.dot(jac, z)
-    a = np.dot(jac, jac.T)
-    a += lam2
-    info = solve_spd(a, twist)
-    dq = np.dot(jac.T, twist)
-    if pull:
-        dq += z
-    mag = math.sqrt(np.dot(dq, dq))
-    if mag > max_step:
-        dq *= max_step / mag
+    return twist, z, pull, transit
+
+
+@jit
+def grasp_finish(
+    q: np.ndarray,
+    dq: np.ndarray,
+    dq2: float,
+    params: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+) -> np.ndarray:
+    """``clip(Q + min(1, max_step / |dq|) dq)`` (``dq2 = |dq|^2``; ``dq`` overwritten: it
+    becomes ``P``)."""
+    mag = math.sqrt(dq2)
+    if mag > params[6]:
+        dq *= params[6] / mag
     dq += q
     if params[8] != 0.0:
         for i in range(dq.shape[0]):
             lo = dq[i] if dq[i] >= lower[i] else lower[i]  # np.maximum, then np.minimum
             dq[i] = lo if lo <= upper[i] else upper[i]
-    return dq, transit, info
+    return dq
 
 
 def warm_up() -> None:

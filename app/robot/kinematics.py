@@ -114,6 +114,29 @@ class Kinematics:
         self._pose_q = key
         return pose
 
+    def chain(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The model as the compiled kernel takes it (``app.robot.kinematics_core``): per joint
+        its placement's rotation (row-major), translation and axis (0, 1, 2: x, y, z), and the
+        TCP's placement in the last joint; ``None`` unless the arm is a serial chain of
+        revolute joints about x, y or z."""
+        model = self.model
+        axes = {"JointModelRX": 0, "JointModelRY": 1, "JointModelRZ": 2}
+        rows = []
+        for i in range(1, model.njoints):
+            axis = axes.get(model.joints[i].shortname())
+            if axis is None or model.parents[i] != i - 1 or model.joints[i].idx_q != i - 1:
+                return None
+            m = model.jointPlacements[i]
+            rows.append([*m.rotation.reshape(-1).tolist(), *m.translation.tolist(), axis])
+        frame = model.frames[self.frame_id]
+        if len(rows) != self.nq or frame.parentJoint != model.njoints - 1:
+            return None
+        tcp = frame.placement
+        return (
+            np.array(rows, dtype=np.float64),
+            np.array([*tcp.rotation.reshape(-1).tolist(), *tcp.translation.tolist()]),
+        )
+
     def ik(
         self,
         position: np.ndarray,

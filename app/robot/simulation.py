@@ -235,6 +235,8 @@ class Simulation:
             return []
         geoms = self.data.contact.geom[:ncon]
         part = self._part_of_geom[geoms]
+        if part.max() < 0:  # no arm part in any contact (objects on the table): nothing to sort
+            return []
         obj = self._object_of_geom[geoms]
         # a pair is arm-object when one side is an arm part and the other an object
         hit = ((part[:, 0] >= 0) & (obj[:, 1] >= 0)) | ((part[:, 1] >= 0) & (obj[:, 0] >= 0))
@@ -282,25 +284,30 @@ class Simulation:
     def object_tilts(self) -> np.ndarray:
         """Angle between each object's z axis and the world's vertical (n,), radians."""
         zz = self.data.xmat[self._object_bodies, 8]
-        return np.arccos(np.clip(zz, -1.0, 1.0))
+        np.maximum(zz, -1.0, out=zz)  # np.clip's numbers without its Python wrapper
+        np.minimum(zz, 1.0, out=zz)
+        return np.arccos(zz, out=zz)
 
     def held_object(self) -> int | None:
         """Index of the object both fingers touch, or ``None``."""
         ncon = self.data.ncon
         if ncon == 0:
             return None
-        geoms = self.data.contact.geom[:ncon]
-        b1 = self._body_of_geom[geoms[:, 0]]
-        b2 = self._body_of_geom[geoms[:, 1]]
-        for i, body in enumerate(self._object_bodies):
-            left = np.any((b1 == body) & (b2 == self._left)) or np.any(
-                (b2 == body) & (b1 == self._left)
-            )
-            if not left:
-                continue
-            right = np.any((b1 == body) & (b2 == self._right)) or np.any(
-                (b2 == body) & (b1 == self._right)
-            )
-            if right:
-                return i
+        bodies = self._body_of_geom[self.data.contact.geom[:ncon]].tolist()
+        left, right = self._left, self._right
+        touch_left, touch_right = set(), set()  # the bodies each finger touches
+        for b1, b2 in bodies:
+            if b1 == left:
+                touch_left.add(b2)
+            elif b1 == right:
+                touch_right.add(b2)
+            if b2 == left:
+                touch_left.add(b1)
+            elif b2 == right:
+                touch_right.add(b1)
+        both = touch_left & touch_right
+        if both:
+            for i, body in enumerate(self._object_bodies.tolist()):
+                if body in both:
+                    return i
         return None

@@ -105,6 +105,19 @@ class IKStep:
             float(self.max_speed if max_speed is None else max_speed),
         )
 
+    def kernel_inputs(self) -> tuple[np.ndarray, ...]:
+        """What a fused compiled step hands :func:`~app.teleop.ik_step_core.ik_step` besides
+        ``Q``, the target and the kinematics pass, up to ``max_speed``: ``(R*, posture, l^2 I,
+        lower, upper, params)``, fixed when built (as ``params``)."""
+        return (
+            np.ascontiguousarray(self.rotation, dtype=np.float64),
+            self._posture,
+            self._damp,
+            self.kin.lower,
+            self.kin.upper,
+            self._params,
+        )
+
     def _reference(
         self,
         q: np.ndarray,

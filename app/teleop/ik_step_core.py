@@ -14,9 +14,9 @@ import math
 
 import numpy as np
 
-from app.compiled import jit, solve_spd
+from app.compiled import dls, jit
 
-__all__ = ["ik_step", "warm_up"]
+__all__ = ["ik_finish", "ik_step", "ik_twist", "warm_up"]
 
 
 @jit
@@ -35,6 +35,24 @@ def ik_step(
 ) -> np.ndarray:
     """``U`` from ``Q`` toward ``target``, with ``x``, ``J`` the pass at ``Q`` and ``w =
     log3(R* R^T)``; ``Q`` unchanged (a copy) when the solve fails."""
+    twist, z, pull = ik_twist(q, target, x, w, posture, params, limit)
+    dq, info = dls(jac, twist, z, pull, damp)
+    if info != 0:
+        return q.copy()
+    return ik_finish(q, dq, lower, upper, params)
+
+
+@jit
+def ik_twist(
+    q: np.ndarray,
+    target: np.ndarray,
+    x: np.ndarray,
+    w: np.ndarray,
+    posture: np.ndarray,
+    params: np.ndarray,
+    limit: float,
+) -> tuple[np.ndarray, np.ndarray, bool]:
+    """``(dt [v; w], posture velocity z times dt, whether there is a posture)``."""
     dt, gain, sw, max_angular_speed = params[0], params[1], params[2], params[3]
     ex, ey, ez = target[0] - x[0], target[1] - x[1], target[2] - x[2]
     en = math.sqrt(ex * ex + ey * ey + ez * ez)
@@ -50,14 +68,15 @@ def ik_step(
     if pull:
         z = posture - q
         z *= params[4] * dt
-        twist -= np.dot(jac, z)
-    jjt = np.dot(jac, jac.T)
-    jjt += damp
-    if solve_spd(jjt, twist) != 0:
-        return q.copy()
-    dq = np.dot(jac.T, twist)
-    if pull:
-        dq += z
+    return twist, z, pull
+
+
+@jit
+def ik_finish(
+    q: np.ndarray, dq: np.ndarray, lower: np.ndarray, upper: np.ndarray, params: np.ndarray
+) -> np.ndarray:
+    """``clip(Q + dq)``, ``dq`` first scaled so no joint moves more than ``max_joint_step``
+    (``dq`` overwritten: it becomes ``U``)."""
     biggest = 0.0
     for i in range(dq.shape[0]):  # max(map(abs, dq)): the first of the largest
         a = abs(dq[i])

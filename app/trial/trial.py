@@ -3,7 +3,8 @@
 Each ``tick()`` asks the input source for a target, clamps it to the reach region, turns it
 into ``U`` with a velocity-limited IK step, blends ``U`` with the policy's ``P`` (prediction
 from the user target, confidence ``c = max(0, 1 - d / D)``, arbitration ``alpha(c)``), servos
-the arm to ``(1 - alpha) U + alpha P`` and advances the physics. What the ticks mean is the
+the arm to ``(1 - alpha) U + alpha P`` and advances the physics (with the study's components
+``U``, ``P`` and the command come from one compiled call: ``app.trial.fused_control``). What the ticks mean is the
 trial's task (``app.trial.tasks``; by default :class:`~app.trial.tasks.lift.LiftTask`): a grasp
 request closes the gripper in physics; holding an object, the arm lifts it by itself; the trial
 succeeds when the target is ``lift_height_m`` above its rest height. Outcomes (``app.trial.records.OUTCOMES``):
@@ -44,6 +45,7 @@ from app.trial.build_blender import build_blender
 from app.trial.config import TrialConfig
 from app.trial.contacts import ContactLog
 from app.trial.events import EventKind, TrialEvent, mark
+from app.trial.fused_control import fused_control
 from app.trial.records import BlendTick, TickRecord, TrialResult
 from app.trial.tasks import LiftTask, Task
 
@@ -85,6 +87,9 @@ class Trial:
         self.ik = IKStep(kin, rate_hz=config.rate_hz, posture=self.scene.start_q)
         self.blender = build_blender(config, self.scene, kin)
         self.blender.reset(self.scene.start_ee)
+        self.fused = fused_control(self.ik, self.blender)
+        """``U``, ``P`` and the command in one compiled call (``app.trial.fused_control``), or
+        ``None``: the components' own calls (a configuration other than the study's)."""
         self._lock = threading.RLock()
         self._paused = False
         self._pause_events: list[TrialEvent] = []
@@ -464,8 +469,12 @@ class Trial:
         held = self.task.control(q, self.t, request=request, events=events)
         if held is not None:
             return held, held, held
-        u = self.ik(q, self._steer())
-        rec = self.blender.step(q, u, x=self.user_input, robot_x=self._ee)
+        fused = self.fused
+        if fused is not None and fused.ik is self.ik:
+            u, rec = fused.step(q, self._steer(), x=self.user_input, robot_x=self._ee)
+        else:
+            u = self.ik(q, self._steer())
+            rec = self.blender.step(q, u, x=self.user_input, robot_x=self._ee)
         alpha, command = rec.alpha, rec.command
         if self.accidents.lying(rec.predicted):  # its goal lies, to be stood up where the
             alpha, command = 0.0, u  # robot would take the gripper: it holds back meanwhile
