@@ -20,7 +20,7 @@ import pytest
 
 from app.teleop.keyboard import KEY_SPEED_M_S
 from study.server.page_handle import HANDLE_OFFSET_M
-from tests.browser.harness import RunningServer, start_server, wait_until
+from tests.browser.harness import RunningServer, start_server, wait_still, wait_until
 from tests.browser.page import AGREE, connect_page, hold, join, screenshot, settle_frames
 
 pytestmark = pytest.mark.browser
@@ -102,7 +102,7 @@ def test_keys_steer_the_arm_never_the_camera_and_a_pause_freezes_them(
         cam = _camera(page)
         n = updates.count
         hold(page, key, 0.8)
-        page.wait_for_timeout(400)
+        wait_still(lambda: run.trial.user_target, timeout=5)  # the release landed
         moved = np.array(run.trial.user_target, float) - before
         # at least a tenth of 0.8 s at the key speed: a page drawing for two busy lanes once
         # passed its key-down on 0.6 s late (2 cm instead of 8); none at all fails
