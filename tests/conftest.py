@@ -35,20 +35,28 @@ def short_protocol(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 BROWSER_TESTS = "tests/browser/"
 BROWSER_LANES = {
-    "tests/browser/test_whole_session_by_hand.py": "browser-1",
-    "tests/browser/test_depth_and_limits.py": "browser-1",
+    "tests/browser/test_whole_session_by_hand.py::test_a_whole_session_with_the_mouse_alone": "browser-1",
     "tests/browser/test_open_link.py": "browser-1",
     "tests/browser/test_participant_page.py": "browser-1",
-    "tests/browser/test_key_state.py": "browser-1",
+    "tests/browser/test_questionnaire.py": "browser-1",
     "tests/browser/test_tls_proxy.py": "browser-1",
     "tests/browser/test_join_and_console.py": "browser-1",
-    "tests/browser/test_keys_and_pause.py": "browser-1",
+    "tests/browser/test_blinding.py": "browser-1",
+    "tests/browser/test_whole_session_by_hand.py::test_a_whole_session_with_the_keys_alone": "browser-2",
+    "tests/browser/test_depth_and_limits.py": "browser-2",
+    "tests/browser/test_missed_grasp.py": "browser-2",
+    "tests/browser/test_key_state.py": "browser-2",
+    "tests/browser/test_relative_handle.py": "browser-2",
+    "tests/browser/test_blinding.py::test_no_frame_names_a_condition_of_the_served_protocol[intent]": "browser-2",
+    "tests/browser/test_console_day.py": "browser-3",
+    "tests/browser/test_participant_flow.py": "browser-3",
+    "tests/browser/test_keys_and_pause.py": "browser-3",
+    "tests/browser/test_intent_display.py": "browser-3",
+    "tests/browser/test_blinding.py::test_no_frame_names_a_condition_of_the_served_protocol[mapping_mode]": "browser-3",
 }
-"""The browser tests' two lanes, each run by one worker one test after another; a module not
-listed runs in ``browser-2``. Balanced by ``--durations`` (2 cores, 4 workers, December 2026:
-about 450 s each). A lane's Chromium draws on demand and its tests mostly wait for what a
-person waits for (holding a key, a run's time limit): one lane alone used 0.28 CPU seconds a
-second (197 CPU s in 695 s, `-n 0`), and the whole suite on 4 workers 1.25 of the 2 cores."""
+"""The browser tests' lanes, each run by one worker one test after another, by test module
+by ``module::test`` (its parameters together) or by one test's id, the most particular first; a
+test not listed runs in ``browser-1``."""
 
 
 def _group(nodeid: str) -> str:
@@ -56,7 +64,10 @@ def _group(nodeid: str) -> str:
     simulated reference store, are built once)."""
     path = nodeid.split("::", 1)[0]
     if path.startswith(BROWSER_TESTS):
-        return BROWSER_LANES.get(path, "browser-2")
+        for key in (nodeid, nodeid.split("[", 1)[0], path):
+            if key in BROWSER_LANES:
+                return BROWSER_LANES[key]
+        return "browser-1"
     return path
 
 
@@ -80,6 +91,7 @@ def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
 LONGEST_FIRST = (
     "browser-1",
     "browser-2",
+    "browser-3",
     "tests/test_simulate_dask.py",
     "tests/test_simulate_resume.py",
     "tests/test_examples.py",

@@ -173,12 +173,12 @@ class Person:
         return self.run.trial.scene.target
 
     def wait_at_grasp(self, *, timeout: float = 20.0) -> float:
-        """Watch the gripper settle at the grasp (within 1 cm; the arm may have to help at the
-        reach's edge) and return its distance from the grasp point."""
-        goal = self.goal()
-        wait_until(lambda: np.linalg.norm(self.gripper() - goal) < 0.01, timeout=timeout)
-        wait_still(self.gripper, still_s=0.3, timeout=3)
-        return float(np.linalg.norm(self.gripper() - goal))
+        """Watch the gripper come to rest at the grasp (the arm may have to help at the reach's
+        edge) and return its distance from the grasp point. At rest, not within 1 cm: a target
+        steered to within the keys' 8 mm on each axis can leave it 1-1.5 cm off, and waiting
+        for 1 cm then sat out the whole ``timeout``."""
+        wait_still(self.gripper, still_s=0.5, timeout=timeout)
+        return float(np.linalg.norm(self.gripper() - self.goal()))
 
     def at_grasp(self, label: str) -> None:
         """What the participant sees at the grasp: the handle above the target on the screen,
