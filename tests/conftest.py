@@ -35,23 +35,23 @@ def short_protocol(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 BROWSER_TESTS = "tests/browser/"
 BROWSER_LANES = {
-    "tests/browser/test_whole_session_by_hand.py::test_a_whole_session_with_the_mouse_alone": "browser-1",
+    "tests/browser/test_blinding.py": "browser-1",
     "tests/browser/test_open_link.py": "browser-1",
     "tests/browser/test_participant_page.py": "browser-1",
-    "tests/browser/test_questionnaire.py": "browser-1",
     "tests/browser/test_tls_proxy.py": "browser-1",
-    "tests/browser/test_join_and_console.py": "browser-1",
-    "tests/browser/test_blinding.py": "browser-1",
-    "tests/browser/test_whole_session_by_hand.py::test_a_whole_session_with_the_keys_alone": "browser-2",
+    "tests/browser/test_whole_session_by_hand.py::test_a_whole_session_with_the_mouse_alone": "browser-1",
     "tests/browser/test_depth_and_limits.py": "browser-2",
-    "tests/browser/test_missed_grasp.py": "browser-2",
     "tests/browser/test_key_state.py": "browser-2",
+    "tests/browser/test_missed_grasp.py": "browser-2",
+    "tests/browser/test_questionnaire.py": "browser-2",
     "tests/browser/test_relative_handle.py": "browser-2",
     "tests/browser/test_blinding.py::test_no_frame_names_a_condition_of_the_served_protocol[intent]": "browser-2",
+    "tests/browser/test_whole_session_by_hand.py::test_a_whole_session_with_the_keys_alone": "browser-2",
     "tests/browser/test_console_day.py": "browser-3",
-    "tests/browser/test_participant_flow.py": "browser-3",
-    "tests/browser/test_keys_and_pause.py": "browser-3",
     "tests/browser/test_intent_display.py": "browser-3",
+    "tests/browser/test_join_and_console.py": "browser-3",
+    "tests/browser/test_keys_and_pause.py": "browser-3",
+    "tests/browser/test_participant_flow.py": "browser-3",
     "tests/browser/test_blinding.py::test_no_frame_names_a_condition_of_the_served_protocol[mapping_mode]": "browser-3",
 }
 """The browser tests' lanes, each run by one worker one test after another, by test module
