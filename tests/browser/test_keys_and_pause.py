@@ -61,7 +61,9 @@ class CameraUpdates:
 
 
 def _keys_leave_the_camera_alone(page: Any, updates: CameraUpdates | None, *, seconds=0.5):
-    page.wait_for_timeout(300)
+    # the camera at rest first: a new screen may fly it to its scene's view (a fixed 300 ms
+    # was outlasted on a loaded machine: "moved 0.253 m" on the next run's ready screen)
+    assert wait_still(lambda: _camera(page), tol=1e-6, still_s=0.5, timeout=15)
     before, n = _camera(page), (updates.count if updates else 0)
     for key in (*CAMERA_KEYS, "g"):
         hold(page, key, seconds)
@@ -156,4 +158,5 @@ def test_keys_steer_the_arm_never_the_camera_and_a_pause_freezes_them(
     # The next screen: keys still leave the camera alone.
     srv.act(code, "skip", reason="test: on to the next step")
     page.get_by_role("button", name="Start").wait_for()
+    settle_frames(page)
     _keys_leave_the_camera_alone(page, updates)
