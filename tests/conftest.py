@@ -35,20 +35,28 @@ def short_protocol(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 BROWSER_TESTS = "tests/browser/"
 BROWSER_LANES = {
-    "tests/browser/test_whole_session_by_hand.py": "browser-1",
     "tests/browser/test_depth_and_limits.py": "browser-1",
+    "tests/browser/test_whole_session_by_hand.py": "browser-1",
     "tests/browser/test_open_link.py": "browser-1",
     "tests/browser/test_participant_page.py": "browser-1",
+    "tests/browser/test_missed_grasp.py": "browser-1",
+    "tests/browser/test_relative_handle.py": "browser-1",
     "tests/browser/test_key_state.py": "browser-1",
+    "tests/browser/test_questionnaire.py": "browser-1",
     "tests/browser/test_tls_proxy.py": "browser-1",
     "tests/browser/test_join_and_console.py": "browser-1",
-    "tests/browser/test_keys_and_pause.py": "browser-1",
 }
 """The browser tests' two lanes, each run by one worker one test after another; a module not
-listed runs in ``browser-2``. Balanced by ``--durations`` (2 cores, 4 workers, December 2026:
-about 450 s each). A lane's Chromium draws on demand and its tests mostly wait for what a
-person waits for (holding a key, a run's time limit): one lane alone used 0.28 CPU seconds a
-second (197 CPU s in 695 s, `-n 0`), and the whole suite on 4 workers 1.25 of the 2 cores."""
+listed runs in ``browser-2`` (blinding, participant flow, console day, keys and pause, intent).
+Balanced by ``--durations`` of both lanes run together (`-n 2`, 2 cores, other jobs at load
+5-15, December 2026): 422 and 431 s. Chromium's CPU is most of theirs and ``/usr/bin/time``
+misses it (its renderer and GPU processes are not waited for): sampled from /proc, the 22
+tests used 591 CPU s in that run (Chromium 456, the two workers 110, Playwright's node 18), not
+the 197 once measured. Chromium draws on demand, about 0.1 CPU s a second for a still page,
+but while the arm moves it draws as fast as the CPU lets it, near a core a page at any window
+size (1366 x 768: 9 frames/s, 800 x 600: 14, both 0.85 CPU s a second). A third lane (tried:
+409-470 s each beside jobs at load 17-21, 675 CPU s) adds a third such page against the
+other workers: the CPU does not allow it."""
 
 
 def _group(nodeid: str) -> str:

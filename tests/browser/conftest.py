@@ -11,8 +11,7 @@ import pytest
 from playwright.sync_api import sync_playwright
 
 from tests.browser.harness import FrameLog, launch
-
-SCREENSHOTS = Path(__file__).resolve().parent / "screenshots"
+from tests.browser.page import SCREENSHOTS
 
 
 @pytest.fixture(scope="session")

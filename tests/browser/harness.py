@@ -174,6 +174,30 @@ def wait_until(predicate: Any, *, timeout: float = 20.0, interval: float = 0.05)
         time.sleep(interval)
 
 
+def wait_still(
+    read: Any,
+    *,
+    tol: float = 5e-4,
+    still_s: float = 0.25,
+    timeout: float = 10.0,
+    interval: float = 0.05,
+) -> bool:
+    """Poll ``read()`` (numbers) until it has stayed within ``tol`` (each number) for ``still_s``
+    seconds: a held key's release or a drag's end has landed and what follows it has come to
+    rest -- awaited, not a fixed wait that a loaded machine outlasts. False after ``timeout``."""
+    ref = np.asarray(read(), float)
+    since = now = time.monotonic()
+    deadline = now + timeout
+    while now < deadline:
+        time.sleep(interval)
+        value, now = np.asarray(read(), float), time.monotonic()
+        if np.abs(value - ref).max() > tol:
+            ref, since = value, now
+        elif now - since >= still_s:
+            return True
+    return False
+
+
 # -- a study server on free ports, with a shortened copy of the paper's protocol -----------------
 
 

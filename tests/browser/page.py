@@ -97,19 +97,46 @@ def hold(page: Any, key: str, seconds: float, *, repeat_hz: float = 30.0) -> Non
     page.keyboard.up(key)
 
 
+SCREENSHOTS = Path(__file__).resolve().parent / "screenshots"
+"""The README's committed screenshots (written with ``UPDATE_SCREENSHOTS=1``)."""
+
+SETTLED_JS = """async (limitMs) => {
+  const frame = () => new Promise((r) => requestAnimationFrame(r));
+  const end = performance.now() + limitMs;
+  const moving = () => document.getAnimations().some((a) => a.playState === "running"
+    && a.effect && a.effect.getComputedTiming().iterations !== Infinity);
+  await frame();
+  while (moving() && performance.now() < end) await frame();
+  await frame();
+}"""
+"""Wait for the page's finite CSS transitions and animations (a notice sliding in, a button
+changing colour) to end, at most ``limitMs``, then for one more frame: what a screenshot shows
+is what the participant sees once the screen is still."""
+
+
+def settled(page: Any, *, limit_ms: float = 600) -> None:
+    """Wait until the page's transitions end (:data:`SETTLED_JS`): an event, not a fixed
+    wait (a fixed 300 ms before each screenshot cost about 15 s a run of the browser tests)."""
+    page.evaluate(SETTLED_JS, limit_ms)
+
+
 def screenshot(page: Any, folder: Path, name: str, *, colors: int = 96) -> None:
-    """Save a small screenshot for the README (PNG with a ``colors`` palette). The viewer's
-    own notices (software WebGL) are the page's to hide (``study.server.page_head``): a
-    screenshot shows what the participant sees. 96 colours merge the box's orange with the
+    """Save a screenshot of what the participant sees once the page is still (:func:`settled`).
+    For the README (``folder`` is :data:`SCREENSHOTS`) a small PNG with a ``colors`` palette;
+    elsewhere the browser's PNG as it is (a palette costs 0.1-0.3 CPU s a screenshot). The
+    viewer's own notices (software WebGL) are the page's to hide (``study.server.page_head``):
+    a screenshot shows what the participant sees. 96 colours merge the box's orange with the
     table's in the view from above (the box looks hollow): 256 keep it."""
-    page.wait_for_timeout(300)
+    settled(page)
     t = time.monotonic()
     png = page.screenshot()
     print(f"screenshot {name}: {time.monotonic() - t:.1f} s")
+    path = folder / f"{name}.png"
+    if folder.resolve() != SCREENSHOTS:
+        path.write_bytes(png)
+        return
     image = Image.open(io.BytesIO(png)).convert("RGB")
-    image.quantize(colors=colors, method=Image.Quantize.MEDIANCUT).save(
-        folder / f"{name}.png", optimize=True
-    )
+    image.quantize(colors=colors, method=Image.Quantize.MEDIANCUT).save(path, optimize=True)
 
 
 def settle_frames(page: Any, *, rounds: int = 2) -> None:

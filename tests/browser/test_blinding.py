@@ -1,7 +1,7 @@
 """Blinding in the browser, on every shipped study protocol: no frame the page receives names a
 condition of the protocol being served.
 
-A participant joins, agrees, does the practice run and one task run (3 s each), answers the
+A participant joins, agrees, does the practice run and one task run (2 s each), answers the
 items and finishes, once per protocol (the paper's and memory3, whose levels "standard",
 "amnesic", "memory", "oracle" and "linear" are not the paper's words). Every websocket frame
 the page receives is decoded and searched, strings and raw bytes (meshes included), for every
@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from playwright.sync_api import expect
 
 from study.server.blinding_guard import iter_strings
 from study.server.viser_vocabulary import FIELD_VALUES
@@ -25,15 +26,17 @@ from tests.protocol_copies import PAGE_BLINDED_PROTOCOLS
 
 pytestmark = pytest.mark.browser
 
-TIME_LIMIT_S = 3.0
+TIME_LIMIT_S = 2.0
+"""Each run is waited out: long enough for the trial screen to be seen and read."""
 
 
 def _answer_items(page: Any) -> None:
     """Answer every row of an items screen with its first point, then Continue."""
-    page.get_by_text("Your answer: none yet").first.wait_for(timeout=30_000)
-    while page.get_by_text("Your answer: none yet").count():
+    none_yet = page.get_by_text("Your answer: none yet")
+    none_yet.first.wait_for(timeout=30_000)
+    while left := none_yet.count():
         page.get_by_role("button", name="1", exact=True).first.click()
-        page.wait_for_timeout(150)
+        expect(none_yet).to_have_count(left - 1)  # the answer shown: on to the next row
     page.get_by_role("button", name="Continue").click()
 
 

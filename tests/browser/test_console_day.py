@@ -30,9 +30,10 @@ from tests.protocol_copies import short_practice
 
 pytestmark = pytest.mark.browser
 
-TIME_LIMIT_S = 15.0
+TIME_LIMIT_S = 10.0
 """Long enough for the console's Pause to land mid-run on a busy machine."""
-PRACTICE_S = 5.0
+PRACTICE_S = 3.0
+"""The practice run, only waited out."""
 ACTIONS = ("Start", "Pause", "Resume", "Redo", "Skip", "Withdraw", "End")
 
 

@@ -31,6 +31,7 @@ from tests.browser.harness import (
     RunningServer,
     decode_frame,
     start_server,
+    wait_still,
     wait_until,
 )
 from tests.browser.page import (
@@ -112,7 +113,8 @@ def _steer_to(page: Any, live: Any, goal: np.ndarray, axes: tuple[int, ...]) -> 
     late, so aim short and correct, like anyone does."""
     for axis in axes:
         for attempt in range(24):
-            page.wait_for_timeout(400 if attempt < 6 else 700)  # later: let a late key land
+            # the last press has landed and the target stopped (later: let a late key land)
+            wait_still(lambda: live.run.trial.user_target, still_s=0.3 if attempt < 6 else 0.6)
             error = goal[axis] - float(live.run.trial.user_target[axis])
             if abs(error) < 0.006:
                 break
@@ -162,7 +164,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
         _press_drag(page, grab, grab + 90 * direction)
         page.mouse.up()
         assert wait_until(lambda: live.page.dragging is False, timeout=5)
-        page.wait_for_timeout(1500)  # the arm follows
+        assert wait_still(lambda: _gripper(live))  # the arm follows, and comes to rest
         g1 = _gripper(live)
         moved = g1 - g0
         along = float(moved[axis])
@@ -207,7 +209,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     # Mid-reach: the keys take the gripper over the mug; the picture from above shows both.
     goal = grasp_position(scene.spec.objects[scene.target_index])  # TCP 3 cm below its top
     _steer_to(page, live, goal, (0, 1))
-    page.wait_for_timeout(1000)
+    wait_still(lambda: _gripper(live))
     screenshot(page, screenshots, "12-depth-mid-reach")
     top = live.view.inset.camera
     assert isinstance(top, TopDownCamera)
@@ -238,7 +240,7 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
 
     # At the grasp: back over the mug, down to it, close the gripper; it lifts the mug.
     _steer_to(page, live, goal, (0, 1, 2))
-    page.wait_for_timeout(1200)
+    wait_still(lambda: _gripper(live))
     g = _gripper(live)
     assert float(np.linalg.norm(g[:2] - goal[:2])) < 0.02, g
     mug = page_pixel(page, cam, goal)

@@ -1,6 +1,6 @@
 """The robot's intent on the participant page: a ring around the predicted object, or nothing.
 
-protocols/intent.toml (shortened: one practice run of 4 s, 8 s task runs) gives design row 0 the
+protocols/intent.toml (shortened: one practice run of 2 s, 8 s task runs) gives design row 0 the
 Easy&Right task first in mode ``aggressive`` (intent not shown), then in ``aggressive_shown``
 (``intent = "goal"``). A participant steers toward the box with held keys in both runs: with
 the display off the page never receives a ring node; with it on, the browser's scene tree holds
@@ -33,8 +33,8 @@ from tests.protocol_copies import short_practice
 pytestmark = pytest.mark.browser
 
 INTENT = Path(__file__).resolve().parents[2] / "protocols" / "intent.toml"
-PRACTICE_S = 4.0
-"""The practice run is only waited out (no ring in it): half the task runs' 8 s."""
+PRACTICE_S = 2.0
+"""The practice run is only waited out (no ring in it)."""
 RING_JS = """(name) => {
   const node = window.__viserSceneTree.getState()[name];
   if (!node) return null;

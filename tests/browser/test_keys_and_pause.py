@@ -20,7 +20,7 @@ import pytest
 
 from app.teleop.keyboard import KEY_SPEED_M_S
 from study.server.page_handle import HANDLE_OFFSET_M
-from tests.browser.harness import RunningServer, start_server, wait_until
+from tests.browser.harness import RunningServer, start_server, wait_still, wait_until
 from tests.browser.page import AGREE, connect_page, hold, join, screenshot, settle_frames
 
 pytestmark = pytest.mark.browser
@@ -61,7 +61,9 @@ class CameraUpdates:
 
 
 def _keys_leave_the_camera_alone(page: Any, updates: CameraUpdates | None, *, seconds=0.5):
-    page.wait_for_timeout(300)
+    # the camera at rest first: a new screen may fly it to its scene's view (a fixed 300 ms
+    # was outlasted on a loaded machine: "moved 0.253 m" on the next run's ready screen)
+    assert wait_still(lambda: _camera(page), tol=1e-6, still_s=0.5, timeout=15)
     before, n = _camera(page), (updates.count if updates else 0)
     for key in (*CAMERA_KEYS, "g"):
         hold(page, key, seconds)
@@ -102,7 +104,7 @@ def test_keys_steer_the_arm_never_the_camera_and_a_pause_freezes_them(
         cam = _camera(page)
         n = updates.count
         hold(page, key, 0.8)
-        page.wait_for_timeout(400)
+        wait_still(lambda: run.trial.user_target, timeout=5)  # the release landed
         moved = np.array(run.trial.user_target, float) - before
         # at least a tenth of 0.8 s at the key speed: a page drawing for two busy lanes once
         # passed its key-down on 0.6 s late (2 cm instead of 8); none at all fails
@@ -156,4 +158,5 @@ def test_keys_steer_the_arm_never_the_camera_and_a_pause_freezes_them(
     # The next screen: keys still leave the camera alone.
     srv.act(code, "skip", reason="test: on to the next step")
     page.get_by_role("button", name="Start").wait_for()
+    settle_frames(page)
     _keys_leave_the_camera_alone(page, updates)
