@@ -78,10 +78,11 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 
 def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
-    """``-n auto``: two workers a core (``--maxprocesses`` caps it). The suite mostly waits --
-    on paced control loops, attack scripts' seconds, browsers, subprocesses: measured on 2
-    cores, the browser lane alone used 0.28 CPU s a second and the other tests 0.45 (under other
-    jobs' load: a lower bound) -- so twice as many workers as cores keep the cores busier."""
+    """``-n auto``: two workers a core (``--maxprocesses`` caps it). Many tests wait -- on paced
+    control loops, attack scripts' seconds, subprocesses -- so twice as many workers as cores
+    keep the cores busier (2 -> 4 workers: 12:41 -> 11:31 on 2 cores). The suite as a whole is
+    CPU-bound on 2 cores: about 620 CPU s outside the browsers and 590 in the browser lanes,
+    Chromium's drawing most of it (:data:`BROWSER_LANES`)."""
     return 2 * (os.cpu_count() or 1)
 
 
