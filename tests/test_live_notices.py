@@ -62,7 +62,11 @@ def test_what_the_input_does_now_comes_first() -> None:
     assert n.text(10.1, live=True) == texts.FELL_OVER  # nothing else, until it stands again
     n = HeldNotices(above=10.0, lowest=10.0, at_limit=10.0, dropped=10.0, slipped=9.0)
     assert n.text(10.1, live=True) == texts.SLIPPED_OUT  # ... nor until a dropped one is back
-    assert n.text(10.0 + LIMIT_HOLD_S + 0.1, live=True) == texts.SLIPPED_OUT  # then as a miss
+    n = HeldNotices(slipped=10.0, missed=9.0)  # a slip, the hand sinking back off-centre:
+    n.lowest = n.off_centre = 11.0  # the slip is said first, until its time is up
+    assert n.text(11.1, live=True) == texts.SLIPPED_OUT
+    n.lowest = n.off_centre = 10.0 + MISSED_NOTICE_S
+    assert n.text(10.1 + MISSED_NOTICE_S, live=True) == texts.NOT_CENTRED
     n = HeldNotices(missed=10.0, resting=10.0, at_limit=10.0)
     assert n.text(10.1, live=True) == texts.RESTING_ON_OBJECT  # F held onto a rim: both
     n = HeldNotices(missed=10.0, at_limit=10.0, above=10.0)

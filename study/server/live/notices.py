@@ -13,12 +13,14 @@ The render loop asks :meth:`HeldNotices.text` each period and shows the answer w
 ``ParticipantPage.hold_notice`` (one notice at a time; ``None`` takes it down). What the
 participant's input does this moment comes first, after a fallen or dropped object (nothing
 else matters until it stands at its spot again, and it waits for the gripper to leave the spot;
-the slipped notice says so): a resting finger (a
+the slipped notice says so) and a slip, for ``MISSED_NOTICE_S`` or until the next grasp request
+(the object is put back within a second and the open hand sinks back to where it was: under the
+"not in the middle" notice a tester saw the slip's for 0.5-0.9 s, too short to read, and the
+scene looked as before G): a resting finger (a
 held F with a finger on a rim also drives the target below the reach's floor; the reach notice
 would not say why the gripper stays up, a new-participant pass found), the gripper kept above
 an object, the gripper as low as it goes around one (F held on, the target also reaches the
-reach's floor, where the reach notice would only mislead), then the reach, then a slipped
-object, then a miss.
+reach's floor, where the reach notice would only mislead), then the reach, then a miss.
 
 A missed grasp's notice stays ``MISSED_NOTICE_S``: a three-second corner notice went unseen by
 a tester whose eyes were on the gripper (and on a page drawing 10 frames a second, the closing
@@ -74,6 +76,8 @@ class HeldNotices:
             return FELL_OVER
         if now - self.dropped < LIMIT_HOLD_S:
             return SLIPPED_OUT
+        if now - self.slipped < MISSED_NOTICE_S and self.asked <= self.slipped:
+            return SLIPPED_OUT  # said first: the hand sinks back at once, and it was unread
         if now - self.resting < RESTING_HOLD_S:  # what really holds the gripper up
             return RESTING_ON_OBJECT
         if now - self.above < LIMIT_HOLD_S:
@@ -82,8 +86,6 @@ class HeldNotices:
             return NOT_CENTRED if self.off_centre >= self.lowest else AS_LOW_AS_IT_GOES
         if now - self.at_limit < LIMIT_HOLD_S:
             return AT_REACH_LIMIT
-        if now - self.slipped < MISSED_NOTICE_S and self.asked <= self.slipped:
-            return SLIPPED_OUT
         if now - self.missed < MISSED_NOTICE_S and self.asked <= self.missed:
             return MISSED_GRASP
         return None

@@ -35,9 +35,8 @@ HELD_ABOVE = (
 around (``app.teleop.guarded_descent``) and the participant's input asks it lower."""
 
 SLIPPED_OUT = (
-    "The object slipped out of the gripper. It is put back where it stood as soon as the"
-    " gripper is out of the way there; then lower the open gripper around its middle and close"
-    " it again."
+    "The object slipped out of the gripper. It is put back where it stood once the gripper is"
+    " out of the way. Then lower the open gripper around its middle and press G again."
 )
 """Held over the scene for a few seconds after a grasped object slipped out of the gripper
 (a tester saw the mug caught and dropped within 0.16 s, and no word about it), and while it
