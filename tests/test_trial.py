@@ -299,6 +299,35 @@ def test_a_dropped_object_is_put_back_where_it_stood(config) -> None:
     assert trial.outcome == "success" and trial.accidents.resets["mug"] == 1
 
 
+def test_a_dropped_object_that_falls_over_is_a_knock(config) -> None:
+    """The mug slips out and lands on its side: a knock (counted, and a fallen object: the
+    page's fell-over notice), then put back at its start pose like any knocked object."""
+    trial = Trial(config("training", "none", time_limit_s=30), ScriptedInput())
+    k = trial.scene.target_index
+    body = trial.scene.object_body_ids[k]
+    adr = int(trial.scene.object_qpos_addr[k])
+    spot = trial.sim.data.qpos[adr : adr + 7].copy()
+    fallen, grasps = [], 0
+    while not trial.done:
+        rec = trial.tick()
+        kinds = {e.kind for e in rec.events}
+        if EventKind.GRASPED in kinds:
+            grasps += 1
+            if grasps == 1:
+                trial.sim.data.xfrc_applied[body, 2] = -60.0
+        if EventKind.DROPPED in kinds:
+            trial.sim.data.xfrc_applied[body, 2] = 0.0
+            q = trial.sim.data.qpos  # on its side, 6 cm aside
+            q[adr : adr + 3] = spot[:3] + np.array([0.0, 0.06, 0.0])
+            q[adr + 3 : adr + 7] = (np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0)
+        fallen.append(trial.accidents.fallen)
+    events = [e for _, e in trial.events]
+    assert TrialEvent(EventKind.KNOCKED_OVER, obj="mug") in events
+    assert TrialEvent(EventKind.OBJECT_RESET, obj="mug") in events
+    assert (k,) in fallen and trial.accidents.knocks["mug"] == 1
+    assert trial.outcome == "success"
+
+
 def test_timeout_and_abort(config) -> None:
     result = run_trial(config("easy-right", "timid", time_limit_s=2), IdleInput())
     assert result.outcome == "timeout" and result.ticks == 200
