@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import functools
 import math
 import tomllib
 from collections.abc import Iterator
@@ -39,7 +38,6 @@ from app.robot.task_view import (
     visible_fractions,
 )
 from study.protocol.loader import load_protocol
-from study.protocol.protocol import Protocol
 from study.server.page_scene import scene_view, task_center
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -58,23 +56,8 @@ def _protocol_scenes() -> Iterator[tuple[str, str]]:
 SCENES = list(_protocol_scenes())
 
 
-_BUILT: dict[str, Scene] = {}
-
-
 def _scene(protocol: str, name: str) -> Scene:
-    """The protocol's scene, built once per scene description: :func:`task_view` caches its
-    result per ``Scene`` object (0.5-3 s a scene), and most protocols share the paper's scenes,
-    so each test of a scene -- and each protocol with the same scene -- reuses the one search."""
-    spec = _protocol(protocol).scenes[name]
-    key = repr(spec)
-    if key not in _BUILT:
-        _BUILT[key] = build_scene(spec)
-    return _BUILT[key]
-
-
-@functools.cache
-def _protocol(protocol: str) -> Protocol:
-    return load_protocol(ROOT / "protocols" / protocol)
+    return build_scene(load_protocol(ROOT / "protocols" / protocol).scenes[name])
 
 
 def _todays_view(scene: Scene) -> TaskView:
