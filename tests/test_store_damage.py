@@ -20,11 +20,9 @@ from pathlib import Path
 
 import pytest
 
-from study.__main__ import main as study_main
 from study.session.sample_writer import sample_row
 from study.store import NotAStoreError, Store, StoreDamagedError
 from study.store.salvage import salvage
-from tests.support.cli import run_main
 from tests.support.stores import enrol, new_trial, open_store, tick
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -131,14 +129,10 @@ def test_a_store_whose_header_is_garbage_is_not_called_a_store(store_file: Path)
         open_store(store_file)
 
 
-def test_commands_refuse_a_damaged_store_in_one_line(
-    tmp_path: Path, short_protocol: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
+def test_commands_refuse_a_damaged_store_in_one_line(tmp_path: Path, short_protocol: Path) -> None:
     """``run`` writes a session; after 64 KiB of garbage, ``run``, ``simulate --resume`` and
     ``export`` stop at once with the salvage hint (exit 2, no traceback); salvage then gives a
-    store that ``export`` reads. The session is written by a new ``python -m study`` process;
-    the later commands run the same command line's ``main`` in this process (no start-up and
-    imports each, 1-2 CPU s a command)."""
+    store that ``export`` reads."""
     db = tmp_path / "study.db"
     study = (sys.executable, "-m", "study")
     common = {"cwd": ROOT, "capture_output": True, "text": True, "timeout": 180}
@@ -166,13 +160,15 @@ def test_commands_refuse_a_damaged_store_in_one_line(
         ],
         ["export", "--db", str(db), "--out", str(tmp_path / "export")],
     ):
-        said = run_main(study_main, argv, capsys)
-        assert said.returncode == 2, (argv, said.stderr)
-        assert "Traceback" not in said.stderr and "study salvage" in said.stderr, said.stderr
+        done = subprocess.run([*study, *argv], **common)
+        assert done.returncode == 2, (argv, done.stderr)
+        assert "Traceback" not in done.stderr and "study salvage" in done.stderr, done.stderr
     assert digest(db) == before
     out = tmp_path / "salvaged.db"
-    said = run_main(study_main, ["salvage", "--db", str(db), "--out", str(out)], capsys)
-    assert said.returncode == 0, said.stderr
-    assert json.loads(said.stdout)["tables"]["trials"]["copied"] >= 1
-    said = run_main(study_main, ["export", "--db", str(out), "--out", str(tmp_path / "e")], capsys)
-    assert said.returncode == 0, said.stderr
+    done = subprocess.run([*study, "salvage", "--db", str(db), "--out", str(out)], **common)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["tables"]["trials"]["copied"] >= 1
+    done = subprocess.run(
+        [*study, "export", "--db", str(out), "--out", str(tmp_path / "e")], **common
+    )
+    assert done.returncode == 0, done.stderr
