@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from analysis.__main__ import main as analysis_main
 from analysis.load import from_frames, task_cells
 from analysis.prediction_eval import (
     PREDICTORS,
@@ -30,6 +31,7 @@ from app.teleop import GizmoInput
 from app.trial import Trial
 from app.trial.events import encode_events
 from study.protocol import trial_config_from_protocol
+from tests.support.cli import Ran, run_main
 
 ROOT = Path(__file__).resolve().parents[1]
 GOALS = np.array([[0.45, -0.05, 0.05], [0.60, 0.25, 0.08]])  # box (near), bottle (target)
@@ -103,7 +105,13 @@ def _predict(*args: str) -> subprocess.CompletedProcess[str]:
     )
 
 
-def test_predict_command(tmp_path: Path) -> None:
+def test_predict_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The first call is a new ``python -m analysis predict`` process, as a user runs it; the
+    others call the same command line's ``main`` here (no start-up and imports each)."""
+
+    def predict(*args: str) -> Ran:
+        return run_main(analysis_main, ["predict", *args], capsys)
+
     goals = tmp_path / "goals.csv"
     pd.DataFrame(
         {"goal": ["box", "bottle"], "x": GOALS[:, 0], "y": GOALS[:, 1], "z": GOALS[:, 2]}
@@ -124,13 +132,13 @@ def test_predict_command(tmp_path: Path) -> None:
     )
     assert (df["predicted"].to_numpy() == nearest).all()
     assert np.allclose(df["confidence"], df[["p_box", "p_bottle"]].max(axis=1), atol=1e-5)
-    mem = _predict(
+    mem = predict(
         "--goals", str(goals), "--trajectory", str(tr), "--method", "memory", "--cost", "length"
     )
     assert mem.returncode == 0 and mem.stdout.count("\n") == 61
     # the protocol format's cost name and the short one are the same cost
     named = [
-        _predict(
+        predict(
             "--goals", str(goals), "--trajectory", str(tr), "--method", "memory", "--cost", cost
         )
         for cost in ("squared_velocity", "sqvel")
@@ -139,7 +147,7 @@ def test_predict_command(tmp_path: Path) -> None:
     # configuration-space columns q1..qn work the same way
     pd.DataFrame({"goal": ["a", "b"], "q1": [0, 1], "q2": [0, 1]}).to_csv(goals, index=False)
     pd.DataFrame({"t": [0, 1, 2], "q1": [0.1, 0.6, 0.9], "q2": [0, 0.5, 1]}).to_csv(tr, index=False)
-    q = _predict("--goals", str(goals), "--trajectory", str(tr), "--method", "amnesic")
+    q = predict("--goals", str(goals), "--trajectory", str(tr), "--method", "amnesic")
     assert q.returncode == 0 and list(pd.read_csv(io.StringIO(q.stdout))["predicted"]) == [
         "a",
         "b",
@@ -147,11 +155,11 @@ def test_predict_command(tmp_path: Path) -> None:
     ]
     # bad input: clear message, exit 2, no traceback
     pd.DataFrame({"t": [0, 1], "q1": ["x", 0.3], "q2": [0, 1]}).to_csv(tr, index=False)
-    bad = _predict("--goals", str(goals), "--trajectory", str(tr), "--method", "memory")
+    bad = predict("--goals", str(goals), "--trajectory", str(tr), "--method", "memory")
     assert bad.returncode == 2 and "must be numeric" in bad.stderr
     assert "Traceback" not in bad.stderr
     pd.DataFrame({"t": [0, 1], "x": [0.1, 0.2]}).to_csv(tr, index=False)
-    cols = _predict("--goals", str(goals), "--trajectory", str(tr), "--method", "memory")
+    cols = predict("--goals", str(goals), "--trajectory", str(tr), "--method", "memory")
     assert cols.returncode == 2 and "q1" in cols.stderr
 
 

@@ -1,4 +1,8 @@
-"""The report command end to end on an exported synthetic study, and its failure messages."""
+"""The report command end to end on an exported synthetic study, and its failure messages.
+
+The first test runs ``python -m analysis report`` as a user does (a new process); the others
+call the same command line's ``main`` in this process (no interpreter start-up and imports,
+about 3 CPU s a command), where what is checked is the exit code, the message and the files."""
 
 from __future__ import annotations
 
@@ -11,10 +15,12 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from analysis.__main__ import main as analysis_main
 from analysis.load import from_frames, task_cells
 from analysis.protocol_info import load_protocol_info
 from analysis.synthetic import synthetic_tables
 from analysis.timing import timing_analysis
+from tests.support.cli import Ran, run_main
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -39,6 +45,10 @@ def _report(*args: str) -> subprocess.CompletedProcess[str]:
         text=True,
         timeout=120,
     )
+
+
+def _report_here(capsys: pytest.CaptureFixture[str], *args: str) -> Ran:
+    return run_main(analysis_main, ["report", *args], capsys)
 
 
 def test_report_writes_html_markdown_json_and_figures(export_dir: Path, tmp_path: Path) -> None:
@@ -87,13 +97,15 @@ def test_report_writes_html_markdown_json_and_figures(export_dir: Path, tmp_path
     assert doc["software"]["version"] and doc["participants"] == 8
 
 
-def test_report_on_incomplete_data_notes_what_was_dropped(export_dir: Path, tmp_path: Path) -> None:
+def test_report_on_incomplete_data_notes_what_was_dropped(
+    export_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     src = tmp_path / "export"
     src.mkdir()
     trials = pd.read_csv(export_dir / "trials.csv")
     trials.loc[(trials.participant == "P05") & (trials.task == "hard-wrong"), "status"] = "skipped"
     trials.to_csv(src / "trials.csv", index=False)  # no samples: prediction is skipped
-    run = _report("--export-dir", str(src), "--out", str(tmp_path / "r"))
+    run = _report_here(capsys, "--export-dir", str(src), "--out", str(tmp_path / "r"))
     assert run.returncode == 0, run.stderr
     doc = json.loads((tmp_path / "r" / "results.json").read_text())
     assert any("P05" in n for n in doc["notes"])
@@ -101,17 +113,21 @@ def test_report_on_incomplete_data_notes_what_was_dropped(export_dir: Path, tmp_
     assert doc["fits"]["timing_rm"]["n_subjects"] == 7
 
 
-def test_report_bad_sources_exit_2_with_a_message(tmp_path: Path, export_dir: Path) -> None:
-    gone = _report("--export-dir", str(tmp_path / "nowhere"), "--out", str(tmp_path / "o"))
+def test_report_bad_sources_exit_2_with_a_message(
+    tmp_path: Path, export_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    gone = _report_here(
+        capsys, "--export-dir", str(tmp_path / "nowhere"), "--out", str(tmp_path / "o")
+    )
     assert gone.returncode == 2 and "not a directory" in gone.stderr
-    db = _report("--db", str(tmp_path / "absent.db"), "--out", str(tmp_path / "o"))
+    db = _report_here(capsys, "--db", str(tmp_path / "absent.db"), "--out", str(tmp_path / "o"))
     assert db.returncode == 2 and "--db" in db.stderr and "Traceback" not in db.stderr
     broken = tmp_path / "broken"
     broken.mkdir()
     pd.read_csv(export_dir / "trials.csv").drop(columns="duration_s").to_csv(
         broken / "trials.csv", index=False
     )
-    bad = _report("--export-dir", str(broken), "--out", str(tmp_path / "o"))
+    bad = _report_here(capsys, "--export-dir", str(broken), "--out", str(tmp_path / "o"))
     assert bad.returncode == 2 and "'duration_s'" in bad.stderr and "Traceback" not in bad.stderr
 
 

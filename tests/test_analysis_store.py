@@ -1,5 +1,7 @@
 """Integration: a real study store written by `python -m study run` (scripted participant),
-read through study.export.tidy_tables, analysed and reported."""
+read through study.export.tidy_tables, analysed and reported. The store is written by a new
+process as a user writes it; the report and export command lines then run their ``main`` in
+this process (no interpreter start-up and imports each, 2-3 CPU s a command)."""
 
 from __future__ import annotations
 
@@ -11,8 +13,11 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from analysis.__main__ import main as analysis_main
 from analysis.load import load_tables, task_cells
 from analysis.prediction_eval import evaluate_predictions
+from study.__main__ import main as study_main
+from tests.support.cli import run_main
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -63,14 +68,10 @@ def test_store_loads_into_the_contract_tables(store: Path) -> None:
     ).all()
 
 
-def test_report_from_a_one_participant_store(store: Path, tmp_path: Path) -> None:
-    run = subprocess.run(
-        [sys.executable, "-m", "analysis", "report", "--db", str(store), "--out", str(tmp_path)],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+def test_report_from_a_one_participant_store(
+    store: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    run = run_main(analysis_main, ["report", "--db", str(store), "--out", str(tmp_path)], capsys)
     assert run.returncode == 0, run.stderr
     doc = json.loads((tmp_path / "results.json").read_text())
     assert doc["participants"] == 1
@@ -87,26 +88,10 @@ def test_report_from_a_one_participant_store(store: Path, tmp_path: Path) -> Non
 
 @pytest.mark.parametrize("fmt", ["csv", "parquet"])
 def test_exported_files_give_the_same_numbers_as_the_store(
-    store: Path, tmp_path: Path, fmt: str
+    store: Path, tmp_path: Path, fmt: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    run = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "study",
-            "export",
-            "--db",
-            str(store),
-            "--out",
-            str(tmp_path),
-            "--format",
-            fmt,
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    argv = ["export", "--db", str(store), "--out", str(tmp_path), "--format", fmt]
+    run = run_main(study_main, argv, capsys)
     assert run.returncode == 0, run.stderr
     from_db, from_files = load_tables(db=store), load_tables(export_dir=tmp_path)
     assert from_files.protocol_hash == from_db.protocol_hash

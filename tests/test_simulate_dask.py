@@ -3,7 +3,7 @@ or to the client.
 
 A 2-worker ``LocalCluster`` (real processes, as in production) runs simulated participants while
 this process is the store's only writer. Compared with a 1-worker local run with the same seed
-(``tests.test_simulate_resume.content``: participants, seeds, trials, every sample value,
+(``tests.support.simulated_runs.content``: participants, seeds, trials, every sample value,
 ratings, event kinds; no wall-clock stamps or row ids): a plain run; a run during which a busy
 worker process is killed with SIGKILL (its participant is re-run elsewhere and written once);
 and a ``python -m study simulate --engine dask`` process group sent SIGINT mid-run, then resumed.
@@ -36,14 +36,14 @@ from study.simulated.dask_engine import RunInputs, simulate_remote
 from study.simulated.population import DEFAULT_POPULATION_PATH
 from study.simulated.runner import plan_jobs
 from study.store import Store, StoreError
-from tests.protocol_copies import short_protocol
-from tests.support.simulated_runs import content, progress, reference_run
+from tests.support.simulated_runs import content, progress, shared_reference
 
 pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[1]
-PARTICIPANTS = 4  # two per worker: enough to kill one mid-run and to interrupt between pairs
-SEED = 5
+PARTICIPANTS = 3  # one more than workers: one is written while both workers are busy, so a
+# worker can be killed (or the client interrupted) with a participant stored and two in flight
+SEED = 4  # the resume tests' too: one reference run serves both modules
 
 
 def same_data(db: Path) -> dict[str, Any]:
@@ -55,51 +55,18 @@ def same_data(db: Path) -> dict[str, Any]:
 
 
 @pytest.fixture(scope="module")
-def protocol(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return short_protocol(tmp_path_factory.mktemp("protocol"), training_runs=1)
+def shared(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    return shared_reference(tmp_path_factory, participants=PARTICIPANTS, seed=SEED)
 
 
 @pytest.fixture(scope="module")
-def reference(protocol: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    folder = tmp_path_factory.mktemp("reference")
-    return same_data(reference_run(protocol, folder, participants=PARTICIPANTS, seed=SEED))
+def protocol(shared: tuple[Path, Path]) -> Path:
+    return shared[0]
 
 
 @pytest.fixture(scope="module")
-def cluster() -> Iterator[LocalCluster]:
-    with LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
-    ) as local:
-        yield local
-
-
-def run_dask(protocol: Path, db: Path, cluster: LocalCluster) -> Any:
-    return simulate(
-        protocol_path=protocol,
-        db=db,
-        participants=PARTICIPANTS,
-        seed=SEED,
-        engine="dask",
-        scheduler=cluster.scheduler_address,
-        progress=False,
-    )
-
-
-def test_dask_run_writes_what_one_local_process_writes(
-    protocol: Path, reference: dict[str, Any], cluster: LocalCluster, tmp_path: Path
-) -> None:
-    report = run_dask(protocol, tmp_path / "sim.db", cluster)
-    assert report.errors == [] and report.error is None
-    assert report.participants == PARTICIPANTS
-    assert [r.participant for r in report.results] == [
-        f"sim{SEED}-{k:03d}" for k in range(1, PARTICIPANTS + 1)
-    ]
-    assert same_data(tmp_path / "sim.db") == reference
-    with Store.open_readonly(tmp_path / "sim.db") as store:
-        # one writer, in participant order: session ids follow the population index
-        assert [s.participant for s in sorted(store.sessions(), key=lambda s: s.session_id)] == [
-            f"sim{SEED}-{k:03d}" for k in range(1, PARTICIPANTS + 1)
-        ]
+def reference(shared: tuple[Path, Path]) -> dict[str, Any]:
+    return same_data(shared[1])
 
 
 def test_a_bundle_is_merged_whole_and_only_once(protocol: Path, tmp_path: Path) -> None:
@@ -132,39 +99,6 @@ def test_a_bundle_is_merged_whole_and_only_once(protocol: Path, tmp_path: Path) 
         assert named and named <= own  # event details name the merged trials, renumbered
     finally:
         store.close()
-
-
-def test_a_worker_killed_mid_run_loses_nothing(
-    protocol: Path, reference: dict[str, Any], cluster: LocalCluster, tmp_path: Path
-) -> None:
-    db = tmp_path / "sim.db"
-    killed: list[int] = []
-
-    def kill_a_busy_worker() -> None:
-        with Client(cluster.scheduler_address, timeout=10) as client:
-            deadline = time.monotonic() + 120
-            while time.monotonic() < deadline:
-                busy = [w for w, keys in client.processing().items() if keys]
-                if len(busy) == 2 and progress(db)[1] >= 1:  # both computing, one written
-                    pid = client.run(os.getpid, workers=[busy[0]])[busy[0]]
-                    os.kill(pid, signal.SIGKILL)
-                    killed.append(pid)
-                    return
-                time.sleep(0.02)
-
-    killer = threading.Thread(target=kill_a_busy_worker)
-    killer.start()
-    try:
-        report = run_dask(protocol, db, cluster)
-    finally:
-        killer.join()
-    assert killed, "no worker was killed: the run ended first"
-    assert report.errors == [] and report.error is None
-    assert report.participants == PARTICIPANTS
-    assert same_data(db) == reference
-    with Client(cluster.scheduler_address, timeout=10) as client:
-        client.wait_for_workers(2, timeout=60)  # the nanny restarted it: the cluster is whole
-        assert killed[0] not in client.run(os.getpid).values()
 
 
 def free_port() -> int:
@@ -228,13 +162,14 @@ def test_ctrl_c_leaves_whole_participants_and_resume_finishes(
         start_new_session=True,
     )
     try:
-        # generous: on a loaded machine two participants can take minutes; a deadline that
+        # interrupted once a participant is stored, the other two in flight on both workers;
+        # generous: on a loaded machine a participant can take minutes; a deadline that
         # passes silently would interrupt too early and fail on the count below instead
         deadline = time.monotonic() + 480
-        while progress(db)[1] < 2 and time.monotonic() < deadline and proc.poll() is None:
+        while progress(db)[1] < 1 and time.monotonic() < deadline and proc.poll() is None:
             time.sleep(0.01)
         assert proc.poll() is None, "the simulation ended before it could be interrupted"
-        assert progress(db)[1] >= 2, "two participants not completed within 480 s"
+        assert progress(db)[1] >= 1, "no participant completed within 480 s"
         os.killpg(proc.pid, signal.SIGINT)
         out, err = proc.communicate(timeout=60)
     finally:
@@ -247,7 +182,7 @@ def test_ctrl_c_leaves_whole_participants_and_resume_finishes(
     with Store.open_readonly(db) as store:
         assert store.integrity_check() == "ok"
         sessions = store.sessions()
-        assert 2 <= len(sessions) < PARTICIPANTS
+        assert 1 <= len(sessions) < PARTICIPANTS
         assert {s.status for s in sessions} == {"completed"}  # no half participant
         assert len(store.participants()) == len(sessions)
         assert {t.status for t in store.trials()} <= {"completed", "aborted", "interrupted"}
@@ -265,3 +200,79 @@ def test_ctrl_c_leaves_whole_participants_and_resume_finishes(
     assert summary["participants"] == PARTICIPANTS and summary["redone"] == []
     assert len(summary["kept"]) == len(sessions)
     assert same_data(db) == reference
+
+
+# The tests on the module's cluster come last: an idle cluster still costs CPU (heartbeats,
+# about 0.14 CPU s a second for two workers and the scheduler), so it is started after the
+# tests that do not need it and stopped with the module.
+
+
+@pytest.fixture(scope="module")
+def cluster() -> Iterator[LocalCluster]:
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
+    ) as local:
+        yield local
+
+
+def run_dask(protocol: Path, db: Path, cluster: LocalCluster) -> Any:
+    return simulate(
+        protocol_path=protocol,
+        db=db,
+        participants=PARTICIPANTS,
+        seed=SEED,
+        engine="dask",
+        scheduler=cluster.scheduler_address,
+        progress=False,
+    )
+
+
+def test_dask_run_writes_what_one_local_process_writes(
+    protocol: Path, reference: dict[str, Any], cluster: LocalCluster, tmp_path: Path
+) -> None:
+    report = run_dask(protocol, tmp_path / "sim.db", cluster)
+    assert report.errors == [] and report.error is None
+    assert report.participants == PARTICIPANTS
+    assert [r.participant for r in report.results] == [
+        f"sim{SEED}-{k:03d}" for k in range(1, PARTICIPANTS + 1)
+    ]
+    assert same_data(tmp_path / "sim.db") == reference
+    with Store.open_readonly(tmp_path / "sim.db") as store:
+        # one writer, in participant order: session ids follow the population index
+        assert [s.participant for s in sorted(store.sessions(), key=lambda s: s.session_id)] == [
+            f"sim{SEED}-{k:03d}" for k in range(1, PARTICIPANTS + 1)
+        ]
+
+
+def test_a_worker_killed_mid_run_loses_nothing(
+    protocol: Path, reference: dict[str, Any], cluster: LocalCluster, tmp_path: Path
+) -> None:
+    db = tmp_path / "sim.db"
+    killed: list[int] = []
+    ended = threading.Event()
+
+    def kill_a_busy_worker() -> None:
+        with Client(cluster.scheduler_address, timeout=10) as client:
+            while not ended.wait(0.02):
+                busy = [w for w, keys in client.processing().items() if keys]
+                # one participant written, so the killed worker's is one begun after it
+                if busy and progress(db)[1] >= 1:
+                    pid = client.run(os.getpid, workers=[busy[0]])[busy[0]]
+                    os.kill(pid, signal.SIGKILL)
+                    killed.append(pid)
+                    return
+
+    killer = threading.Thread(target=kill_a_busy_worker)
+    killer.start()
+    try:
+        report = run_dask(protocol, db, cluster)
+    finally:
+        ended.set()
+        killer.join()
+    assert killed, "no worker was killed: the run ended first"
+    assert report.errors == [] and report.error is None
+    assert report.participants == PARTICIPANTS
+    assert same_data(db) == reference
+    with Client(cluster.scheduler_address, timeout=10) as client:
+        client.wait_for_workers(2, timeout=60)  # the nanny restarted it: the cluster is whole
+        assert killed[0] not in client.run(os.getpid).values()

@@ -24,25 +24,29 @@ from study.__main__ import main as study_main
 from study.simulated import runner
 from study.store import Store
 from tests.disk_full import cap
-from tests.protocol_copies import short_protocol
-from tests.support.simulated_runs import content, progress, reference_run
+from tests.support.simulated_runs import content, progress, shared_reference
 
 pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[1]
-PARTICIPANTS = 6
-SEED = 4
+PARTICIPANTS = 3  # one completed, one being written when killed, one not begun
+SEED = 4  # the Dask tests' too: one reference run serves both modules
+TRIALS_EACH = 9  # the protocol's one training run and eight task trials
 
 
 @pytest.fixture(scope="module")
-def protocol(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return short_protocol(tmp_path_factory.mktemp("protocol"), training_runs=1)
+def shared(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    return shared_reference(tmp_path_factory, participants=PARTICIPANTS, seed=SEED)
 
 
 @pytest.fixture(scope="module")
-def reference(protocol: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    folder = tmp_path_factory.mktemp("reference")
-    return content(reference_run(protocol, folder, participants=PARTICIPANTS, seed=SEED))
+def protocol(shared: tuple[Path, Path]) -> Path:
+    return shared[0]
+
+
+@pytest.fixture(scope="module")
+def reference(shared: tuple[Path, Path]) -> dict[str, Any]:
+    return content(shared[1])
 
 
 def cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, dict[str, Any], str]:
@@ -78,13 +82,17 @@ def test_killed_simulation_resumes_to_the_uninterrupted_data(
         stderr=subprocess.DEVNULL,
     )
     try:
-        # 20 trials take a few seconds idle; at load 12-16 more than 120 s (runs are longer
-        # since knocks are stood up again instead of ending them)
+        # killed once the second participant's first trial is stored: a few seconds idle; at
+        # load 12-16 more than a minute
         deadline = time.monotonic() + 480
-        while progress(db)[0] < 20 and time.monotonic() < deadline and proc.poll() is None:
+        while (
+            progress(db)[0] <= TRIALS_EACH and time.monotonic() < deadline and proc.poll() is None
+        ):
             time.sleep(0.01)
         assert proc.poll() is None, "the simulation ended before it could be killed"
-        assert progress(db)[0] >= 20, "20 trials did not come in 480 s: is the machine idle?"
+        assert progress(db)[0] > TRIALS_EACH, (
+            "10 trials did not come in 480 s: is the machine idle?"
+        )
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=30)
     finally:
@@ -92,7 +100,7 @@ def test_killed_simulation_resumes_to_the_uninterrupted_data(
             proc.kill()
             proc.wait()
     trials, completed = progress(db)
-    assert 0 < completed < PARTICIPANTS and trials >= 20
+    assert 0 < completed < PARTICIPANTS and trials > TRIALS_EACH
 
     # re-running without --resume refuses, and says how to continue
     code, summary, err = cli(capsys, *args)

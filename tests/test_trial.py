@@ -8,6 +8,8 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -16,7 +18,9 @@ from app.robot.scene import build_scene
 from app.teleop import GizmoInput, IdleInput, ScriptedInput, TeleopCommand, TrialObservation
 from app.trial import OUTCOMES, Trial, load_records, run_trial, save_records
 from app.trial.events import EventKind, TrialEvent, decode, encode
+from study.__main__ import main as study_main
 from study.protocol import trial_config_from_protocol
+from tests.support.cli import Ran, run_main
 
 
 @pytest.fixture(scope="module")
@@ -416,8 +420,11 @@ def test_records_round_trip(config, tmp_path) -> None:
     assert records[-1].events == result.records[-1].events
 
 
-def test_cli_prints_one_json_line(repo_root) -> None:
-    def cli(*args: str) -> subprocess.CompletedProcess[str]:
+def test_cli_prints_one_json_line(repo_root, capsys: pytest.CaptureFixture[str]) -> None:
+    """The first run is a new ``python -m study trial`` process, as a user runs it; the others
+    call the same command line's ``main`` here (no start-up and imports each)."""
+
+    def process(*args: str) -> subprocess.CompletedProcess[str]:
         return subprocess.run(
             [sys.executable, "-m", "study", "trial", *args],
             cwd=repo_root,
@@ -426,21 +433,27 @@ def test_cli_prints_one_json_line(repo_root) -> None:
             timeout=120,
         )
 
-    def run(*args: str) -> dict:
+    def here(*args: str) -> Ran:
+        return run_main(study_main, ["trial", *args], capsys)
+
+    def run(*args: str, cli: Callable[..., Any] = here) -> dict:
         proc = cli(*args)
         assert proc.returncode == 0, proc.stderr
         assert "after" in proc.stderr  # the human-readable line; stdout is the JSON alone
         return json.loads(proc.stdout)
 
-    out = run("--task", "hard-right", "--mode", "aggressive", "--input", "scripted", "--seed", "1")
+    out = run(
+        "--task", "hard-right", "--mode", "aggressive", "--input", "scripted", "--seed", "1",
+        cli=process,
+    )  # fmt: skip
     assert out["success"] is True and out["outcome"] == "success"
     assert out["ticks"] > 0 and out["duration_s"] > 0
     alone = run("--task", "hard-right", "--mode", "none", "--seed", "1", "--time-limit", "8")
     assert alone["success"] is False
-    proc = cli("--task", "medium")
+    proc = here("--task", "medium")
     assert proc.returncode == 2 and "medium" in proc.stderr
     for bad in (["--seed", "-1"], ["--time-limit", "0"], ["--speed", "fast"]):
-        proc = cli(*bad)
+        proc = here(*bad)
         assert proc.returncode == 2 and bad[0] in proc.stderr and "Traceback" not in proc.stderr
 
 

@@ -16,10 +16,12 @@ from app.robot.scene import build_scene
 from app.teleop import ScriptedInput
 from app.trial import records_from_samples, run_trial, save_records
 from app.trial.video import render_live, replay
+from study.__main__ import main as study_main
 from study.protocol import trial_config_from_protocol
 from study.session.sample_writer import sample_row
 from study.store import Store
 from study.store.schema import SAMPLE_COLUMNS
+from tests.support.cli import run_main
 
 
 def frame_count(path) -> int:
@@ -71,7 +73,7 @@ def test_live_render_writes_a_readable_mp4(config, tmp_path) -> None:
     assert ok and first.shape == (120, 160, 3) and first.std() > 5  # not a blank frame
 
 
-def test_render_cli_replays_saved_records(config, repo_root, tmp_path) -> None:
+def test_render_cli_replays_saved_records(config, repo_root, tmp_path, capsys) -> None:
     result = run_trial(config, ScriptedInput(seed=0))
     records = save_records(result, tmp_path / "run.npz")
     out = tmp_path / "cli.mp4"
@@ -84,11 +86,9 @@ def test_render_cli_replays_saved_records(config, repo_root, tmp_path) -> None:
     summary = json.loads(proc.stdout)  # stdout is one JSON line; progress goes to stderr
     assert summary["frames"] == frame_count(out) > 0
     for bad in (["--fps", "0"], ["--width", "-5"], ["--trial-id", "x"]):
-        proc = subprocess.run(
-            [sys.executable, "-m", "study", "render", *bad, "--out", str(tmp_path / "bad.mp4")],
-            cwd=repo_root, capture_output=True, text=True, timeout=120,
-        )  # fmt: skip
-        assert proc.returncode == 2 and bad[0] in proc.stderr and "Traceback" not in proc.stderr
+        # the same command line's main in this process: no start-up and imports for each
+        said = run_main(study_main, ["render", *bad, "--out", str(tmp_path / "bad.mp4")], capsys)
+        assert said.returncode == 2 and bad[0] in said.stderr and "Traceback" not in said.stderr
         assert not (tmp_path / "bad.mp4").exists()
 
 

@@ -4,12 +4,23 @@ distributed run must store what an uninterrupted local run stores)."""
 from __future__ import annotations
 
 import hashlib
+import os
 import sqlite3
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 from study.simulated import simulate
 from study.store import Store
+from tests.protocol_copies import short_protocol
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: each pytest-xdist worker builds its own copy
+    fcntl = None  # type: ignore[assignment]
 
 
 def reference_run(protocol: Path, folder: Path, *, participants: int, seed: int) -> Path:
@@ -20,6 +31,41 @@ def reference_run(protocol: Path, folder: Path, *, participants: int, seed: int)
     )
     assert report.errors == [] and report.error is None
     return db
+
+
+def shared_reference(
+    tmp_path_factory: pytest.TempPathFactory, *, participants: int, seed: int
+) -> tuple[Path, Path]:
+    """(protocol, reference store): the paper's protocol with 20 s trials and one training run,
+    and :func:`reference_run` of it, built once per test run -- the pytest-xdist workers share
+    one copy (a file lock in the run's temporary folder), so the resume and Dask modules, each
+    on its own worker, simulate the reference once between them. Read it; never write to it."""
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # the run's folder, above every worker's own
+    folder = root / f"simulated-reference-p{participants}-s{seed}"
+    folder.mkdir(exist_ok=True)
+    db, done = folder / "sim.db", folder / "done"
+    with _locked(folder / "lock"):
+        if not done.exists():
+            for stale in folder.glob("sim.db*"):  # a worker that failed half-way
+                stale.unlink()
+            protocol = short_protocol(folder, training_runs=1)
+            reference_run(protocol, folder, participants=participants, seed=seed)
+            done.touch()
+    return folder / "short.toml", db
+
+
+@contextmanager
+def _locked(path: Path) -> Iterator[None]:
+    with path.open("a") as handle:
+        if fcntl is not None:
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            if fcntl is not None:
+                fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def content(db: Path) -> dict[str, Any]:
