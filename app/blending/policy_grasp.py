@@ -314,32 +314,15 @@ class GraspApproachPolicy:
         if not self.compiled:
             return self._reference_step(q, target)
         k = int(target)
-        row, goal_rot, posture = self._packed[k]
         if type(q) is not np.ndarray or q.dtype != _F64:
             q = np.asarray(q, dtype=np.float64)
         x, rot, jac = self._pose_jacobian(q)
         p, transit, info = grasp_step(
-            q,
-            _contiguous(x),
-            _contiguous(rot),
-            _contiguous(jac),
-            row,
-            goal_rot,
-            posture,
-            k,
-            k in self._approaching,
-            self._object_rows,
-            self._layer_rows,
-            self._numbers,
-            self._lam2,
-            *self._limits,
+            q, _contiguous(x), _contiguous(rot), _contiguous(jac), *self.kernel_inputs(k)
         )
         if info != 0:  # pragma: no cover - J J^T + lambda^2 I is positive definite
             raise InvalidInputError("arm.pose_jacobian: returned a Jacobian that is not finite")
-        if transit:
-            self._approaching.discard(k)
-        else:
-            self._approaching.add(k)
+        self.note_transit(k, transit)
         return p
 
     def kernel_inputs(self, k: int) -> tuple[Any, ...]:
