@@ -11,9 +11,9 @@ check and, under ``on_knock = "end"``, the outcome the trial ends with:
 Under ``on_knock = "reset"`` (the default: what an experimenter does) the run goes on and the
 object is put back; so is a held object that slipped out of the gripper (``slipped``: where a
 drop leaves it, turned or against another object, a top-down grasp may no longer be possible,
-and the scene is no longer the one the condition defines). It is put back once it has settled (slower than ``SETTLE_SPEED_M_S`` and
-``SETTLE_SPIN_RAD_S`` for ``SETTLE_S``, or ``MAX_SETTLE_S`` after the accident; an object off the
-table after ``PICKUP_S``), nothing holds it, no arm part touches it and its start pose is free,
+and the scene is no longer the one the condition defines). It is put back once it has settled
+(slower than ``SETTLE_SPEED_M_S`` and ``SETTLE_SPIN_RAD_S`` for ``SETTLE_S``, or
+``MAX_SETTLE_S`` after the accident; an object off the table after ``PICKUP_S``), nothing holds it, no arm part touches it and its start pose is free,
 its free joint is set to the start pose at rest (``qpos = qpos_0``, ``qvel = 0``, forward) and
 ``object_reset:<obj>`` is logged. Whether the start pose is free is asked of MuJoCo's collision
 detection at that pose: the object is placed there and, if it would overlap the hand, a finger
