@@ -228,10 +228,19 @@ def test_grasping_the_other_object_is_an_outcome(config) -> None:
     assert TrialEvent(EventKind.LIFTED, obj=other) in result.records[-1].events
 
 
-def _drop_after_grasp(trial: Trial) -> list[float]:
+def _drop_after_grasp(
+    trial: Trial,
+    *,
+    lands: tuple[tuple[float, float, float], tuple[float, float, float, float]] | None = None,
+    watch: Any = None,
+) -> list[float]:
     """Run ``trial``; at the first grasp the held mug is pulled down (60 N) until it slips out
-    of the fingers. The times of the ``grasped`` events."""
-    body = trial.scene.object_body_ids[trial.scene.target_index]
+    of the fingers. ``lands``: where it comes to rest at the drop, ``(offset from its spot,
+    orientation wxyz)``; ``watch(record)``: called after every tick. The times of the
+    ``grasped`` events."""
+    k = trial.scene.target_index
+    body, adr = trial.scene.object_body_ids[k], int(trial.scene.object_qpos_addr[k])
+    spot = trial.sim.data.qpos[adr : adr + 3].copy()
     grasps = []
     while not trial.done:
         rec = trial.tick()
@@ -241,6 +250,12 @@ def _drop_after_grasp(trial: Trial) -> list[float]:
                 trial.sim.data.xfrc_applied[body, 2] = -60.0
         if any(e.kind is EventKind.DROPPED for e in rec.events):
             trial.sim.data.xfrc_applied[body, 2] = 0.0
+            if lands is not None:
+                offset, wxyz = lands
+                trial.sim.data.qpos[adr : adr + 3] = spot + np.asarray(offset)
+                trial.sim.data.qpos[adr + 3 : adr + 7] = wxyz
+        if watch is not None:
+            watch(rec)
     return grasps
 
 
@@ -267,32 +282,26 @@ def test_a_dropped_object_is_put_back_where_it_stood(config) -> None:
     succeeds."""
     trial = Trial(config("training", "none", time_limit_s=30), ScriptedInput())
     k = trial.scene.target_index
-    body = trial.scene.object_body_ids[k]
     adr = int(trial.scene.object_qpos_addr[k])
     spot = trial.sim.data.qpos[adr : adr + 7].copy()
-    grasps, dropped, reset, waiting, moved = [], [], [], [], []
+    dropped, reset, waiting, moved = [], [], [], []
     at_drop = np.zeros(3)
-    while not trial.done:
-        rec = trial.tick()
-        kinds = {e.kind for e in rec.events}
+
+    def watch(rec: Any) -> None:
+        nonlocal at_drop
         if dropped and trial.task.phase == "reopening":  # the arm stays where it lost the mug
             moved.append(float(np.linalg.norm(rec.ee - at_drop)))
-        if EventKind.GRASPED in kinds:
-            grasps.append(rec.t)
-            if len(grasps) == 1:
-                trial.sim.data.xfrc_applied[body, 2] = -60.0
-        if EventKind.DROPPED in kinds:
+        if TrialEvent(EventKind.DROPPED, obj="mug") in rec.events:
             dropped.append(rec.t)
             at_drop = rec.ee.copy()
-            trial.sim.data.xfrc_applied[body, 2] = 0.0
-            q = trial.sim.data.qpos
-            q[adr : adr + 2] = spot[:2] + np.array([0.0, 0.06])  # where it came to rest, turned 30°
-            q[adr + 3 : adr + 7] = (np.cos(np.pi / 12), 0.0, 0.0, np.sin(np.pi / 12))
         if TrialEvent(EventKind.OBJECT_RESET, obj="mug") in rec.events:
             reset.append(rec.t)
             np.testing.assert_allclose(trial.sim.data.qpos[adr : adr + 7], spot, atol=1e-9)
         elif dropped and not reset:
             waiting.append((trial.accidents.down, trial.accidents.fallen))
+
+    turned = (np.cos(np.pi / 12), 0.0, 0.0, np.sin(np.pi / 12))  # 30 degrees about the vertical
+    grasps = _drop_after_grasp(trial, lands=((0.0, 0.06, 0.0), turned), watch=watch)
     assert len(dropped) == 1 and len(reset) == 1 and len(grasps) == 2
     assert dropped[0] < reset[0] < grasps[1]
     assert waiting and all(down == (k,) and fallen == () for down, fallen in waiting)
@@ -308,23 +317,13 @@ def test_a_dropped_object_that_falls_over_is_a_knock(config) -> None:
     page's fell-over notice), then put back at its start pose like any knocked object."""
     trial = Trial(config("training", "none", time_limit_s=30), ScriptedInput())
     k = trial.scene.target_index
-    body = trial.scene.object_body_ids[k]
-    adr = int(trial.scene.object_qpos_addr[k])
-    spot = trial.sim.data.qpos[adr : adr + 7].copy()
-    fallen, grasps = [], 0
-    while not trial.done:
-        rec = trial.tick()
-        kinds = {e.kind for e in rec.events}
-        if EventKind.GRASPED in kinds:
-            grasps += 1
-            if grasps == 1:
-                trial.sim.data.xfrc_applied[body, 2] = -60.0
-        if EventKind.DROPPED in kinds:
-            trial.sim.data.xfrc_applied[body, 2] = 0.0
-            q = trial.sim.data.qpos  # on its side, 6 cm aside
-            q[adr : adr + 3] = spot[:3] + np.array([0.0, 0.06, 0.0])
-            q[adr + 3 : adr + 7] = (np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0)
-        fallen.append(trial.accidents.fallen)
+    fallen = []
+    on_side = (np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0)
+    _drop_after_grasp(
+        trial,
+        lands=((0.0, 0.06, 0.0), on_side),
+        watch=lambda rec: fallen.append(trial.accidents.fallen),
+    )
     events = [e for _, e in trial.events]
     assert TrialEvent(EventKind.KNOCKED_OVER, obj="mug") in events
     assert TrialEvent(EventKind.OBJECT_RESET, obj="mug") in events
