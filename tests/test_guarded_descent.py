@@ -109,8 +109,6 @@ def test_beside_the_mug_the_palm_stops_clear_of_its_top_where_it_overlaps_it() -
     assert guard.under_palm((0.55, -0.25, 0.09), [MUG]) == 0
     assert guard.rest((0.55, -0.25, 0.09), floor, [MUG]) == ((0.55, -0.25, rest), 0)
     assert guard.rest((0.561, -0.25, 0.09), floor, [MUG]) is None  # the palm clears it
-    low = (0.559, -0.25, rest - 0.006)  # came down clear of it, then swayed 2 mm in: left there
-    assert guard.under_palm(low, [MUG]) == 0 and guard.rest(low, floor, [MUG]) is None
     assert guard.rest((0.5, -0.25 + 0.135, 0.09), floor, [MUG]) is None  # across, clear
     assert guard.rest((0.55, -0.25, 0.09), floor, [MUG], skip=(0,)) is None  # the robot's goal
 

@@ -263,19 +263,3 @@ def test_f_held_beside_the_mug_stops_the_palm_above_it_and_says_not_in_the_middl
         assert not trial.contacts.touching, (trial.t, trial.contacts.touching)
     assert trial.resting_on == 0 and trial.resting_centred is False
     assert trial.accidents.count == 0
-
-
-def test_f_held_at_the_edge_of_the_palms_footprint_does_not_bob() -> None:
-    """6 cm off the mug's axis along the slot the palm's footprint ends at the mug's: a tester's
-    hand went up and down there by 3 cm twice a second for as long as F was held (the IK's few
-    millimetres of sway took the TCP in and out of the footprint, and each time in, the palm
-    stop raised it). Now a hand already below the stop, beside the mug, is left there: it comes
-    down once, and nothing touches."""
-    trial = _practice(_Keys((0.060, 0.0), floor=0.02))
-    lowest, rise = 1.0, 0.0
-    while trial.t < 7.0:
-        trial.tick()
-        z = float(trial.sim.ee[2])
-        lowest, rise = min(lowest, z), max(rise, z - lowest)
-        assert not trial.contacts.touching, (trial.t, trial.contacts.touching)
-    assert lowest < 0.03 and rise < 0.005, (lowest, rise)

@@ -224,18 +224,13 @@ class DescentGuard:
     ) -> tuple[tuple[float, float, float], int] | None:
         """``U``'s target no lower than where the palm clears the top of the object the open
         hand is lowered around or beside, under its palm (module docstring), and that object's
-        index; ``None`` when the target is not below that height (or no object is there), or
-        when the hand is already ``SINK_M`` below it: it came down beside the object, clear of
-        the footprint (raised again where the IK's few millimetres of sway took it in and out
-        of the footprint's edge, a tester's hand bobbed 3 cm twice a second)."""
+        index; ``None`` when the target is not below that height (or no object is there)."""
         k = self.under_palm(x, objects, skip=skip)
         if k is None:
             return None
         tx, ty, tz = target
         rest_z = objects[k][3] - self.palm_above + PALM_CLEAR_M
-        if tz >= rest_z or x[2] < rest_z - SINK_M:
-            return None
-        return (tx, ty, rest_z), k
+        return None if tz >= rest_z else ((tx, ty, rest_z), k)
 
     def release(self) -> None:
         """Hold nothing (the gripper closed)."""
