@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import json
+import time
 from pathlib import Path
 from typing import Any
 
@@ -156,7 +157,11 @@ def _frames(build: Any) -> list[dict[str, Any]]:
             (client,) = server.get_clients().values()
             page = ParticipantPage(client, title="Robot arm study", words=words)
             await asyncio.get_running_loop().run_in_executor(None, build, page)
-            await asyncio.sleep(0.5)
+            seen, quiet_since = -1, time.monotonic()  # until nothing new for 0.5 s (under
+            while time.monotonic() - quiet_since < 0.5:  # load a fixed 0.5 s missed some)
+                if len(tab.messages) != seen:
+                    seen, quiet_since = len(tab.messages), time.monotonic()
+                await asyncio.sleep(0.05)
             return list(tab.messages)
 
     try:
