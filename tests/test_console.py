@@ -5,11 +5,15 @@ timeline come from the store. (tests/browser/test_console_day.py uses it all in 
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from study.server.live import session_factory
+from study.server.live.console import LivePlots
 from study.server.server import ServerError, StudyServer
 from study.session import MissingReasonError, open_store
 from tests.browser.harness import start_server, wait_until
@@ -105,3 +109,37 @@ def test_reasons_are_required_and_the_condition_line_fits_the_step(tmp_path: Pat
         assert srv.progress().stopped == 1 and srv.detail(code).actions == ()  # type: ignore[union-attr]
     finally:
         rs.stop()
+
+
+def test_the_plots_never_pair_one_runs_goals_with_anothers_rows() -> None:
+    """A run starting while the console reads its plots (the control thread restarting them
+    with two goals after a one-goal practice run) gives the console one run's goals and rows,
+    never the practice's rows under the task's two goal names (CI: the console refresh failed
+    with an IndexError)."""
+    plots = LivePlots()
+    stop = threading.Event()
+
+    def control() -> None:
+        n = 1
+        while not stop.is_set():
+            n = 3 - n
+            plots.restart([f"goal{k}" for k in range(n)])
+            for t in range(3):
+                plots.add(
+                    SimpleNamespace(
+                        t=t * 0.01, alpha=0.0, confidence=0.0, probabilities=np.full(n, 1.0 / n)
+                    )
+                )  # type: ignore[arg-type]
+
+    thread = threading.Thread(target=control)
+    thread.start()
+    try:
+        shapes = []
+        for _ in range(20_000):
+            names, t, _alpha, _conf, probs = plots.arrays()
+            shapes.append((len(names), probs.shape[1], len(t), probs.shape[0]))
+    finally:
+        stop.set()
+        thread.join()
+    assert all(a == b and c == d for a, b, c, d in shapes), shapes[:5]
+    assert {s[0] for s in shapes} == {1, 2}, "both runs' goals were read"

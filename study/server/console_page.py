@@ -358,6 +358,7 @@ class ExperimenterConsole:
         if d.goal_names != self._prob_goals or self.prob_plot is None:
             if self.prob_plot is not None:
                 self.prob_plot.remove()
+                self.prob_plot = None
             colors = ("#2f9e44", "#e8590c", "#7048e8", "#c2255c")
             with self._session_folder:
                 self.prob_plot = self.server.gui.add_uplot(

@@ -30,8 +30,9 @@ from tests.protocol_copies import short_practice
 
 pytestmark = pytest.mark.browser
 
-TIME_LIMIT_S = 10.0
-"""Long enough for the console's Pause to land mid-run on a busy machine."""
+TIME_LIMIT_S = 30.0
+"""Long enough for the console's Pause to land mid-run on a busy machine (a click on it took
+1.4-2 s here at load 14, and over 10 s in one CI run); the rest of the run is waited out."""
 PRACTICE_S = 3.0
 """The practice run, only waited out."""
 ACTIONS = ("Start", "Pause", "Resume", "Redo", "Skip", "Withdraw", "End")
@@ -178,7 +179,7 @@ def test_a_day_of_two_sessions_from_the_console(
     body = console.locator("body").inner_text()
     assert "participant sneezed" not in body and "Redo needs" not in body
     assert "P01 (code" not in body and "Control error" not in body
-    assert srv.session(code2).plots.arrays()[0].size == 0
+    assert srv.session(code2).plots.arrays()[1].size == 0
     assert not srv.console.plotted and srv.console.prob_plot is None
     assert np.isnan(srv.console.alpha_plot.data[1]).all()
     _wait_enabled(console, {"Start", "Withdraw", "End"})

@@ -59,20 +59,25 @@ class LivePlots:
         with self._lock:
             self._rows.append(row)
 
-    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``(t, alpha, confidence, probabilities (n, goals))``; empty when the rows do not all
-        have the current goals."""
+    def arrays(
+        self,
+    ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(goal names, t, alpha, confidence, probabilities (n, goals))`` read at one moment
+        (a run starting in between cannot pair one run's goals with another's rows); empty
+        when the rows do not all have the current goals."""
         with self._lock:
             rows = list(self._rows)
-        n = len(self.goal_names)
+            names = self.goal_names
+        n = len(names)
         if rows and all(len(r[3]) == n for r in rows):
             return (
+                names,
                 np.array([r[0] for r in rows]),
                 np.array([r[1] for r in rows]),
                 np.array([r[2] for r in rows]),
                 np.stack([r[3] for r in rows]),
             )
-        return np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((0, n))
+        return names, np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((0, n))
 
 
 @dataclass(frozen=True)
@@ -115,7 +120,7 @@ def session_detail(session: Session, facts: LiveFacts, plots: LivePlots) -> Sess
     o = session.overview()
     schedule = _schedule(session.plan)
     condition = condition_line(o)
-    t, alpha, conf, probs = plots.arrays()
+    goal_names, t, alpha, conf, probs = plots.arrays()
     run = facts.run
     rows, tally = _timeline(session.store, session.session_id)
     return SessionDetail(
@@ -129,7 +134,7 @@ def session_detail(session: Session, facts: LiveFacts, plots: LivePlots) -> Sess
         alpha=alpha,
         confidence=conf,
         probabilities=probs,
-        goal_names=plots.goal_names,
+        goal_names=goal_names,
         log=facts.log,
         fault=facts.fault or _text(session.samples_error),
         trials=_trial_rows(session.store, session.participant),
