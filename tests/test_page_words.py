@@ -22,8 +22,8 @@ import viser
 from study.protocol import NumberItem, Protocol, load_protocol
 from study.server.blinding_guard import check_text
 from study.server.live.screens import show_screen
-from study.server.live.texts import end_screen
-from study.server.participant_page import KEYS_BEFORE_START, ParticipantPage
+from study.server.live.texts import RUN_FINISHED, end_screen
+from study.server.participant_page import KEYS_BEFORE_START, ParticipantPage, message_screen
 from study.session import Progress, Screen, Session, open_store
 from study.session.answers import ScriptedAnswers
 from study.session.headless import run_headless
@@ -231,3 +231,25 @@ def test_a_number_out_of_range_is_said_once() -> None:
     assert not field["props"].get("hint")
     accepts = f"Please enter {item.range_text()}."
     assert _markdown(messages).count(accepts) == 1  # the line under the field, once
+
+
+def test_a_runs_outcome_goes_with_the_screen_that_says_it() -> None:
+    """h11: the blue "You lifted the box." stayed its 6 s over the questions after Continue,
+    and over the next run's Start screen in 4 of 8 task runs. It stays while the "Run finished"
+    screen shows (its own, shown again included) and goes with the next screen."""
+
+    def build(page: ParticipantPage) -> None:
+        page.notify("You lifted the box.", seconds=6.0, screen=message_screen(RUN_FINISHED))
+        page.show_message(RUN_FINISHED, "You lifted the box.", button="Continue", on_button=int)
+        page.show_message(RUN_FINISHED, "You lifted the box.", button="Continue", on_button=int)
+        time.sleep(0.5)  # on the tab (sent before it is taken down, not coalesced away)
+        page.notify("Time is running out.")  # a notice of no screen: closes by itself only
+        page.show_message("Questions", "How helpful was the robot?")
+
+    messages = _frames(build)
+    shown = [m["uuid"] for m in messages if m.get("type") == "NotificationShowMessage"]
+    removed = [m["uuid"] for m in messages if m.get("type") == "RemoveNotificationMessage"]
+    assert len(shown) == 2 and removed == shown[:1]
+    kinds = [m.get("type") for m in messages]
+    markdown = [k for k, m in enumerate(messages) if "Questions" in str(m.get("props", {}))]
+    assert kinds.index("RemoveNotificationMessage") < markdown[0]  # before the questions show

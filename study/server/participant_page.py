@@ -68,6 +68,11 @@ INSET_SIZE = (320, 240)
 DECLINE = "I do not wish to take part"
 
 
+def message_screen(heading: str) -> str:
+    """The name of the message screen with ``heading`` (``ParticipantPage.screen_name``)."""
+    return "message:" + heading
+
+
 class ParticipantPage:
     """What one participant's browser tab shows."""
 
@@ -88,6 +93,7 @@ class ParticipantPage:
         self._grasp: viser.GuiButtonHandle | None = None
         self._grasp_closed = False
         self._notice: object | None = None
+        self._screen_notes: list[tuple[str, object]] = []
         self.rejected: deque[str] = deque(maxlen=50)
         self.asks_code = False
         self.address = "unknown"
@@ -146,6 +152,14 @@ class ParticipantPage:
                 with contextlib.suppress(Exception):
                     h.remove()  # type: ignore[attr-defined]
             self._handles = []
+            kept = []
+            for shown_on, note in self._screen_notes:
+                if shown_on == name:
+                    kept.append((shown_on, note))
+                    continue
+                with contextlib.suppress(Exception):
+                    note.remove()  # type: ignore[attr-defined]
+            self._screen_notes = kept
             self._clock = self._inset = self._grasp = None
             self._clock_text = ""
             self._grasp_closed = False
@@ -184,12 +198,17 @@ class ParticipantPage:
                 color="orange",
             )
 
-    def notify(self, text: str, *, seconds: float = 3.0) -> None:
-        """A short notice in the corner of the page (it closes by itself)."""
+    def notify(self, text: str, *, seconds: float = 3.0, screen: str | None = None) -> None:
+        """A short notice in the corner of the page (it closes by itself); with ``screen`` (a
+        screen's name, :func:`message_screen`) it also goes as soon as another screen shows:
+        a run's outcome stayed over the questions and the next run's Start screen."""
         with contextlib.suppress(Exception):
-            self.client.add_notification(
+            note = self.client.add_notification(
                 check_text(text, words=self.words), "", auto_close_seconds=seconds, color="blue"
             )
+            if screen is not None:
+                with self._lock:
+                    self._screen_notes.append((screen, note))
 
     def hold_notice(self, text: str | None) -> None:
         """A notice that stays while ``text`` is given and goes with ``None`` (one at a time:
@@ -227,7 +246,7 @@ class ParticipantPage:
         """A heading, a paragraph, and optionally one button (or several ``choices``); the
         first click on the screen disables them all, so a double click acts once."""
         with self._lock:
-            screen = self._new_screen("message:" + heading)
+            screen = self._new_screen(message_screen(heading))
             self._header(progress)
             self._md(f"**{heading}**\n\n{body}")
             options = list(choices)

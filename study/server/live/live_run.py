@@ -170,7 +170,7 @@ class LiveRun:
         if TrialEvent(EventKind.GRASP_MISSED) in record.events:
             notices.missed = now
         if TrialEvent(EventKind.GRASP_REQUESTED) in record.events:
-            notices.asked = now
+            notices.ask(now)
         if any(e.kind in _SLIPPED for e in record.events):
             notices.slipped = now
         if _held_past_reach(trial, self.input.source, record.events):

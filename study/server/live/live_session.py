@@ -37,12 +37,13 @@ from study.server.live.controls import LiveInput
 from study.server.live.experimenter_control import ExperimenterControl
 from study.server.live.live_run import LiveRun
 from study.server.live.screens import show_screen
+from study.server.live.texts import RUN_FINISHED
 from study.server.live.timeline import started_at
 from study.server.live.view import LiveView, shows_intent
 from study.server.loop import PacedLoop
 from study.server.open_link import RELEASED, RETAKEN
 from study.server.page_scene import SceneView
-from study.server.participant_page import ParticipantPage
+from study.server.participant_page import ParticipantPage, message_screen
 from study.session import (
     FINAL_STATUSES,
     Session,
@@ -322,7 +323,7 @@ class LiveSession:
             page.remove_gizmo()
             self.view.clear_notices(page)
             if outcome is not None:  # said over the scene too: a drag may have been cut short
-                page.notify(outcome, seconds=6.0)
+                page.notify(outcome, seconds=6.0, screen=message_screen(RUN_FINISHED))
 
     # -- the page --------------------------------------------------------------------------------
     def _page_loop(self) -> None:

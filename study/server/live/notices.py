@@ -8,7 +8,10 @@ the open gripper kept above an object it would come down on (``above``, the tria
 object (``lowest``, the trial's ``resting_on``; ``off_centre`` when not centred on it along the
 fingers), an object down and waiting to be put back
 (``fallen``), a grasped object that slipped out (``slipped``; like a miss, until the next
-grasp request) and, standing, still waits to be put back (``dropped``).
+grasp request; why, when the hand was off-centre as G was pressed) and, standing, still waits
+to be put back (``dropped``; said so once it has waited ``PUT_BACK_S``). A grasp request
+(``asked``) takes down what was said of the open hand (kept above, as low as it goes): a
+tester saw "not in the middle ... press G" stay 0.3-0.6 s over the closing fingers.
 The render loop asks :meth:`HeldNotices.text` each period and shows the answer with
 ``ParticipantPage.hold_notice`` (one notice at a time; ``None`` takes it down). What the
 participant's input does this moment comes first, after a fallen or dropped object (nothing
@@ -39,13 +42,18 @@ from study.server.live.texts import (
     MISSED_GRASP,
     NOT_CENTRED,
     RESTING_ON_OBJECT,
+    SLIPPED_OFF_CENTRE,
     SLIPPED_OUT,
+    SLIPPED_WAITING,
 )
 
 LIMIT_HOLD_S = 0.4
 """The reach notice stays this long after the input was last held past the reach."""
 MISSED_NOTICE_S = 5.0
 """A missed grasp's notice stays this long (or until the next grasp request)."""
+PUT_BACK_S = 1.0
+"""A dropped object still waiting this long after its slip is said to wait for the gripper
+(it is put back 0.3-0.7 s after a slip when nothing is in its way)."""
 RESTING_HOLD_S = 1.5
 """The resting notice stays this long after the gripper was last seen held up: a finger on a
 rim slips on and off it several times a second."""
@@ -67,6 +75,13 @@ class HeldNotices:
     fallen: float = NEVER
     slipped: float = NEVER
     dropped: float = NEVER
+    asked_off_centre: bool = False
+    """Whether "not in the middle" was up when the last grasp request came."""
+
+    def ask(self, now: float) -> None:
+        """A grasp request at ``now`` (before this tick's hand is stamped)."""
+        self.asked_off_centre = now - self.off_centre < LIMIT_HOLD_S
+        self.asked = now
 
     def text(self, now: float, *, live: bool) -> str | None:
         """The notice to hold at ``now`` (``None``: none), only while the run is ``live``."""
@@ -74,15 +89,18 @@ class HeldNotices:
             return None
         if now - self.fallen < LIMIT_HOLD_S:
             return FELL_OVER
-        if now - self.dropped < LIMIT_HOLD_S:
-            return SLIPPED_OUT
-        if now - self.slipped < MISSED_NOTICE_S and self.asked <= self.slipped:
-            return SLIPPED_OUT  # said first: the hand sinks back at once, and it was unread
+        waiting = now - self.dropped < LIMIT_HOLD_S
+        if waiting and now - self.slipped >= PUT_BACK_S:
+            return SLIPPED_WAITING
+        if waiting or (now - self.slipped < MISSED_NOTICE_S and self.asked <= self.slipped):
+            # said first: the hand sinks back at once, and under other notices it was unread
+            return SLIPPED_OFF_CENTRE if self.asked_off_centre else SLIPPED_OUT
         if now - self.resting < RESTING_HOLD_S:  # what really holds the gripper up
             return RESTING_ON_OBJECT
-        if now - self.above < LIMIT_HOLD_S:
+        # a grasp request takes down what was said of the open hand before it
+        if now - self.above < LIMIT_HOLD_S and self.above > self.asked:
             return HELD_ABOVE
-        if now - self.lowest < LIMIT_HOLD_S:
+        if now - self.lowest < LIMIT_HOLD_S and self.lowest > self.asked:
             return NOT_CENTRED if self.off_centre >= self.lowest else AS_LOW_AS_IT_GOES
         if now - self.at_limit < LIMIT_HOLD_S:
             return AT_REACH_LIMIT
@@ -94,6 +112,7 @@ class HeldNotices:
         """A new run: nothing seen yet."""
         self.at_limit = self.missed = self.asked = self.resting = self.above = self.lowest = NEVER
         self.fallen = self.slipped = self.dropped = self.off_centre = NEVER
+        self.asked_off_centre = False
 
 
 RESISTED_GAP_M = 0.03
@@ -132,6 +151,7 @@ class ResistedDescent:
 __all__ = [
     "LIMIT_HOLD_S",
     "MISSED_NOTICE_S",
+    "PUT_BACK_S",
     "RESISTED_DROP_M",
     "RESISTED_GAP_M",
     "RESISTED_S",

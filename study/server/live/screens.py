@@ -13,6 +13,7 @@ from typing import Protocol
 from study.protocol.model import Texts
 from study.server.live.texts import (
     REDIRECT_DELAY_S,
+    RUN_FINISHED,
     TAB_LOST_TEXT,
     WAIT_TEXT,
     WAITING_TEXT,
@@ -104,7 +105,7 @@ def _show_interruption(
         page.show_message("Please wait", screen.text or WAIT_TEXT, progress=progress)
     elif outcome is not None and screen.phase != "running":
         page.show_message(
-            "Run finished",
+            RUN_FINISHED,
             outcome,
             progress=None,  # the session already counts the next run: no number is right here
             button="Continue",

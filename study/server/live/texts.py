@@ -19,6 +19,8 @@ OUTCOME_SENTENCES: dict[str, str] = {
 """What the participant reads after a run, ``{target}`` being the object asked for (the
 instructions name it already). The three accidents end a run only under ``[control] on_knock =
 "end"``; under ``"reset"`` the object is stood up again and the run goes on."""
+RUN_FINISHED = "Run finished"
+"""The heading of the screen that says how a run ended."""
 OTHER_OUTCOME = "The run has ended."
 ENDED_BY_EXPERIMENTER = "The experimenter ended this run."
 MISSED_GRASP = (
@@ -35,13 +37,28 @@ HELD_ABOVE = (
 around (``app.teleop.guarded_descent``) and the participant's input asks it lower."""
 
 SLIPPED_OUT = (
-    "The object slipped out of the gripper. It is put back where it stood once the gripper is"
-    " out of the way. Then lower the open gripper around its middle and press G again."
+    "The object slipped out of the gripper. Lower the open gripper around the middle of the"
+    " object, then press G again."
 )
-"""Held over the scene for a few seconds after a grasped object slipped out of the gripper
-(a tester saw the mug caught and dropped within 0.16 s, and no word about it), and while it
-waits to be put back at its start pose (``app.trial.accidents``: once it has settled and the
-gripper is out of the way there; a tester who waited with the gripper low saw nothing happen)."""
+"""Held over the scene for a few seconds after a grasped object slipped out of the gripper (a
+tester saw the mug caught and dropped within 0.16 s, and no word about it); it is put back at
+its start pose within a second (``app.trial.accidents``) and the open hand sinks back where it
+was, so the scene looks as before G: the notice says what happened and what to do, in a few
+words (the 34-word one went unread in its 5 s)."""
+
+SLIPPED_OFF_CENTRE = (
+    "The object slipped out: it was not in the middle between the fingers. Move the gripper"
+    " away or back (W/S), then press G again."
+)
+"""``SLIPPED_OUT`` when the hand was off the object's middle along the fingers as G was pressed
+(``NOT_CENTRED`` was up): why it slipped, and the keys that mend it."""
+
+SLIPPED_WAITING = (
+    "The object slipped out of the gripper. It is put back where it stood once the gripper is"
+    " out of the way."
+)
+"""Held while a dropped object, standing, still waits to be put back a second after the slip
+(the gripper is in its spot: a tester who waited with the gripper low saw nothing happen)."""
 
 FELL_OVER = (
     "An object fell over. It is put back where it stood as soon as the gripper is out of the"
@@ -154,7 +171,10 @@ __all__ = [
     "NOT_CENTRED",
     "OUTCOME_SENTENCES",
     "RESTING_ON_OBJECT",
+    "RUN_FINISHED",
+    "SLIPPED_OFF_CENTRE",
     "SLIPPED_OUT",
+    "SLIPPED_WAITING",
     "TAB_LOST_TEXT",
     "TIME_WARNING",
     "TIME_WARNING_S",
