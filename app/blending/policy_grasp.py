@@ -292,18 +292,7 @@ class GraspApproachPolicy:
         self._object_rows = np.array(self._objects, dtype=np.float64).reshape(-1, 4)
         self._packed = tuple(_packed(goal) for goal in self._goals)
         self._stacked = _stacked(self._packed, self._approaching)
-        self._kernel_goals = (
-            None
-            if self._stacked is None
-            else (
-                *self._stacked,
-                self._object_rows,
-                self._layer_rows,
-                self._numbers,
-                self._lam2,
-                *self._limits,
-            )
-        )
+        self._kernel_goals = None if self._stacked is None else (*self._stacked, self._object_rows)
 
     def _params(self) -> np.ndarray:
         """The compiled tick's numbers (``policy_grasp_core``'s ``params``), fixed when built."""
@@ -361,14 +350,19 @@ class GraspApproachPolicy:
         )
 
     def kernel_goals(self) -> tuple[np.ndarray, ...] | None:
-        """:meth:`kernel_inputs` for every goal at once, for a fused step that picks G* itself:
-        ``(rows (n, 21), grasp rotations (n, 3, 3), postures (n, dof) or (n, 0), approaching
-        (n,) bools)`` then ``kernel_inputs``' from ``objects`` on; ``None`` when the goals'
-        postures cannot be stacked. The arrays stay the same objects until the goals change
-        (``approaching`` kept by :meth:`note_transit`)."""
+        """:meth:`kernel_inputs`' goal-set part for every goal at once, for a fused step that
+        picks G* itself: ``(rows (n, 21), grasp rotations (n, 3, 3), postures (n, dof) or
+        (n, 0), approaching (n,) bools, objects (n, 4))``; ``None`` when the goals' postures
+        cannot be stacked. The same objects until the goals change (``approaching`` kept by
+        :meth:`note_transit`); the rest of ``kernel_inputs`` is :meth:`kernel_constants`."""
         if not self._goals:
             raise InvalidInputError("set_goals(goals) must be called before step(Q, goal)")
         return self._kernel_goals
+
+    def kernel_constants(self) -> tuple[np.ndarray, ...]:
+        """:meth:`kernel_inputs`' last five, fixed when built: ``(layers, params, lambda^2 I,
+        lower, upper)``."""
+        return (self._layer_rows, self._numbers, self._lam2, *self._limits)
 
     def note_transit(self, k: int, transit: bool) -> None:
         """After a step toward goal ``k``: its hysteresis, as :meth:`step` keeps it."""

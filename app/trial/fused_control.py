@@ -35,7 +35,7 @@ from app.blending.blend import BlendRecord
 from app.blending.errors import InvalidInputError
 from app.blending.policy_grasp import GraspApproachPolicy
 from app.teleop.ik_step import IKStep
-from app.trial.fused_control_core import control_step
+from app.trial.fused_control_core import control_step, pack_arm
 
 __all__ = ["FusedControl", "fused_control"]
 
@@ -74,7 +74,7 @@ class FusedControl:
         self.ik = ik
         self.blender = blender
         self.policy = policy
-        self._arm = (*chain, *ik.kernel_inputs())
+        self._arm = pack_arm((*chain, *ik.kernel_inputs(), *policy.kernel_constants()))
         self._q = self._target = self._u = np.empty(0)
         self._goals: tuple[np.ndarray, ...] = ()
 
@@ -100,7 +100,7 @@ class FusedControl:
         finite)`` from ``assess``'s inputs (``PolicyBlender.step_compiled``)."""
         q = self._q
         out, k, transit, info, finite, c, d, motion, alpha, c_su = control_step(
-            q, self._target, *assessment, *self._arm, float(self.ik.max_speed), *self._goals
+            q, self._target, *assessment, float(self.ik.max_speed), self._arm, *self._goals
         )
         n = q.shape[0]
         if k >= 0:
@@ -129,8 +129,8 @@ class FusedControl:
         out, _, transit, info, finite, *_ = control_step(
             *(q, target, target, target, none, _ONE_POINT, _ONE_POINT, none, none, target),
             *(_GIVEN, k, alpha, 0.0),
-            *self._arm,
             float(self.ik.max_speed),
+            self._arm,
             *self._goals,
         )
         self._check(info)

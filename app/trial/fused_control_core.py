@@ -30,7 +30,7 @@ from app.compiled import dls_loops, jit
 from app.robot.kinematics_core import tcp_pose_jacobian
 from app.teleop.ik_step_core import ik_finish, ik_twist
 
-__all__ = ["control_step", "warm_up"]
+__all__ = ["control_step", "pack_arm", "warm_up"]
 
 
 @jit
@@ -49,25 +49,13 @@ def control_step(
     k: int,
     s1: float,
     s2: float,
-    chain: np.ndarray,
-    tcp: np.ndarray,
-    ik_rot: np.ndarray,
-    ik_posture: np.ndarray,
-    ik_damp: np.ndarray,
-    ik_lower: np.ndarray,
-    ik_upper: np.ndarray,
-    ik_params: np.ndarray,
     ik_limit: float,
+    arm: np.ndarray,
     goals: np.ndarray,
     goal_rots: np.ndarray,
     postures: np.ndarray,
     approaching: np.ndarray,
     objects: np.ndarray,
-    layers: np.ndarray,
-    params: np.ndarray,
-    lam2: np.ndarray,
-    lower: np.ndarray,
-    upper: np.ndarray,
 ) -> tuple[np.ndarray, int, bool, int, bool, float, float, float, float, float]:
     """``([U; P; command; P(G | xi)], G*, in transit, LAPACK info of P's solve, whether Q, U
     and P are finite and below the blender's MAX_ABS_INPUT, conf, d, motion agreement, alpha,
@@ -76,9 +64,10 @@ def control_step(
     The arguments from ``x`` to ``s2`` are :func:`~app.blending.assess_core.assess`'s
     (``s1``, ``s2``: its ``c_su`` and ``b``), or, with ``nums[0] == GIVEN``, ``G*`` given as
     ``k`` and ``alpha`` as ``s1`` (prediction, confidence and arbitration worked out by the
-    caller; ``P(G | xi)`` then left unset); from ``chain`` on ``ik_step``'s (from ``ik_rot``,
-    the IK's ``R*``) and ``grasp_step``'s, each goal's row of ``goals``, ``goal_rots`` and
-    ``postures`` (``(n, 0)``: none) and its hysteresis in ``approaching``."""
+    caller; ``P(G | xi)`` then left unset); ``ik_limit`` the IK's speed limit; ``arm`` the
+    arm's fixed arrays in one (:func:`pack_arm`); then ``grasp_step``'s goal-set inputs, each
+    goal's row of ``goals``, ``goal_rots`` and ``postures`` (``(n, 0)``: none) and its
+    hysteresis in ``approaching``."""
     dof = q.shape[0]
     out = np.empty(3 * dof + points.shape[0])  # one array for Python: each returned costs a box
     if nums[0] == GIVEN:
@@ -87,28 +76,53 @@ def control_step(
     else:
         probs = out[3 * dof :]
         k, c, d, motion, alpha, c_su = assess(
-            x,
-            robot_x,
-            direction,
-            points,
-            pred_points,
-            pred_vec,
-            pred_vec2,
-            prev,
-            nums,
-            k,
-            s1,
-            s2,
-            probs,
-        )
+            x, robot_x, direction, points, pred_points, pred_vec, pred_vec2, prev, nums, k, s1,
+            s2, probs,
+        )  # fmt: skip
         if k < 0:
             return out, k, False, 0, False, c, d, motion, alpha, c_su
     transit, info, finite = _control(
-        q, target, alpha, chain, tcp, ik_rot, ik_posture, ik_damp, ik_lower, ik_upper,
-        ik_params, ik_limit, goals[k], goal_rots[k], postures[k], k, approaching[k], objects,
-        layers, params, lam2, lower, upper, out,
+        q, target, alpha, _two(arm, 0), _one(arm, 1), _two(arm, 2), _one(arm, 3), _two(arm, 4),
+        _one(arm, 5), _one(arm, 6), _one(arm, 7), ik_limit, goals[k], goal_rots[k],
+        postures[k], k, approaching[k], objects, _two(arm, 8), _one(arm, 9), _two(arm, 10),
+        _one(arm, 11), _one(arm, 12), out,
     )  # fmt: skip
     return out, k, transit, info, finite, c, d, motion, alpha, c_su
+
+
+_ARM_PARTS = 13
+"""The arm's fixed arrays (:func:`pack_arm`): the chain, the TCP, then the IK's ``R*``,
+posture, ``l^2 I``, lower, upper and params, then the policy's layers, params, ``l^2 I``,
+lower and upper."""
+
+
+def pack_arm(parts: tuple[np.ndarray, ...]) -> np.ndarray:
+    """The arm's fixed arrays (``_ARM_PARTS``, in that order) in one float array, so a tick
+    hands the kernel one argument for them: a header of ``(offset, rows, columns)`` per
+    array (columns ``-1`` for a vector), then their numbers."""
+    if len(parts) != _ARM_PARTS:
+        raise ValueError(f"pack_arm: expected {_ARM_PARTS} arrays, got {len(parts)}")
+    header: list[float] = []
+    offset = 3 * _ARM_PARTS
+    for a in parts:
+        rows, cols = (a.shape[0], -1) if a.ndim == 1 else a.shape
+        header += [offset, rows, cols]
+        offset += a.size
+    return np.concatenate([np.array(header, dtype=np.float64), *(a.ravel() for a in parts)])
+
+
+@jit
+def _one(arm: np.ndarray, i: int) -> np.ndarray:
+    """Vector ``i`` of a packed arm."""
+    o, n = int(arm[3 * i]), int(arm[3 * i + 1])
+    return arm[o : o + n]
+
+
+@jit
+def _two(arm: np.ndarray, i: int) -> np.ndarray:
+    """Matrix ``i`` of a packed arm."""
+    o, r, c = int(arm[3 * i]), int(arm[3 * i + 1]), int(arm[3 * i + 2])
+    return arm[o : o + r * c].reshape((r, c))
 
 
 @jit
@@ -187,11 +201,14 @@ def warm_up() -> None:
     chain[:, 12] = 2.0
     tcp = np.array([1.0, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0])
     ones, eye = np.ones, np.eye
+    arm = pack_arm(
+        (chain, tcp, eye(3), z(7), eye(6), -ones(7), ones(7), z(7))
+        + (z((1, 9)), ones(9), eye(6), -ones(7), ones(7))
+    )
     points = np.array([[0.5, 0.1, 0.1], [0.5, -0.1, 0.1]])
     nums = np.array([AMNESIC, -20.0, 0.0, 4.0, 1.0, 0.5, 0.7, 0.5 / 0.7])
     control_step(
         *(z(7), z(3), z(3), z(3), z(0), points, points, z(2), z(2), z(3), nums, 0, 0.0, 1.0),
-        *(chain, tcp, eye(3), z(7), eye(6), -ones(7), ones(7), z(7), 0.3),
-        *(z((2, 21)), np.stack((eye(3), eye(3))), z((2, 7)), np.zeros(2, dtype=np.bool_)),
-        *(z((2, 4)), z((1, 9)), ones(9), eye(6), -ones(7), ones(7)),
+        *(0.3, arm, z((2, 21)), np.stack((eye(3), eye(3))), z((2, 7))),
+        *(np.zeros(2, dtype=np.bool_), z((2, 4))),
     )
