@@ -18,7 +18,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from app.blending import DistanceHinge, EntropyConfidence, PiecewiseLinear
+from app.blending import DistanceHinge, EntropyConfidence, PiecewiseLinear, Timid
 from app.blending.assess_core import dist3, dot3
 from app.blending.policy_grasp import GraspApproachPolicy
 from app.compiled import dls, dls_loops
@@ -194,6 +194,11 @@ def test_other_components_take_the_blender_s_assessment(protocol_path: Any) -> N
         arbitration=PiecewiseLinear([(0.0, 0.0), (0.5, 0.6), (1.0, 0.8)]),
     )
     _every_tick_against_the_components(config, 1, compiled=False)
+    blender = Trial(config, ScriptedInput(seed=1)).blender
+    assert blender.compiled_numbers() is None
+    blender.confidence = DistanceHinge(0.28)
+    blender.arbitration = Timid(0.5, 0.7)
+    assert blender.compiled_numbers() is not None  # swapped for stock kinds: compiled again
 
 
 def test_only_the_stock_components_are_fused(protocol_path: Any) -> None:

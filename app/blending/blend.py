@@ -7,7 +7,9 @@ predict (``P(G | xi)``, ``G*``) -> confidence -> policy (``P``) -> agreement -> 
 user's rationality toward each goal from their recent inputs (``RationalityEstimator``), which
 it logs and which a :class:`StatefulArbitration` may use with the agreement.
 :meth:`PolicyBlender.step_joint` is the same tick for a caller that works out ``U``, ``P`` and
-the command together (a compiled step: the trial's).
+the command together (a compiled step: the trial's), and :meth:`PolicyBlender.step_compiled`
+for one that works out the prediction, confidence and arbitration of stock components in the
+same call (``app.blending.assess_core``).
 """
 
 from __future__ import annotations

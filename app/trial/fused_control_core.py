@@ -201,10 +201,8 @@ def warm_up() -> None:
     chain[:, 12] = 2.0
     tcp = np.array([1.0, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0])
     ones, eye = np.ones, np.eye
-    arm = pack_arm(
-        (chain, tcp, eye(3), z(7), eye(6), -ones(7), ones(7), z(7))
-        + (z((1, 9)), ones(9), eye(6), -ones(7), ones(7))
-    )
+    ik = (eye(3), z(7), eye(6), -ones(7), ones(7), z(7))
+    arm = pack_arm((chain, tcp, *ik, z((1, 9)), ones(9), eye(6), -ones(7), ones(7)))
     points = np.array([[0.5, 0.1, 0.1], [0.5, -0.1, 0.1]])
     nums = np.array([AMNESIC, -20.0, 0.0, 4.0, 1.0, 0.5, 0.7, 0.5 / 0.7])
     control_step(
