@@ -99,13 +99,15 @@ class FusedControl:
         """``(U, P, command, P(G | xi), G*, conf, d, motion agreement, alpha, C(xi_{S->U}),
         finite)`` from ``assess``'s inputs (``PolicyBlender.step_compiled``)."""
         q = self._q
-        out, k, transit, info, finite, c, d, motion, alpha, c_su = control_step(
-            q, self._target, *assessment, float(self.ik.max_speed), self._arm, *self._goals
+        goals = self._goals
+        out, k, flips, info, finite, c, d, motion, alpha, c_su = control_step(
+            q, self._target, *assessment, float(self.ik.max_speed), self._arm, *goals
         )
+        if info != 0:  # pragma: no cover - J J^T + lambda^2 I is positive definite
+            raise InvalidInputError("the kinematics pass gave a Jacobian that is not finite")
+        if flips:  # in transit exactly when it was approaching G* (goals[3]): noted
+            self.policy.note_transit(k, bool(goals[3][k]))
         n = q.shape[0]
-        if k >= 0:
-            self._check(info)
-            self.policy.note_transit(k, transit)
         u = self._u = out[:n]
         return (
             u,
@@ -126,23 +128,21 @@ class FusedControl:
         (``PolicyBlender.step_joint``)."""
         q, target = self._q, self._target
         none = _NO_VECTOR
-        out, _, transit, info, finite, *_ = control_step(
+        goals = self._goals
+        out, _, flips, info, finite, *_ = control_step(
             *(q, target, target, target, none, _ONE_POINT, _ONE_POINT, none, none, target),
             *(_GIVEN, k, alpha, 0.0),
             float(self.ik.max_speed),
             self._arm,
-            *self._goals,
+            *goals,
         )
-        self._check(info)
-        self.policy.note_transit(k, transit)
+        if info != 0:  # pragma: no cover - J J^T + lambda^2 I is positive definite
+            raise InvalidInputError("the kinematics pass gave a Jacobian that is not finite")
+        if flips:  # as in _act_all
+            self.policy.note_transit(k, bool(goals[3][k]))
         n = q.shape[0]
         u = self._u = out[:n]
         return u, out[n : 2 * n], out[2 * n : 3 * n], finite
-
-    @staticmethod
-    def _check(info: int) -> None:
-        if info != 0:  # pragma: no cover - J J^T + lambda^2 I is positive definite
-            raise InvalidInputError("the kinematics pass gave a Jacobian that is not finite")
 
 
 _NO_VECTOR = np.empty(0)

@@ -57,9 +57,10 @@ def control_step(
     approaching: np.ndarray,
     objects: np.ndarray,
 ) -> tuple[np.ndarray, int, bool, int, bool, float, float, float, float, float]:
-    """``([U; P; command; P(G | xi)], G*, in transit, LAPACK info of P's solve, whether Q, U
-    and P are finite and below the blender's MAX_ABS_INPUT, conf, d, motion agreement, alpha,
-    C(xi_{S->U}))``.
+    """``([U; P; command; P(G | xi)], G*, whether G*'s hysteresis flips (in transit while
+    ``approaching``, or the other way: ``GraspApproachPolicy.note_transit`` with ``not
+    approaching[G*]``), LAPACK info of P's solve, whether Q, U and P are finite and below the
+    blender's MAX_ABS_INPUT, conf, d, motion agreement, alpha, C(xi_{S->U}))``.
 
     The arguments from ``x`` to ``s2`` are :func:`~app.blending.assess_core.assess`'s
     (``s1``, ``s2``: its ``c_su`` and ``b``), or, with ``nums[0] == GIVEN``, ``G*`` given as
@@ -80,14 +81,15 @@ def control_step(
             s2, probs,
         )  # fmt: skip
         if k < 0:
-            return out, k, False, 0, False, c, d, motion, alpha, c_su
+            return out, k, False, 0, False, c, d, motion, alpha, c_su  # nothing noted
+    held = approaching[k]
     transit, info, finite = _control(
         q, target, alpha, _two(arm, 0), _one(arm, 1), _two(arm, 2), _one(arm, 3), _two(arm, 4),
         _one(arm, 5), _one(arm, 6), _one(arm, 7), ik_limit, goals[k], goal_rots[k],
-        postures[k], k, approaching[k], objects, _two(arm, 8), _one(arm, 9), _two(arm, 10),
+        postures[k], k, held, objects, _two(arm, 8), _one(arm, 9), _two(arm, 10),
         _one(arm, 11), _one(arm, 12), out,
     )  # fmt: skip
-    return out, k, transit, info, finite, c, d, motion, alpha, c_su
+    return out, k, transit == held, info, finite, c, d, motion, alpha, c_su
 
 
 _ARM_PARTS = 13
