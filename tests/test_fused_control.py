@@ -11,12 +11,15 @@ an IK step and a blender of the trial's configuration on their own kinematics (f
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 import pytest
 
+from app.blending import DistanceHinge, EntropyConfidence, PiecewiseLinear, Timid
+from app.blending.assess_core import dist3, dot3
 from app.blending.policy_grasp import GraspApproachPolicy
 from app.compiled import dls, dls_loops
 from app.robot.kinematics_core import tcp_pose_jacobian
@@ -65,32 +68,62 @@ def test_damped_least_squares_in_loops_equal_the_library_calls() -> None:
     assert info == 1  # not positive definite: told, not solved
 
 
+PROBABILITY_ATOL = 1e-15
+"""How far the fused step's ``P(G | xi)`` may be from the components' (the softmax's
+exponential is the C library's, not numpy's: 1-2 ulps; measured at most 2.2e-16), and with it a
+probability confidence and the ``alpha`` of it."""
+
+
 @pytest.mark.parametrize(
-    ("task", "mode", "seed"),
+    ("protocol", "task", "mode", "seed"),
     [
-        ("easy-right", "aggressive", 0),
-        ("hard-wrong", "timid", 1),
-        ("easy-wrong", "none", 2),
-        ("hard-right", "timid", 3),
+        ("dragan2013", "easy-right", "aggressive", 0),
+        ("dragan2013", "hard-wrong", "timid", 1),
+        ("dragan2013", "easy-wrong", "none", 2),
+        ("dragan2013", "hard-right", "timid", 3),
+        ("dragan2013", "hard-wrong", "aggressive", 4),
+        ("memory3", "memory", "timid", 0),  # eq. 9, probability confidence
+        ("memory3", "memory", "aggressive", 1),  # eq. 9, distance confidence
+        ("memory3", "amnesic", "linear", 2),
     ],
 )
 def test_every_tick_the_fused_step_equals_the_components(
-    protocol_path: Any, task: str, mode: str, seed: int
+    protocol_path: Any, protocol: str, task: str, mode: str, seed: int
 ) -> None:
-    config = dataclasses.replace(
-        trial_config_from_protocol(protocol_path, task, mode), time_limit_s=12.0
-    )
+    """Prediction, confidence, arbitration, ``U``, ``P`` and the command in one compiled call
+    against an IK step and a blender of the same configuration on their own kinematics (fed
+    the same ``Q``, target and input) on every tick: ``G*``, the distance, the rationality and
+    the motion agreement bit for bit, a distance confidence and its ``alpha`` too;
+    ``P(G | xi)`` (and a probability confidence, its ``alpha``) within ``PROBABILITY_ATOL``;
+    ``U``, ``P`` and the command within ``ATOL``."""
+    path = protocol_path.parent / f"{protocol}.toml"
+    config = dataclasses.replace(trial_config_from_protocol(path, task, mode), time_limit_s=12.0)
+    _every_tick_against_the_components(config, seed, compiled=True)
+
+
+def _every_tick_against_the_components(config: Any, seed: int, *, compiled: bool) -> None:
+    """The fused step against the components on every tick of a trial of ``config``;
+    ``compiled``: whether the blender's assessment is in the kernel (``step_compiled``) or
+    worked out by the blender (``step_joint``)."""
     trial = Trial(config, ScriptedInput(seed=seed), seed=seed)
     fused = trial.fused
     assert isinstance(fused, FusedControl)
+    assert (trial.blender.compiled_numbers() is not None) is compiled
     own_kin = trial.kinematics.copy()
     own_ik = IKStep(own_kin, rate_hz=config.rate_hz, posture=trial.scene.start_q)
     own_blender = build_blender(config, trial.scene, own_kin)
     own_blender.reset(trial.scene.start_ee)
     assert type(own_blender.policy) is GraspApproachPolicy
-    checked = {"ticks": 0, "alpha > 0": 0}
-    worst = {"u": 0.0, "p": 0.0, "command": 0.0}
+    by_distance = isinstance(own_blender.confidence, DistanceHinge)
+    checked = {"ticks": 0, "alpha > 0": 0, "compiled": 0}
+    worst = {"u": 0.0, "p": 0.0, "command": 0.0, "probabilities": 0.0, "confidence": 0.0}
+    worst["alpha"] = 0.0
     fused_step, set_goals = fused.step, trial.blender.set_goals
+    step_compiled = trial.blender.step_compiled
+
+    def counted(*args: Any, **kw: Any) -> Any:
+        checked["compiled"] += 1
+        return step_compiled(*args, **kw)
 
     def step(q: np.ndarray, target: np.ndarray, *, x: np.ndarray, robot_x: np.ndarray) -> Any:
         u, rec = fused_step(q, target, x=x, robot_x=robot_x)
@@ -100,15 +133,14 @@ def test_every_tick_the_fused_step_equals_the_components(
             ("u", u, own_u),
             ("p", rec.P, own.P),
             ("command", rec.command, own.command),
+            ("probabilities", rec.probabilities, own.probabilities),
+            ("confidence", rec.confidence, own.confidence),
+            ("alpha", rec.alpha, own.alpha),
         ):
-            worst[name] = max(worst[name], float(np.abs(got - want).max()))
-        assert (rec.alpha, rec.confidence, rec.distance, rec.predicted) == (
-            own.alpha,
-            own.confidence,
-            own.distance,
-            own.predicted,
-        )
-        assert np.array_equal(rec.probabilities, own.probabilities)
+            worst[name] = max(worst[name], float(np.abs(np.subtract(got, want)).max()))
+        assert (rec.predicted, rec.distance) == (own.predicted, own.distance)
+        if by_distance:
+            assert (rec.confidence, rec.alpha) == (own.confidence, own.alpha)
         assert (rec.rationality, rec.motion_agreement) == (own.rationality, own.motion_agreement)
         assert rec.agreement == pytest.approx(own.agreement, abs=1e-9)
         assert fused.policy._approaching == own_blender.policy._approaching  # type: ignore[attr-defined]
@@ -122,12 +154,51 @@ def test_every_tick_the_fused_step_equals_the_components(
 
     fused.step = step  # type: ignore[method-assign]
     trial.blender.set_goals = goals_moved  # type: ignore[method-assign]
+    trial.blender.step_compiled = counted  # type: ignore[method-assign]
     while not trial.done:
         trial.tick()
     assert checked["ticks"] > 100, checked
-    if mode != "none":
+    assert checked["compiled"] == (checked["ticks"] if compiled else 0), checked
+    if config.arbitration is not None:
         assert checked["alpha > 0"] > 50, checked
-    assert max(worst.values()) <= ATOL, worst
+    assert max(worst["u"], worst["p"], worst["command"]) <= ATOL, worst
+    assert max(worst["probabilities"], worst["confidence"], worst["alpha"]) <= PROBABILITY_ATOL, (
+        worst
+    )
+
+
+def test_assessment_s_library_functions_as_the_components_call_them() -> None:
+    """``dist3`` is ``math.dist`` and ``dot3`` numpy's ``dot`` of three numbers, bit for bit
+    (200,000 random pairs, near and far); a plain ``sqrt`` of the sum of squares is not."""
+    rng = np.random.default_rng(5)
+    plain = 0
+    for n in range(100_000):
+        a = rng.normal(0.0, 0.3, 3)
+        b = a + rng.normal(0.0, 10.0 ** -(n % 8), 3)
+        d = math.dist(a.tolist(), b.tolist())
+        assert dist3(a, b) == d, (a, b)
+        assert dot3(a, b) == float(a.dot(b)), (a, b)
+        plain += math.sqrt(float(np.sum((a - b) ** 2))) != d
+    assert plain > 1000  # why math.dist is reproduced, not approximated
+    assert dist3(np.zeros(3), np.zeros(3)) == 0.0
+
+
+def test_other_components_take_the_blender_s_assessment(protocol_path: Any) -> None:
+    """A confidence or arbitration of another kind (entropy, piecewise linear) is worked out by
+    the blender and the kernel takes ``G*`` and ``alpha`` (``step_joint``): the components'
+    numbers on every tick, as above."""
+    config = dataclasses.replace(
+        trial_config_from_protocol(protocol_path, "easy-wrong", "timid"),
+        time_limit_s=6.0,
+        confidence=EntropyConfidence(),
+        arbitration=PiecewiseLinear([(0.0, 0.0), (0.5, 0.6), (1.0, 0.8)]),
+    )
+    _every_tick_against_the_components(config, 1, compiled=False)
+    blender = Trial(config, ScriptedInput(seed=1)).blender
+    assert blender.compiled_numbers() is None
+    blender.confidence = DistanceHinge(0.28)
+    blender.arbitration = Timid(0.5, 0.7)
+    assert blender.compiled_numbers() is not None  # swapped for stock kinds: compiled again
 
 
 def test_only_the_stock_components_are_fused(protocol_path: Any) -> None:

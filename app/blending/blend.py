@@ -7,7 +7,9 @@ predict (``P(G | xi)``, ``G*``) -> confidence -> policy (``P``) -> agreement -> 
 user's rationality toward each goal from their recent inputs (``RationalityEstimator``), which
 it logs and which a :class:`StatefulArbitration` may use with the agreement.
 :meth:`PolicyBlender.step_joint` is the same tick for a caller that works out ``U``, ``P`` and
-the command together (a compiled step: the trial's).
+the command together (a compiled step: the trial's), and :meth:`PolicyBlender.step_compiled`
+for one that works out the prediction, confidence and arbitration of stock components in the
+same call (``app.blending.assess_core``).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from . import assess_core
 from .adaptive import StatefulArbitration, TickSignals
 from .arbitration import Arbitration
 from .confidence import Confidence
@@ -31,6 +34,7 @@ from .prediction.rationality import RationalityEstimator
 __all__ = ["BlendRecord", "PolicyBlender", "blend"]
 
 _F64 = np.dtype(np.float64)
+_ORACLE, _MEMORY = float(assess_core.ORACLE), float(assess_core.MEMORY)
 
 MAX_ABS_INPUT = 1e100
 """Per-tick inputs (Q, U, x) must be finite and below this in magnitude: no configuration or
@@ -187,6 +191,12 @@ class PolicyBlender:
         self._q_shape: tuple[int, ...] = ()  # (dof,) once known
         self._arbitration_seen: object = None
         self._stateful = False
+        self._numbers_seen: tuple[object, object, object] = (None, None, None)
+        self._numbers: np.ndarray | None = None
+        self._kind = -1.0  # the prediction kind of _numbers, as a float
+        self._no_vector = np.empty(0)
+        self._pred_points_seen: object = None
+        self._pred_points = self._no_vector
         self._install_goals(goals)
 
     def _install_goals(self, goals: GoalSet) -> None:
@@ -225,6 +235,7 @@ class PolicyBlender:
             set_goals(goals)
         self.goals = goals
         self._points = points
+        self._kernel_points = np.array(points, dtype=np.float64)  # writable, contiguous
         self._point_lists = points.tolist()
         self._targets = targets
         self.xdim = points.shape[1]
@@ -368,6 +379,104 @@ class PolicyBlender:
         return BlendRecord(
             cmd, p, alpha, c, distance, probs, i, None, float(b[i]), motion, qu=(Q, u)
         )
+
+    def step_compiled(
+        self,
+        Q: np.ndarray,
+        *,
+        x: np.ndarray,
+        robot_x: np.ndarray,
+        act: Callable[..., tuple[Any, ...]],
+    ) -> BlendRecord:
+        """:meth:`step` for a caller that works out the whole tick in one compiled call --
+        prediction, distance, confidence, arbitration and motion agreement
+        (:func:`~app.blending.assess_core.assess`), then ``U``, ``P`` and the blend -- with
+        stock components (:meth:`compiled_numbers` not ``None``; else :meth:`step_joint`).
+
+        The blender checks ``x`` (and ``Q`` with ``U`` and ``P`` as ``act`` reports them, as
+        :meth:`step_joint`), advances the rationality estimate (its direction is the motion
+        agreement's), and calls ``act(*inputs)``, ``inputs`` ``assess``'s arguments up to
+        ``b``; ``act`` returns ``(U, P, command, P(G | xi), G*, conf, d, motion agreement,
+        alpha, C(xi_{S->U}), finite)``. The same record as :meth:`step` (``Q``, ``x`` and
+        ``robot_x`` float arrays)."""
+        if not self._started:
+            raise InvalidInputError("reset(start_x) must be called before step(Q, U)")
+        if Q.shape != self._q_shape or x.shape != self._x_shape:
+            raise InvalidInputError(
+                f"Q, x: expected shapes {self._q_shape} and {self._x_shape}, got {Q.shape} and"
+                f" {x.shape}"
+            )
+        if not sum(map(abs, x.tolist())) < MAX_ABS_INPUT:  # as in step: NaN, inf, absurd values
+            raise self._bad_input(("x", x))
+        nums = self.compiled_numbers()
+        if nums is None or self.stateful:
+            raise InvalidInputError(
+                "step_compiled: needs the stock prediction, confidence and arbitration"
+                " (compiled_numbers()); use step_joint or step"
+            )
+        pred: Any = self.predictor
+        kind = self._kind
+        k, c_su, b_pred, prev, vec, vec2 = 0, 0.0, 0.0, x, self._no_vector, self._no_vector
+        pred_points = self._kernel_points
+        if kind == _ORACLE:
+            k = pred.goal
+        else:
+            if kind == _MEMORY:
+                c_su, prev, vec2, b_pred = pred.kernel_inputs(x)
+                vec = pred.log_prior
+            if pred.points is not self._points:
+                pred_points = self._predictor_points(pred.points)
+        b = self.rationality.update(x, self._points)
+        d = self.rationality.direction
+        u, p, cmd, probs, i, c, distance, motion, alpha, c_su, finite = act(
+            x,
+            robot_x,
+            self._no_vector if d is None else d,
+            self._kernel_points,
+            pred_points,
+            vec,
+            vec2,
+            prev,
+            nums,
+            k,
+            c_su,
+            b_pred,
+        )
+        if i < 0:  # pragma: no cover - finite inputs give finite logits
+            raise InvalidInputError("logits: no goal has a finite log-probability")
+        if kind == _MEMORY:
+            pred.note_update(x, c_su)
+        if not finite or not (u.shape == p.shape == self._q_shape):
+            raise BlendingError(
+                f"Q, U or P: not {self.dof} finite values each (or of magnitude >="
+                f" {MAX_ABS_INPUT:g}): Q {Q!r}, U {u!r}, P {p!r}"
+            )
+        return BlendRecord(
+            cmd, p, alpha, c, distance, probs, i, None, float(b[i]), motion, qu=(Q, u)
+        )
+
+    def compiled_numbers(self) -> np.ndarray | None:
+        """:func:`app.blending.assess_core.numbers` for this blender's prediction, confidence and
+        arbitration (worked out again when one of them is swapped): ``None`` unless all three
+        are stock kinds that :meth:`step_compiled` computes."""
+        seen = self._numbers_seen
+        if (
+            self.predictor is not seen[0]
+            or self.confidence is not seen[1]
+            or self.arbitration is not seen[2]
+        ):
+            key = self._numbers_seen = (self.predictor, self.confidence, self.arbitration)
+            nums = self._numbers = assess_core.numbers(*key) if self.xdim == 3 else None
+            self._kind = -1.0 if nums is None else float(nums[0])
+        return self._numbers
+
+    def _predictor_points(self, points: np.ndarray) -> np.ndarray:
+        """A writable contiguous copy of the predictor's own goal points (kept while they are
+        the same array)."""
+        if points is not self._pred_points_seen:
+            self._pred_points_seen = points
+            self._pred_points = np.array(points, dtype=np.float64)
+        return self._pred_points
 
     @property
     def stateful(self) -> bool:

@@ -243,6 +243,8 @@ class GraspApproachPolicy:
             else (np.empty(0), np.empty(0))
         )
         self._packed: tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...] = ()
+        self._stacked: tuple[np.ndarray, ...] | None = None
+        self._kernel_goals: tuple[np.ndarray, ...] | None = None
         self._object_rows = np.empty((0, 4))
         self._numbers = self._params()
 
@@ -289,6 +291,8 @@ class GraspApproachPolicy:
         )
         self._object_rows = np.array(self._objects, dtype=np.float64).reshape(-1, 4)
         self._packed = tuple(_packed(goal) for goal in self._goals)
+        self._stacked = _stacked(self._packed, self._approaching)
+        self._kernel_goals = None if self._stacked is None else (*self._stacked, self._object_rows)
 
     def _params(self) -> np.ndarray:
         """The compiled tick's numbers (``policy_grasp_core``'s ``params``), fixed when built."""
@@ -345,12 +349,29 @@ class GraspApproachPolicy:
             *self._limits,
         )
 
+    def kernel_goals(self) -> tuple[np.ndarray, ...] | None:
+        """:meth:`kernel_inputs`' goal-set part for every goal at once, for a fused step that
+        picks G* itself: ``(rows (n, 21), grasp rotations (n, 3, 3), postures (n, dof) or
+        (n, 0), approaching (n,) bools, objects (n, 4))``; ``None`` when the goals' postures
+        cannot be stacked. The same objects until the goals change (``approaching`` kept by
+        :meth:`note_transit`); the rest of ``kernel_inputs`` is :meth:`kernel_constants`."""
+        if not self._goals:
+            raise InvalidInputError("set_goals(goals) must be called before step(Q, goal)")
+        return self._kernel_goals
+
+    def kernel_constants(self) -> tuple[np.ndarray, ...]:
+        """:meth:`kernel_inputs`' last five, fixed when built: ``(layers, params, lambda^2 I,
+        lower, upper)``."""
+        return (self._layer_rows, self._numbers, self._lam2, *self._limits)
+
     def note_transit(self, k: int, transit: bool) -> None:
-        """After a compiled step toward goal ``k``: its hysteresis, as :meth:`step` keeps it."""
+        """After a step toward goal ``k``: its hysteresis, as :meth:`step` keeps it."""
         if transit:
             self._approaching.discard(k)
         else:
             self._approaching.add(k)
+        if self._stacked is not None:
+            self._stacked[3][k] = not transit
 
     def _reference_step(self, q: np.ndarray, target: Any) -> np.ndarray:
         """``step`` in Python: the reference the compiled tick is tested equal to."""
@@ -361,10 +382,7 @@ class GraspApproachPolicy:
         rot_err = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
         k = int(target)
         carrot, speed, transit = self._carrot(q, xs, rot, k, rot_err)
-        if transit:
-            self._approaching.discard(k)
-        else:
-            self._approaching.add(k)
+        self.note_transit(k, transit)
         v = [carrot[0] - xs[0], carrot[1] - xs[1], carrot[2] - xs[2]]
         n = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
         sv = speed / n if n > speed else 1.0
@@ -610,6 +628,23 @@ def _packed(goal: _Goal) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     )
     posture = np.empty(0) if goal.posture is None else np.ascontiguousarray(goal.posture, float)
     return row, np.ascontiguousarray(goal.rotation, dtype=np.float64), posture
+
+
+def _stacked(
+    packed: tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...], approaching: set[int]
+) -> tuple[np.ndarray, ...] | None:
+    """The goals' packed rows, rotations and postures stacked, and which are approached;
+    ``None`` when some goals have a posture and others not."""
+    if not packed or len({posture.shape for _, _, posture in packed}) > 1:
+        return None
+    flags = np.zeros(len(packed), dtype=np.bool_)
+    flags[sorted(k for k in approaching if k < len(packed))] = True
+    return (
+        np.stack([row for row, _, _ in packed]),
+        np.stack([rot for _, rot, _ in packed]),
+        np.stack([posture for _, _, posture in packed]),
+        flags,
+    )
 
 
 def _toward(x: Sequence[float], c: Sequence[float], f: float) -> tuple[float, float, float]:

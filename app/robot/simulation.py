@@ -89,6 +89,7 @@ class Simulation:
         # views into MjData's buffers (they live as long as ``data``): no per-tick slicing
         d = self.data
         self._qpos_arm = d.qpos[:7]
+        self._qpos = d.qpos
         self._ctrl_arm = d.ctrl[:7]
         self._ctrl_vel = d.ctrl[8:15]
         self._ctrl = d.ctrl
@@ -155,7 +156,7 @@ class Simulation:
     @property
     def gripper_opening(self) -> float:
         """Finger travel in metres (0 closed, 0.04 fully open)."""
-        return float(self.data.qpos[7])
+        return float(self._qpos[7])
 
     def step(self, command: np.ndarray, *, gripper_closed: bool, substeps: int) -> None:
         """Servo the arm to ``command`` (7,) and the gripper open/closed for ``substeps`` steps.

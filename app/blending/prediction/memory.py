@@ -129,6 +129,21 @@ class MemoryPredictor(GoalPoints):
         self._require_reset()
         return self._update(check_x(x, self.dim))
 
+    def kernel_inputs(self, x: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, float]:
+        """What a compiled step needs to advance eq. 9 to the input ``x`` as :meth:`update`
+        does (``app.blending.assess_core``): ``(C(xi_{S->U}) so far, the last input,
+        C(xi*_{S->G}), b)``, ``b`` estimated first when ``"online"``; then
+        :meth:`note_update` with the ``C(xi_{S->U})`` it gave."""
+        self._require_reset()
+        if self.estimator is not None:
+            self.rationality = float(self.estimator.update(x, self.points).max())
+        return self._c_su, self._prev, self._c_sg, self.rationality
+
+    def note_update(self, x: np.ndarray, c_su: float) -> None:
+        """After a compiled step took the input ``x``: ``C(xi_{S->U}) = c_su`` now."""
+        self._c_su = c_su
+        self._prev = x.copy()
+
     def _update(self, x: np.ndarray) -> GoalPrediction:
         self._c_su += self.cost.step(self._prev, x)
         self._prev = x.copy()
