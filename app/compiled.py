@@ -1,12 +1,14 @@
 """What the control tick's compiled kernels share: numba's ``njit`` as used here, and LAPACK.
 
-``jit``: ``numba.njit`` with the machine code cached beside the source (``__pycache__``), so
+``jit``: ``numba.njit`` with the machine code cached (``app/__pycache__/numba-<hash>``), so
 only the first process after a change compiles (``app.warm_up``); IEEE arithmetic as written
 (no ``fastmath``: no reordering, no fused multiply-adds), so a kernel gives the very numbers
 its Python gives. The GIL is kept: a kernel runs for microseconds, and a thread that lets it go
 may wait a switch interval (5 ms) to have it back while another thread computes.
-numba keys a kernel's cache on its own source file only: after editing this module, delete the
-caches (``find app -name '*.nb[ic]' -delete``) or a kernel keeps the old ``solve_spd``.
+numba keys a kernel's cache on its own source file only, and a kernel calls (inlines) other
+modules' kernels: edited ``solve_spd`` or ``assess_core``, the fused step's cache would keep the
+old code and tests pass on it. So the cache lives in a folder named by a hash of every kernel
+source (this module and each ``*_core.py``, :func:`cache_dir`): any edit compiles all afresh.
 
 ``solve_spd(a, b)``: ``b <- A^-1 b`` for a symmetric positive definite ``A`` (its upper
 triangle read) by LAPACK's ``dposv``, the very routine ``scipy.linalg.lapack.dposv`` calls
@@ -22,15 +24,42 @@ bit (``tests/test_fused_control.py``).
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import math
+import shutil
+from pathlib import Path
 
 import llvmlite.binding as llvm
+import numba
 import numpy as np
 from numba import njit, types
 from numba.extending import get_cython_function_address
 
-__all__ = ["dls", "dls_loops", "jit", "solve_spd"]
+__all__ = ["cache_dir", "dls", "dls_loops", "jit", "solve_spd"]
 
+
+def cache_dir(root: Path = Path(__file__).parent) -> Path:
+    """``root/__pycache__/numba-<hash>``: the hash of every kernel source under ``root``
+    (``compiled.py`` and each ``*_core.py``, by path and content)."""
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        if path.name == "compiled.py" or path.name.endswith("_core.py"):
+            digest.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes())
+    return root / "__pycache__" / f"numba-{digest.hexdigest()[:16]}"
+
+
+def _use_cache_dir(folder: Path) -> None:
+    """numba's cache in ``folder`` from now on (read as each kernel is decorated); the
+    folders of earlier sources go."""
+    for old in folder.parent.glob("numba-*"):
+        if old != folder:
+            with contextlib.suppress(OSError):
+                shutil.rmtree(old)
+    numba.config.CACHE_DIR = str(folder)
+
+
+_use_cache_dir(cache_dir())
 jit = njit(cache=True)
 
 llvm.add_symbol(

@@ -1,7 +1,8 @@
 """Compile the control tick's kernels before a session needs them: ``python -m app.warm_up``.
 
 numba compiles a kernel at its first call (about 6 s for all of them on the reference machine)
-and keeps the machine code in ``__pycache__`` beside the source; later processes load it (about
+and keeps the machine code in ``app/__pycache__/numba-<hash of the kernels' sources>``;
+later processes load it (about
 0.2 s). :func:`warm_up` makes that first call on dummy inputs, so a study server's first tick
 does not wait for it, and CI's setup runs it once before the test workers start.
 """

@@ -12,8 +12,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import shutil
+from pathlib import Path
 from typing import Any
 
+import numba
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -21,7 +24,7 @@ import pytest
 from app.blending import DistanceHinge, EntropyConfidence, PiecewiseLinear, Timid
 from app.blending.assess_core import dist3, dot3
 from app.blending.policy_grasp import GraspApproachPolicy
-from app.compiled import dls, dls_loops
+from app.compiled import cache_dir, dls, dls_loops
 from app.robot.kinematics_core import tcp_pose_jacobian
 from app.teleop import ScriptedInput
 from app.teleop.ik_step import IKStep
@@ -288,3 +291,22 @@ def test_trial_dump_diff_reports_each_columns_largest_difference(
     assert out["max_abs_difference"]["alpha"] == abs(0.5 - records[3].alpha)
     after.write_text("\n".join([head.replace("timeout", "success"), *lines]) + "\n")
     assert not diff(before, after)["same"]["outcomes_and_ticks"]
+
+
+def test_an_edit_to_any_kernel_source_moves_every_kernels_cache(tmp_path: Path) -> None:
+    """numba keys a cache on the kernel's own file; the fused kernel inlines other modules'
+    (an edit to ``assess_core.py`` left it running the old code, its tests passing). The
+    cache folder is named by every kernel source, so an edit anywhere among them moves it."""
+    app = cache_dir().parent.parent
+    for rel in ("compiled.py", "blending/assess_core.py", "trial/fused_control_core.py"):
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(app / rel, tmp_path / rel)
+    (tmp_path / "trial" / "trial.py").write_text("x = 1\n")
+    first = cache_dir(tmp_path)
+    assert first.parent == tmp_path / "__pycache__" and first == cache_dir(tmp_path)
+    (tmp_path / "trial" / "trial.py").write_text("x = 2\n")  # not a kernel's source
+    assert cache_dir(tmp_path) == first
+    edited = tmp_path / "blending" / "assess_core.py"
+    edited.write_text(edited.read_text() + "\n# an edit\n")
+    assert cache_dir(tmp_path) != first
+    assert str(cache_dir()) == numba.config.CACHE_DIR  # the folder the kernels use

@@ -20,9 +20,8 @@ components; they differ in the last bit on about 4.6 % of inputs, so the probabi
 confidence read from them) may differ by an ulp or two; ``G*``, the distance confidence,
 ``alpha`` and the motion agreement come out bit for bit (``tests/test_fused_control.py``).
 
-numba keys a kernel's cache on its own source file: after editing this module, delete the
-caches (``find app -name '*.nb[ic]' -delete``) or ``app.trial.fused_control_core`` keeps the
-old code.
+``app.trial.fused_control_core`` inlines these kernels: its cache is kept per version of every
+kernel source (``app.compiled.cache_dir``), so an edit here compiles it afresh.
 
 ``nums`` (8,): ``prediction kind, its number (amnesic -1/T), confidence kind, its number
 (1/D), arbitration kind, its three numbers`` (:func:`numbers`).
