@@ -113,6 +113,37 @@ def test_beside_the_mug_the_palm_stops_clear_of_its_top_where_it_overlaps_it() -
     assert guard.rest((0.55, -0.25, 0.09), floor, [MUG], skip=(0,)) is None  # the robot's goal
 
 
+def test_a_hand_let_go_of_at_the_palms_edge_is_taken_again_only_well_inside() -> None:
+    """The footprint ends 6 cm off the mug's axis along the slot (2.8 + 3.2 cm). A hand the stop
+    held there and let go of as it swayed out is not taken again for swaying 2 mm back in (a
+    tester's hand bobbed 3 cm twice a second there); 4 mm in, it is. A hand the stop never held
+    is taken at the footprint itself, as before, and so is one that has left it by 4 mm, and
+    one beside an object so tall that the arm above the palm may meet it."""
+    palm = {"reach_below": 0.05, "slot": 0.04, "palm_above": 0.0374, "palm_half": (0.032, 0.102)}
+    guard = DescentGuard(**palm, low=0.13)  # the mug's top, 0.12, is under the arm
+    rest = 0.12 - 0.0374 + PALM_CLEAR_M
+    edge = 0.5 + 0.028 + 0.032
+
+    def at(dx: float, z: float = rest, g: DescentGuard = guard) -> tuple | None:
+        return g.rest((edge + dx, -0.25, z), (edge + dx, -0.25, 0.02), [MUG])
+
+    assert at(-0.001) == ((edge - 0.001, -0.25, rest), 0)  # held 1 mm inside
+    assert at(0.001) is None  # out: let go
+    assert at(-0.002, z=rest - 0.02) is None  # 2 mm back in, coming down: left to come down
+    assert at(-0.0015, z=0.02) is None and at(0.0005, z=0.02) is None  # on the table, swaying
+    assert at(-0.004, z=0.02) == ((edge - 0.004, -0.25, rest), 0)  # well inside: held again
+    assert at(-0.001) is not None  # ... until it leaves the footprint itself
+    assert at(0.004) is None  # clear of it
+    assert at(-0.001, z=0.02) == ((edge - 0.001, -0.25, rest), 0)  # taken at the footprint
+    guard.release()  # the gripper closed: the stop holds nothing
+    assert guard.palm_on is None and guard.palm_left is None
+    fresh = DescentGuard(**palm, low=0.13)
+    assert at(-0.002, z=0.02, g=fresh) == ((edge - 0.002, -0.25, rest), 0)  # never held: taken
+    tall = DescentGuard(**palm, low=0.11)  # the arm above the palm comes down to the top
+    assert at(-0.001, g=tall) is not None and at(0.001, g=tall) is None
+    assert at(-0.002, z=rest - 0.02, g=tall) == ((edge - 0.002, -0.25, rest), 0)  # as before
+
+
 def test_the_palm_stops_above_every_shipped_grasp_point() -> None:
     """The palm's stop lies under every grasp point of every shipped protocol's scenes: the
     hand always reaches the grasp."""

@@ -42,10 +42,19 @@ pass: the palm on the top after every one of 7 descents). The same stop holds wh
 footprint, ``palm_half`` ``(h_x, h_y)`` to each side of the TCP, overlaps ``k``'s
 (``|x_x - o_x| < r_k + h_x`` and ``|x_y - o_y| < r_k + h_y``: ``under_palm``) with the fingers
 beside it: the palm is wider than the pads, and a tester's hand lowered 4.5-5 cm off the mug's
-axis along the slot came down with its palm on the rim for 5 s. The trial leaves
-out the object the robot is taking the hand to (``alpha > 0``), as ``lift_out`` does: its
-policy centres the hand there, and a user's target held off it would only push against the
-robot lowering the hand.
+axis along the slot came down with its palm on the rim for 5 s. Once the stop has let go of a
+hand that left the footprint (``palm_left``), it takes it again only ``MARGIN_M`` inside
+(``|x_x - o_x| < r_k + h_x - MARGIN_M`` and the same across), until the hand is ``MARGIN_M``
+outside: at the footprint's edge, 6 cm off the mug's axis along the slot, the IK's 1-2 mm of
+sway took the hand in and out of it and the stop raised it each time in (a tester's hand
+bobbed 3 cm twice a second for as long as F was held, h9). It does so only over an object
+whose top is under ``low``, where the hand beside it is its palm and fingers alone: the arm
+above the palm (the wrist's parts, wider along the slot) stays over such an object however
+low the hand goes; beside a taller one (the 20-cm bottle) it can meet the object with the
+palm's footprint clear, and there the stop keeps taking the hand at the footprint itself.
+The trial leaves out the object the robot is taking the hand to (``alpha > 0``), as
+``lift_out`` does: its policy centres the hand there, and a user's target held off it would
+only push against the robot lowering the hand.
 """
 
 from __future__ import annotations
@@ -68,7 +77,8 @@ SETTLE_S = 0.15
 the hold lets go."""
 MARGIN_M = 0.003
 """The hold's hysteresis: the footprint it lets go beyond, and how clearly off a point must be
-to take the hand again over an object it let go of (the simulated hand's noise is 2 mm)."""
+to take the hand again over an object it let go of (the simulated hand's noise is 2 mm); and
+the palm stop's: how far inside the footprint it takes again a hand it let go of there."""
 
 PALM_CLEAR_M = 0.005
 """How far above the object's top the palm stays when the open hand is lowered around it."""
@@ -101,7 +111,9 @@ class DescentGuard:
     one, with its palm just over the top (module docstring); one per trial, for a hand whose
     fingertips are ``reach_below`` under the TCP, whose palm is ``palm_above`` over it, and
     whose open slot's half-width is ``slot`` and whose palm reaches ``palm_half`` to each side
-    of the TCP along world x and y. ``held``: the object held above, or ``None``."""
+    of the TCP along world x and y; objects whose top is under ``low`` meet only the palm and
+    fingers of the hand lowered beside them as far as it goes (the palm stop's hysteresis is
+    theirs). ``held``: the object held above, or ``None``."""
 
     def __init__(
         self,
@@ -110,14 +122,21 @@ class DescentGuard:
         slot: float,
         palm_above: float,
         palm_half: tuple[float, float] = (0.0, 0.0),
+        low: float = -math.inf,
         clearance: float = CLEARANCE_M,
     ) -> None:
         self.reach_below = reach_below
         self.palm_above = palm_above
         self.palm_half = palm_half
+        self.low = low
         self.slot = slot
         self.clearance = clearance
         self.held: int | None = None
+        self.palm_on: int | None = None
+        """The object the palm stop held the hand above at the last ``rest``, or ``None``."""
+        self.palm_left: int | None = None
+        """The object whose footprint the hand left while the stop held it there, while the
+        hand is still within ``MARGIN_M`` of it, or ``None``."""
         self._cleared: int | None = None  # the object last let go of, the hand still over it
         self._clear_since: tuple[float, float, float] | None = None  # (t, x, y) it began
 
@@ -200,17 +219,24 @@ class DescentGuard:
         return None
 
     def under_palm(
-        self, x: Sequence[float], objects: Sequence[Footprint], *, skip: Container[int] = ()
+        self,
+        x: Sequence[float],
+        objects: Sequence[Footprint],
+        *,
+        skip: Container[int] = (),
+        left: int | None = None,
     ) -> int | None:
         """The object whose footprint the palm of the hand at ``x`` overlaps (the object
-        between the fingers first, ``around``), or ``None``."""
+        between the fingers first, ``around``), or ``None``; ``left``'s footprint counts only
+        ``MARGIN_M`` inside (``palm_left``)."""
         k = self.around(x, objects, skip=skip)
         if k is not None:
             return k
         xx, xy, _ = x
         hx, hy = self.palm_half
         for k, (ox, oy, radius, _, _) in enumerate(objects):
-            if k not in skip and abs(xx - ox) < radius + hx and abs(xy - oy) < radius + hy:
+            r = radius - MARGIN_M if k == left else radius
+            if k not in skip and abs(xx - ox) < r + hx and abs(xy - oy) < r + hy:
                 return k
         return None
 
@@ -224,17 +250,37 @@ class DescentGuard:
     ) -> tuple[tuple[float, float, float], int] | None:
         """``U``'s target no lower than where the palm clears the top of the object the open
         hand is lowered around or beside, under its palm (module docstring), and that object's
-        index; ``None`` when the target is not below that height (or no object is there)."""
-        k = self.under_palm(x, objects, skip=skip)
+        index; ``None`` when the target is not below that height (or no object is there).
+        Keeps ``palm_on`` and ``palm_left`` (the stop's hysteresis)."""
+        held, left = self.palm_on, self.palm_left
+        if left is not None and not self._near(x, objects[left]):
+            left = None  # the hand is clear of the footprint it left
+        k = self.under_palm(x, objects, skip=skip, left=left)
         if k is None:
+            self.palm_on = None
+            if held is not None and objects[held][3] < self.low and self._near(x, objects[held]):
+                left = held  # it left the footprint the stop held it over: let go
+            self.palm_left = left
             return None
         tx, ty, tz = target
         rest_z = objects[k][3] - self.palm_above + PALM_CLEAR_M
-        return None if tz >= rest_z else ((tx, ty, rest_z), k)
+        if tz >= rest_z:
+            self.palm_on, self.palm_left = None, None if k == left else left
+            return None
+        self.palm_on, self.palm_left = k, None if k == left else left
+        return (tx, ty, rest_z), k
+
+    def _near(self, x: Sequence[float], obj: Footprint) -> bool:
+        """Whether the palm of the hand at ``x`` is within ``MARGIN_M`` of ``obj``'s
+        footprint."""
+        ox, oy, radius, _, _ = obj
+        hx, hy = self.palm_half
+        r = radius + MARGIN_M
+        return abs(x[0] - ox) < r + hx and abs(x[1] - oy) < r + hy
 
     def release(self) -> None:
         """Hold nothing (the gripper closed)."""
-        self.held = self._cleared = self._clear_since = None
+        self.held = self._cleared = self._clear_since = self.palm_on = self.palm_left = None
 
 
 __all__ = [

@@ -113,11 +113,13 @@ class Trial:
         self._reach_below = reach_below(self.scene.hand)
         self._half_widths = tuple(o.grasp_width / 2 for o in self.scene.spec.objects)
         palm = min(self.scene.hand[1:], key=lambda layer: layer.lo, default=None)
+        above = min((layer.lo for layer in self.scene.hand[1:] if layer is not palm), default=0.0)
         self.guard = DescentGuard(
             reach_below=self._reach_below,
             slot=self.scene.spec.gripper_open,
             palm_above=palm.lo if palm is not None else math.inf,
             palm_half=_half_extent(palm),
+            low=reach.lo[2] + above,  # the arm above the palm, the hand at the reach's floor
         )
         """Holds the open hand above an object it would come down on (``held_above``) and
         stops it, lowered around one, with its palm just over the top."""
@@ -298,12 +300,13 @@ class Trial:
                 return  # the input does not ask it lower than it goes
             if ee[2] > target_z + 0.005 and abs(ee[2] - last) >= 2e-4:
                 return  # still coming down
-        k = self.guard.under_palm(ee, self._footprints, skip=self.accidents.fallen)
+        guard, fallen = self.guard, self.accidents.fallen
+        k = guard.under_palm(ee, self._footprints, skip=fallen, left=guard.palm_left)
         if k is not None:
             self.resting_on = k
             self.resting_centred = (
                 abs(ee[0] - self._footprints[k][0]) <= CENTRED_M
-                and self.guard.around(ee, self._footprints, skip=self.accidents.fallen) == k
+                and guard.around(ee, self._footprints, skip=fallen) == k
             )
 
     @property
