@@ -16,6 +16,7 @@ import pytest
 from app.teleop.types import TeleopCommand, TrialObservation
 from app.trial import Trial
 from app.trial.contacts import FINGERS
+from app.trial.events import EventKind, TrialEvent
 from app.trial.tasks.lift import CLOSE_S, MISSED_HOLD_S, REOPEN_S
 from study.protocol import load_protocol
 from study.server.blinding_guard import check_text
@@ -90,25 +91,62 @@ def test_a_slip_says_why_and_a_wait_only_when_the_object_waits() -> None:
     n = HeldNotices()
     n.lowest = n.off_centre = 10.0  # F held down off the mug's middle: "not in the middle"
     assert n.text(10.05, live=True) == texts.NOT_CENTRED
-    n.ask(10.1)  # G: the notice about the open hand goes with the request
+    n.ask(10.1, off_centre=True)  # G: the notice about the open hand goes with the request
     assert n.text(10.2, live=True) is None
     n.slipped = n.dropped = 10.9  # lifted, slipped out, standing: put back 0.3-0.7 s later
     assert n.text(11.0, live=True) == texts.SLIPPED_OFF_CENTRE  # why, and the keys that mend it
     n.dropped = 11.5  # back at 11.5; the hand sinks back off-centre
     n.lowest = n.off_centre = 12.0
     assert n.text(12.0, live=True) == texts.SLIPPED_OFF_CENTRE  # said first, for its time
-    assert n.text(10.9 + MISSED_NOTICE_S + 0.1, live=True) is None  # lowest no longer stamped
     n.lowest = n.off_centre = 10.9 + MISSED_NOTICE_S
     assert n.text(10.9 + MISSED_NOTICE_S + 0.1, live=True) == texts.NOT_CENTRED
     n = HeldNotices()  # G with the hand centred; the object still slips out, and waits
-    n.lowest = 20.0
-    n.ask(20.1)
+    n.ask(20.1, off_centre=False)
     n.slipped = n.dropped = 21.0
     assert n.text(21.5, live=True) == texts.SLIPPED_OUT
     n.dropped = 21.0 + PUT_BACK_S  # still waiting a second on: the gripper is in its spot
     assert n.text(21.0 + PUT_BACK_S, live=True) == texts.SLIPPED_WAITING
-    for text in (texts.SLIPPED_OUT, texts.SLIPPED_OFF_CENTRE, texts.SLIPPED_WAITING):
-        assert len(text.split()) <= 24, text  # read in the 5 s it is said first
+    n = HeldNotices(lowest=30.0, off_centre=30.0)  # a miss off-centre: said first, and why
+    n.ask(30.1, off_centre=True)
+    n.missed = 31.0
+    n.lowest = n.off_centre = 31.6  # the hand opens where it was
+    assert n.text(31.7, live=True) == texts.MISSED_OFF_CENTRE
+    for text in (
+        texts.SLIPPED_OUT,
+        texts.SLIPPED_OFF_CENTRE,
+        texts.SLIPPED_WAITING,
+        texts.MISSED_OFF_CENTRE,
+    ):
+        assert len(text.split()) <= 26, text  # read in the 5 s it is said first
+
+
+@pytest.mark.parametrize("dx", [0.031, 0.036])
+def test_g_pressed_off_the_middle_takes_the_open_hands_notice_down_and_says_why(
+    dx: float,
+) -> None:
+    """h12 in Chromium: "... not in the middle ... then press G" stayed over the closing,
+    lifting and reopening fingers after every G (the trial's note of the resting hand was the
+    last reach tick's), outranked "closed on nothing" for good after a miss, and the reach
+    notice flashed with F still held. F held down 3.1 / 3.6 cm off the mug's middle along the
+    slot, then G, the notices fed as the live run feeds them: before G "not in the middle";
+    while the task drives the gripper no notice of the open hand or the reach; then why the
+    grasp failed, first."""
+    trial = _practice(_Keys((dx, 0.0), floor=0.02, grasp_t=5.0))
+    notices, shown = HeldNotices(), []
+    while trial.t < 9.0 and not trial.done:
+        rec = trial.tick()
+        clamped = TrialEvent(EventKind.TARGET_CLAMPED) in rec.events
+        notices.note_tick(trial, rec.events, rec.t, past_reach=clamped)
+        shown.append((rec.t, trial.task.reaching, notices.text(rec.t, live=True)))
+    before = [text for t, _, text in shown if 4.8 < t < 5.0]
+    assert set(before) == {texts.NOT_CENTRED}, set(before)
+    assert trial.grasp_off_centre
+    driven = {text for t, reaching, text in shown if t >= 5.0 and not reaching}
+    open_hand = {texts.NOT_CENTRED, texts.AS_LOW_AS_IT_GOES, texts.HELD_ABOVE}
+    assert not driven & (open_hand | {texts.AT_REACH_LIMIT}), driven
+    failed = [text for t, _, text in shown if t > 5.0 and text not in (None, *open_hand)]
+    assert failed and failed[0] in (texts.MISSED_OFF_CENTRE, texts.SLIPPED_OFF_CENTRE), failed
+    assert trial.resting_on is None or trial.task.reaching
 
 
 @pytest.mark.parametrize("path", STUDY_PROTOCOLS, ids=lambda p: p.stem)
@@ -116,6 +154,7 @@ def test_the_notices_name_no_condition(path) -> None:
     words = load_protocol(path).condition_words
     for text in (
         texts.MISSED_GRASP,
+        texts.MISSED_OFF_CENTRE,
         texts.RESTING_ON_OBJECT,
         texts.HELD_ABOVE,
         texts.AS_LOW_AS_IT_GOES,

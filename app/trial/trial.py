@@ -129,6 +129,10 @@ class Trial:
         floor), or ``None``."""
         self.resting_centred = False
         """Whether the hand is then centred on that object along the slot (``CENTRED_M``)."""
+        self.grasp_off_centre = False
+        """Whether the open hand was, at the last grasp request, down around an object (its
+        palm over it, the TCP below its top) but off its middle along the slot by more than
+        ``CENTRED_M``: why such a grasp misses or slips (the page says so)."""
         self._last_ee_z = math.inf  # the TCP's height at the last tick (``_note_resting``)
         self._cylinders = self._object_cylinders()
         self._footprints = self._object_footprints()
@@ -309,6 +313,16 @@ class Trial:
                 and guard.around(ee, self._footprints, skip=fallen) == k
             )
 
+    def _off_centre(self) -> bool:
+        """The open hand down around an object (its palm over it, the TCP below its top) off
+        its middle along the slot by more than ``CENTRED_M``."""
+        ee = self._ee.tolist()
+        k = self.guard.under_palm(ee, self._footprints, skip=self.accidents.fallen)
+        if k is None:
+            return False
+        ox, _, _, top, _ = self._footprints[k]
+        return ee[2] < top and abs(ee[0] - ox) > CENTRED_M
+
     @property
     def held_above(self) -> int | None:
         """The object the open hand is held above (``app.teleop.guarded_descent``), or ``None``."""
@@ -469,8 +483,11 @@ class Trial:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(U, P, command)`` this tick: the task's command when it drives the arm, else the
         user's ``U`` blended with the policy's ``P``."""
+        if request and self.task.reaching:
+            self.grasp_off_centre = self._off_centre()
         held = self.task.control(q, self.t, request=request, events=events)
-        if held is not None:
+        if held is not None:  # the task drives the arm: the open hand rests on nothing
+            self.resting_on, self.resting_centred = None, False
             return held, held, held
         fused = self.fused
         if fused is not None and fused.ik is self.ik:

@@ -167,26 +167,8 @@ class LiveRun:
 
     def _after_tick(self, run: TrialRun, trial: Trial, record: TickRecord) -> None:
         notices, now = self.view.notices, time.monotonic()  # the render loop shows them
-        if TrialEvent(EventKind.GRASP_MISSED) in record.events:
-            notices.missed = now
-        if TrialEvent(EventKind.GRASP_REQUESTED) in record.events:
-            notices.ask(now)
-        if any(e.kind in _SLIPPED for e in record.events):
-            notices.slipped = now
-        if _held_past_reach(trial, self.input.source, record.events):
-            notices.at_limit = now
-        if trial.held_above is not None:
-            notices.above = now
-        if trial.resting_on is not None:
-            notices.lowest = now
-            if not trial.resting_centred:
-                notices.off_centre = now
-        accidents = trial.accidents
-        if accidents.down and accidents.reset_objects:
-            if accidents.fallen:
-                notices.fallen = now
-            if len(accidents.fallen) < len(accidents.down):  # slipped out, standing
-                notices.dropped = now
+        past_reach = _held_past_reach(trial, self.input.source, record.events)
+        notices.note_tick(trial, record.events, now, past_reach=past_reach)
         if self._resisted.update(
             record.t,
             z=float(record.ee[2]),
@@ -212,10 +194,6 @@ class LiveRun:
 
 
 _PAST_REACH = (TrialEvent(EventKind.TARGET_CLAMPED), TrialEvent(EventKind.TARGET_FAR_OUTSIDE))
-
-
-_SLIPPED = (EventKind.DROPPED, EventKind.LIFT_FAILED)
-"""A grasped object out of the gripper again (``app.trial.tasks.lift``)."""
 
 
 def _held_past_reach(

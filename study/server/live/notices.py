@@ -8,10 +8,12 @@ the open gripper kept above an object it would come down on (``above``, the tria
 object (``lowest``, the trial's ``resting_on``; ``off_centre`` when not centred on it along the
 fingers), an object down and waiting to be put back
 (``fallen``), a grasped object that slipped out (``slipped``; like a miss, until the next
-grasp request; why, when the hand was off-centre as G was pressed) and, standing, still waits
-to be put back (``dropped``; said so once it has waited ``PUT_BACK_S``). A grasp request
-(``asked``) takes down what was said of the open hand (kept above, as low as it goes): a
-tester saw "not in the middle ... press G" stay 0.3-0.6 s over the closing fingers.
+grasp request; why, when the hand was down off the object's middle as G was pressed: then a
+miss is said first too, and why) and, standing, still waits to be put back (``dropped``; said
+so once it has waited ``PUT_BACK_S``). A grasp request (``asked``) takes down what was said of
+the open hand (kept above, as low as it goes), which the live run stamps only while the hand is
+the participant's (``reaching``): testers saw "not in the middle ... press G" stay over the
+closing, lifting and reopening fingers.
 The render loop asks :meth:`HeldNotices.text` each period and shows the answer with
 ``ParticipantPage.hold_notice`` (one notice at a time; ``None`` takes it down). What the
 participant's input does this moment comes first, after a fallen or dropped object (nothing
@@ -32,14 +34,18 @@ fingers showed in a frame or two), who then could not tell whether G had worked 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
+from app.trial import Trial
+from app.trial.events import EventKind, TrialEvent
 from study.server.live.texts import (
     AS_LOW_AS_IT_GOES,
     AT_REACH_LIMIT,
     FELL_OVER,
     HELD_ABOVE,
     MISSED_GRASP,
+    MISSED_OFF_CENTRE,
     NOT_CENTRED,
     RESTING_ON_OBJECT,
     SLIPPED_OFF_CENTRE,
@@ -60,6 +66,9 @@ rim slips on and off it several times a second."""
 
 NEVER = -1e18
 
+_SLIPPED = (EventKind.DROPPED, EventKind.LIFT_FAILED)
+"""A grasped object out of the gripper again (``app.trial.tasks.lift``)."""
+
 
 @dataclass
 class HeldNotices:
@@ -76,12 +85,42 @@ class HeldNotices:
     slipped: float = NEVER
     dropped: float = NEVER
     asked_off_centre: bool = False
-    """Whether "not in the middle" was up when the last grasp request came."""
+    """Whether the open hand was down around an object but off its middle along the fingers
+    at the last grasp request (the trial's ``grasp_off_centre``)."""
 
-    def ask(self, now: float) -> None:
-        """A grasp request at ``now`` (before this tick's hand is stamped)."""
-        self.asked_off_centre = now - self.off_centre < LIMIT_HOLD_S
+    def ask(self, now: float, *, off_centre: bool) -> None:
+        """A grasp request at ``now``, the hand ``off_centre`` or not."""
+        self.asked_off_centre = off_centre
         self.asked = now
+
+    def note_tick(
+        self, trial: Trial, events: Sequence[TrialEvent], now: float, *, past_reach: bool
+    ) -> None:
+        """Stamp at ``now`` what ``trial``'s last tick (its ``events``) shows; ``past_reach``:
+        the participant's input pushed past the reach. What the open hand does is stamped only
+        while it is the participant's (``reaching``): while the task closes, lifts or reopens
+        the gripper the trial's notes of it are from the last reach tick."""
+        if TrialEvent(EventKind.GRASP_MISSED) in events:
+            self.missed = now
+        if TrialEvent(EventKind.GRASP_REQUESTED) in events:
+            self.ask(now, off_centre=trial.grasp_off_centre)
+        if any(e.kind in _SLIPPED for e in events):
+            self.slipped = now
+        if trial.task.reaching:
+            if past_reach:
+                self.at_limit = now
+            if trial.held_above is not None:
+                self.above = now
+            if trial.resting_on is not None:
+                self.lowest = now
+                if not trial.resting_centred:
+                    self.off_centre = now
+        accidents = trial.accidents
+        if accidents.down and accidents.reset_objects:
+            if accidents.fallen:
+                self.fallen = now
+            if len(accidents.fallen) < len(accidents.down):  # slipped out, standing
+                self.dropped = now
 
     def text(self, now: float, *, live: bool) -> str | None:
         """The notice to hold at ``now`` (``None``: none), only while the run is ``live``."""
@@ -95,6 +134,9 @@ class HeldNotices:
         if waiting or (now - self.slipped < MISSED_NOTICE_S and self.asked <= self.slipped):
             # said first: the hand sinks back at once, and under other notices it was unread
             return SLIPPED_OFF_CENTRE if self.asked_off_centre else SLIPPED_OUT
+        missed = now - self.missed < MISSED_NOTICE_S and self.asked <= self.missed
+        if missed and self.asked_off_centre:  # also said first: the hand opens where it was
+            return MISSED_OFF_CENTRE
         if now - self.resting < RESTING_HOLD_S:  # what really holds the gripper up
             return RESTING_ON_OBJECT
         # a grasp request takes down what was said of the open hand before it
@@ -104,9 +146,7 @@ class HeldNotices:
             return NOT_CENTRED if self.off_centre >= self.lowest else AS_LOW_AS_IT_GOES
         if now - self.at_limit < LIMIT_HOLD_S:
             return AT_REACH_LIMIT
-        if now - self.missed < MISSED_NOTICE_S and self.asked <= self.missed:
-            return MISSED_GRASP
-        return None
+        return MISSED_GRASP if missed else None
 
     def forget(self) -> None:
         """A new run: nothing seen yet."""

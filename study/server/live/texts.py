@@ -24,11 +24,19 @@ RUN_FINISHED = "Run finished"
 OTHER_OUTCOME = "The run has ended."
 ENDED_BY_EXPERIMENTER = "The experimenter ended this run."
 MISSED_GRASP = (
-    "The gripper closed on nothing. Move it so that the object is between the two fingers,"
-    " lower it, then close the gripper again."
+    "The gripper closed on nothing. Move it so that the object is in the middle between the"
+    " two fingers, lower it, then close the gripper again."
 )
 """Held over the scene for a few seconds after a grasp that caught nothing
-(:mod:`study.server.live.notices`)."""
+(:mod:`study.server.live.notices`): "between the two fingers" alone misled at 3.5 cm off
+the mug's middle, where the mug was between them (a tester)."""
+MISSED_OFF_CENTRE = (
+    "The gripper closed beside the object, not around its middle. Move it away or back (W/S)"
+    " until the object is in the middle, then press G."
+)
+"""``MISSED_GRASP`` when the hand was down around the object but off its middle along the
+fingers as G was pressed: said first (the hand opens where it was, under "not in the
+middle"), with why and the keys that mend it."""
 HELD_ABOVE = (
     "The gripper stays above the object until the object is between its two fingers. Move it"
     " sideways over the middle of the object, then lower it."
@@ -48,7 +56,7 @@ words (the 34-word one went unread in its 5 s)."""
 
 SLIPPED_OFF_CENTRE = (
     "The object slipped out: it was not in the middle between the fingers. Move the gripper"
-    " away or back (W/S), then press G again."
+    " away or back (W/S) until it is, then press G."
 )
 """``SLIPPED_OUT`` when the hand was off the object's middle along the fingers as G was pressed
 (``NOT_CENTRED`` was up): why it slipped, and the keys that mend it."""
@@ -168,6 +176,7 @@ __all__ = [
     "LINK_INVALID_TEXT",
     "LINK_IN_USE_TEXT",
     "MISSED_GRASP",
+    "MISSED_OFF_CENTRE",
     "NOT_CENTRED",
     "OUTCOME_SENTENCES",
     "RESTING_ON_OBJECT",
