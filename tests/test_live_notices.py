@@ -33,6 +33,8 @@ from tests.protocol_copies import PAPER_PROTOCOL, STUDY_PROTOCOLS
 
 MUG = np.array([0.5, -0.25, 0.07])
 """The practice scene's mug: its grasp point (the TCP 3 cm below its top)."""
+BACK_SLIP = texts.SLIPPED_OFF_CENTRE.format(way="back (S)")
+"""The slip said of a hand beyond the object's middle along x (S takes it back)."""
 
 
 def test_a_missed_grasp_notice_stays_until_its_time_or_the_next_grasp() -> None:
@@ -91,33 +93,38 @@ def test_a_slip_says_why_and_a_wait_only_when_the_object_waits() -> None:
     n = HeldNotices()
     n.lowest = n.off_centre = 10.0  # F held down off the mug's middle: "not in the middle"
     assert n.text(10.05, live=True) == texts.NOT_CENTRED
-    n.ask(10.1, off_centre=True)  # G: the notice about the open hand goes with the request
+    n.ask(10.1, offset=0.03)  # G: the notice about the open hand goes with the request
     assert n.text(10.2, live=True) is None
     n.slipped = n.dropped = 10.9  # lifted, slipped out, standing: put back 0.3-0.7 s later
-    assert n.text(11.0, live=True) == texts.SLIPPED_OFF_CENTRE  # why, and the keys that mend it
+    assert n.text(11.0, live=True) == BACK_SLIP  # why, and the key that mends it
     n.dropped = 11.5  # back at 11.5; the hand sinks back off-centre
     n.lowest = n.off_centre = 12.0
-    assert n.text(12.0, live=True) == texts.SLIPPED_OFF_CENTRE  # said first, for its time
+    assert n.text(12.0, live=True) == BACK_SLIP  # said first, for its time
     n.lowest = n.off_centre = 10.9 + MISSED_NOTICE_S
     assert n.text(10.9 + MISSED_NOTICE_S + 0.1, live=True) == texts.NOT_CENTRED
     n = HeldNotices()  # G with the hand centred; the object still slips out, and waits
-    n.ask(20.1, off_centre=False)
+    n.ask(20.1, offset=0.0)
     n.slipped = n.dropped = 21.0
     assert n.text(21.5, live=True) == texts.SLIPPED_OUT
-    n.dropped = 21.0 + PUT_BACK_S  # still waiting a second on: the gripper is in its spot
+    n.dropped = 21.75  # back 0.75 s after the slip: no "waiting" said on the way (h13 saw it)
+    assert n.text(21.9, live=True) == texts.SLIPPED_OUT
+    n.dropped = 21.0 + PUT_BACK_S  # still down a second on: the gripper is in its spot
     assert n.text(21.0 + PUT_BACK_S, live=True) == texts.SLIPPED_WAITING
+    n = HeldNotices(at_limit=25.0, lowest=25.0)  # F held at the stop (past the reach's floor)
+    n.ask(25.05, offset=0.0)  # ... as G is pressed: neither notice over the closing fingers
+    assert n.text(25.1, live=True) is None
     n = HeldNotices(lowest=30.0, off_centre=30.0)  # a miss off-centre: said first, and why
-    n.ask(30.1, off_centre=True)
+    n.ask(30.1, offset=-0.035)
     n.missed = 31.0
     n.lowest = n.off_centre = 31.6  # the hand opens where it was
-    assert n.text(31.7, live=True) == texts.MISSED_OFF_CENTRE
+    assert n.text(31.7, live=True) == texts.MISSED_OFF_CENTRE.format(way="away (W)")
     for text in (
         texts.SLIPPED_OUT,
-        texts.SLIPPED_OFF_CENTRE,
+        BACK_SLIP,
         texts.SLIPPED_WAITING,
-        texts.MISSED_OFF_CENTRE,
+        texts.MISSED_OFF_CENTRE.format(way="away (W)"),
     ):
-        assert len(text.split()) <= 26, text  # read in the 5 s it is said first
+        assert len(text.split()) <= 24, text  # read in the 5 s it is said first
 
 
 @pytest.mark.parametrize("dx", [0.031, 0.036])
@@ -140,12 +147,13 @@ def test_g_pressed_off_the_middle_takes_the_open_hands_notice_down_and_says_why(
         shown.append((rec.t, trial.task.reaching, notices.text(rec.t, live=True)))
     before = [text for t, _, text in shown if 4.8 < t < 5.0]
     assert set(before) == {texts.NOT_CENTRED}, set(before)
-    assert trial.grasp_off_centre
+    assert trial.grasp_offset > 0.0  # beyond the middle: S takes it back
     driven = {text for t, reaching, text in shown if t >= 5.0 and not reaching}
     open_hand = {texts.NOT_CENTRED, texts.AS_LOW_AS_IT_GOES, texts.HELD_ABOVE}
     assert not driven & (open_hand | {texts.AT_REACH_LIMIT}), driven
     failed = [text for t, _, text in shown if t > 5.0 and text not in (None, *open_hand)]
-    assert failed and failed[0] in (texts.MISSED_OFF_CENTRE, texts.SLIPPED_OFF_CENTRE), failed
+    why = (texts.MISSED_OFF_CENTRE, texts.SLIPPED_OFF_CENTRE)
+    assert failed and failed[0] in [w.format(way="back (S)") for w in why], failed
     assert trial.resting_on is None or trial.task.reaching
 
 
@@ -154,13 +162,15 @@ def test_the_notices_name_no_condition(path) -> None:
     words = load_protocol(path).condition_words
     for text in (
         texts.MISSED_GRASP,
-        texts.MISSED_OFF_CENTRE,
+        texts.MISSED_OFF_CENTRE.format(way=texts.toward_middle(0.03)),
+        texts.MISSED_OFF_CENTRE.format(way=texts.toward_middle(-0.03)),
         texts.RESTING_ON_OBJECT,
         texts.HELD_ABOVE,
         texts.AS_LOW_AS_IT_GOES,
         texts.FELL_OVER,
         texts.SLIPPED_OUT,
-        texts.SLIPPED_OFF_CENTRE,
+        BACK_SLIP,
+        texts.SLIPPED_OFF_CENTRE.format(way=texts.toward_middle(-0.03)),
         texts.SLIPPED_WAITING,
         texts.NOT_CENTRED,
         texts.AT_REACH_LIMIT,

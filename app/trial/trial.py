@@ -129,10 +129,11 @@ class Trial:
         floor), or ``None``."""
         self.resting_centred = False
         """Whether the hand is then centred on that object along the slot (``CENTRED_M``)."""
-        self.grasp_off_centre = False
-        """Whether the open hand was, at the last grasp request, down around an object (its
-        palm over it, the TCP below its top) but off its middle along the slot by more than
-        ``CENTRED_M``: why such a grasp misses or slips (the page says so)."""
+        self.grasp_offset = 0.0
+        """The open hand's offset (m, world x) from the middle of the object it was down
+        around at the last grasp request (its palm over it, the TCP below its top), when more
+        than ``CENTRED_M`` along the slot, else 0: why such a grasp misses or slips (the page
+        says so, and which way to move)."""
         self._last_ee_z = math.inf  # the TCP's height at the last tick (``_note_resting``)
         self._cylinders = self._object_cylinders()
         self._footprints = self._object_footprints()
@@ -313,15 +314,16 @@ class Trial:
                 and guard.around(ee, self._footprints, skip=fallen) == k
             )
 
-    def _off_centre(self) -> bool:
-        """The open hand down around an object (its palm over it, the TCP below its top) off
-        its middle along the slot by more than ``CENTRED_M``."""
+    def _offset(self) -> float:
+        """``grasp_offset`` now: the open hand's offset along x from the middle of the object
+        it is down around, if more than ``CENTRED_M``, else 0."""
         ee = self._ee.tolist()
         k = self.guard.under_palm(ee, self._footprints, skip=self.accidents.fallen)
         if k is None:
-            return False
+            return 0.0
         ox, _, _, top, _ = self._footprints[k]
-        return ee[2] < top and abs(ee[0] - ox) > CENTRED_M
+        off = ee[0] - ox
+        return off if ee[2] < top and abs(off) > CENTRED_M else 0.0
 
     @property
     def held_above(self) -> int | None:
@@ -484,7 +486,7 @@ class Trial:
         """``(U, P, command)`` this tick: the task's command when it drives the arm, else the
         user's ``U`` blended with the policy's ``P``."""
         if request and self.task.reaching:
-            self.grasp_off_centre = self._off_centre()
+            self.grasp_offset = self._offset()
         held = self.task.control(q, self.t, request=request, events=events)
         if held is not None:  # the task drives the arm: the open hand rests on nothing
             self.resting_on, self.resting_centred = None, False

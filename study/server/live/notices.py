@@ -10,10 +10,11 @@ fingers), an object down and waiting to be put back
 (``fallen``), a grasped object that slipped out (``slipped``; like a miss, until the next
 grasp request; why, when the hand was down off the object's middle as G was pressed: then a
 miss is said first too, and why) and, standing, still waits to be put back (``dropped``; said
-so once it has waited ``PUT_BACK_S``). A grasp request (``asked``) takes down what was said of
-the open hand (kept above, as low as it goes), which the live run stamps only while the hand is
-the participant's (``reaching``): testers saw "not in the middle ... press G" stay over the
-closing, lifting and reopening fingers.
+so once it has been down ``PUT_BACK_S``). A grasp request (``asked``) takes down what was said
+of the open hand (kept above, as low as it goes) and of the reach, which the live run stamps
+only while the hand is the participant's (``reaching``): testers saw "not in the middle ...
+press G" stay over the closing, lifting and reopening fingers, and the reach notice flash there
+with F still held.
 The render loop asks :meth:`HeldNotices.text` each period and shows the answer with
 ``ParticipantPage.hold_notice`` (one notice at a time; ``None`` takes it down). What the
 participant's input does this moment comes first, after a fallen or dropped object (nothing
@@ -51,6 +52,7 @@ from study.server.live.texts import (
     SLIPPED_OFF_CENTRE,
     SLIPPED_OUT,
     SLIPPED_WAITING,
+    toward_middle,
 )
 
 LIMIT_HOLD_S = 0.4
@@ -84,13 +86,13 @@ class HeldNotices:
     fallen: float = NEVER
     slipped: float = NEVER
     dropped: float = NEVER
-    asked_off_centre: bool = False
-    """Whether the open hand was down around an object but off its middle along the fingers
-    at the last grasp request (the trial's ``grasp_off_centre``)."""
+    asked_offset: float = 0.0
+    """How far (m, world x) the open hand was off the middle of the object it was down around
+    at the last grasp request, 0 when centred or around none (the trial's ``grasp_offset``)."""
 
-    def ask(self, now: float, *, off_centre: bool) -> None:
-        """A grasp request at ``now``, the hand ``off_centre`` or not."""
-        self.asked_off_centre = off_centre
+    def ask(self, now: float, *, offset: float) -> None:
+        """A grasp request at ``now``, the hand ``offset`` off the object's middle."""
+        self.asked_offset = offset
         self.asked = now
 
     def note_tick(
@@ -103,7 +105,7 @@ class HeldNotices:
         if TrialEvent(EventKind.GRASP_MISSED) in events:
             self.missed = now
         if TrialEvent(EventKind.GRASP_REQUESTED) in events:
-            self.ask(now, off_centre=trial.grasp_off_centre)
+            self.ask(now, offset=trial.grasp_offset)
         if any(e.kind in _SLIPPED for e in events):
             self.slipped = now
         if trial.task.reaching:
@@ -129,14 +131,15 @@ class HeldNotices:
         if now - self.fallen < LIMIT_HOLD_S:
             return FELL_OVER
         waiting = now - self.dropped < LIMIT_HOLD_S
-        if waiting and now - self.slipped >= PUT_BACK_S:
+        if waiting and self.dropped - self.slipped >= PUT_BACK_S:  # still down a second on
             return SLIPPED_WAITING
+        way = toward_middle(self.asked_offset)
         if waiting or (now - self.slipped < MISSED_NOTICE_S and self.asked <= self.slipped):
             # said first: the hand sinks back at once, and under other notices it was unread
-            return SLIPPED_OFF_CENTRE if self.asked_off_centre else SLIPPED_OUT
+            return SLIPPED_OFF_CENTRE.format(way=way) if self.asked_offset else SLIPPED_OUT
         missed = now - self.missed < MISSED_NOTICE_S and self.asked <= self.missed
-        if missed and self.asked_off_centre:  # also said first: the hand opens where it was
-            return MISSED_OFF_CENTRE
+        if missed and self.asked_offset:  # also said first: the hand opens where it was
+            return MISSED_OFF_CENTRE.format(way=way)
         if now - self.resting < RESTING_HOLD_S:  # what really holds the gripper up
             return RESTING_ON_OBJECT
         # a grasp request takes down what was said of the open hand before it
@@ -144,7 +147,7 @@ class HeldNotices:
             return HELD_ABOVE
         if now - self.lowest < LIMIT_HOLD_S and self.lowest > self.asked:
             return NOT_CENTRED if self.off_centre >= self.lowest else AS_LOW_AS_IT_GOES
-        if now - self.at_limit < LIMIT_HOLD_S:
+        if now - self.at_limit < LIMIT_HOLD_S and self.at_limit > self.asked:
             return AT_REACH_LIMIT
         return MISSED_GRASP if missed else None
 
@@ -152,7 +155,7 @@ class HeldNotices:
         """A new run: nothing seen yet."""
         self.at_limit = self.missed = self.asked = self.resting = self.above = self.lowest = NEVER
         self.fallen = self.slipped = self.dropped = self.off_centre = NEVER
-        self.asked_off_centre = False
+        self.asked_offset = 0.0
 
 
 RESISTED_GAP_M = 0.03

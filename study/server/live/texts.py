@@ -31,12 +31,12 @@ MISSED_GRASP = (
 (:mod:`study.server.live.notices`): "between the two fingers" alone misled at 3.5 cm off
 the mug's middle, where the mug was between them (a tester)."""
 MISSED_OFF_CENTRE = (
-    "The gripper closed beside the object, not around its middle. Move it away or back (W/S)"
-    " until the object is in the middle, then press G."
+    "The gripper closed beside the object, not around its middle. Move it {way} until the"
+    " object is in the middle, then press G."
 )
 """``MISSED_GRASP`` when the hand was down around the object but off its middle along the
 fingers as G was pressed: said first (the hand opens where it was, under "not in the
-middle"), with why and the keys that mend it."""
+middle"), with why and the key that mends it (``{way}``: :func:`toward_middle`)."""
 HELD_ABOVE = (
     "The gripper stays above the object until the object is between its two fingers. Move it"
     " sideways over the middle of the object, then lower it."
@@ -56,10 +56,18 @@ words (the 34-word one went unread in its 5 s)."""
 
 SLIPPED_OFF_CENTRE = (
     "The object slipped out: it was not in the middle between the fingers. Move the gripper"
-    " away or back (W/S) until it is, then press G."
+    " {way} until it is, then press G."
 )
-"""``SLIPPED_OUT`` when the hand was off the object's middle along the fingers as G was pressed
-(``NOT_CENTRED`` was up): why it slipped, and the keys that mend it."""
+"""``SLIPPED_OUT`` when the hand was down around the object but off its middle along the
+fingers as G was pressed: why it slipped, and the key that mends it (``{way}``:
+:func:`toward_middle`; "away or back (W/S)" left the reader to guess which, a tester)."""
+
+
+def toward_middle(offset_m: float) -> str:
+    """The key that takes a hand ``offset_m`` off an object's middle along world x (the
+    fingers' length) back toward it, in words: W moves the gripper away (+x), S back."""
+    return "back (S)" if offset_m > 0.0 else "away (W)"
+
 
 SLIPPED_WAITING = (
     "The object slipped out of the gripper. It is put back where it stood once the gripper is"
@@ -191,4 +199,5 @@ __all__ = [
     "WAIT_TEXT",
     "end_screen",
     "outcome_sentence",
+    "toward_middle",
 ]
