@@ -289,6 +289,21 @@ class PolicyBlender:
                 )
         return InvalidInputError("inputs: not finite")  # pragma: no cover
 
+    def _checked_x(self, Q: np.ndarray, x: np.ndarray) -> list[float]:
+        """``x`` as a list, once the blender is started and ``Q`` and ``x`` have their shapes
+        and ``x`` is finite and below ``MAX_ABS_INPUT`` (as in :meth:`step`)."""
+        if not self._started:
+            raise InvalidInputError("reset(start_x) must be called before step(Q, U)")
+        if Q.shape != self._q_shape or x.shape != self._x_shape:
+            raise InvalidInputError(
+                f"Q, x: expected shapes {self._q_shape} and {self._x_shape}, got {Q.shape} and"
+                f" {x.shape}"
+            )
+        xs = x.tolist()
+        if not sum(map(abs, xs)) < MAX_ABS_INPUT:  # NaN, inf, absurd values
+            raise self._bad_input(("x", x))
+        return xs
+
     def step(self, Q: Any, U: Any, *, x: Any = None, robot_x: Any = None) -> BlendRecord:
         """One tick; ``x`` defaults to ``feature(U)`` (or ``U``); ``robot_x`` is where the robot
         is in the predictor's space (e.g. its end effector), ``x`` when not given."""
@@ -352,16 +367,7 @@ class PolicyBlender:
         (``Q`` and ``x`` float arrays; ``x`` is checked before the prediction advances, ``Q``
         with ``U`` and ``P`` after). Not for a stateful arbitration, which reads the agreement
         of ``U`` and ``P`` before ``alpha``: use :meth:`step` there."""
-        if not self._started:
-            raise InvalidInputError("reset(start_x) must be called before step(Q, U)")
-        if Q.shape != self._q_shape or x.shape != self._x_shape:
-            raise InvalidInputError(
-                f"Q, x: expected shapes {self._q_shape} and {self._x_shape}, got {Q.shape} and"
-                f" {x.shape}"
-            )
-        xs = x.tolist()
-        if not sum(map(abs, xs)) < MAX_ABS_INPUT:  # as in step: NaN, inf, absurd values
-            raise self._bad_input(("x", x))
+        xs = self._checked_x(Q, x)
         if self.stateful:
             raise InvalidInputError("step_joint: a stateful arbitration needs step(Q, U)")
         pred, b, motion, distance, c = self.assess(x, xs, robot_x)
@@ -399,15 +405,7 @@ class PolicyBlender:
         ``b``; ``act`` returns ``(U, P, command, P(G | xi), G*, conf, d, motion agreement,
         alpha, C(xi_{S->U}), finite)``. The same record as :meth:`step` (``Q``, ``x`` and
         ``robot_x`` float arrays)."""
-        if not self._started:
-            raise InvalidInputError("reset(start_x) must be called before step(Q, U)")
-        if Q.shape != self._q_shape or x.shape != self._x_shape:
-            raise InvalidInputError(
-                f"Q, x: expected shapes {self._q_shape} and {self._x_shape}, got {Q.shape} and"
-                f" {x.shape}"
-            )
-        if not sum(map(abs, x.tolist())) < MAX_ABS_INPUT:  # as in step: NaN, inf, absurd values
-            raise self._bad_input(("x", x))
+        self._checked_x(Q, x)
         nums = self.compiled_numbers()
         if nums is None or self.stateful:
             raise InvalidInputError(
