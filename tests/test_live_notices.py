@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from app.teleop.guarded_descent import CENTRED_M
 from app.teleop.types import TeleopCommand, TrialObservation
 from app.trial import Trial
 from app.trial.contacts import FINGERS
@@ -35,6 +36,8 @@ MUG = np.array([0.5, -0.25, 0.07])
 """The practice scene's mug: its grasp point (the TCP 3 cm below its top)."""
 BACK_SLIP = texts.SLIPPED_OFF_CENTRE.format(way="back (S)")
 """The slip said of a hand beyond the object's middle along x (S takes it back)."""
+BACK_NOT_CENTRED = texts.not_centred(0.03, centred_m=CENTRED_M)
+"""The "not in the middle" notice of a resting hand 3 cm beyond the middle along x."""
 
 
 def test_a_missed_grasp_notice_stays_until_its_time_or_the_next_grasp() -> None:
@@ -102,6 +105,15 @@ def test_a_slip_says_why_and_a_wait_only_when_the_object_waits() -> None:
     assert n.text(12.0, live=True) == BACK_SLIP  # said first, for its time
     n.lowest = n.off_centre = 10.9 + MISSED_NOTICE_S
     assert n.text(10.9 + MISSED_NOTICE_S + 0.1, live=True) == texts.NOT_CENTRED
+    n.off_by = 0.03  # the resting hand's offset known: the same one key as the slip said
+    assert n.text(10.9 + MISSED_NOTICE_S + 0.1, live=True) == BACK_NOT_CENTRED
+    assert "(W/S)" not in BACK_NOT_CENTRED and "back (S)" in BACK_NOT_CENTRED
+    n = HeldNotices()  # h14: S pressed as the slip said, the hand centred 2.7 s after G
+    n.ask(40.0, offset=0.03)
+    n.slipped, n.lowest, n.off_centre = 41.0, 41.5, 41.5
+    assert n.text(41.6, live=True) == BACK_SLIP
+    n.lowest = 42.7  # resting centred now: the notice that invites G, not "move back" again
+    assert n.text(42.8, live=True) == texts.AS_LOW_AS_IT_GOES
     n = HeldNotices()  # G with the hand centred; the object still slips out, and waits
     n.ask(20.1, offset=0.0)
     n.slipped = n.dropped = 21.0
@@ -146,10 +158,10 @@ def test_g_pressed_off_the_middle_takes_the_open_hands_notice_down_and_says_why(
         notices.note_tick(trial, rec.events, rec.t, past_reach=clamped)
         shown.append((rec.t, trial.task.reaching, notices.text(rec.t, live=True)))
     before = [text for t, _, text in shown if 4.8 < t < 5.0]
-    assert set(before) == {texts.NOT_CENTRED}, set(before)
+    assert set(before) == {BACK_NOT_CENTRED}, set(before)  # the one key that mends it
     assert trial.grasp_offset > 0.0  # beyond the middle: S takes it back
     driven = {text for t, reaching, text in shown if t >= 5.0 and not reaching}
-    open_hand = {texts.NOT_CENTRED, texts.AS_LOW_AS_IT_GOES, texts.HELD_ABOVE}
+    open_hand = {BACK_NOT_CENTRED, texts.NOT_CENTRED, texts.AS_LOW_AS_IT_GOES, texts.HELD_ABOVE}
     assert not driven & (open_hand | {texts.AT_REACH_LIMIT}), driven
     failed = [text for t, _, text in shown if t > 5.0 and text not in (None, *open_hand)]
     why = (texts.MISSED_OFF_CENTRE, texts.SLIPPED_OFF_CENTRE)
@@ -173,6 +185,8 @@ def test_the_notices_name_no_condition(path) -> None:
         texts.SLIPPED_OFF_CENTRE.format(way=texts.toward_middle(-0.03)),
         texts.SLIPPED_WAITING,
         texts.NOT_CENTRED,
+        BACK_NOT_CENTRED,
+        texts.not_centred(-0.03, centred_m=CENTRED_M),
         texts.AT_REACH_LIMIT,
         GRASP_LABEL,
         GRIPPER_CLOSED_LABEL,

@@ -129,6 +129,8 @@ class Trial:
         floor), or ``None``."""
         self.resting_centred = False
         """Whether the hand is then centred on that object along the slot (``CENTRED_M``)."""
+        self.resting_offset = 0.0
+        """The hand's offset then (m, world x) from that object's middle."""
         self.grasp_offset = 0.0
         """The open hand's offset (m, world x) from the middle of the object it was down
         around at the last grasp request (its palm over it, the TCP below its top), when more
@@ -309,8 +311,9 @@ class Trial:
         k = guard.under_palm(ee, self._footprints, skip=fallen, left=guard.palm_left)
         if k is not None:
             self.resting_on = k
+            self.resting_offset = ee[0] - self._footprints[k][0]
             self.resting_centred = (
-                abs(ee[0] - self._footprints[k][0]) <= CENTRED_M
+                abs(self.resting_offset) <= CENTRED_M
                 and guard.around(ee, self._footprints, skip=fallen) == k
             )
 

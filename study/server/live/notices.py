@@ -38,6 +38,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from app.teleop.guarded_descent import CENTRED_M
 from app.trial import Trial
 from app.trial.events import EventKind, TrialEvent
 from study.server.live.texts import (
@@ -47,11 +48,11 @@ from study.server.live.texts import (
     HELD_ABOVE,
     MISSED_GRASP,
     MISSED_OFF_CENTRE,
-    NOT_CENTRED,
     RESTING_ON_OBJECT,
     SLIPPED_OFF_CENTRE,
     SLIPPED_OUT,
     SLIPPED_WAITING,
+    not_centred,
     toward_middle,
 )
 
@@ -86,6 +87,9 @@ class HeldNotices:
     fallen: float = NEVER
     slipped: float = NEVER
     dropped: float = NEVER
+    off_by: float = 0.0
+    """How far (m, world x) the resting hand was off the object's middle when ``off_centre``
+    was last stamped."""
     asked_offset: float = 0.0
     """How far (m, world x) the open hand was off the middle of the object it was down around
     at the last grasp request, 0 when centred or around none (the trial's ``grasp_offset``)."""
@@ -116,7 +120,7 @@ class HeldNotices:
             if trial.resting_on is not None:
                 self.lowest = now
                 if not trial.resting_centred:
-                    self.off_centre = now
+                    self.off_centre, self.off_by = now, trial.resting_offset
         accidents = trial.accidents
         if accidents.down and accidents.reset_objects:
             if accidents.fallen:
@@ -134,6 +138,9 @@ class HeldNotices:
         if waiting and self.dropped - self.slipped >= PUT_BACK_S:  # still down a second on
             return SLIPPED_WAITING
         way = toward_middle(self.asked_offset)
+        resting = now - self.lowest < LIMIT_HOLD_S and self.lowest > self.asked
+        if self.asked_offset and resting and self.off_centre < self.lowest and not waiting:
+            return AS_LOW_AS_IT_GOES  # the key named after an off-centre G did its work
         if waiting or (now - self.slipped < MISSED_NOTICE_S and self.asked <= self.slipped):
             # said first: the hand sinks back at once, and under other notices it was unread
             return SLIPPED_OFF_CENTRE.format(way=way) if self.asked_offset else SLIPPED_OUT
@@ -146,7 +153,9 @@ class HeldNotices:
         if now - self.above < LIMIT_HOLD_S and self.above > self.asked:
             return HELD_ABOVE
         if now - self.lowest < LIMIT_HOLD_S and self.lowest > self.asked:
-            return NOT_CENTRED if self.off_centre >= self.lowest else AS_LOW_AS_IT_GOES
+            if self.off_centre >= self.lowest:
+                return not_centred(self.off_by, centred_m=CENTRED_M)
+            return AS_LOW_AS_IT_GOES
         if now - self.at_limit < LIMIT_HOLD_S and self.at_limit > self.asked:
             return AT_REACH_LIMIT
         return MISSED_GRASP if missed else None
@@ -155,7 +164,7 @@ class HeldNotices:
         """A new run: nothing seen yet."""
         self.at_limit = self.missed = self.asked = self.resting = self.above = self.lowest = NEVER
         self.fallen = self.slipped = self.dropped = self.off_centre = NEVER
-        self.asked_offset = 0.0
+        self.asked_offset = self.off_by = 0.0
 
 
 RESISTED_GAP_M = 0.03

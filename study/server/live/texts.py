@@ -96,7 +96,18 @@ NOT_CENTRED = (
 )
 """Held instead of ``AS_LOW_AS_IT_GOES`` while the hand, as low as it goes around an object, is
 off its middle along the fingers: closed there the fingers squeeze the object away (a tester:
-5 of 5 grasps 0.9-3.1 cm off failed after the "press G" notice)."""
+5 of 5 grasps 0.9-3.1 cm off failed after the "press G" notice). Said with the one key that
+mends it when the hand is off along the fingers (``not_centred``)."""
+
+
+def not_centred(offset_m: float, *, centred_m: float) -> str:
+    """``NOT_CENTRED`` for a hand ``offset_m`` off the object's middle along world x: the one
+    key that mends it when more than ``centred_m`` (a tester read "back (S)" after a failed
+    grasp, then "away or back (W/S)" for the same hand), else both."""
+    if abs(offset_m) <= centred_m:
+        return NOT_CENTRED
+    return NOT_CENTRED.replace("away or back (W/S)", toward_middle(offset_m))
+
 
 RESTING_ON_OBJECT = (
     "A finger is resting on the object, so the gripper cannot go lower here. Move the gripper"
@@ -198,6 +209,7 @@ __all__ = [
     "WAITING_TEXT",
     "WAIT_TEXT",
     "end_screen",
+    "not_centred",
     "outcome_sentence",
     "toward_middle",
 ]
