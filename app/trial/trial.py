@@ -112,19 +112,7 @@ class Trial:
         self._grasp_points = self.scene.goals.positions
         self._reach_below = reach_below(self.scene.hand)
         self._half_widths = tuple(o.grasp_width / 2 for o in self.scene.spec.objects)
-        palm = min(self.scene.hand[1:], key=lambda layer: layer.lo, default=None)
-        upper = tuple(layer for layer in self.scene.hand[1:] if layer is not palm)
-        above = min((layer.lo for layer in upper), default=0.0)
-        self.guard = DescentGuard(
-            reach_below=self._reach_below,
-            slot=self.scene.spec.gripper_open,
-            palm_above=palm.lo if palm is not None else math.inf,
-            palm_half=_half_extent(palm),
-            # the parts above the palm (not the link before the last joint: its box, far off
-            # the TCP's axis, turns with it and reaches 12-16 cm around it, where it is not)
-            parts=tuple((layer.lo, *_half_extent(layer)) for layer in upper if not layer.turns),
-            low=reach.lo[2] + above,  # the arm above the palm, the hand at the reach's floor
-        )
+        self.guard = _descent_guard(self.scene, self._reach_below)
         """Holds the open hand above an object it would come down on (``held_above``) and
         stops it, lowered around one, with its palm just over the top."""
         self.resting_on: int | None = None
@@ -580,6 +568,24 @@ class Trial:
         if self.keep_records:
             self.records.append(rec)
         return rec
+
+
+def _descent_guard(scene: Scene, reach_below_m: float) -> DescentGuard:
+    """The trial's ``DescentGuard`` for ``scene``'s hand (its fingertips ``reach_below_m`` under
+    the TCP): its palm, the lowest layer above the fingers, and the parts above the palm (not
+    the link before the last joint: its box, far off the TCP's axis, turns with it and reaches
+    12-16 cm around it, where the link is not)."""
+    palm = min(scene.hand[1:], key=lambda layer: layer.lo, default=None)
+    upper = tuple(layer for layer in scene.hand[1:] if layer is not palm)
+    above = min((layer.lo for layer in upper), default=0.0)
+    return DescentGuard(
+        reach_below=reach_below_m,
+        slot=scene.spec.gripper_open,
+        palm_above=palm.lo if palm is not None else math.inf,
+        palm_half=_half_extent(palm),
+        parts=tuple((layer.lo, *_half_extent(layer)) for layer in upper if not layer.turns),
+        low=scene.reach.lo[2] + above,  # the arm above the palm, the hand at the reach's floor
+    )
 
 
 def _half_extent(layer: HandLayer | None) -> tuple[float, float]:
