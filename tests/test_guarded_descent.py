@@ -144,6 +144,52 @@ def test_a_hand_let_go_of_at_the_palms_edge_is_taken_again_only_well_inside() ->
     assert at(-0.002, z=rest - 0.02, g=tall) == ((edge - 0.002, -0.25, rest), 0)  # as before
 
 
+def test_the_wrist_stops_the_hand_beside_an_object_taller_than_it_comes_down_to() -> None:
+    """Beside the 20-cm bottle the palm's footprint ends 6.2 cm off its axis along the slot
+    (3 + 3.2 cm); the wrist's part, 10.4 cm above the TCP and 4.4 cm to each side along the slot,
+    reaches 7.4 cm. Between, the hand is stopped with the wrist just clear of the top (the
+    palm's box alone let it come down on the bottle and knock it over); beyond, and over the
+    robot's goal, it is not; the stop's hysteresis at the footprint holds for the wrist too."""
+    bottle = (0.55, -0.08, 0.03, 0.2, 0.03)
+    palm = {"reach_below": 0.05, "slot": 0.04, "palm_above": 0.0374, "palm_half": (0.032, 0.102)}
+    guard = DescentGuard(**palm, parts=((0.1036, 0.044, 0.088),), low=0.124)
+    wrist = 0.2 - 0.1036 + PALM_CLEAR_M
+
+    def at(dx: float, z: float = 0.02, g: DescentGuard = guard, **kw) -> tuple | None:
+        return g.rest((0.55 + dx, -0.08, 0.15), (0.55 + dx, -0.08, z), [bottle], **kw)
+
+    assert at(-0.063) == ((0.55 - 0.063, -0.08, wrist), 0)
+    assert at(0.07) == ((0.55 + 0.07, -0.08, wrist), 0)
+    assert at(0.07, z=wrist + 0.001) is None  # the target above the stop
+    assert at(0.075) is None and at(-0.075) is None  # beyond the wrist's footprint
+    assert at(0.07, skip=(0,)) is None  # the robot's goal
+    palm_stop = 0.2 - 0.0374 + PALM_CLEAR_M
+    assert at(0.06) == ((0.55 + 0.06, -0.08, palm_stop), 0)  # under the palm: its stop
+    assert at(0.063, g=DescentGuard(**palm, low=0.124)) is None  # the palm's box alone
+
+
+def test_no_part_of_the_hand_stops_it_above_any_shipped_grasp_point() -> None:
+    """At every object's grasp point in every shipped protocol's scenes, the input pressed to
+    the reach's floor, the stop (the palm over the object, every part of the hand over every
+    object) lies under the grasp point: the hand always reaches the grasp, the user alone or
+    the robot taking it there."""
+    for path in sorted(Path("protocols").glob("*.toml")):
+        if path.name == "population.toml":
+            continue
+        protocol = load_protocol(path)
+        configs = [protocol.training_config()] + [
+            protocol.trial_config(task, protocol.mode_names[0]) for task in protocol.task_names
+        ]
+        for config in configs:
+            trial = Trial(config, IdleInput(), keep_records=False)
+            floor = float(trial.scene.reach.lo[2])
+            for k, g in enumerate(trial._grasp_points.tolist()):
+                for skip in ((), (k,)):
+                    trial.guard.release()
+                    rest = trial.guard.rest(g, (g[0], g[1], floor), trial._footprints, skip=skip)
+                    assert rest is None or rest[0][2] < g[2] - 0.001, (path.name, k, skip, rest)
+
+
 def test_the_palm_stops_above_every_shipped_grasp_point() -> None:
     """The palm's stop lies under every grasp point of every shipped protocol's scenes: the
     hand always reaches the grasp."""

@@ -379,3 +379,27 @@ def test_f_held_at_the_edge_of_the_palms_footprint_keeps_the_hand_still(dx: floa
     assert max(zs) - min(zs) < 0.005, (min(zs), max(zs))
     assert len(resting) == 1, resting
     assert trial.accidents.count == 0
+
+
+@pytest.mark.parametrize("dx", [0.062, 0.064, -0.062, -0.064])
+def test_f_held_beside_the_bottle_stops_the_wrist_above_it(dx: float) -> None:
+    """Beside the paper scene's 20-cm bottle the palm's footprint ends 6.2 cm off its axis along
+    the slot, but the wrist's part of the hand, 10.4 cm above the TCP and 4.4 cm to each side
+    along the slot, reaches over it: the open hand lowered 6.2-6.4 cm off, with no assistance,
+    knocked the bottle over on one side and hovered against it on the other. F held to the
+    table for 8 s: nothing of the hand touches the bottle, it stands, and the hand, stopped with
+    the wrist clear of its top, stays within 5 mm."""
+    config = load_protocol(PAPER_PROTOCOL).config_for("easy-right", "none")
+    probe = Trial(config, _Keys((0.0, 0.0), floor=1.0), keep_records=False)
+    k = probe.scene.object_names.index("bottle")
+    bottle = probe._grasp_points[k]
+    keys = _Keys((float(bottle[0] + dx - MUG[0]), float(bottle[1] - MUG[1])), floor=0.0)
+    trial = Trial(config, keys, keep_records=False)
+    zs = []
+    while trial.t < 10.0 and not trial.done:
+        trial.tick()
+        assert not any(obj == k for _, obj in trial.contacts.touching), trial.t
+        if trial.t > 7.0:
+            zs.append(float(trial.sim.ee[2]))
+    assert trial.accidents.count == 0
+    assert max(zs) - min(zs) < 0.005, (min(zs), max(zs))

@@ -50,8 +50,15 @@ sway took the hand in and out of it and the stop raised it each time in (a teste
 bobbed 3 cm twice a second for as long as F was held, h9). It does so only over an object
 whose top is under ``low``, where the hand beside it is its palm and fingers alone: the arm
 above the palm (the wrist's parts, wider along the slot) stays over such an object however
-low the hand goes; beside a taller one (the 20-cm bottle) it can meet the object with the
-palm's footprint clear, and there the stop keeps taking the hand at the footprint itself.
+low the hand goes; beside a taller one (the 20-cm bottle) the stop keeps taking the hand at
+the footprint itself. The hand's ``parts`` above the palm stop it too: with part ``j``'s
+bottom ``l_j`` above the TCP and its footprint ``e_j`` to each side, over every ``k`` with
+``|x_x - o_x| < r_k + e_jx`` and ``|x_y - o_y| < r_k + e_jy`` (``r_k`` less ``MARGIN_M`` for
+``palm_left``) the stop rises to ``h_k - l_j + PALM_CLEAR_M`` where that is higher. With the
+palm's box alone, the wrist's part (10.4 cm above the TCP, 4.4 cm to each side along the slot)
+came down on the bottle with the palm's footprint clear: lowered 6.2-6.4 cm off its axis along
+the slot, the open hand knocked it over on one side and hovered against it at 16 cm on the
+other.
 The trial leaves out the object the robot is taking the hand to (``alpha > 0``), as
 ``lift_out`` does: its policy centres the hand there, and a user's target held off it would
 only push against the robot lowering the hand.
@@ -89,6 +96,9 @@ let it slip out at 3 cm (``benchmarks/grasp_offsets.py``); 2 cm leaves a partici
 
 Footprint = tuple[float, float, float, float, float]
 """An object as ``(x, y, footprint radius, top height, half-width across the slot)`` (m)."""
+Part = tuple[float, float, float]
+"""A part of the hand above the palm as ``(bottom above the TCP, half-extent along world x,
+half-extent along world y)`` (m): the box it reaches over, centred on the TCP."""
 
 
 def _clears(px: float, py: float, obj: Footprint, *, slot: float, margin: float) -> bool:
@@ -111,9 +121,10 @@ class DescentGuard:
     one, with its palm just over the top (module docstring); one per trial, for a hand whose
     fingertips are ``reach_below`` under the TCP, whose palm is ``palm_above`` over it, and
     whose open slot's half-width is ``slot`` and whose palm reaches ``palm_half`` to each side
-    of the TCP along world x and y; objects whose top is under ``low`` meet only the palm and
-    fingers of the hand lowered beside them as far as it goes (the palm stop's hysteresis is
-    theirs). ``held``: the object held above, or ``None``."""
+    of the TCP along world x and y, with its ``parts`` above the palm; objects whose top is
+    under ``low`` meet only the palm and fingers of the hand lowered beside them as far as it
+    goes (the palm stop's hysteresis is theirs). ``held``: the object held above, or
+    ``None``."""
 
     def __init__(
         self,
@@ -122,12 +133,15 @@ class DescentGuard:
         slot: float,
         palm_above: float,
         palm_half: tuple[float, float] = (0.0, 0.0),
+        parts: Sequence[Part] = (),
         low: float = -math.inf,
         clearance: float = CLEARANCE_M,
     ) -> None:
         self.reach_below = reach_below
         self.palm_above = palm_above
         self.palm_half = palm_half
+        self.parts = tuple(parts)
+        self._parts_lo = min((lo for lo, _, _ in self.parts), default=math.inf)
         self.low = low
         self.slot = slot
         self.clearance = clearance
@@ -249,21 +263,34 @@ class DescentGuard:
         skip: Container[int] = (),
     ) -> tuple[tuple[float, float, float], int] | None:
         """``U``'s target no lower than where the palm clears the top of the object the open
-        hand is lowered around or beside, under its palm (module docstring), and that object's
-        index; ``None`` when the target is not below that height (or no object is there).
+        hand is lowered around or beside, under its palm, and every part above it clears the
+        top of each object under it (module docstring), and the object that stops it highest;
+        ``None`` when the target is not below that height (or no object is there).
         Keeps ``palm_on`` and ``palm_left`` (the stop's hysteresis)."""
         held, left = self.palm_on, self.palm_left
         if left is not None and not self._near(x, objects[left]):
             left = None  # the hand is clear of the footprint it left
         k = self.under_palm(x, objects, skip=skip, left=left)
+        tx, ty, tz = target
+        rest_z = -math.inf if k is None else objects[k][3] - self.palm_above + PALM_CLEAR_M
+        if self.parts:  # the parts above the palm, over objects taller than the palm's stop
+            xx, xy, _ = x
+            above = max(tz, rest_z)
+            for j, (ox, oy, radius, top, _) in enumerate(objects):
+                if top - self._parts_lo + PALM_CLEAR_M <= above or j in skip:
+                    continue  # no part comes down to this top, or it does not stop it higher
+                r = radius - MARGIN_M if j == left else radius
+                for lo, hx, hy in self.parts:
+                    z = top - lo + PALM_CLEAR_M
+                    if z > above and abs(xx - ox) < r + hx and abs(xy - oy) < r + hy:
+                        above = rest_z = z
+                        k = j
         if k is None:
             self.palm_on = None
             if held is not None and objects[held][3] < self.low and self._near(x, objects[held]):
                 left = held  # it left the footprint the stop held it over: let go
             self.palm_left = left
             return None
-        tx, ty, tz = target
-        rest_z = objects[k][3] - self.palm_above + PALM_CLEAR_M
         if tz >= rest_z:
             self.palm_on, self.palm_left = None, None if k == left else left
             return None
@@ -293,4 +320,5 @@ __all__ = [
     "SINK_M",
     "DescentGuard",
     "Footprint",
+    "Part",
 ]

@@ -112,15 +112,7 @@ class Trial:
         self._grasp_points = self.scene.goals.positions
         self._reach_below = reach_below(self.scene.hand)
         self._half_widths = tuple(o.grasp_width / 2 for o in self.scene.spec.objects)
-        palm = min(self.scene.hand[1:], key=lambda layer: layer.lo, default=None)
-        above = min((layer.lo for layer in self.scene.hand[1:] if layer is not palm), default=0.0)
-        self.guard = DescentGuard(
-            reach_below=self._reach_below,
-            slot=self.scene.spec.gripper_open,
-            palm_above=palm.lo if palm is not None else math.inf,
-            palm_half=_half_extent(palm),
-            low=reach.lo[2] + above,  # the arm above the palm, the hand at the reach's floor
-        )
+        self.guard = _descent_guard(self.scene, self._reach_below)
         """Holds the open hand above an object it would come down on (``held_above``) and
         stops it, lowered around one, with its palm just over the top."""
         self.resting_on: int | None = None
@@ -289,16 +281,19 @@ class Trial:
         if hold is not None:
             return np.array(hold)
         rest = guard.rest(ee, target, self._footprints, skip=skip)
-        self._note_resting(ee, target[2], None if rest is None else rest[0][2])
+        self._note_resting(ee, target[2], rest)
         return self.user_target if rest is None else np.array(rest[0])
 
-    def _note_resting(self, ee: list[float], target_z: float, rest_z: float | None) -> None:
+    def _note_resting(
+        self, ee: list[float], target_z: float, rest: tuple[tuple[float, float, float], int] | None
+    ) -> None:
         """``resting_on``: the object the open hand is around once it is as low as it goes --
         come down to ``rest_z``, the palm's stop the input asks below, or, with the input
         (at height ``target_z``) pushed to the reach's floor, there or no longer coming down (the robot may be carrying
         the hand to that object: its policy sets the height then); ``resting_centred``: centred
         on it along the slot (``CENTRED_M``)."""
         last, self._last_ee_z = self._last_ee_z, ee[2]
+        rest_z = None if rest is None else rest[0][2]
         if rest_z is not None:
             if ee[2] > rest_z + 0.005:
                 return  # still coming down to the palm's stop
@@ -309,6 +304,8 @@ class Trial:
                 return  # still coming down
         guard, fallen = self.guard, self.accidents.fallen
         k = guard.under_palm(ee, self._footprints, skip=fallen, left=guard.palm_left)
+        if k is None and rest is not None:
+            k = rest[1]  # a part of the hand above the palm stopped beside a tall object
         if k is not None:
             self.resting_on = k
             self.resting_offset = ee[0] - self._footprints[k][0]
@@ -574,6 +571,24 @@ class Trial:
         if self.keep_records:
             self.records.append(rec)
         return rec
+
+
+def _descent_guard(scene: Scene, reach_below_m: float) -> DescentGuard:
+    """The trial's ``DescentGuard`` for ``scene``'s hand (its fingertips ``reach_below_m`` under
+    the TCP): its palm, the lowest layer above the fingers, and the parts above the palm (not
+    the link before the last joint: its box, far off the TCP's axis, turns with it and reaches
+    12-16 cm around it, where the link is not)."""
+    palm = min(scene.hand[1:], key=lambda layer: layer.lo, default=None)
+    upper = tuple(layer for layer in scene.hand[1:] if layer is not palm)
+    above = min((layer.lo for layer in upper), default=0.0)
+    return DescentGuard(
+        reach_below=reach_below_m,
+        slot=scene.spec.gripper_open,
+        palm_above=palm.lo if palm is not None else math.inf,
+        palm_half=_half_extent(palm),
+        parts=tuple((layer.lo, *_half_extent(layer)) for layer in upper if not layer.turns),
+        low=scene.reach.lo[2] + above,  # the arm above the palm, the hand at the reach's floor
+    )
 
 
 def _half_extent(layer: HandLayer | None) -> tuple[float, float]:
