@@ -112,8 +112,13 @@ def test_a_slip_says_why_and_a_wait_only_when_the_object_waits() -> None:
     n.ask(40.0, offset=0.03)
     n.slipped, n.lowest, n.off_centre = 41.0, 41.5, 41.5
     assert n.text(41.6, live=True) == BACK_SLIP
-    n.lowest = 42.7  # resting centred now: the notice that invites G, not "move back" again
+    n.lowest = n.centred = 42.7  # resting centred now: the notice that invites G, not "back"
     assert n.text(42.8, live=True) == texts.AS_LOW_AS_IT_GOES
+    n.lowest = n.off_centre = 43.2  # h15: held S too long, overshot 3 cm: the other key now
+    n.off_by = -0.03
+    assert n.text(43.3, live=True) == texts.not_centred(-0.03, centred_m=CENTRED_M)
+    assert "away (W)" in n.text(43.3, live=True)
+    assert n.text(44.0, live=True) is None  # moving: nothing, never the slip's "back (S)" again
     n = HeldNotices()  # G with the hand centred; the object still slips out, and waits
     n.ask(20.1, offset=0.0)
     n.slipped = n.dropped = 21.0

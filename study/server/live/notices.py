@@ -87,6 +87,8 @@ class HeldNotices:
     fallen: float = NEVER
     slipped: float = NEVER
     dropped: float = NEVER
+    centred: float = NEVER
+    """When the open hand last rested centred on an object (the trial's ``resting_centred``)."""
     off_by: float = 0.0
     """How far (m, world x) the resting hand was off the object's middle when ``off_centre``
     was last stamped."""
@@ -121,12 +123,25 @@ class HeldNotices:
                 self.lowest = now
                 if not trial.resting_centred:
                     self.off_centre, self.off_by = now, trial.resting_offset
+                else:
+                    self.centred = now
         accidents = trial.accidents
         if accidents.down and accidents.reset_objects:
             if accidents.fallen:
                 self.fallen = now
             if len(accidents.fallen) < len(accidents.down):  # slipped out, standing
                 self.dropped = now
+
+    def _open_hand(self, now: float) -> str | None:
+        """What is said of the open hand kept above or as low as it goes (a grasp request
+        takes down what was said before it), or ``None``."""
+        if now - self.above < LIMIT_HOLD_S and self.above > self.asked:
+            return HELD_ABOVE
+        if now - self.lowest < LIMIT_HOLD_S and self.lowest > self.asked:
+            if self.off_centre >= self.lowest:
+                return not_centred(self.off_by, centred_m=CENTRED_M)
+            return AS_LOW_AS_IT_GOES
+        return None
 
     def text(self, now: float, *, live: bool) -> str | None:
         """The notice to hold at ``now`` (``None``: none), only while the run is ``live``."""
@@ -138,33 +153,29 @@ class HeldNotices:
         if waiting and self.dropped - self.slipped >= PUT_BACK_S:  # still down a second on
             return SLIPPED_WAITING
         way = toward_middle(self.asked_offset)
-        resting = now - self.lowest < LIMIT_HOLD_S and self.lowest > self.asked
-        if self.asked_offset and resting and self.off_centre < self.lowest and not waiting:
-            return AS_LOW_AS_IT_GOES  # the key named after an off-centre G did its work
-        if waiting or (now - self.slipped < MISSED_NOTICE_S and self.asked <= self.slipped):
-            # said first: the hand sinks back at once, and under other notices it was unread
-            return SLIPPED_OFF_CENTRE.format(way=way) if self.asked_offset else SLIPPED_OUT
         missed = now - self.missed < MISSED_NOTICE_S and self.asked <= self.missed
-        if missed and self.asked_offset:  # also said first: the hand opens where it was
-            return MISSED_OFF_CENTRE.format(way=way)
+        # once the hand named after an off-centre G has rested centred, its advice is done:
+        # what the hand does now is said (overshot, "not in the middle" names the other key)
+        if not (self.asked_offset and self.centred > self.asked and not waiting):
+            if waiting or (now - self.slipped < MISSED_NOTICE_S and self.asked <= self.slipped):
+                # said first: the hand sinks back at once, and under other notices it was unread
+                return SLIPPED_OFF_CENTRE.format(way=way) if self.asked_offset else SLIPPED_OUT
+            if missed and self.asked_offset:  # also said first: the hand opens where it was
+                return MISSED_OFF_CENTRE.format(way=way)
         if now - self.resting < RESTING_HOLD_S:  # what really holds the gripper up
             return RESTING_ON_OBJECT
-        # a grasp request takes down what was said of the open hand before it
-        if now - self.above < LIMIT_HOLD_S and self.above > self.asked:
-            return HELD_ABOVE
-        if now - self.lowest < LIMIT_HOLD_S and self.lowest > self.asked:
-            if self.off_centre >= self.lowest:
-                return not_centred(self.off_by, centred_m=CENTRED_M)
-            return AS_LOW_AS_IT_GOES
+        if (held := self._open_hand(now)) is not None:
+            return held
         if now - self.at_limit < LIMIT_HOLD_S and self.at_limit > self.asked:
             return AT_REACH_LIMIT
-        return MISSED_GRASP if missed else None
+        return MISSED_GRASP if missed and not self.asked_offset else None
 
     def forget(self) -> None:
         """A new run: nothing seen yet."""
         self.at_limit = self.missed = self.asked = self.resting = self.above = self.lowest = NEVER
         self.fallen = self.slipped = self.dropped = self.off_centre = NEVER
         self.asked_offset = self.off_by = 0.0
+        self.centred = NEVER
 
 
 RESISTED_GAP_M = 0.03
