@@ -30,6 +30,7 @@ import viser
 import websockets
 
 from study.server.firewall import Firewall, FirewallConfig
+from study.server.live.live_run import KEY_STATE_MAX_AGE_S
 from study.server.page_script import KEY_RESEND_MS
 from tests.attacker import CAMERA
 from tests.browser.harness import RunningServer, run_async, start_server
@@ -71,6 +72,9 @@ class Honest:
         self.keys_uuid = ""
         self.seq = 0
         self.landed: list[float] = []
+        self.silent_s = 0.0
+        """The longest this tab itself went without resending a held key's state."""
+        self._held_since: float | None = None
 
     async def start(self, code: str) -> None:
         await self.c.join(code)
@@ -86,6 +90,10 @@ class Honest:
 
     async def keys(self, held: str) -> None:
         self.seq += 1
+        now = time.monotonic()
+        if self._held_since is not None:
+            self.silent_s = max(self.silent_s, now - self._held_since)
+        self._held_since = now if held else None
         await self.c.send(
             "GuiUpdateMessage", uuid=self.keys_uuid, updates={"value": f"{self.seq} {held}"}
         )
@@ -130,11 +138,19 @@ class Honest:
         assert moved > 0.005 and after - moved < 1e-9  # moved while held, not after
 
     def untouched(self, rs: RunningServer) -> None:
-        """Still bound, never paused, nothing of theirs dropped."""
+        """Still bound, never paused, nothing of theirs dropped. Held keys are let go when
+        their state stops arriving for ``KEY_STATE_MAX_AGE_S`` (the server's promise to a
+        stalled tab): allowed only if this tab itself, a thread of the server's own process on
+        a loaded machine, went that long without resending (CI once: the asyncio loop starved
+        while 40 addresses flooded), never when it resent on time."""
         assert not self.c.closed and self.live.page is not None
         assert not self.live.session.paused
         kinds = [e.kind for e in rs.store.events()]
-        assert "pause" not in kinds and "input_dropped" not in kinds and "keys_expired" not in kinds
+        assert "pause" not in kinds and "input_dropped" not in kinds
+        if "keys_expired" in kinds:
+            assert self.silent_s >= KEY_STATE_MAX_AGE_S - 0.05, (
+                f"keys expired though the tab resent every {self.silent_s:.2f} s at most"
+            )
 
 
 async def until(predicate: Any, *, timeout: float = 10.0) -> bool:

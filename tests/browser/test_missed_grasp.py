@@ -68,8 +68,16 @@ def test_a_missed_grasp_shows_closed_fingers_and_a_notice_that_stays(
     hold(page, "f", 0.6)
     page.wait_for_timeout(500)
     hold(page, "g", 0.2)
-    wait_until(lambda: trial.sim.gripper_opening < CLOSED_M, timeout=5)
+    closed = wait_until(lambda: trial.sim.gripper_opening < CLOSED_M, timeout=10)
     screenshot(page, screenshots, "16-missed-grasp")  # the fingers closed on nothing
+    # (CI once: the fingers never closed and no notice came; what the page sent and what the
+    # server recorded say where the press went)
+    assert closed, (
+        page.evaluate("() => [window.__studyKeys.seq, window.__studyKeys.sent]"),
+        live.page.rejected if live.page is not None else None,
+        [(e.kind, e.detail) for e in study.store.events()][-8:],
+        _events(study, run.trial_id)[-8:],
+    )
     notice = page.get_by_text(MISSED_GRASP)
     notice.first.wait_for(timeout=10_000)
     missed = live.view.notices.missed  # monotonic, when the control thread saw the miss
