@@ -9,6 +9,7 @@ down once the mug fits between the fingers.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -168,64 +169,53 @@ def test_the_wrist_stops_the_hand_beside_an_object_taller_than_it_comes_down_to(
     assert at(0.063, g=DescentGuard(**palm, low=0.124)) is None  # the palm's box alone
 
 
+def _shipped_trials() -> Iterator[tuple[Path, Trial]]:
+    """A trial of every scene of every shipped protocol (its practice and each task, the first
+    mode), with the protocol's path."""
+    for path in sorted(Path("protocols").glob("*.toml")):
+        if path.name == "population.toml":
+            continue
+        protocol = load_protocol(path)
+        configs = [protocol.training_config()] + [
+            protocol.trial_config(task, protocol.mode_names[0]) for task in protocol.task_names
+        ]
+        for config in configs:
+            yield path, Trial(config, IdleInput(), keep_records=False)
+
+
 def test_no_part_of_the_hand_stops_it_above_any_shipped_grasp_point() -> None:
     """At every object's grasp point in every shipped protocol's scenes, the input pressed to
     the reach's floor, the stop (the palm over the object, every part of the hand over every
     object) lies under the grasp point: the hand always reaches the grasp, the user alone or
     the robot taking it there."""
-    for path in sorted(Path("protocols").glob("*.toml")):
-        if path.name == "population.toml":
-            continue
-        protocol = load_protocol(path)
-        configs = [protocol.training_config()] + [
-            protocol.trial_config(task, protocol.mode_names[0]) for task in protocol.task_names
-        ]
-        for config in configs:
-            trial = Trial(config, IdleInput(), keep_records=False)
-            floor = float(trial.scene.reach.lo[2])
-            for k, g in enumerate(trial._grasp_points.tolist()):
-                for skip in ((), (k,)):
-                    trial.guard.release()
-                    rest = trial.guard.rest(g, (g[0], g[1], floor), trial._footprints, skip=skip)
-                    assert rest is None or rest[0][2] < g[2] - 0.001, (path.name, k, skip, rest)
+    for path, trial in _shipped_trials():
+        floor = float(trial.scene.reach.lo[2])
+        for k, g in enumerate(trial._grasp_points.tolist()):
+            for skip in ((), (k,)):
+                trial.guard.release()
+                rest = trial.guard.rest(g, (g[0], g[1], floor), trial._footprints, skip=skip)
+                assert rest is None or rest[0][2] < g[2] - 0.001, (path.name, k, skip, rest)
 
 
 def test_the_palm_stops_above_every_shipped_grasp_point() -> None:
     """The palm's stop lies under every grasp point of every shipped protocol's scenes: the
     hand always reaches the grasp."""
-    for path in sorted(Path("protocols").glob("*.toml")):
-        if path.name == "population.toml":
-            continue
-        protocol = load_protocol(path)
-        modes = protocol.mode_names[:1]
-        configs = [protocol.training_config()] + [
-            protocol.trial_config(task, modes[0]) for task in protocol.task_names
-        ]
-        for config in configs:
-            trial = Trial(config, IdleInput(), keep_records=False)
-            palm = trial.guard.palm_above
-            for (_, _, _, top, _), g in zip(trial._footprints, trial._grasp_points, strict=True):
-                assert top - palm + PALM_CLEAR_M < g[2] - 0.001, (path.name, top, g)
+    for path, trial in _shipped_trials():
+        palm = trial.guard.palm_above
+        for (_, _, _, top, _), g in zip(trial._footprints, trial._grasp_points, strict=True):
+            assert top - palm + PALM_CLEAR_M < g[2] - 0.001, (path.name, top, g)
 
 
 def test_a_hand_centred_on_any_shipped_object_has_no_other_object_under_its_palm() -> None:
     """The palm's stop beside an object never keeps the hand from a grasp: in every shipped
     protocol's scenes, the palm of a hand centred on one object clears every other one."""
-    for path in sorted(Path("protocols").glob("*.toml")):
-        if path.name == "population.toml":
-            continue
-        protocol = load_protocol(path)
-        configs = [protocol.training_config()] + [
-            protocol.trial_config(task, protocol.mode_names[0]) for task in protocol.task_names
-        ]
-        for config in configs:
-            trial = Trial(config, IdleInput(), keep_records=False)
-            for k, (ox, oy, _, top, _) in enumerate(trial._footprints):
-                hand = (ox, oy, top + 0.05)
-                assert trial.guard.under_palm(hand, trial._footprints, skip=(k,)) is None, (
-                    path.name,
-                    k,
-                )
+    for path, trial in _shipped_trials():
+        for k, (ox, oy, _, top, _) in enumerate(trial._footprints):
+            hand = (ox, oy, top + 0.05)
+            assert trial.guard.under_palm(hand, trial._footprints, skip=(k,)) is None, (
+                path.name,
+                k,
+            )
 
 
 @pytest.mark.parametrize("offset_m", [0.025, 0.035])
