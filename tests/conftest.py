@@ -78,7 +78,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 
 def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
-    """``-n auto``: two workers a core (``--maxprocesses`` caps it). Many tests wait -- on paced
+    """``-n auto``: two workers a core (``--maxprocesses`` caps it: 3 on 2 cores since four
+    starved the browser lanes and the port tests in 2 of 3 full runs). Many tests wait -- on paced
     control loops, attack scripts' seconds, subprocesses -- so twice as many workers as cores
     keep the cores busier (2 -> 4 workers: 12:41 -> 11:31 on 2 cores). The suite as a whole is
     CPU-bound on 2 cores: about 620 CPU s outside the browsers and 590 in the browser lanes,
