@@ -12,7 +12,7 @@ from study.protocol import Item
 from study.session.errors import SessionStateError
 from study.session.ledger import SessionInfo
 from study.session.plan import Plan, Step
-from study.session.screen import Overview, Screen
+from study.session.screen import Overview, Progress, Screen
 from study.session.steps import PARTICIPANT_ACTIONS, Steps
 
 EXPERIMENTER_ACTIONS: tuple[str, ...] = (
@@ -60,6 +60,8 @@ def screen(steps: Steps, *, revision: int) -> Screen:
             text = protocol.describe_trial(step.task or "")
     elif phase == "questions" and step is not None:
         title = "Questions"
+        if step.questionnaire == "closing":
+            progress = Progress(0, progress.of)  # about the whole study, not its last run
         text = _questions_intro(texts.instructions, step, steps.plan)
         items = tuple(steps.pending_items(step))
     elif phase == "debrief":
