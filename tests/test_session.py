@@ -108,8 +108,12 @@ def test_whole_session_in_order_with_every_transition_logged(
     # progress and screen order as the participant saw them
     # practice runs and the main part's runs counted apart, as the consent counts them
     assert ("ready", None, "Practice run 3 of 3") in seen
-    assert ("questions", "after_training", "Practice run 3 of 3") in seen
+    assert ("questions", "after_training", "") in seen
     assert ("ready", None, "Run 1 of 8") in seen and ("questions", "closing", "") in seen
+    # a run's number above the questions about that run (or its task's two), above no others
+    assert ("questions", "after_run", "Run 1 of 8") in seen
+    assert ("questions", "after_task", "Run 2 of 8") in seen
+    assert ("questions", "between_tasks", "") in seen
     assert not any("Trial" in text or "of 11" in text for _, _, text in seen)
     moments = [q for p, q, _ in seen if p == "questions"]
     assert moments[0] == "before_training" and moments[-1] == "closing"

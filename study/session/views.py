@@ -39,6 +39,12 @@ INTRODUCTIONS = {
 """The instructions text introducing each questionnaire moment (``rating`` for the others)."""
 
 
+RUN_QUESTIONNAIRES = ("after_run", "after_task")
+"""The questions about the run (or the task's two runs) just done: the page shows that run's
+number above them; above any other questions (the practice's, a break's, the closing ones) a
+run number would say where the participant is not."""
+
+
 def screen(steps: Steps, *, revision: int) -> Screen:
     """What the participant should see now (no condition names anywhere)."""
     state, protocol = steps.state, steps.protocol
@@ -60,8 +66,8 @@ def screen(steps: Steps, *, revision: int) -> Screen:
             text = protocol.describe_trial(step.task or "")
     elif phase == "questions" and step is not None:
         title = "Questions"
-        if step.questionnaire == "closing":
-            progress = Progress(0, progress.of)  # about the whole study, not its last run
+        if step.questionnaire not in RUN_QUESTIONNAIRES:
+            progress = Progress(0, progress.of)  # about the practice, a break, the whole study
         text = _questions_intro(texts.instructions, step, steps.plan)
         items = tuple(steps.pending_items(step))
     elif phase == "debrief":
