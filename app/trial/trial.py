@@ -135,14 +135,7 @@ class Trial:
         self._last_ee_z = math.inf  # the TCP's height at the last tick (``_note_resting``)
         self._cylinders = self._object_cylinders()
         self._footprints = self._object_footprints()
-        self._footprint_rows = _rows(self._footprints)
-        self._steer_consts = self._steering_constants()
-        """``steer_core.steer``'s fixed numbers, or ``None``: the reference steers."""
-        self._steer_state = np.array((*self.guard.state(), math.inf))
-        self._steer_synced = True
-        self._steer_out = np.zeros(6)
-        self._fallen_seen: tuple[int, ...] | None = None
-        self._fallen = np.zeros(0, dtype=np.int64)
+        self._start_steering()
         self._blend = BlendTick(0.0, 0.0, np.full(n, 1.0 / n), -1, 0.0, math.nan)
         self.records: list[TickRecord] = []
         self.events: list[tuple[float, TrialEvent]] = []
@@ -243,6 +236,17 @@ class Trial:
         self._cylinders = self._object_cylinders()
         self._footprints = self._object_footprints()
         self._footprint_rows = _rows(self._footprints)
+
+    def _start_steering(self) -> None:
+        """What the compiled steering (``_steer_compiled``) keeps between ticks."""
+        self._footprint_rows = _rows(self._footprints)
+        self._steer_consts = self._steering_constants()
+        """``steer_core.steer``'s fixed numbers, or ``None``: the reference steers."""
+        self._steer_state = np.array((*self.guard.state(), self._last_ee_z))  # (STATE)
+        self._steer_synced = True  # whether _steer_state holds the guard's state
+        self._steer_out = np.zeros(6)
+        self._fallen_seen: tuple[int, ...] | None = None
+        self._fallen = np.zeros(0, dtype=np.int64)  # the fallen objects' indices
 
     def _steering_constants(self) -> np.ndarray | None:
         """The numbers ``steer_core.steer`` steers by (the guard's hand, the reach's floor),
