@@ -55,6 +55,8 @@ FAR_OUTSIDE_M = 0.5  # a raw target this far outside the reach region is logged 
 _FLOAT = np.dtype(float)
 GOAL_MOVED_M = 0.005  # a goal follows its object once the object has moved this far from it
 _LOST = (EventKind.DROPPED, EventKind.LIFT_FAILED)  # the task let go of what it held
+_CLAMPED = mark(EventKind.TARGET_CLAMPED)  # most ticks of a Hard task log one: shared
+_FAR_OUTSIDE = mark(EventKind.TARGET_FAR_OUTSIDE)
 
 
 class Trial:
@@ -537,8 +539,7 @@ class Trial:
             events.append(mark(EventKind.INVALID_TARGET))
             return
         if outside > 0.0:
-            far = outside > FAR_OUTSIDE_M
-            events.append(mark(EventKind.TARGET_FAR_OUTSIDE if far else EventKind.TARGET_CLAMPED))
+            events.append(_FAR_OUTSIDE if outside > FAR_OUTSIDE_M else _CLAMPED)
         self.user_target = target
         path = None if cmd.path is None else self._clamped(cmd.path)[0]
         if cmd.path is not None and path is None:
