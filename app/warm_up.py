@@ -13,7 +13,7 @@ import time
 
 from app.blending import policy_grasp_core
 from app.robot import kinematics_core
-from app.teleop import ik_step_core
+from app.teleop import ik_step_core, steer_core
 from app.trial import fused_control_core
 
 __all__ = ["warm_up"]
@@ -26,6 +26,7 @@ def warm_up() -> float:
     ik_step_core.warm_up()
     kinematics_core.warm_up()
     fused_control_core.warm_up()
+    steer_core.warm_up()
     return time.perf_counter() - start
 
 

@@ -305,6 +305,27 @@ class DescentGuard:
         r = radius + MARGIN_M
         return abs(x[0] - ox) < r + hx and abs(x[1] - oy) < r + hy
 
+    def state(self) -> tuple[float, ...]:
+        """What the guard keeps between calls as numbers, for a compiled caller
+        (``app.teleop.steer_core.STATE`` up to ``palm_left``): ``held``, the object last let go
+        of, when (``t``, ``x``, ``y``) the hand and target began to clear the held one, ``palm_on``
+        and ``palm_left``; ``-1`` for ``None`` (``NaN`` for no start)."""
+        since = self._clear_since
+        return (
+            *(-1.0 if k is None else float(k) for k in (self.held, self._cleared)),
+            *((math.nan,) * 3 if since is None else since),
+            *(-1.0 if k is None else float(k) for k in (self.palm_on, self.palm_left)),
+        )
+
+    def set_state(self, values: Sequence[float]) -> None:
+        """Take the state a compiled caller worked out (:meth:`state`'s numbers)."""
+        held, cleared, t, x, y, palm_on, palm_left = values[:7]
+        self.held = None if held < 0 else int(held)
+        self._cleared = None if cleared < 0 else int(cleared)
+        self._clear_since = None if math.isnan(t) else (t, x, y)
+        self.palm_on = None if palm_on < 0 else int(palm_on)
+        self.palm_left = None if palm_left < 0 else int(palm_left)
+
     def release(self) -> None:
         """Hold nothing (the gripper closed)."""
         self.held = self._cleared = self._clear_since = self.palm_on = self.palm_left = None

@@ -108,12 +108,11 @@ class ScriptedInput:
             f = reach / dist
             sx, sy, sz = sx * f, sy * f, sz * f
         self._target = tx, ty, tz = tx + sx, ty + sy, tz + sz
+        ox, oy, oz = self._offset
         if self.noise > 0:
             a, b = self._noise_factors(dt)
             nx, ny, nz = self._normals()
-            ox, oy, oz = self._offset
-            self._offset = (a * ox + b * nx, a * oy + b * ny, a * oz + b * nz)
-        ox, oy, oz = self._offset
+            self._offset = ox, oy, oz = (a * ox + b * nx, a * oy + b * ny, a * oz + b * nz)
         return TeleopCommand(np.array((tx + ox, ty + oy, tz + oz)), grasp)
 
     def _normals(self) -> tuple[float, float, float]:

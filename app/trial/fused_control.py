@@ -35,7 +35,7 @@ from app.blending.blend import BlendRecord
 from app.blending.errors import InvalidInputError
 from app.blending.policy_grasp import GraspApproachPolicy
 from app.teleop.ik_step import IKStep
-from app.trial.fused_control_core import control_step, pack_arm
+from app.trial.fused_control_core import control_step, pack_arm, pack_goals
 
 __all__ = ["FusedControl", "fused_control"]
 
@@ -77,6 +77,8 @@ class FusedControl:
         self._arm = pack_arm((*chain, *ik.kernel_inputs(), *policy.kernel_constants()))
         self._q = self._target = self._u = np.empty(0)
         self._goals: tuple[np.ndarray, ...] = ()
+        self._goal_set = (np.empty(0), np.empty(0, dtype=bool))  # packed, and the hysteresis
+        self._goals_packed: object = None  # the goals they were packed from
 
     def step(
         self, q: np.ndarray, target: np.ndarray, *, x: np.ndarray, robot_x: np.ndarray
@@ -89,6 +91,10 @@ class FusedControl:
             u = self.ik(q, target)
             return u, blender.step(q, u, x=x, robot_x=robot_x)
         self._q, self._target, self._goals = q, target, goals
+        if goals is not self._goals_packed:  # the same tuple until the goals change
+            self._goals_packed = goals
+            rows, rots, postures, approaching, objects = goals
+            self._goal_set = (pack_goals(rows, rots, postures, objects), approaching)
         if blender.compiled_numbers() is not None:
             rec = blender.step_compiled(q, x=x, robot_x=robot_x, act=self._act_all)
         else:
@@ -101,7 +107,7 @@ class FusedControl:
         q = self._q
         goals = self._goals
         out, k, flips, info, finite, c, d, motion, alpha, c_su = control_step(
-            q, self._target, *assessment, float(self.ik.max_speed), self._arm, *goals
+            q, self._target, *assessment, float(self.ik.max_speed), self._arm, *self._goal_set
         )
         if info != 0:  # pragma: no cover - J J^T + lambda^2 I is positive definite
             raise InvalidInputError("the kinematics pass gave a Jacobian that is not finite")
@@ -134,7 +140,7 @@ class FusedControl:
             *(_GIVEN, k, alpha, 0.0),
             float(self.ik.max_speed),
             self._arm,
-            *goals,
+            *self._goal_set,
         )
         if info != 0:  # pragma: no cover - J J^T + lambda^2 I is positive definite
             raise InvalidInputError("the kinematics pass gave a Jacobian that is not finite")

@@ -30,7 +30,7 @@ from app.compiled import dls_loops, jit
 from app.robot.kinematics_core import tcp_pose_jacobian
 from app.teleop.ik_step_core import ik_finish, ik_twist
 
-__all__ = ["control_step", "pack_arm", "warm_up"]
+__all__ = ["control_step", "pack_arm", "pack_goals", "warm_up"]
 
 
 @jit
@@ -51,11 +51,8 @@ def control_step(
     s2: float,
     ik_limit: float,
     arm: np.ndarray,
-    goals: np.ndarray,
-    goal_rots: np.ndarray,
-    postures: np.ndarray,
+    goal_set: np.ndarray,
     approaching: np.ndarray,
-    objects: np.ndarray,
 ) -> tuple[np.ndarray, int, bool, int, bool, float, float, float, float, float]:
     """``([U; P; command; P(G | xi)], G*, whether G*'s hysteresis flips (in transit while
     ``approaching``, or the other way: ``GraspApproachPolicy.note_transit`` with ``not
@@ -66,9 +63,9 @@ def control_step(
     (``s1``, ``s2``: its ``c_su`` and ``b``), or, with ``nums[0] == GIVEN``, ``G*`` given as
     ``k`` and ``alpha`` as ``s1`` (prediction, confidence and arbitration worked out by the
     caller; ``P(G | xi)`` then left unset); ``ik_limit`` the IK's speed limit; ``arm`` the
-    arm's fixed arrays in one (:func:`pack_arm`); then ``grasp_step``'s goal-set inputs, each
-    goal's row of ``goals``, ``goal_rots`` and ``postures`` (``(n, 0)``: none) and its
-    hysteresis in ``approaching``."""
+    arm's fixed arrays in one (:func:`pack_arm`); then ``grasp_step``'s goal-set inputs in one
+    (:func:`pack_goals`: each goal's row of ``goals``, ``goal_rots`` and ``postures`` --
+    ``(n, 0)``: none -- and the objects) and each goal's hysteresis in ``approaching``."""
     dof = q.shape[0]
     out = np.empty(3 * dof + points.shape[0])  # one array for Python: each returned costs a box
     if nums[0] == GIVEN:
@@ -83,11 +80,12 @@ def control_step(
         if k < 0:
             return out, k, False, 0, False, c, d, motion, alpha, c_su  # nothing noted
     held = approaching[k]
+    goal_rot = _two(goal_set, 1)[k].reshape((3, 3))
     transit, info, finite = _control(
         q, target, alpha, _two(arm, 0), _one(arm, 1), _two(arm, 2), _one(arm, 3), _two(arm, 4),
-        _one(arm, 5), _one(arm, 6), _one(arm, 7), ik_limit, goals[k], goal_rots[k],
-        postures[k], k, held, objects, _two(arm, 8), _one(arm, 9), _two(arm, 10),
-        _one(arm, 11), _one(arm, 12), out,
+        _one(arm, 5), _one(arm, 6), _one(arm, 7), ik_limit, _two(goal_set, 0)[k], goal_rot,
+        _two(goal_set, 2)[k], k, held, _two(goal_set, 3), _two(arm, 8), _one(arm, 9),
+        _two(arm, 10), _one(arm, 11), _one(arm, 12), out,
     )  # fmt: skip
     return out, k, transit == held, info, finite, c, d, motion, alpha, c_su
 
@@ -104,8 +102,25 @@ def pack_arm(parts: tuple[np.ndarray, ...]) -> np.ndarray:
     array (columns ``-1`` for a vector), then their numbers."""
     if len(parts) != _ARM_PARTS:
         raise ValueError(f"pack_arm: expected {_ARM_PARTS} arrays, got {len(parts)}")
+    return _pack(parts)
+
+
+def pack_goals(
+    goals: np.ndarray, goal_rots: np.ndarray, postures: np.ndarray, objects: np.ndarray
+) -> np.ndarray:
+    """The grasp policy's goal-set arrays (``GraspApproachPolicy.kernel_goals`` but the
+    hysteresis) in one float array as :func:`pack_arm` packs the arm's: the rows ``(n, 21)``,
+    the grasp rotations as ``(n, 9)``, the postures ``(n, dof)`` or ``(n, 0)``, the objects
+    ``(n, 4)``."""
+    n = goals.shape[0]
+    return _pack((goals, goal_rots.reshape(n, 9), postures.reshape(n, -1), objects))
+
+
+def _pack(parts: tuple[np.ndarray, ...]) -> np.ndarray:
+    """``parts`` (vectors and matrices) in one float array: a header of ``(offset, rows,
+    columns)`` per array (columns ``-1`` for a vector), then their numbers."""
     header: list[float] = []
-    offset = 3 * _ARM_PARTS
+    offset = 3 * len(parts)
     for a in parts:
         rows, cols = (a.shape[0], -1) if a.ndim == 1 else a.shape
         header += [offset, rows, cols]
@@ -207,8 +222,8 @@ def warm_up() -> None:
     arm = pack_arm((chain, tcp, *ik, z((1, 9)), ones(9), eye(6), -ones(7), ones(7)))
     points = np.array([[0.5, 0.1, 0.1], [0.5, -0.1, 0.1]])
     nums = np.array([AMNESIC, -20.0, 0.0, 4.0, 1.0, 0.5, 0.7, 0.5 / 0.7])
+    goal_set = pack_goals(z((2, 21)), np.stack((eye(3), eye(3))), z((2, 7)), z((2, 4)))
     control_step(
         *(z(7), z(3), z(3), z(3), z(0), points, points, z(2), z(2), z(3), nums, 0, 0.0, 1.0),
-        *(0.3, arm, z((2, 21)), np.stack((eye(3), eye(3))), z((2, 7))),
-        *(np.zeros(2, dtype=np.bool_), z((2, 4))),
+        *(0.3, arm, goal_set, np.zeros(2, dtype=np.bool_)),
     )

@@ -38,7 +38,9 @@ from app.robot.scene import Scene, build_scene
 from app.robot.simulation import BodyPoses, Simulation
 from app.teleop.guarded_descent import CENTRED_M, DescentGuard, Footprint
 from app.teleop.ik_step import IKStep
-from app.teleop.lift_out import Cylinder, lift_out
+from app.teleop.lift_out import CLEARANCE_M, Cylinder, lift_out
+from app.teleop.steer_core import CHANGED as STEER_CHANGED
+from app.teleop.steer_core import STEERED, pack_consts, steer
 from app.teleop.types import InputSource, TeleopCommand, TrialObservation
 from app.trial.accidents import Accidents
 from app.trial.build_blender import build_blender
@@ -53,6 +55,8 @@ FAR_OUTSIDE_M = 0.5  # a raw target this far outside the reach region is logged 
 _FLOAT = np.dtype(float)
 GOAL_MOVED_M = 0.005  # a goal follows its object once the object has moved this far from it
 _LOST = (EventKind.DROPPED, EventKind.LIFT_FAILED)  # the task let go of what it held
+_CLAMPED = mark(EventKind.TARGET_CLAMPED)  # most ticks of a Hard task log one: shared
+_FAR_OUTSIDE = mark(EventKind.TARGET_FAR_OUTSIDE)
 
 
 class Trial:
@@ -77,6 +81,8 @@ class Trial:
         self.config = config
         self.keep_records = keep_records
         self._dt = config.dt
+        self._rate_hz = config.rate_hz
+        self._time_limit = config.time_limit_s - 1e-9
         self._substeps = config.substeps
         self.input_source = input_source
         self.seed = seed
@@ -131,6 +137,7 @@ class Trial:
         self._last_ee_z = math.inf  # the TCP's height at the last tick (``_note_resting``)
         self._cylinders = self._object_cylinders()
         self._footprints = self._object_footprints()
+        self._start_steering()
         self._blend = BlendTick(0.0, 0.0, np.full(n, 1.0 / n), -1, 0.0, math.nan)
         self.records: list[TickRecord] = []
         self.events: list[tuple[float, TrialEvent]] = []
@@ -194,26 +201,27 @@ class Trial:
 
     def _observation(self) -> TrialObservation:
         blend = self._blend
-        held = self.task.held
+        task, scene, accidents = self.task, self.scene, self.accidents
+        held = task.held
         return TrialObservation(
-            t=self.t,
-            q=self._q,  # fresh arrays each tick, never written to: shared, not copied
-            ee=self._ee,
-            gripper_closed=self.task.gripper_closed,
-            user_target=self.user_target,
-            reach=self.scene.reach,
-            goal_names=self.scene.goals.names,
-            goal_positions=self.blender.goals.positions,
-            target_index=self.scene.target_index,
-            alpha=blend.alpha,
-            predicted=blend.predicted,
-            grasped=None if held is None else self.scene.object_names[held],
-            rate_hz=self.config.rate_hz,
-            object_positions=self._object_positions,
-            grasp_points=self._grasp_points,
-            knocks=self.accidents.count,
-            lying=self.accidents.down,
-            held_above=self.guard.held,
+            self.ticks * self._dt,
+            self._q,  # fresh arrays each tick, never written to: shared, not copied
+            self._ee,
+            task.gripper_closed,
+            self.user_target,
+            scene.reach,
+            scene.goals.names,
+            self.blender.goals.positions,
+            scene.target_index,
+            blend.alpha,
+            blend.predicted,
+            None if held is None else scene.object_names[held],
+            self._rate_hz,
+            self._object_positions,
+            self._grasp_points,
+            accidents.count,
+            accidents.down,
+            self.guard.held,
         )
 
     def _objects_moved(self) -> None:
@@ -229,6 +237,41 @@ class Trial:
         self._grasp_points = self.scene.goals.positions + (pos - self.sim.rest_positions)
         self._cylinders = self._object_cylinders()
         self._footprints = self._object_footprints()
+        self._footprint_rows = _rows(self._footprints)
+
+    def _start_steering(self) -> None:
+        """What the compiled steering (``_steer_compiled``) keeps between ticks."""
+        self._footprint_rows = _rows(self._footprints)
+        self._steer_consts = self._steering_constants()
+        """``steer_core.steer``'s fixed numbers, or ``None``: the reference steers."""
+        self._steer_state = np.array((*self.guard.state(), self._last_ee_z))  # (STATE)
+        self._steer_synced = True  # whether _steer_state holds the guard's state
+        self._steer_out = np.zeros(6)
+        self._fallen_seen: tuple[int, ...] | None = None
+        self._fallen = np.zeros(0, dtype=np.int64)  # the fallen objects' indices
+
+    def _steering_constants(self) -> np.ndarray | None:
+        """The numbers ``steer_core.steer`` steers by (the guard's hand, the reach's floor),
+        or ``None`` when the lift-out rule's would differ from the guard's."""
+        guard = self.guard
+        same = (guard.reach_below, guard.slot, guard.clearance) == (
+            self._reach_below,
+            self.scene.spec.gripper_open,
+            CLEARANCE_M,
+        )
+        if not same:  # pragma: no cover - one hand for both (``_descent_guard``)
+            return None
+        return pack_consts(
+            reach_below=guard.reach_below,
+            slot=guard.slot,
+            clearance=guard.clearance,
+            palm_above=guard.palm_above,
+            palm_half=guard.palm_half,
+            parts=guard.parts,
+            parts_lo=min((lo for lo, _, _ in guard.parts), default=math.inf),
+            low=guard.low,
+            floor=self._reach_box[0][2],
+        )
 
     def _object_footprints(self) -> tuple[Footprint, ...]:
         """Each object's cylinder with its half-width across the slot
@@ -253,12 +296,55 @@ class Trial:
         lowered around (``resting_on`` names it). Not out of (or above) a lying
         object, nor out of the one the robot is taking the hand to (``alpha > 0`` at the last
         tick): its policy keeps the hand clear there, and in a Hard task the user's target,
-        held at the reach's edge, always lies off the object the robot is carrying the hand to."""
-        guard = self.guard
+        held at the reach's edge, always lies off the object the robot is carrying the hand to.
+        In one compiled call (``app.teleop.steer_core``) when the hand's numbers allow it,
+        else by :meth:`_steer_reference`, the reference the compiled call is tested equal to."""
         self.resting_on, self.resting_centred = None, False
         if self.task.gripper_closed:
-            guard.release()
+            self.guard.release()
+            self._steer_synced = False
             return self.user_target
+        if self._steer_consts is None:
+            return self._steer_reference()
+        return self._steer_compiled(self._steer_consts)
+
+    def _steer_compiled(self, consts: np.ndarray) -> np.ndarray:
+        """:meth:`_steer_reference` as one call of ``steer_core.steer`` (the guard's state
+        mirrored into it, and back when it changes)."""
+        state = self._steer_state
+        guard = self.guard
+        if not self._steer_synced:  # the guard was released, or is new: take its state
+            state[:7] = guard.state()
+            self._steer_synced = True
+        blend = self._blend
+        fallen = self.accidents.fallen
+        if fallen is not self._fallen_seen:
+            self._fallen_seen = fallen
+            self._fallen = np.array(fallen, dtype=np.int64)
+        out = self._steer_out
+        flags = steer(
+            self._ee,
+            self.user_target,
+            self._footprint_rows,
+            blend.predicted if blend.alpha > 0.0 else -1,
+            self._fallen,
+            state,
+            out,
+            consts,
+            self.ticks * self._dt,
+        )
+        if flags & STEER_CHANGED:
+            guard.set_state(state.tolist())
+        x, y, z, resting, centred, offset = out.tolist()
+        if resting >= 0.0:
+            self.resting_on = int(resting)
+            self.resting_centred = centred > 0.0
+            self.resting_offset = offset
+        return np.array((x, y, z)) if flags & STEERED else self.user_target
+
+    def _steer_reference(self) -> np.ndarray:
+        """:meth:`_steer` for an open gripper in Python: the reference."""
+        guard = self.guard
         taking = self._blend.predicted if self._blend.alpha > 0.0 else -1
         skip = (taking, *self.accidents.fallen)  # a dropped object still stands: guarded
         ee, target = self._ee.tolist(), self.user_target.tolist()
@@ -421,20 +507,22 @@ class Trial:
                 self._finish("aborted", events)
                 return self._record(q, q, q, events)
             self.ticks += 1
-            self._q = self.sim.q
-            self._ee = self.sim.ee
-            if self.sim.objects_live:
+            sim = self.sim
+            self._q = sim.q
+            self._ee = sim.ee
+            if sim.objects_live:
                 self._objects_moved()
                 events.extend(
                     self.contacts.update(
-                        self.sim.arm_contacts(),
+                        sim.arm_contacts(),
                         dt=self._dt,
                         grasping=self.task.gripper_closed,
                         held=self.task.held,
                     )
                 )
-            self._judge(events)
-            if not self.done and self.t >= self.config.time_limit_s - 1e-9:
+            t = self.ticks * self._dt
+            self._judge(events, t)
+            if self.outcome is None and t >= self._time_limit:
                 self._finish("timeout", events)
             return self._record(u, p, command, events)
 
@@ -451,8 +539,7 @@ class Trial:
             events.append(mark(EventKind.INVALID_TARGET))
             return
         if outside > 0.0:
-            far = outside > FAR_OUTSIDE_M
-            events.append(mark(EventKind.TARGET_FAR_OUTSIDE if far else EventKind.TARGET_CLAMPED))
+            events.append(_FAR_OUTSIDE if outside > FAR_OUTSIDE_M else _CLAMPED)
         self.user_target = target
         path = None if cmd.path is None else self._clamped(cmd.path)[0]
         if cmd.path is not None and path is None:
@@ -497,32 +584,33 @@ class Trial:
         else:
             u = self.ik(q, self._steer())
             rec = self.blender.step(q, u, x=self.user_input, robot_x=self._ee)
-        alpha, command = rec.alpha, rec.command
-        if self.accidents.lying(rec.predicted):  # its goal lies, to be stood up where the
-            alpha, command = 0.0, u  # robot would take the gripper: it holds back meanwhile
-        self._blend = BlendTick(
+        alpha, command, predicted = float(rec.alpha), rec.command, int(rec.predicted)
+        if self.accidents.lying(predicted):  # its goal lies, to be stood up where the robot
+            alpha, command = 0.0, u  # would take the gripper: it holds back meanwhile
+        self._blend = BlendTick(  # Python numbers, as the tick record stores them
             alpha,
-            rec.confidence,
+            float(rec.confidence),
             rec.probabilities,
-            rec.predicted,
-            rec.motion_agreement,
-            rec.rationality,
+            predicted,
+            float(rec.motion_agreement),
+            float(rec.rationality),
         )
         return u, rec.P, command
 
-    def _judge(self, events: list[TrialEvent]) -> None:
-        """The task's verdict, then every tenth tick the objects (knocked, fallen, stood up)."""
+    def _judge(self, events: list[TrialEvent], t: float) -> None:
+        """The task's verdict at time ``t`` (now), then every tenth tick the objects (knocked,
+        fallen, stood up)."""
         task = self.task
         held = task.held
-        outcome = task.judge(self.t, events)
+        outcome = task.judge(t, events)
         if outcome is not None:
             self._finish(outcome, events)
             return
         if held is not None and task.held is None and any(e.kind in _LOST for e in events):
-            self.accidents.slipped(held, self.t)  # put back, as a knocked object is
+            self.accidents.slipped(held, t)  # put back, as a knocked object is
         if self.ticks % 10 == 0:
             held = task.held if task.gripper_closed else None
-            found, outcome = self.accidents.check(self.t, held=held)
+            found, outcome = self.accidents.check(t, held=held)
             if found:
                 events.extend(found)
                 self._objects_moved()  # an object stood up again is seen where it stands
@@ -540,37 +628,42 @@ class Trial:
     def _record(
         self, u: np.ndarray, p: np.ndarray, command: np.ndarray, events: list[TrialEvent]
     ) -> TickRecord:
-        blend = self._blend
+        blend = self._blend  # Python floats and ints (``_control``)
         if self.task.reaching:
             alpha, motion, rationality = blend.alpha, blend.motion_agreement, blend.rationality
         else:
             alpha, motion, rationality = 0.0, 0.0, math.nan
-        t = self.t
+        t = self.ticks * self._dt
         if events and self.keep_records:
-            self.events.extend((t, e) for e in events)
+            self.events += [(t, e) for e in events]
         # u, p, command, probabilities and user_target are fresh arrays each tick (or the
         # unchanging hold configuration), never written to afterwards: no copies needed.
         rec = TickRecord(
-            tick=self.ticks,
-            t=t,
-            q=self._q,
-            u=u,
-            p=p,
-            command=command,
-            alpha=float(alpha),
-            confidence=float(blend.confidence),
-            probabilities=blend.probabilities,
-            predicted=int(blend.predicted),
-            user_target=self.user_input,
-            ee=self._ee,
-            gripper=self.sim.gripper_opening,
-            events=tuple(events),
-            motion_agreement=float(motion),
-            rationality=float(rationality),
+            self.ticks,
+            t,
+            self._q,
+            u,
+            p,
+            command,
+            alpha,
+            blend.confidence,
+            blend.probabilities,
+            blend.predicted,
+            self.user_input,
+            self._ee,
+            self.sim.gripper_opening,
+            tuple(events),
+            motion,
+            rationality,
         )
         if self.keep_records:
             self.records.append(rec)
         return rec
+
+
+def _rows(footprints: tuple[Footprint, ...]) -> np.ndarray:
+    """The objects' footprints as an ``(n, 5)`` float array (``steer_core.steer``)."""
+    return np.array(footprints, dtype=np.float64).reshape(-1, 5)
 
 
 def _descent_guard(scene: Scene, reach_below_m: float) -> DescentGuard:
