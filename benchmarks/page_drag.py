@@ -4,18 +4,20 @@ Two ways to drag the handle's sideways (y) arrow in headless Debian Chromium (so
 
 * **person**: pointer events at the person's own pace, 60 a second by the wall clock, sent with
   CDP ``Input.dispatchMouseEvent`` without waiting for the renderer (a mouse does not wait for
-  the page either); the drag covers ``--drag-px`` pixels in ``--drag-s`` seconds;
+  the page either); the drag covers ``drag_px`` pixels (100) in ``--drag-s`` seconds (3);
 * **scripted**: Playwright's ``mouse.move`` in ``steps``, each awaited, then a 150 ms wait, as
   ``tests/browser/harness.drag`` does (each ``mouse.move`` returns once the renderer has handled
   the event).
 
 For each drag it prints the planned and actual duration (pointer: first to last move; server:
-the gizmo target's first change to reaching its end within 1 mm), the latency from the pointer
-to the server's target (for every gizmo pose the server received: its time minus the time the
-pointer was where that pose puts the handle, computed from the camera as the handle's arrow
-does it: the point of the arrow's line closest to the pointer's ray), the latency to the arm's
-end (gripper within 5 mm of the final target), the page's frames a second and pointer-event
-dispatches a second during the move, and how long each awaited ``mouse.move`` took.
+the gizmo target's first change to reaching its end within 1 mm), the target's lag behind the
+pointer (every 10 ms: how long ago the pointer was where the server's newest target puts the
+handle, computed from the camera as the handle's arrow does it: the point of the arrow's line
+closest to the pointer's ray; a pose the page holds back grows it), the latency of each gizmo
+pose the server received (its time minus the time the pointer was there), the latency to the
+arm's end (gripper within 5 mm of the final target), the page's frames, pointer events and
+pose sends a second during the move, how late the client's 50 ms send timer fired, and how
+long each ``mouse.move`` (or CDP event) took to be acknowledged.
 
 Load: ``--burners N`` starts N ``python -c 'while True: pass'`` at nice 0 for the loaded
 windows (N = 0 measures idle only). Clocks: the server's receipt and the pointer's sends are
