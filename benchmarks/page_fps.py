@@ -23,6 +23,14 @@ measure the first run of another protocol in a given mode (the experimenter skip
 before it), e.g. the intent display's ring::
 
     .venv/bin/python benchmarks/page_fps.py --protocol protocols/intent.toml --mode aggressive_shown
+
+``--drag`` measures instead what a participant dragging the handle gets, idle and with
+``--burners N`` busy loops (``benchmarks/page_drag.py``: latency from the pointer to the
+server's target, the drag's duration as planned and as the server saw it, a person's pointer
+against Playwright's scripted one); ``--code DIR`` serves another checkout (``git archive main
+| tar -x -C DIR``) for a side-by-side run::
+
+    .venv/bin/python benchmarks/page_fps.py --drag --burners 2 --repeats 3 --viewport 1366x768
 """
 
 from __future__ import annotations
@@ -40,6 +48,8 @@ import numpy as np
 from playwright.sync_api import sync_playwright
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+if "--code" in sys.argv:  # serve another checkout with this script (side by side with main)
+    sys.path.insert(0, os.path.abspath(sys.argv[sys.argv.index("--code") + 1]))
 
 from benchmarks.server import feed_gizmo
 from study.session import SessionStateError
@@ -125,7 +135,19 @@ def main() -> int:
         help="real-time scheduling as `serve --realtime N` sets it (the browser, started"
         " first, stays ordinary; default: none)",
     )
+    parser.add_argument(
+        "--drag",
+        action="store_true",
+        help="measure drags of the handle instead (benchmarks/page_drag.py), idle and loaded",
+    )
+    parser.add_argument(
+        "--burners", type=int, default=2, help="with --drag: busy loops for the loaded drags"
+    )
+    parser.add_argument("--drag-s", type=float, default=3.0, help="with --drag: a drag's length")
+    parser.add_argument("--code", default=None, help="another checkout to serve (e.g. main's)")
     args = parser.parse_args()
+    if args.drag:
+        return _drags(args)
     with sync_playwright() as p:
         browser = launch(p)  # before the server takes its class: Chromium stays ordinary
         if args.realtime:
@@ -134,6 +156,24 @@ def main() -> int:
             if not scheduling.set_realtime(args.realtime):
                 raise SystemExit("the real-time class is not allowed here")
         return _measure(args, browser)
+
+
+def _drags(args: argparse.Namespace) -> int:
+    """``--drag``: the person's and the scripted drags, idle and loaded (page_drag.py)."""
+    import asyncio
+
+    from benchmarks import page_drag
+
+    viewport = args.viewport if args.viewport != "1100x720" else "1366x768"
+    result = asyncio.run(
+        page_drag.measure(
+            viewport=viewport, burners=args.burners, repeats=args.repeats, drag_s=args.drag_s
+        )
+    )
+    result["code"] = args.code or "this checkout"
+    print("\n".join(page_drag.summary(result)))
+    print(json.dumps(result))
+    return 0
 
 
 def _measure(args: argparse.Namespace, browser) -> int:

@@ -25,6 +25,8 @@ steering key it can stop the event before the camera or anything else sees it:
 * the viewer's own notices (:data:`HIDDEN_NOTICES`: software WebGL, an undetected browser
   version) are closed as soon as they appear; ``study.server.page_head`` hides them before
   this script runs;
+* the handle's newest pose goes out on the pointer's own events while viser's timed sender is
+  overdue (a page busy drawing runs its timer late): :mod:`study.server.handle_pace`;
 * meshes are made non-metallic: the scene's glTF meshes carry glTF's default metalness of 1,
   which only an environment map lights, and the page has none (it cost two thirds of a
   software-WebGL frame), so their sides would render black.
@@ -40,6 +42,7 @@ from __future__ import annotations
 import json
 
 from study.server import viser_door
+from study.server.handle_pace import handle_pace_script
 
 STEERING_CODES: dict[str, str] = {
     "KeyW": "w",
@@ -109,7 +112,7 @@ def page_script(*, keys_uuid: str, title: str) -> str:
         .replace("__CODES__", json.dumps(STEERING_CODES))
         .replace("__ARROWS__", json.dumps({str(k): v for k, v in ARROW_KEYCODES.items()}))
         .replace("__CONFIG__", json.dumps(config))
-    )
+    ) + handle_pace_script()
 
 
 _TEMPLATE = r"""
