@@ -10,7 +10,10 @@ steering key it can stop the event before the camera or anything else sees it:
 * each change of the set of held keys (not each auto-repeat) is sent to the server as the
   value of one hidden text element, ``"<seq> <keys>"`` (e.g. ``"12 ar"``), through the
   client's own message channel, and the state is resent every ``KEY_RESEND_MS`` while a key
-  is held and for a second after each change: it is a state, not an event, so a lost message
+  is held and for a second after each change -- from a timer, from the page's frames and from
+  a held key's auto-repeats, since a page busy drawing in software on a loaded machine runs its
+  timers a second late or more, and the server lets go of a key whose state went unheard for a
+  second: it is a state, not an event, so a lost message
   (a release above all) is repaired by the next one; losing focus (tab switch, window blur)
   sends "nothing held";
 * the page title becomes the study's; the settings, command, share and minimise buttons of the
@@ -123,7 +126,7 @@ _TEMPLATE = r"""
   const letter = (e) => codes[e.code] !== undefined ? codes[e.code] : arrows[String(e.keyCode)];
   document.title = cfg.title;
   const st = window.__studyKeys = window.__studyKeys || {held: new Set(), seq: 0, sent: 0,
-                                                         changed: -1e9};
+                                                         changed: -1e9, at: -1e9, beat: 0};
   st.uuid = cfg.uuid;
   const send = () => {
     const m = __VISER__;
@@ -132,6 +135,13 @@ _TEMPLATE = r"""
     m.sendMessage({type: "GuiUpdateMessage", uuid: st.uuid,
                    updates: {value: st.seq + " " + [...st.held].sort().join("")}});
     st.sent += 1;
+    st.at = performance.now();
+  };
+  // the state is owed again while a key is held and for a second after each change, once
+  // KEY_RESEND_MS have passed since it last went out
+  const owed = () => {
+    const now = performance.now();
+    return (st.held.size > 0 || now - st.changed < 1000) && now - st.at >= cfg.resend;
   };
   const isField = (t) => !!t && (t.tagName === "INPUT" || t.tagName === "TEXTAREA" ||
                                  t.tagName === "SELECT" || t.isContentEditable);
@@ -167,22 +177,28 @@ _TEMPLATE = r"""
       if (k === undefined || isField(e.target) || e.ctrlKey || e.metaKey || e.altKey) return;
       e.preventDefault();
       e.stopImmediatePropagation();
-      if (!st.held.has(k)) { st.held.add(k); st.changed = performance.now(); send(); }
+      if (!st.held.has(k)) { st.held.add(k); st.changed = performance.now(); send(); wake(); }
+      else if (owed()) send();  // an auto-repeat: a held key's events reach a starved page
     }, true);
     window.addEventListener("keyup", (e) => {
       const k = letter(e);
       if (k === undefined) return;
       e.preventDefault();
       e.stopImmediatePropagation();
-      if (st.held.delete(k)) { st.changed = performance.now(); send(); }
+      if (st.held.delete(k)) { st.changed = performance.now(); send(); wake(); }
     }, true);
     const none = () => {
-      if (st.held.size) { st.held.clear(); st.changed = performance.now(); send(); }
+      if (st.held.size) { st.held.clear(); st.changed = performance.now(); send(); wake(); }
     };
-    // the state again while a key is held and for a second after each change
-    setInterval(() => {
-      if (st.held.size || performance.now() - st.changed < 1000) send();
-    }, cfg.resend);
+    // the state again when owed: from a timer, and from the page's frames, which a page busy
+    // drawing in software still runs when its timers fire a second late or more
+    setInterval(() => { if (owed()) send(); }, cfg.resend);
+    const beat = () => {
+      if (!(st.held.size > 0 || performance.now() - st.changed < 1000)) { st.beat = 0; return; }
+      st.beat = requestAnimationFrame(beat);
+      if (owed()) send();
+    };
+    function wake() { if (!st.beat) st.beat = requestAnimationFrame(beat); }
     window.addEventListener("blur", none);
     document.addEventListener("visibilitychange", none);
     const style = document.createElement("style");

@@ -83,3 +83,52 @@ def test_a_lost_key_release_is_repaired_by_the_next_state(study: RunningServer, 
     page.reload()  # the rejoin cookie: straight back, no code typed
     page.get_by_role("button", name="Continue").wait_for(timeout=60_000)
     assert live.page is not None
+
+
+STARVED_TIMERS_JS = """() => {
+  const every = window.setInterval;
+  window.__starved = false;
+  window.setInterval = function (fn, ms, ...rest) {
+    return every.call(this, function (...a) { if (!window.__starved) return fn.apply(this, a); },
+                      ms, ...rest);
+  };
+}"""
+"""Every repeating timer of the page skips its calls while ``window.__starved`` (what a page
+busy drawing in software on a loaded machine does to them: late by a second or more)."""
+
+
+def test_a_held_key_stays_held_while_the_pages_timers_starve(
+    study: RunningServer, small: Any
+) -> None:
+    srv = study.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+    live = srv.session(code)
+    page = small.new_page()
+    page.add_init_script(f"({STARVED_TIMERS_JS})()")
+    connect_page(page, study.url)
+    join(page, code)
+    page.get_by_role("button", name="I have read this and agree to take part").click()
+    page.get_by_role("button", name="Start").click()
+    assert wait_until(lambda: live.control_loop is not None, timeout=60)
+    settle_frames(page)
+    source = live.participant_input
+
+    page.evaluate("() => { window.__starved = true; }")
+    page.keyboard.down("d")  # held without auto-repeat: only the page's frames resend it
+    assert wait_until(lambda: source.keyboard.held == frozenset("d"), timeout=5)
+    start = np.array(live.run.trial.user_target)
+    held = []
+    end = time.monotonic() + 3.0
+    while time.monotonic() < end:
+        page.wait_for_timeout(100)
+        held.append(source.keyboard.held == frozenset("d"))
+    moved = abs(float(live.run.trial.user_target[1] - start[1]))
+    page.keyboard.up("d")
+    page.evaluate("() => { window.__starved = false; }")
+    assert wait_until(lambda: not source.keyboard.held, timeout=5)
+    kinds = [e.kind for e in study.store.events()]
+    print(f"held at {sum(held)} of {len(held)} looks, moved {moved * 100:.1f} cm")
+    assert "keys_expired" not in kinds, "the server let go of a key the participant held"
+    assert all(held), held
+    assert moved > 0.2, f"the target moved {moved:.3f} m in 3 s of D held"  # 0.1 m/s
