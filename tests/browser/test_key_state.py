@@ -34,18 +34,25 @@ def study(tmp_path: Path) -> Any:
         rs.stop()
 
 
-def test_a_lost_key_release_is_repaired_by_the_next_state(study: RunningServer, small: Any) -> None:
+def _first_run(study: RunningServer, page: Any) -> Any:
+    """Enrol P01, join on ``page``, agree and start the practice run; its live session."""
     srv = study.server
     code = srv.enrol("P01")
     srv.act(code, "start")
     live = srv.session(code)
-    page = small.new_page()
     connect_page(page, study.url)
     join(page, code)
     page.get_by_role("button", name="I have read this and agree to take part").click()
     page.get_by_role("button", name="Start").click()
     assert wait_until(lambda: live.control_loop is not None, timeout=60)
     settle_frames(page)
+    return live
+
+
+def test_a_lost_key_release_is_repaired_by_the_next_state(study: RunningServer, small: Any) -> None:
+    srv = study.server
+    page = small.new_page()
+    live = _first_run(study, page)
 
     screen = srv.firewall.screen
     keys_uuid = viser_door.element_uuid(
@@ -100,18 +107,9 @@ busy drawing in software on a loaded machine does to them: late by a second or m
 def test_a_held_key_stays_held_while_the_pages_timers_starve(
     study: RunningServer, small: Any
 ) -> None:
-    srv = study.server
-    code = srv.enrol("P01")
-    srv.act(code, "start")
-    live = srv.session(code)
     page = small.new_page()
     page.add_init_script(f"({STARVED_TIMERS_JS})()")
-    connect_page(page, study.url)
-    join(page, code)
-    page.get_by_role("button", name="I have read this and agree to take part").click()
-    page.get_by_role("button", name="Start").click()
-    assert wait_until(lambda: live.control_loop is not None, timeout=60)
-    settle_frames(page)
+    live = _first_run(study, page)
     source = live.participant_input
 
     page.evaluate("() => { window.__starved = true; }")
