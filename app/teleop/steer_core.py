@@ -1,10 +1,10 @@
-"""The open hand's steering around objects, compiled: the trial's ``_steer`` in one call.
+"""The open hand's steering around objects, compiled: ``Steering.steer`` in one call.
 
-Each tick the trial steers ``U``'s target around the objects (``app.trial.trial``,
-``Trial._steer_reference``): a hold above an object the guard keeps
+Each tick the trial steers ``U``'s target around the objects (``app.trial.steering``,
+``Steering.reference``): a hold above an object the guard keeps
 (``DescentGuard.steer``), else out of an object the hand is around (``lift_out``), else a new
 hold, else no lower than the palm's stop (``DescentGuard.rest``) and, there, which object the
-hand rests on (``Trial._note_resting``). :func:`steer` runs those very tests in the same
+hand rests on (``Steering._note_resting``). :func:`steer` runs those very tests in the same
 order, on the same numbers, so it steers to the same target, keeps the same state and names
 the same object (``tests/test_steer_core.py`` checks it on every tick of whole trials). The
 formulas are the reference modules' docstrings (``app.teleop.lift_out``,
@@ -340,7 +340,7 @@ def steer(
     c: np.ndarray,
     now: float,
 ) -> int:
-    """One tick of the open hand's steering (``Trial._steer_reference`` after its closed-gripper
+    """One tick of the open hand's steering (``Steering.reference`` after its closed-gripper
     test): the TCP ``x`` (3,), the user's target ``t`` (3,), the objects as footprints
     ``(n, 5)`` (``Footprint``), the object the robot takes the hand to (``taking``, ``-1``:
     none), the fallen objects' indices, the ``state`` (``STATE``), the fixed numbers
@@ -384,7 +384,7 @@ def _note_resting(
     out: np.ndarray,
     c: np.ndarray,
 ) -> None:
-    """``Trial._note_resting``: the object the hand rests on into ``out[3:6]``."""
+    """``Steering._note_resting``: the object the hand rests on into ``out[3:6]``."""
     last = state[7]
     state[7] = x[2]
     if rest_k >= 0:
