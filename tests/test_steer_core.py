@@ -1,10 +1,10 @@
 """The open hand's compiled steering equals the trial's Python steering, tick by tick (issue 24.1).
 
 ``app.teleop.steer_core.steer`` runs the lift-out rule and the descent guard's hold and palm
-stop in one compiled call; ``Steering.reference`` (``app.trial.steering``) is the reference. On every tick of whole
-trials -- an aggressive robot that is wrong (the hand lifted out of the object it went down
-around), a hand lowered beside and over the practice mug (held above it, stopped by the palm,
-resting on it) -- both are run from the same state and must steer to the same target, keep
+stop in one compiled call (``Steering.steer``, ``app.trial.steering``); ``Steering.reference``
+is the reference. On every tick of whole trials -- an aggressive robot that is wrong (the
+hand lifted out of the object it went down around), a hand lowered beside and over the
+practice mug (held above it, stopped by the palm, resting on it) -- both are run from the same state and must steer to the same target, keep
 the same guard state and name the same object the hand rests on, bit for bit.
 """
 
@@ -49,11 +49,11 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def _checker(trial: Trial, seen: Counter[str]) -> Any:
-    """``trial.steering.compiled`` that also runs the reference from the same state, asserts
+    """``trial.steering.steer`` (compiled) that also runs the reference from the same state, asserts
     they agree and counts what the reference did."""
     steering = trial.steering
     assert steering.consts is not None  # the compiled steering is the trial's
-    compiled = steering.compiled
+    compiled = steering.steer
 
     def counted_lift_out(*args: Any, **kw: Any) -> Any:
         out = lift_out(*args, **kw)
@@ -107,7 +107,7 @@ def _check_every_tick(trial: Trial, seen: Counter[str]) -> None:
     """Run ``trial`` to its end, each tick's steering compiled and by the reference from the
     same state; assert they agree; count what the reference did."""
     checked, counted_lift_out = _checker(trial, seen)
-    trial.steering.compiled = checked  # type: ignore[method-assign]
+    trial.steering.steer = checked  # type: ignore[method-assign]
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(steering_module, "lift_out", counted_lift_out)
         while not trial.done:

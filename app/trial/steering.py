@@ -119,22 +119,13 @@ class Steering:
     ) -> np.ndarray:
         """Where ``U`` steers the open hand this tick (the module's docstring): the TCP ``ee``,
         the user's ``target`` (returned itself when not steered), the object the robot takes
-        the hand to (``taking``, ``-1``: none), the fallen objects, the time ``now``."""
+        the hand to (``taking``, ``-1``: none), the fallen objects, the time ``now``. In one
+        call of ``steer_core.steer`` (the guard's state mirrored into it, and back when it
+        changes), or by :meth:`reference` when ``consts`` is ``None``."""
         self.resting_on, self.resting_centred = None, False
-        if self.consts is None:
+        consts = self.consts
+        if consts is None:
             return self.reference(ee, target, taking, fallen, now)
-        return self.compiled(ee, target, taking, fallen, now)
-
-    def compiled(
-        self,
-        ee: np.ndarray,
-        target: np.ndarray,
-        taking: int,
-        fallen: tuple[int, ...],
-        now: float,
-    ) -> np.ndarray:
-        """:meth:`reference` as one call of ``steer_core.steer`` (the guard's state mirrored
-        into it, and back when it changes)."""
         state = self.state
         guard = self.guard
         if not self.synced:  # the guard was released, or is new: take its state
@@ -144,7 +135,7 @@ class Steering:
             self._fallen_seen = fallen
             self._fallen = np.array(fallen, dtype=np.int64)
         out = self._out
-        flags = steer(ee, target, self.rows, taking, self._fallen, state, out, self.consts, now)
+        flags = steer(ee, target, self.rows, taking, self._fallen, state, out, consts, now)
         if flags & CHANGED:
             guard.set_state(state.tolist())
         x, y, z, resting, centred, offset = out.tolist()
@@ -162,7 +153,7 @@ class Steering:
         fallen: tuple[int, ...],
         now: float,
     ) -> np.ndarray:
-        """:meth:`steer` in Python: the reference."""
+        """:meth:`steer` in Python: the reference its compiled call is tested equal to."""
         guard = self.guard
         skip = (taking, *fallen)  # a dropped object still stands: guarded
         x, t = ee.tolist(), target.tolist()
