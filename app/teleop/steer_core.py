@@ -44,7 +44,7 @@ from app.teleop.guarded_descent import (
 from app.teleop.lift_out import CENTRE_M, LEAVING_M
 from app.teleop.lift_out import MARGIN_M as LIFT_MARGIN_M
 
-__all__ = ["CHANGED", "STATE", "STEERED", "hypot2", "steer"]
+__all__ = ["CHANGED", "RESTING", "STATE", "STEERED", "hypot2", "steer"]
 
 STATE = ("held", "cleared", "since_t", "since_x", "since_y", "palm_on", "palm_left", "last_z")
 """What :func:`steer`'s ``state`` holds, in order."""
@@ -52,6 +52,8 @@ STEERED = 1
 """Bit of :func:`steer`'s result: ``out[:3]`` is the target (else the user's target)."""
 CHANGED = 2
 """Bit of :func:`steer`'s result: the guard's part of ``state`` changed."""
+RESTING = 4
+"""Bit of :func:`steer`'s result: the hand rests on an object (``out[3:6]`` names it)."""
 
 # consts: what a trial's hand and scene fix (``pack_consts``)
 _REACH_BELOW, _SLOT, _CLEARANCE, _PALM_ABOVE, _HX, _HY, _PARTS_LO, _LOW, _FLOOR, _NPARTS = range(10)
@@ -346,8 +348,8 @@ def steer(
     none), the fallen objects' indices, the ``state`` (``STATE``), the fixed numbers
     ``c`` (:func:`pack_consts`) at time ``now``. Writes the target ``out[:3]`` when it steers,
     and ``out[3:6]``: the object the hand rests on (``-1``: none), whether centred (0/1) and
-    its offset along x (left as it was when it rests on none). Returns ``STEERED`` and
-    ``CHANGED`` bits."""
+    its offset along x (left as it was when it rests on none). Returns ``STEERED``,
+    ``CHANGED`` and ``RESTING`` bits."""
     before = state[:7].copy()
     out[3] = -1.0
     out[4] = 0.0
@@ -369,7 +371,8 @@ def steer(
         a, b = before[i], state[i]
         if a != b and not (math.isnan(a) and math.isnan(b)):
             changed = True
-    return (STEERED if steered else 0) | (CHANGED if changed else 0)
+    resting = RESTING if out[3] >= 0.0 else 0
+    return (STEERED if steered else 0) | (CHANGED if changed else 0) | resting
 
 
 @jit

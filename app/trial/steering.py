@@ -23,7 +23,7 @@ from app.blending.policy_grasp import HandLayer
 from app.robot.scene import Scene
 from app.teleop.guarded_descent import CENTRED_M, DescentGuard, Footprint
 from app.teleop.lift_out import CLEARANCE_M, Cylinder, lift_out
-from app.teleop.steer_core import CHANGED, STEERED, pack_consts, steer
+from app.teleop.steer_core import CHANGED, RESTING, STEERED, pack_consts, steer
 
 
 class Steering:
@@ -138,12 +138,12 @@ class Steering:
         flags = steer(ee, target, self.rows, taking, self._fallen, state, out, consts, now)
         if flags & CHANGED:
             guard.set_state(state.tolist())
-        x, y, z, resting, centred, offset = out.tolist()
-        if resting >= 0.0:
+        if flags & RESTING:
+            _, _, _, resting, centred, offset = out.tolist()
             self.resting_on = int(resting)
             self.resting_centred = centred > 0.0
             self.resting_offset = offset
-        return np.array((x, y, z)) if flags & STEERED else target
+        return out[:3].copy() if flags & STEERED else target
 
     def reference(
         self,
