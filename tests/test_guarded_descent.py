@@ -193,7 +193,9 @@ def test_no_part_of_the_hand_stops_it_above_any_shipped_grasp_point() -> None:
         for k, g in enumerate(trial._grasp_points.tolist()):
             for skip in ((), (k,)):
                 trial.guard.release()
-                rest = trial.guard.rest(g, (g[0], g[1], floor), trial._footprints, skip=skip)
+                rest = trial.guard.rest(
+                    g, (g[0], g[1], floor), trial.steering.footprints, skip=skip
+                )
                 assert rest is None or rest[0][2] < g[2] - 0.001, (path.name, k, skip, rest)
 
 
@@ -202,7 +204,9 @@ def test_the_palm_stops_above_every_shipped_grasp_point() -> None:
     hand always reaches the grasp."""
     for path, trial in _shipped_trials():
         palm = trial.guard.palm_above
-        for (_, _, _, top, _), g in zip(trial._footprints, trial._grasp_points, strict=True):
+        for (_, _, _, top, _), g in zip(
+            trial.steering.footprints, trial._grasp_points, strict=True
+        ):
             assert top - palm + PALM_CLEAR_M < g[2] - 0.001, (path.name, top, g)
 
 
@@ -210,9 +214,9 @@ def test_a_hand_centred_on_any_shipped_object_has_no_other_object_under_its_palm
     """The palm's stop beside an object never keeps the hand from a grasp: in every shipped
     protocol's scenes, the palm of a hand centred on one object clears every other one."""
     for path, trial in _shipped_trials():
-        for k, (ox, oy, _, top, _) in enumerate(trial._footprints):
+        for k, (ox, oy, _, top, _) in enumerate(trial.steering.footprints):
             hand = (ox, oy, top + 0.05)
-            assert trial.guard.under_palm(hand, trial._footprints, skip=(k,)) is None, (
+            assert trial.guard.under_palm(hand, trial.steering.footprints, skip=(k,)) is None, (
                 path.name,
                 k,
             )

@@ -1,10 +1,10 @@
 """The open hand's compiled steering equals the trial's Python steering, tick by tick (issue 24.1).
 
 ``app.teleop.steer_core.steer`` runs the lift-out rule and the descent guard's hold and palm
-stop in one compiled call; ``Trial._steer_reference`` is the reference. On every tick of whole
-trials -- an aggressive robot that is wrong (the hand lifted out of the object it went down
-around), a hand lowered beside and over the practice mug (held above it, stopped by the palm,
-resting on it) -- both are run from the same state and must steer to the same target, keep
+stop in one compiled call (``Steering.steer``, ``app.trial.steering``); ``Steering.reference``
+is the reference. On every tick of whole trials -- an aggressive robot that is wrong (the
+hand lifted out of the object it went down around), a hand lowered beside and over the
+practice mug (held above it, stopped by the palm, resting on it) -- both are run from the same state and must steer to the same target, keep
 the same guard state and name the same object the hand rests on, bit for bit.
 """
 
@@ -24,7 +24,7 @@ from app.teleop import ScriptedInput
 from app.teleop.lift_out import lift_out
 from app.teleop.steer_core import hypot2
 from app.trial import Trial
-from app.trial import trial as trial_module
+from app.trial import steering as steering_module
 from benchmarks.rim_descent import LowerBeside
 from study.protocol import load_protocol, trial_config_from_protocol
 
@@ -49,52 +49,54 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def _checker(trial: Trial, seen: Counter[str]) -> Any:
-    """``trial._steer_compiled`` that also runs the reference from the same state, asserts
+    """``trial.steering.steer`` (compiled) that also runs the reference from the same state, asserts
     they agree and counts what the reference did."""
-    assert trial._steer_consts is not None  # the compiled steering is the trial's
-    compiled = trial._steer_compiled
+    steering = trial.steering
+    assert steering.consts is not None  # the compiled steering is the trial's
+    compiled = steering.steer
 
     def counted_lift_out(*args: Any, **kw: Any) -> Any:
         out = lift_out(*args, **kw)
         seen["lifted"] += out is not None
         return out
 
-    def checked(consts: np.ndarray) -> np.ndarray:
-        guard_before = copy.copy(trial.guard)
-        offset_before = trial.resting_offset
-        last_before = float(trial._steer_state[7])
-        got = compiled(consts)
+    def checked(*args: Any) -> np.ndarray:
+        target = args[1]
+        guard_before = copy.copy(steering.guard)
+        offset_before = steering.resting_offset
+        last_before = float(steering.state[7])
+        got = compiled(*args)
         got_state = (
-            trial.guard.state(),
-            float(trial._steer_state[7]),
-            trial.resting_on,
-            trial.resting_centred,
-            trial.resting_offset,
+            steering.guard.state(),
+            float(steering.state[7]),
+            steering.resting_on,
+            steering.resting_centred,
+            steering.resting_offset,
         )
-        guard_compiled = trial.guard
-        trial.guard = guard_before  # the reference from the very same state
-        trial._last_ee_z = last_before
-        trial.resting_on, trial.resting_centred = None, False
-        trial.resting_offset = offset_before
-        want = trial._steer_reference()
+        guard_compiled = steering.guard
+        steering.guard = guard_before  # the reference from the very same state
+        steering._last_ee_z = last_before
+        steering.resting_on, steering.resting_centred = None, False
+        steering.resting_offset = offset_before
+        want = steering.reference(*args)
         want_state = (
-            trial.guard.state(),
-            trial._last_ee_z,
-            trial.resting_on,
-            trial.resting_centred,
-            trial.resting_offset,
+            steering.guard.state(),
+            steering._last_ee_z,
+            steering.resting_on,
+            steering.resting_centred,
+            steering.resting_offset,
         )
         assert _same(got_state, want_state), (trial.ticks, got_state, want_state)
-        if want is trial.user_target:
-            assert got is trial.user_target, (trial.ticks, got)
+        if want is target:
+            assert got is target, (trial.ticks, got)
         else:
             seen["steered"] += 1
-            assert got is not trial.user_target and np.array_equal(got, want), (got, want)
-        seen["held"] += trial.guard.held is not None
-        seen["palm_on"] += trial.guard.palm_on is not None
-        seen["resting"] += trial.resting_on is not None
-        seen["centred"] += trial.resting_centred
-        trial.guard = guard_compiled
+            assert got is not target and np.array_equal(got, want), (got, want)
+        seen["held"] += steering.guard.held is not None
+        seen["palm_on"] += steering.guard.palm_on is not None
+        seen["resting"] += steering.resting_on is not None
+        seen["centred"] += steering.resting_centred
+        steering.guard = guard_compiled
         seen["ticks"] += 1
         return got
 
@@ -105,9 +107,9 @@ def _check_every_tick(trial: Trial, seen: Counter[str]) -> None:
     """Run ``trial`` to its end, each tick's steering compiled and by the reference from the
     same state; assert they agree; count what the reference did."""
     checked, counted_lift_out = _checker(trial, seen)
-    trial._steer_compiled = checked  # type: ignore[method-assign]
+    trial.steering.steer = checked  # type: ignore[method-assign]
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(trial_module, "lift_out", counted_lift_out)
+        patch.setattr(steering_module, "lift_out", counted_lift_out)
         while not trial.done:
             trial.tick()
 
@@ -166,7 +168,8 @@ class IdleBeside:
         trial = Trial(config, ScriptedInput(), keep_records=False)
         k = trial.scene.target_index
         if tallest:
-            k = max(range(len(trial._footprints)), key=lambda i: trial._footprints[i][3])
+            footprints = trial.steering.footprints
+            k = max(range(len(footprints)), key=lambda i: footprints[i][3])
         offset = np.zeros(3)
         offset[axis] = offset_m
         return LowerBeside(trial.scene.goals.positions[k].copy(), offset)
@@ -178,11 +181,12 @@ def test_compiled_steering_equals_the_reference_on_random_states() -> None:
     robot's goal and fallen objects: every branch of the rules, thresholds within reach."""
     config = load_protocol(ROOT / "protocols" / "dragan2013.toml").training_config()
     trial = Trial(config, ScriptedInput(), keep_records=False)
+    steering = trial.steering
     seen: Counter[str] = Counter()
     checked, counted_lift_out = _checker(trial, seen)
     rng = np.random.default_rng(11)
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(trial_module, "lift_out", counted_lift_out)
+        patch.setattr(steering_module, "lift_out", counted_lift_out)
         for _ in range(6000):
             n = int(rng.integers(1, 4))
             radius = rng.uniform(0.015, 0.05, n)
@@ -200,25 +204,22 @@ def test_compiled_steering_equals_the_reference_on_random_states() -> None:
             ox, oy, _, top, _ = objects[k]
             spread = np.c_[rng.normal(0, 0.04, (2, 2)), rng.uniform(-0.1, 0.2, 2)]
             ee, target = np.array((ox, oy, top)) + spread  # the hand, the target
-            trial._footprints = objects
-            trial._cylinders = tuple(o[:4] for o in objects)
-            trial._footprint_rows = trial_module._rows(objects)
-            trial._ee, trial.user_target = ee.copy(), target.copy()
-            trial._blend = trial._blend._replace(
-                alpha=float(rng.choice([0.0, 0.6])), predicted=int(rng.integers(n))
-            )
-            trial.accidents.fallen = tuple(j for j in range(n) if rng.uniform() < 0.15)
-            trial.ticks = int(rng.integers(0, 1000))
-            now = trial.ticks * trial._dt
+            steering.footprints = objects
+            steering.cylinders = tuple(o[:4] for o in objects)
+            steering.rows = steering_module.rows(objects)
+            alpha, predicted = float(rng.choice([0.0, 0.6])), int(rng.integers(n))
+            taking = predicted if alpha > 0.0 else -1  # the robot's goal, while it acts
+            fallen = tuple(j for j in range(n) if rng.uniform() < 0.15)
+            now = int(rng.integers(0, 1000)) * trial._dt
             held, cleared, palm_on, palm_left = rng.choice([-1.0, k, k, rng.integers(n)], 4)
             since = (now - rng.uniform(0, 0.3), ee[0] + rng.normal(0, 0.004), ee[1])
             if rng.uniform() < 0.5:
                 since = (math.nan,) * 3
-            trial.guard.set_state((held, cleared, *since, palm_on, palm_left))
-            trial._steer_synced = False
-            trial._steer_state[7] = trial._ee[2] + float(rng.choice([0.0, 1e-4, 0.01]))
-            trial.resting_on, trial.resting_centred = None, False
-            checked(trial._steer_consts)
+            steering.guard.set_state((held, cleared, *since, palm_on, palm_left))
+            steering.synced = False
+            steering.state[7] = ee[2] + float(rng.choice([0.0, 1e-4, 0.01]))
+            steering.resting_on, steering.resting_centred = None, False
+            checked(ee.copy(), target.copy(), taking, fallen, now)
     assert seen["ticks"] == 6000
     for what in ("lifted", "held", "palm_on", "steered"):
         assert seen[what] > 500, seen

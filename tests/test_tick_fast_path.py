@@ -305,8 +305,8 @@ def test_kept_object_state_is_the_state_worked_out_afresh_every_tick(protocol_pa
             (g[0], g[1], env[0], g[2] + env[1])
             for g, env in zip(points.tolist(), goals.envelopes.tolist(), strict=True)
         )
-        assert trial._cylinders == cylinders
-        assert trial._footprints == tuple(
+        assert trial.steering.cylinders == cylinders
+        assert trial.steering.footprints == tuple(
             (*c, o.grasp_width / 2)
             for c, o in zip(cylinders, trial.scene.spec.objects, strict=True)
         )

@@ -1,10 +1,10 @@
-"""The open hand's steering around objects, compiled: the trial's ``_steer`` in one call.
+"""The open hand's steering around objects, compiled: ``Steering.steer`` in one call.
 
-Each tick the trial steers ``U``'s target around the objects (``app.trial.trial``,
-``Trial._steer_reference``): a hold above an object the guard keeps
+Each tick the trial steers ``U``'s target around the objects (``app.trial.steering``,
+``Steering.reference``): a hold above an object the guard keeps
 (``DescentGuard.steer``), else out of an object the hand is around (``lift_out``), else a new
 hold, else no lower than the palm's stop (``DescentGuard.rest``) and, there, which object the
-hand rests on (``Trial._note_resting``). :func:`steer` runs those very tests in the same
+hand rests on (``Steering._note_resting``). :func:`steer` runs those very tests in the same
 order, on the same numbers, so it steers to the same target, keeps the same state and names
 the same object (``tests/test_steer_core.py`` checks it on every tick of whole trials). The
 formulas are the reference modules' docstrings (``app.teleop.lift_out``,
@@ -44,7 +44,7 @@ from app.teleop.guarded_descent import (
 from app.teleop.lift_out import CENTRE_M, LEAVING_M
 from app.teleop.lift_out import MARGIN_M as LIFT_MARGIN_M
 
-__all__ = ["CHANGED", "STATE", "STEERED", "hypot2", "steer"]
+__all__ = ["CHANGED", "RESTING", "STATE", "STEERED", "hypot2", "steer"]
 
 STATE = ("held", "cleared", "since_t", "since_x", "since_y", "palm_on", "palm_left", "last_z")
 """What :func:`steer`'s ``state`` holds, in order."""
@@ -52,6 +52,8 @@ STEERED = 1
 """Bit of :func:`steer`'s result: ``out[:3]`` is the target (else the user's target)."""
 CHANGED = 2
 """Bit of :func:`steer`'s result: the guard's part of ``state`` changed."""
+RESTING = 4
+"""Bit of :func:`steer`'s result: the hand rests on an object (``out[3:6]`` names it)."""
 
 # consts: what a trial's hand and scene fix (``pack_consts``)
 _REACH_BELOW, _SLOT, _CLEARANCE, _PALM_ABOVE, _HX, _HY, _PARTS_LO, _LOW, _FLOOR, _NPARTS = range(10)
@@ -340,14 +342,14 @@ def steer(
     c: np.ndarray,
     now: float,
 ) -> int:
-    """One tick of the open hand's steering (``Trial._steer_reference`` after its closed-gripper
+    """One tick of the open hand's steering (``Steering.reference`` after its closed-gripper
     test): the TCP ``x`` (3,), the user's target ``t`` (3,), the objects as footprints
     ``(n, 5)`` (``Footprint``), the object the robot takes the hand to (``taking``, ``-1``:
     none), the fallen objects' indices, the ``state`` (``STATE``), the fixed numbers
     ``c`` (:func:`pack_consts`) at time ``now``. Writes the target ``out[:3]`` when it steers,
     and ``out[3:6]``: the object the hand rests on (``-1``: none), whether centred (0/1) and
-    its offset along x (left as it was when it rests on none). Returns ``STEERED`` and
-    ``CHANGED`` bits."""
+    its offset along x (left as it was when it rests on none). Returns ``STEERED``,
+    ``CHANGED`` and ``RESTING`` bits."""
     before = state[:7].copy()
     out[3] = -1.0
     out[4] = 0.0
@@ -369,7 +371,8 @@ def steer(
         a, b = before[i], state[i]
         if a != b and not (math.isnan(a) and math.isnan(b)):
             changed = True
-    return (STEERED if steered else 0) | (CHANGED if changed else 0)
+    resting = RESTING if out[3] >= 0.0 else 0
+    return (STEERED if steered else 0) | (CHANGED if changed else 0) | resting
 
 
 @jit
@@ -384,7 +387,7 @@ def _note_resting(
     out: np.ndarray,
     c: np.ndarray,
 ) -> None:
-    """``Trial._note_resting``: the object the hand rests on into ``out[3:6]``."""
+    """``Steering._note_resting``: the object the hand rests on into ``out[3:6]``."""
     last = state[7]
     state[7] = x[2]
     if rest_k >= 0:

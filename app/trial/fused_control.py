@@ -106,14 +106,15 @@ class FusedControl:
         finite)`` from ``assess``'s inputs (``PolicyBlender.step_compiled``)."""
         q = self._q
         goals = self._goals
-        out, k, flips, info, finite, c, d, motion, alpha, c_su = control_step(
-            q, self._target, *assessment, float(self.ik.max_speed), self._arm, *self._goal_set
+        n = q.shape[0]
+        out = np.empty(3 * n + assessment[3].shape[0])  # [U; P; command; P(G | xi)]
+        k, flips, info, finite, c, d, motion, alpha, c_su = control_step(
+            q, self._target, *assessment, float(self.ik.max_speed), self._arm, *self._goal_set, out
         )
         if info != 0:  # pragma: no cover - J J^T + lambda^2 I is positive definite
             raise InvalidInputError("the kinematics pass gave a Jacobian that is not finite")
         if flips:  # in transit exactly when it was approaching G* (goals[3]): noted
             self.policy.note_transit(k, bool(goals[3][k]))
-        n = q.shape[0]
         u = self._u = out[:n]
         return (
             u,
@@ -135,18 +136,20 @@ class FusedControl:
         q, target = self._q, self._target
         none = _NO_VECTOR
         goals = self._goals
-        out, _, flips, info, finite, *_ = control_step(
+        n = q.shape[0]
+        out = np.empty(3 * n + 1)  # [U; P; command; unset]
+        _, flips, info, finite, *_ = control_step(
             *(q, target, target, target, none, _ONE_POINT, _ONE_POINT, none, none, target),
             *(_GIVEN, k, alpha, 0.0),
             float(self.ik.max_speed),
             self._arm,
             *self._goal_set,
+            out,
         )
         if info != 0:  # pragma: no cover - J J^T + lambda^2 I is positive definite
             raise InvalidInputError("the kinematics pass gave a Jacobian that is not finite")
         if flips:  # as in _act_all
             self.policy.note_transit(k, bool(goals[3][k]))
-        n = q.shape[0]
         u = self._u = out[:n]
         return u, out[n : 2 * n], out[2 * n : 3 * n], finite
 

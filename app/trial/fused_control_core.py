@@ -53,11 +53,13 @@ def control_step(
     arm: np.ndarray,
     goal_set: np.ndarray,
     approaching: np.ndarray,
-) -> tuple[np.ndarray, int, bool, int, bool, float, float, float, float, float]:
-    """``([U; P; command; P(G | xi)], G*, whether G*'s hysteresis flips (in transit while
-    ``approaching``, or the other way: ``GraspApproachPolicy.note_transit`` with ``not
-    approaching[G*]``), LAPACK info of P's solve, whether Q, U and P are finite and below the
-    blender's MAX_ABS_INPUT, conf, d, motion agreement, alpha, C(xi_{S->U}))``.
+    out: np.ndarray,
+) -> tuple[int, bool, int, bool, float, float, float, float, float]:
+    """``[U; P; command; P(G | xi)]`` into ``out`` ``(3 dof + n,)`` (a fresh array from the
+    caller: cheaper than returning a new one), and ``(G*, whether G*'s hysteresis flips (in
+    transit while ``approaching``, or the other way: ``GraspApproachPolicy.note_transit`` with
+    ``not approaching[G*]``), LAPACK info of P's solve, whether Q, U and P are finite and below
+    the blender's MAX_ABS_INPUT, conf, d, motion agreement, alpha, C(xi_{S->U}))``.
 
     The arguments from ``x`` to ``s2`` are :func:`~app.blending.assess_core.assess`'s
     (``s1``, ``s2``: its ``c_su`` and ``b``), or, with ``nums[0] == GIVEN``, ``G*`` given as
@@ -67,7 +69,6 @@ def control_step(
     (:func:`pack_goals`: each goal's row of ``goals``, ``goal_rots`` and ``postures`` --
     ``(n, 0)``: none -- and the objects) and each goal's hysteresis in ``approaching``."""
     dof = q.shape[0]
-    out = np.empty(3 * dof + points.shape[0])  # one array for Python: each returned costs a box
     if nums[0] == GIVEN:
         c = d = motion = c_su = 0.0
         alpha = s1
@@ -78,7 +79,7 @@ def control_step(
             s2, probs,
         )  # fmt: skip
         if k < 0:
-            return out, k, False, 0, False, c, d, motion, alpha, c_su  # nothing noted
+            return k, False, 0, False, c, d, motion, alpha, c_su  # nothing noted
     held = approaching[k]
     goal_rot = _two(goal_set, 1)[k].reshape((3, 3))
     transit, info, finite = _control(
@@ -87,7 +88,7 @@ def control_step(
         _two(goal_set, 2)[k], k, held, _two(goal_set, 3), _two(arm, 8), _one(arm, 9),
         _two(arm, 10), _one(arm, 11), _one(arm, 12), out,
     )  # fmt: skip
-    return out, k, transit == held, info, finite, c, d, motion, alpha, c_su
+    return k, transit == held, info, finite, c, d, motion, alpha, c_su
 
 
 _ARM_PARTS = 13
@@ -225,5 +226,5 @@ def warm_up() -> None:
     goal_set = pack_goals(z((2, 21)), np.stack((eye(3), eye(3))), z((2, 7)), z((2, 4)))
     control_step(
         *(z(7), z(3), z(3), z(3), z(0), points, points, z(2), z(2), z(3), nums, 0, 0.0, 1.0),
-        *(0.3, arm, goal_set, np.zeros(2, dtype=np.bool_)),
+        *(0.3, arm, goal_set, np.zeros(2, dtype=np.bool_), np.empty(7 * 3 + 2)),
     )

@@ -32,15 +32,11 @@ import time
 import numpy as np
 
 from app.blending import moved_goals, reach_below
-from app.blending.policy_grasp import HandLayer
 from app.robot.errors import PhysicsError
 from app.robot.scene import Scene, build_scene
 from app.robot.simulation import BodyPoses, Simulation
-from app.teleop.guarded_descent import CENTRED_M, DescentGuard, Footprint
+from app.teleop.guarded_descent import DescentGuard
 from app.teleop.ik_step import IKStep
-from app.teleop.lift_out import CLEARANCE_M, Cylinder, lift_out
-from app.teleop.steer_core import CHANGED as STEER_CHANGED
-from app.teleop.steer_core import STEERED, pack_consts, steer
 from app.teleop.types import InputSource, TeleopCommand, TrialObservation
 from app.trial.accidents import Accidents
 from app.trial.build_blender import build_blender
@@ -49,6 +45,7 @@ from app.trial.contacts import ContactLog
 from app.trial.events import EventKind, TrialEvent, mark
 from app.trial.fused_control import fused_control
 from app.trial.records import BlendTick, TickRecord, TrialResult
+from app.trial.steering import Steering
 from app.trial.tasks import LiftTask, Task
 
 FAR_OUTSIDE_M = 0.5  # a raw target this far outside the reach region is logged as such
@@ -116,28 +113,15 @@ class Trial:
         self._object_positions = self.sim.object_positions()
         self._objects_key: tuple[bytes, object] = (b"", None)  # what they were refreshed from
         self._grasp_points = self.scene.goals.positions
-        self._reach_below = reach_below(self.scene.hand)
-        self._half_widths = tuple(o.grasp_width / 2 for o in self.scene.spec.objects)
-        self.guard = _descent_guard(self.scene, self._reach_below)
-        """Holds the open hand above an object it would come down on (``held_above``) and
-        stops it, lowered around one, with its palm just over the top."""
-        self.resting_on: int | None = None
-        """The object around (or beside, under the palm) which the open hand is as low as it
-        goes this tick, the input asking it lower (the guard's palm stop, or the reach's
-        floor), or ``None``."""
-        self.resting_centred = False
-        """Whether the hand is then centred on that object along the slot (``CENTRED_M``)."""
-        self.resting_offset = 0.0
-        """The hand's offset then (m, world x) from that object's middle."""
+        self.steering = Steering(
+            self.scene, reach_below=reach_below(self.scene.hand), floor=self._reach_box[0][2]
+        )
+        """Where ``U`` steers the open hand around the objects (``app.trial.steering``)."""
         self.grasp_offset = 0.0
         """The open hand's offset (m, world x) from the middle of the object it was down
         around at the last grasp request (its palm over it, the TCP below its top), when more
         than ``CENTRED_M`` along the slot, else 0: why such a grasp misses or slips (the page
         says so, and which way to move)."""
-        self._last_ee_z = math.inf  # the TCP's height at the last tick (``_note_resting``)
-        self._cylinders = self._object_cylinders()
-        self._footprints = self._object_footprints()
-        self._start_steering()
         self._blend = BlendTick(0.0, 0.0, np.full(n, 1.0 / n), -1, 0.0, math.nan)
         self.records: list[TickRecord] = []
         self.events: list[tuple[float, TrialEvent]] = []
@@ -166,6 +150,31 @@ class Trial:
     @property
     def success(self) -> bool:
         return self.outcome == "success"
+
+    @property
+    def guard(self) -> DescentGuard:
+        """The open hand's descent guard (``app.teleop.guarded_descent``)."""
+        return self.steering.guard
+
+    @property
+    def held_above(self) -> int | None:
+        """The object the open hand is held above (``app.teleop.guarded_descent``), or ``None``."""
+        return self.steering.guard.held
+
+    @property
+    def resting_on(self) -> int | None:
+        """The object the open hand rests on this tick (``Steering.resting_on``), or ``None``."""
+        return self.steering.resting_on
+
+    @property
+    def resting_centred(self) -> bool:
+        """Whether the hand is then centred on it along the slot (``CENTRED_M``)."""
+        return self.steering.resting_centred
+
+    @property
+    def resting_offset(self) -> float:
+        """The hand's offset then (m, world x) from that object's middle."""
+        return self.steering.resting_offset
 
     def poses(self) -> BodyPoses:
         """The scene's body poses and the gripper now (copies, for a renderer's thread)."""
@@ -221,7 +230,7 @@ class Trial:
             self._grasp_points,
             accidents.count,
             accidents.down,
-            self.guard.held,
+            self.steering.guard.held,
         )
 
     def _objects_moved(self) -> None:
@@ -235,186 +244,7 @@ class Trial:
         self._objects_key = key
         self._object_positions = pos
         self._grasp_points = self.scene.goals.positions + (pos - self.sim.rest_positions)
-        self._cylinders = self._object_cylinders()
-        self._footprints = self._object_footprints()
-        self._footprint_rows = _rows(self._footprints)
-
-    def _start_steering(self) -> None:
-        """What the compiled steering (``_steer_compiled``) keeps between ticks."""
-        self._footprint_rows = _rows(self._footprints)
-        self._steer_consts = self._steering_constants()
-        """``steer_core.steer``'s fixed numbers, or ``None``: the reference steers."""
-        self._steer_state = np.array((*self.guard.state(), self._last_ee_z))  # (STATE)
-        self._steer_synced = True  # whether _steer_state holds the guard's state
-        self._steer_out = np.zeros(6)
-        self._fallen_seen: tuple[int, ...] | None = None
-        self._fallen = np.zeros(0, dtype=np.int64)  # the fallen objects' indices
-
-    def _steering_constants(self) -> np.ndarray | None:
-        """The numbers ``steer_core.steer`` steers by (the guard's hand, the reach's floor),
-        or ``None`` when the lift-out rule's would differ from the guard's."""
-        guard = self.guard
-        same = (guard.reach_below, guard.slot, guard.clearance) == (
-            self._reach_below,
-            self.scene.spec.gripper_open,
-            CLEARANCE_M,
-        )
-        if not same:  # pragma: no cover - one hand for both (``_descent_guard``)
-            return None
-        return pack_consts(
-            reach_below=guard.reach_below,
-            slot=guard.slot,
-            clearance=guard.clearance,
-            palm_above=guard.palm_above,
-            palm_half=guard.palm_half,
-            parts=guard.parts,
-            parts_lo=min((lo for lo, _, _ in guard.parts), default=math.inf),
-            low=guard.low,
-            floor=self._reach_box[0][2],
-        )
-
-    def _object_footprints(self) -> tuple[Footprint, ...]:
-        """Each object's cylinder with its half-width across the slot
-        (``app.teleop.guarded_descent``)."""
-        return tuple((*c, w) for c, w in zip(self._cylinders, self._half_widths, strict=True))
-
-    def _object_cylinders(self) -> tuple[Cylinder, ...]:
-        """Each object as ``(x, y, radius, top)`` where it stands now (``app.teleop.lift_out``)."""
-        envelopes = self.scene.goals.envelopes
-        if envelopes is None:
-            return ()
-        return tuple(
-            (g[0], g[1], env[0], g[2] + env[1])
-            for g, env in zip(self._grasp_points.tolist(), envelopes.tolist(), strict=True)
-        )
-
-    def _steer(self) -> np.ndarray:
-        """Where ``U`` steers this tick: the user's target, or first out of an object the open
-        hand is around and the target leaves (``app.teleop.lift_out``), or held above an object
-        the open hand would come down on rather than around (``app.teleop.guarded_descent``;
-        ``held_above`` names it), or no lower than its palm clears the top of an object it is
-        lowered around (``resting_on`` names it). Not out of (or above) a lying
-        object, nor out of the one the robot is taking the hand to (``alpha > 0`` at the last
-        tick): its policy keeps the hand clear there, and in a Hard task the user's target,
-        held at the reach's edge, always lies off the object the robot is carrying the hand to.
-        In one compiled call (``app.teleop.steer_core``) when the hand's numbers allow it,
-        else by :meth:`_steer_reference`, the reference the compiled call is tested equal to."""
-        self.resting_on, self.resting_centred = None, False
-        if self.task.gripper_closed:
-            self.guard.release()
-            self._steer_synced = False
-            return self.user_target
-        if self._steer_consts is None:
-            return self._steer_reference()
-        return self._steer_compiled(self._steer_consts)
-
-    def _steer_compiled(self, consts: np.ndarray) -> np.ndarray:
-        """:meth:`_steer_reference` as one call of ``steer_core.steer`` (the guard's state
-        mirrored into it, and back when it changes)."""
-        state = self._steer_state
-        guard = self.guard
-        if not self._steer_synced:  # the guard was released, or is new: take its state
-            state[:7] = guard.state()
-            self._steer_synced = True
-        blend = self._blend
-        fallen = self.accidents.fallen
-        if fallen is not self._fallen_seen:
-            self._fallen_seen = fallen
-            self._fallen = np.array(fallen, dtype=np.int64)
-        out = self._steer_out
-        flags = steer(
-            self._ee,
-            self.user_target,
-            self._footprint_rows,
-            blend.predicted if blend.alpha > 0.0 else -1,
-            self._fallen,
-            state,
-            out,
-            consts,
-            self.ticks * self._dt,
-        )
-        if flags & STEER_CHANGED:
-            guard.set_state(state.tolist())
-        x, y, z, resting, centred, offset = out.tolist()
-        if resting >= 0.0:
-            self.resting_on = int(resting)
-            self.resting_centred = centred > 0.0
-            self.resting_offset = offset
-        return np.array((x, y, z)) if flags & STEERED else self.user_target
-
-    def _steer_reference(self) -> np.ndarray:
-        """:meth:`_steer` for an open gripper in Python: the reference."""
-        guard = self.guard
-        taking = self._blend.predicted if self._blend.alpha > 0.0 else -1
-        skip = (taking, *self.accidents.fallen)  # a dropped object still stands: guarded
-        ee, target = self._ee.tolist(), self.user_target.tolist()
-        t = self.ticks * self._dt
-        if guard.held is not None:  # a hold is kept until the guard lets go (its docstring)
-            hold = guard.steer(ee, target, self._footprints, now=t, skip=skip)
-            if hold is not None:
-                return np.array(hold)
-        out = lift_out(
-            ee,
-            target,
-            self._cylinders,
-            reach_below=self._reach_below,
-            slot=self.scene.spec.gripper_open,
-            skip=skip,
-        )
-        if out is not None:
-            return np.array(out)
-        hold = guard.steer(ee, target, self._footprints, now=t, skip=skip)
-        if hold is not None:
-            return np.array(hold)
-        rest = guard.rest(ee, target, self._footprints, skip=skip)
-        self._note_resting(ee, target[2], rest)
-        return self.user_target if rest is None else np.array(rest[0])
-
-    def _note_resting(
-        self, ee: list[float], target_z: float, rest: tuple[tuple[float, float, float], int] | None
-    ) -> None:
-        """``resting_on``: the object the open hand is around once it is as low as it goes --
-        come down to ``rest_z``, the palm's stop the input asks below, or, with the input
-        (at height ``target_z``) pushed to the reach's floor, there or no longer coming down (the robot may be carrying
-        the hand to that object: its policy sets the height then); ``resting_centred``: centred
-        on it along the slot (``CENTRED_M``)."""
-        last, self._last_ee_z = self._last_ee_z, ee[2]
-        rest_z = None if rest is None else rest[0][2]
-        if rest_z is not None:
-            if ee[2] > rest_z + 0.005:
-                return  # still coming down to the palm's stop
-        else:
-            if target_z > self._reach_box[0][2] + 1e-6:
-                return  # the input does not ask it lower than it goes
-            if ee[2] > target_z + 0.005 and abs(ee[2] - last) >= 2e-4:
-                return  # still coming down
-        guard, fallen = self.guard, self.accidents.fallen
-        k = guard.under_palm(ee, self._footprints, skip=fallen, left=guard.palm_left)
-        if k is None and rest is not None:
-            k = rest[1]  # a part of the hand above the palm stopped beside a tall object
-        if k is not None:
-            self.resting_on = k
-            self.resting_offset = ee[0] - self._footprints[k][0]
-            self.resting_centred = (
-                abs(self.resting_offset) <= CENTRED_M
-                and guard.around(ee, self._footprints, skip=fallen) == k
-            )
-
-    def _offset(self) -> float:
-        """``grasp_offset`` now: the open hand's offset along x from the middle of the object
-        it is down around, if more than ``CENTRED_M``, else 0."""
-        ee = self._ee.tolist()
-        k = self.guard.under_palm(ee, self._footprints, skip=self.accidents.fallen)
-        if k is None:
-            return 0.0
-        ox, _, _, top, _ = self._footprints[k]
-        off = ee[0] - ox
-        return off if ee[2] < top and abs(off) > CENTRED_M else 0.0
-
-    @property
-    def held_above(self) -> int | None:
-        """The object the open hand is held above (``app.teleop.guarded_descent``), or ``None``."""
-        return self.guard.held
+        self.steering.objects_moved(self._grasp_points)
 
     def _follow_objects(self, events: list[TrialEvent]) -> None:
         """Re-aim the robot at objects a grasp moved: ``G_k <-`` object ``k``'s grasp point now,
@@ -573,16 +403,29 @@ class Trial:
         """``(U, P, command)`` this tick: the task's command when it drives the arm, else the
         user's ``U`` blended with the policy's ``P``."""
         if request and self.task.reaching:
-            self.grasp_offset = self._offset()
+            self.grasp_offset = self.steering.offset(self._ee, self.accidents.fallen)
         held = self.task.control(q, self.t, request=request, events=events)
         if held is not None:  # the task drives the arm: the open hand rests on nothing
-            self.resting_on, self.resting_centred = None, False
+            steering = self.steering
+            steering.resting_on, steering.resting_centred = None, False
             return held, held, held
+        if self.task.gripper_closed:
+            self.steering.closed()
+            target = self.user_target
+        else:
+            blend = self._blend
+            target = self.steering.steer(
+                self._ee,
+                self.user_target,
+                blend.predicted if blend.alpha > 0.0 else -1,
+                self.accidents.fallen,
+                self.ticks * self._dt,
+            )
         fused = self.fused
         if fused is not None and fused.ik is self.ik:
-            u, rec = fused.step(q, self._steer(), x=self.user_input, robot_x=self._ee)
+            u, rec = fused.step(q, target, x=self.user_input, robot_x=self._ee)
         else:
-            u = self.ik(q, self._steer())
+            u = self.ik(q, target)
             rec = self.blender.step(q, u, x=self.user_input, robot_x=self._ee)
         alpha, command, predicted = float(rec.alpha), rec.command, int(rec.predicted)
         if self.accidents.lying(predicted):  # its goal lies, to be stood up where the robot
@@ -659,37 +502,6 @@ class Trial:
         if self.keep_records:
             self.records.append(rec)
         return rec
-
-
-def _rows(footprints: tuple[Footprint, ...]) -> np.ndarray:
-    """The objects' footprints as an ``(n, 5)`` float array (``steer_core.steer``)."""
-    return np.array(footprints, dtype=np.float64).reshape(-1, 5)
-
-
-def _descent_guard(scene: Scene, reach_below_m: float) -> DescentGuard:
-    """The trial's ``DescentGuard`` for ``scene``'s hand (its fingertips ``reach_below_m`` under
-    the TCP): its palm, the lowest layer above the fingers, and the parts above the palm (not
-    the link before the last joint: its box, far off the TCP's axis, turns with it and reaches
-    12-16 cm around it, where the link is not)."""
-    palm = min(scene.hand[1:], key=lambda layer: layer.lo, default=None)
-    upper = tuple(layer for layer in scene.hand[1:] if layer is not palm)
-    above = min((layer.lo for layer in upper), default=0.0)
-    return DescentGuard(
-        reach_below=reach_below_m,
-        slot=scene.spec.gripper_open,
-        palm_above=palm.lo if palm is not None else math.inf,
-        palm_half=_half_extent(palm),
-        parts=tuple((layer.lo, *_half_extent(layer)) for layer in upper if not layer.turns),
-        low=scene.reach.lo[2] + above,  # the arm above the palm, the hand at the reach's floor
-    )
-
-
-def _half_extent(layer: HandLayer | None) -> tuple[float, float]:
-    """How far ``layer`` reaches to each side of the TCP along world x and y (its box about
-    its centre; the TCP's x and y are the world's for the top-down hand)."""
-    if layer is None:
-        return (0.0, 0.0)
-    return (abs(layer.center[0]) + layer.half[0], abs(layer.center[1]) + layer.half[1])
 
 
 def run_trial(
