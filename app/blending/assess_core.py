@@ -38,6 +38,7 @@ from numba import types
 from numba.extending import intrinsic
 
 from app.compiled import jit
+from app.norm_core import vector_norm
 
 from .arbitration import Aggressive, Linear, NoAssistance, Timid
 from .confidence import DistanceHinge, ProbabilityConfidence
@@ -124,37 +125,9 @@ def dot3(a: np.ndarray, b: np.ndarray) -> float:
 
 
 @jit
-def _square(x: float) -> tuple[float, float]:
-    """``x^2`` as ``hi + lo`` exactly."""
-    hi = x * x
-    return hi, _fma(x, x, -hi)
-
-
-@jit
 def dist3(a: np.ndarray, b: np.ndarray) -> float:
-    """``||a - b||`` of two 3-vectors as ``math.dist`` gives it (CPython's ``vector_norm``:
-    scaled to [0.5, 1), squares and sum kept exactly in two parts, one correction step)."""
-    d0, d1, d2 = abs(a[0] - b[0]), abs(a[1] - b[1]), abs(a[2] - b[2])
-    top = d0 if d0 > d1 else d1
-    top = d2 if d2 > top else top
-    if top == 0.0:
-        return top
-    scale = math.ldexp(1.0, -math.frexp(top)[1])
-    csum, frac1, frac2 = 1.0, 0.0, 0.0
-    for d in (d0, d1, d2):
-        hi, lo = _square(d * scale)
-        s = csum + hi
-        frac2 += (csum - s) + hi
-        csum = s
-        frac1 += lo
-    h = math.sqrt(csum - 1.0 + (frac1 + frac2))
-    hi, lo = _square(h)
-    s = csum - hi
-    frac2 += (csum - s) - hi
-    csum = s
-    frac1 -= lo
-    h += (csum - 1.0 + (frac1 + frac2)) / (2.0 * h)
-    return h / scale
+    """``||a - b||`` of two 3-vectors as ``math.dist`` gives it (``app.norm_core``)."""
+    return vector_norm(abs(a[0] - b[0]), abs(a[1] - b[1]), abs(a[2] - b[2]))
 
 
 @jit

@@ -32,6 +32,7 @@ import math
 import numpy as np
 
 from app.compiled import jit
+from app.norm_core import vector_norm
 from app.teleop.guarded_descent import (
     CENTRED_M,
     HOVER_M,
@@ -79,16 +80,6 @@ def pack_consts(
 
 
 @jit
-def _square(x: float) -> tuple[float, float]:
-    """``x^2`` as ``hi + lo`` exactly (Dekker's product: ``x`` split in two 26-bit halves)."""
-    hi = x * x
-    c = 134217729.0 * x  # 2^27 + 1
-    xh = c - (c - x)
-    xl = x - xh
-    return hi, ((xh * xh - hi) + 2.0 * xh * xl) + xl * xl
-
-
-@jit
 def hypot2(a: float, b: float) -> float:
     """``math.hypot(a, b)`` as CPython gives it (``vector_norm``)."""
     d0, d1 = abs(a), abs(b)
@@ -96,25 +87,7 @@ def hypot2(a: float, b: float) -> float:
         return math.inf
     if math.isnan(d0) or math.isnan(d1):
         return math.nan
-    top = d0 if d0 > d1 else d1
-    if top == 0.0:
-        return top
-    scale = math.ldexp(1.0, -math.frexp(top)[1])
-    csum, frac1, frac2 = 1.0, 0.0, 0.0
-    for d in (d0, d1):
-        hi, lo = _square(d * scale)
-        s = csum + hi
-        frac2 += (csum - s) + hi
-        csum = s
-        frac1 += lo
-    h = math.sqrt(csum - 1.0 + (frac1 + frac2))
-    hi, lo = _square(h)
-    s = csum - hi
-    frac2 += (csum - s) - hi
-    csum = s
-    frac1 -= lo
-    h += (csum - 1.0 + (frac1 + frac2)) / (2.0 * h)
-    return h / scale
+    return vector_norm(d0, d1, 0.0)
 
 
 @jit
