@@ -45,7 +45,8 @@ def study(tmp_path: Path) -> Iterator[RunningServer]:
     try:
         yield rs
     finally:
-        rs.stop()
+        ended = rs.stop()
+    assert ended, "the server's threads still ran after the stop's wait (a connection held it)"
 
 
 class Attack:
@@ -270,7 +271,8 @@ def test_idle_sockets_cannot_lock_a_new_tab_or_a_reload_out(tmp_path: Path) -> N
         run_async(scenario())
         assert srv.firewall.slots.evicted >= 2
     finally:
-        rs.stop()
+        ended = rs.stop()
+    assert ended, "the server's threads still ran after the stop's wait (a connection held it)"
 
 
 def test_guessers_from_six_addresses_keep_no_one_out(study: RunningServer) -> None:
