@@ -152,7 +152,9 @@ def test_ctrl_c_leaves_whole_participants_and_resume_finishes(
         "2",
         "--no-progress",
     ]
-    # its own process group, sent SIGINT as a terminal's Ctrl-C is: client and workers alike
+    # its own process group, sent SIGINT as a terminal's Ctrl-C is: client and workers alike;
+    # SIGINT's default action restored, as in a terminal (a test run started in the background,
+    # `nohup ... &`, ignores SIGINT and its children inherit that: the run then went on to exit 0)
     proc = subprocess.Popen(
         [sys.executable, "-m", "study", "simulate", *args],
         cwd=ROOT,
@@ -160,6 +162,7 @@ def test_ctrl_c_leaves_whole_participants_and_resume_finishes(
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     try:
         # interrupted once a participant is stored, the other two in flight on both workers;
