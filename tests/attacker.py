@@ -2,7 +2,8 @@
 
 ``python -m tests.attacker KIND --port P [--addresses A] [--tasks T] [--seconds S] ...`` runs
 one attack from the loopback addresses 127.0.0.2 onwards (never another machine) and prints a
-JSON line of what it managed on stdout. The kinds:
+JSON line of what it managed on stdout, at the end of ``seconds`` or on SIGTERM (a test that
+has seen what it needs stops it early). The kinds:
 
 * ``storm``: ``tasks`` tasks open a websocket, send a camera message (so the server builds a
   page), wait 50 ms and close, over and over (a reconnect loop; no code needed);
@@ -23,6 +24,7 @@ import argparse
 import asyncio
 import contextlib
 import json
+import signal
 import sys
 import time
 from typing import Any
@@ -215,8 +217,14 @@ async def attack(
         run(port, sources[k % n_addresses], end, stats, *extra)
         for k in range(tasks * (n_addresses if kind == "flood" else 1))
     ]
-    await asyncio.gather(*jobs)
-    return {"kind": kind, "addresses": n_addresses, "seconds": seconds, **stats}
+    running = asyncio.gather(*jobs)
+    asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, running.cancel)
+    started = time.monotonic()
+    with contextlib.suppress(asyncio.CancelledError):
+        await running
+    return {"kind": kind, "addresses": n_addresses, "seconds": seconds, **stats} | {
+        "ran_s": round(time.monotonic() - started, 2)
+    }
 
 
 def main() -> int:

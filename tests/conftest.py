@@ -82,8 +82,9 @@ def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
     starved the browser lanes and the port tests in 2 of 3 full runs). Many tests wait -- on paced
     control loops, attack scripts' seconds, subprocesses -- so twice as many workers as cores
     keep the cores busier (2 -> 4 workers: 12:41 -> 11:31 on 2 cores). The suite as a whole is
-    CPU-bound on 2 cores: about 620 CPU s outside the browsers and 590 in the browser lanes,
-    Chromium's drawing most of it (:data:`BROWSER_LANES`)."""
+    nearly CPU-bound on 2 cores: about 345 CPU s outside the browsers (``-m "not browser"``, a
+    quiet machine, 2026-12-03: 197 s of wall on three workers, the tests' own times summing to
+    520 s) and 590 in the browser lanes, Chromium's drawing most of it (:data:`BROWSER_LANES`)."""
     return 2 * (os.cpu_count() or 1)
 
 
@@ -91,15 +92,20 @@ LONGEST_FIRST = (
     "browser-1",
     "browser-2",
     "tests/test_simulate_dask.py",
-    "tests/test_simulate_resume.py",
-    "tests/test_examples.py",
+    "tests/test_port_attacks.py",
+    "tests/test_port_hostile_clients.py",
     "tests/test_sweep.py",
-    "tests/test_simulate_workers.py",
+    "tests/test_simulate_resume.py",
     "tests/test_adaptive_protocol.py",
+    "tests/test_examples.py",
+    "tests/test_simulate_workers.py",
 )
-"""The groups that take longest (``--durations``, 2 cores, December 2026), handed out first:
-the browser lanes must not wait behind short modules (xdist otherwise starts the groups with
-the most tests first). Order only: a group missing here runs after these, in xdist's order."""
+"""The groups that take longest (``--durations`` of a full run, 2 cores, 2026-12-03: Dask 168 s,
+the port attacks 143 s and hostile clients 90 s before their stops were fixed -- about 100 and
+65 s after --, the sweep 39 s, resume 31 s, adaptive 25 s, examples 22 s, workers 18 s), handed
+out first: the browser lanes must not wait behind short modules, and a long module must not
+start last (xdist otherwise starts the groups with the most tests first). Order only: a group
+missing here runs after these, in xdist's order."""
 
 
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:

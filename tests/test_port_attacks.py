@@ -45,7 +45,8 @@ def study(tmp_path: Path) -> Iterator[RunningServer]:
     try:
         yield rs
     finally:
-        rs.stop()
+        ended = rs.stop()
+    assert ended, "the server's threads still ran after the stop's wait (a connection held it)"
 
 
 class Attack:
@@ -61,6 +62,11 @@ class Attack:
     def result(self) -> dict[str, Any]:
         out, _ = self.process.communicate(timeout=120)
         return json.loads(out.strip().splitlines()[-1])
+
+    def stop(self) -> dict[str, Any]:
+        """End it now (the test has seen what it needs under it); what it managed."""
+        self.process.terminate()  # the attacker reports on SIGTERM
+        return self.result()
 
 
 class Honest:
@@ -263,14 +269,16 @@ def test_idle_sockets_cannot_lock_a_new_tab_or_a_reload_out(tmp_path: Path) -> N
             assert await until(lambda: srv.session(code).page is not None, timeout=10.0)
             await reload.close()
             assert await until(lambda: srv.session(code).page is None, timeout=5.0)
-            result = await asyncio.get_running_loop().run_in_executor(None, attack.result)
+            assert attack.process.poll() is None, "the attack ended before the reload was seen"
+            result = await asyncio.get_running_loop().run_in_executor(None, attack.stop)
             assert result["opened"] >= 24
 
     try:
         run_async(scenario())
         assert srv.firewall.slots.evicted >= 2
     finally:
-        rs.stop()
+        ended = rs.stop()
+    assert ended, "the server's threads still ran after the stop's wait (a connection held it)"
 
 
 def test_guessers_from_six_addresses_keep_no_one_out(study: RunningServer) -> None:
@@ -286,7 +294,8 @@ def test_guessers_from_six_addresses_keep_no_one_out(study: RunningServer) -> No
         assert await until(lambda: srv.throttle.saturated(), timeout=10.0)
         async with RawClient(srv.participant_port) as honest:
             await honest.join(code)
-        result = await asyncio.get_running_loop().run_in_executor(None, attack.result)
+        assert attack.process.poll() is None, "the guessing ended before the tab joined"
+        result = await asyncio.get_running_loop().run_in_executor(None, attack.stop)
         assert result["guesses"] > 60
 
     run_async(scenario())

@@ -51,7 +51,8 @@ def study(tmp_path: Path) -> Any:
     try:
         yield rs
     finally:
-        rs.stop()
+        ended = rs.stop()
+    assert ended, "the server's threads still ran after the stop's wait (a connection held it)"
 
 
 def _started(rs: RunningServer) -> tuple[Any, str, Any]:

@@ -30,7 +30,7 @@ from distributed import Client, LocalCluster
 from study.__main__ import main as study_main
 from study.protocol import load_protocol
 from study.session import open_store
-from study.simulated import simulate
+from study.simulated import dask_engine, simulate
 from study.simulated.bundle import merge_bundle
 from study.simulated.dask_engine import RunInputs, simulate_remote
 from study.simulated.population import DEFAULT_POPULATION_PATH
@@ -108,8 +108,13 @@ def free_port() -> int:
 
 
 def test_an_unreachable_scheduler_is_named(
-    protocol: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    protocol: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
+    # nothing listens there: a refused connection is retried until the timeout, 5 s by default
+    monkeypatch.setattr(dask_engine, "CONNECT_TIMEOUT_S", 0.5)
     address = f"tcp://127.0.0.1:{free_port()}"
     code = study_main(
         [
@@ -152,7 +157,9 @@ def test_ctrl_c_leaves_whole_participants_and_resume_finishes(
         "2",
         "--no-progress",
     ]
-    # its own process group, sent SIGINT as a terminal's Ctrl-C is: client and workers alike
+    # its own process group, sent SIGINT as a terminal's Ctrl-C is: client and workers alike;
+    # SIGINT's default action restored, as in a terminal (a test run started in the background,
+    # `nohup ... &`, ignores SIGINT and its children inherit that: the run then went on to exit 0)
     proc = subprocess.Popen(
         [sys.executable, "-m", "study", "simulate", *args],
         cwd=ROOT,
@@ -160,6 +167,7 @@ def test_ctrl_c_leaves_whole_participants_and_resume_finishes(
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     try:
         # interrupted once a participant is stored, the other two in flight on both workers;

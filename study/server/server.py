@@ -226,7 +226,9 @@ class StudyServer:
             f"&SESSION_ID={{{{%SESSION_ID%}}}}"
         )
 
-    def stop(self) -> None:
+    def stop(self) -> bool:
+        """Close every session and stop both ports; returns whether both servers' threads
+        ended within ``viser_door.STOP_WAIT_S``."""
         self._places.stop()
         self.console.close()
         with self._lock:
@@ -235,15 +237,17 @@ class StudyServer:
             live.close()
         # the servers stop first: a message that arrives while they shut down is still screened
         # (a share-link request sent just before stop() reached viser when the order was reversed);
-        # only the firewalls' sweepers end before, on the loops that run them
-        self.firewall.stop_sweeper()
-        self.experimenter_firewall.stop_sweeper()
-        viser_door.stop_server(self.participant)
-        viser_door.stop_server(self.experimenter)
+        # only the firewalls' sweepers end before, and the connections no session needs are
+        # reset, on the loops that run them (Firewall.before_stop)
+        self.firewall.before_stop()
+        self.experimenter_firewall.before_stop()
+        ended = viser_door.stop_server(self.participant)
+        ended = viser_door.stop_server(self.experimenter) and ended
         blinding_guard.uninstall(self.participant)
         firewall.uninstall(self.participant)
         firewall.uninstall(self.experimenter)
         realtime.thaw_heap()
+        return ended
 
     # -- sessions ----------------------------------------------------------------------------
     def enrol(self, participant: str, *, recruitment: Recruitment | None = None) -> str:

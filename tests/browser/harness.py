@@ -234,9 +234,11 @@ class RunningServer:
     def console_url(self) -> str:
         return f"http://127.0.0.1:{self.server.experimenter_port}"
 
-    def stop(self) -> None:
-        self.server.stop()
+    def stop(self) -> bool:
+        """Stop the server, close the store; whether the server's threads ended."""
+        ended = self.server.stop()
         self.store.close()
+        return ended
 
 
 def start_server(

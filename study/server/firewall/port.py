@@ -54,6 +54,21 @@ from study.server.firewall.slots import Slot, Slots, close_slot
 SWEEP_EVERY_S = 1.0
 
 
+async def _unless_lost(connection: Any, seconds: float) -> None:
+    """Wait ``seconds``, unless ``connection`` is lost first: then raise its
+    ``ConnectionClosed``, so a frame held back for its share is never handed to viser after its
+    connection is gone (websockets' ``recv`` still returns frames queued before), and the
+    connection's handler ends with it instead of when the wait would have."""
+    lost = getattr(connection, "connection_lost_waiter", None)  # a websockets connection's
+    if lost is None:
+        await asyncio.sleep(seconds)
+        return
+    if not lost.done():
+        await asyncio.wait((lost,), timeout=seconds)  # never cancels ``lost``
+    if lost.done():
+        raise connection.protocol.close_exc
+
+
 class Firewall:
     """The rules for one viser server's incoming connections and messages, and what they
     refused. ``config``: its limits (the participant port's by default); ``on_drop`` and
@@ -165,22 +180,34 @@ class Firewall:
         loop = viser_door.event_loop(server)
         asyncio.run_coroutine_threadsafe(self._start_sweeper(), loop).result(timeout=5)
 
-    def stop_sweeper(self) -> None:
-        """End the sweeper on the server's loop while it still runs (call before the server
-        stops: a task left pending on a closed loop is reported as destroyed)."""
+    def before_stop(self) -> None:
+        """Call before the server stops, on its loop while it still runs: ends the sweeper (a
+        task left pending on a closed loop is reported as destroyed) and resets each connection
+        that holds no session or whose frames wait for their share or budget. A closing
+        handshake needs the peer's answer, which such a connection does not give in time (its
+        reads are held back; a flood's sockets are often gone), so each held the stop for
+        websockets' 10-s close timeout and its handler for its whole wait: a stop after a
+        56-socket flood took 16 s and left viser's thread running. A tab that holds a session
+        (or presented its rejoin token) is closed as before, "going away"."""
         server, sweeper = self._server, self._sweeper
-        if server is None or sweeper is None:
+        if server is None:
             return
         loop = viser_door.event_loop(server)
 
-        async def cancel() -> None:
-            sweeper.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await sweeper
+        async def wind_down() -> None:
+            if sweeper is not None:
+                sweeper.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await sweeper
+            for slot in self.slots:
+                if slot.held or not (slot.bound or slot.reserved):
+                    transport = getattr(slot.connection, "transport", None)
+                    if transport is not None:
+                        transport.abort()
 
         if not loop.is_closed():
             with contextlib.suppress(RuntimeError, TimeoutError):
-                asyncio.run_coroutine_threadsafe(cancel(), loop).result(timeout=5)
+                asyncio.run_coroutine_threadsafe(wind_down(), loop).result(timeout=5)
         self._sweeper = None
 
     def detach(self) -> None:
@@ -241,7 +268,11 @@ class Firewall:
                 self._closing("a text frame", code=1003)
             wait = self._frame_wait(slot, len(raw), now)
             if wait > 0.0:
-                await asyncio.sleep(wait)
+                slot.held = True
+                try:
+                    await _unless_lost(connection, wait)
+                finally:
+                    slot.held = False
             return raw
 
         return screened

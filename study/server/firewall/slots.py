@@ -42,6 +42,8 @@ class Slot:
     bound: bool = False
     client_id: int | None = None
     closing: bool = False
+    held: bool = False
+    """A frame of it waits for its share or budget (its reads are held back)."""
     rate: Any = field(default=None, repr=False)
     """Its :class:`~study.server.firewall.limits.ConnectionRate` (created on its first message)."""
     budget: Any = field(default=None, repr=False)
