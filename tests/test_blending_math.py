@@ -263,6 +263,37 @@ def test_arbitration_hand_computed() -> None:
     assert NoAssistance()(1.0) == 0.0
 
 
+def test_a_stock_arbitration_is_checked_once_per_parameters(monkeypatch) -> None:
+    """Built again with the same parameters (every trial builds its arbitration), a stock kind
+    is checked on the grid once; new parameters, a function arbitration and a subclass with an
+    alpha of its own are checked each time, and a subclass that decreases is still refused."""
+    from app.blending import arbitration as arbitration_module
+
+    checked: list[str] = []
+    check = arbitration_module.check_arbitration
+
+    def counted(fn, **kw):
+        checked.append(type(fn).__name__)
+        check(fn, **kw)
+
+    monkeypatch.setattr(arbitration_module, "_CHECKED", {})
+    monkeypatch.setattr(arbitration_module, "check_arbitration", counted)
+    for _ in range(3):
+        Timid(0.6, 0.4), Aggressive(0.3, 0.9), NoAssistance(), Linear(0.1, 0.8)
+    assert checked == ["Timid", "Aggressive", "NoAssistance", "Linear"]
+    Timid(0.6, 0.5), PiecewiseLinear([(0.2, 0.0), (1.0, 1.0)])
+    PiecewiseLinear([(0.2, 0.0), (1.0, 0.9)])
+    FunctionArbitration(lambda c: c), FunctionArbitration(lambda c: c)
+    assert checked[4:] == ["Timid", *["PiecewiseLinear"] * 2, *["FunctionArbitration"] * 2]
+
+    class Falling(Timid):
+        def __call__(self, c: float) -> float:
+            return 1.0 - super().__call__(c)
+
+    with pytest.raises(InvalidArbitrationError, match="must not decrease"):
+        Falling(0.6, 0.4)
+
+
 def test_arbitration_rejects_bad_functions() -> None:
     with pytest.raises(InvalidArbitrationError, match="must not decrease"):
         FunctionArbitration(lambda c: 1.0 - c)

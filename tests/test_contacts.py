@@ -11,7 +11,7 @@ import pytest
 
 from app.robot.errors import SceneError
 from app.robot.scene_spec import SceneSpec
-from app.teleop import TeleopCommand, TrialObservation
+from app.teleop import ScriptedInput, TeleopCommand, TrialObservation
 from app.trial import OUTCOMES, Trial, run_trial
 from app.trial.contacts import ContactLog
 from app.trial.events import EventKind, TrialEvent, encode
@@ -182,3 +182,42 @@ def test_the_protocol_chooses_the_contact_mode(protocol_path) -> None:
     assert SceneSpec.from_dict({**base, "contacts": "grasp"}).contacts == "grasp"
     with pytest.raises(SceneError, match=r"scene\.contacts: 'sometimes'; use 'always'"):
         SceneSpec.from_dict({**base, "contacts": "sometimes"})
+
+
+def test_arm_contacts_reports_every_arm_object_point_with_its_force(protocol_path) -> None:
+    """``Simulation.arm_contacts`` against MuJoCo's contact list read point by point, by body
+    name, on every tick of a sweep through the box (the arm pushing it) and a grasp: the same
+    points in the same order, parts, objects and forces bit for bit."""
+    from app.robot.simulation import _PART_BODIES
+
+    scene = _scene(protocol_path, contacts="always")
+    box = np.array(scene.object("box").position)
+    a, b = box + np.array([0.0, 0.15, 0.03]), box + np.array([0.0, -0.08, 0.03])
+    sweep = Trial(_config(protocol_path, scene, time_limit_s=6.0), Sweep(a, b, speed=0.1))
+    cfg = trial_config_from_protocol(protocol_path, "easy-right", "timid")
+    grasp = Trial(cfg, ScriptedInput(seed=3))
+    pushed = held = 0
+    for trial in (sweep, grasp):
+        sim = trial.sim
+        objects = {body: k for k, body in enumerate(trial.scene.object_body_ids)}
+        parts = {sim.model.body(name).id: k for k, name in enumerate(_PART_BODIES)}
+        while not trial.done:
+            trial.tick()
+            data, expected = sim.data, []
+            for i in range(data.ncon):
+                b1, b2 = (int(sim.model.geom_bodyid[g]) for g in data.contact.geom[i])
+                if b1 in parts and b2 in objects:
+                    part, obj = parts[b1], objects[b2]
+                elif b2 in parts and b1 in objects:
+                    part, obj = parts[b2], objects[b1]
+                else:
+                    continue
+                adr = int(data.contact.efc_address[i])
+                expected.append(
+                    (part, obj, max(float(data.efc_force[adr]), 0.0) if adr >= 0 else 0.0)
+                )
+            got = sim.arm_contacts()
+            assert got == expected and [f.hex() for *_, f in got] == [f.hex() for *_, f in expected]
+            pushed += trial is sweep and any(f > 0.0 for *_, f in got)
+            held += trial is grasp and len(got) >= 4
+    assert pushed > 10 and held > 10, (pushed, held)  # the arm pushed the box, the fingers held it

@@ -64,6 +64,33 @@ def check_arbitration(
         )
 
 
+_CHECKED: dict[tuple[Any, ...], None] = {}
+"""The arbitrations :func:`check_once` has passed, by class, parameters and extra points."""
+_CHECKED_MAX = 256  # kinds and parameters kept at most (emptied when full)
+
+
+def check_once(
+    fn: Callable[[float], float], *, name: str = "arbitration", extra: Sequence[float] = ()
+) -> None:
+    """:func:`check_arbitration`, done once per process for an arbitration whose own class
+    declares ``_params()`` -- its ``alpha(c)`` a function of those numbers alone (the stock
+    kinds): a trial builds the same few arbitrations again and again, and each check (about
+    0.25 ms, twice per built arbitration) was a sixth of setting up a trial. Any other
+    callable, a subclass that does not declare ``_params`` of its own included, is checked
+    every time."""
+    params = type(fn).__dict__.get("_params")
+    if params is None:
+        check_arbitration(fn, name=name, extra=extra)
+        return
+    key = (type(fn), params(fn), tuple(extra))
+    if key in _CHECKED:
+        return
+    check_arbitration(fn, name=name, extra=extra)
+    if len(_CHECKED) >= _CHECKED_MAX:
+        _CHECKED.clear()
+    _CHECKED[key] = None
+
+
 class Arbitration(ABC):
     """Base: ``__call__(c) -> alpha``; subclasses set up, then call ``self._validate()``."""
 
@@ -74,7 +101,7 @@ class Arbitration(ABC):
         """``alpha(c)`` in [0, 1], non-decreasing in the confidence ``c``."""
 
     def _validate(self) -> None:
-        check_arbitration(self, name=type(self).__name__, extra=self._breakpoints)
+        check_once(self, name=type(self).__name__, extra=self._breakpoints)
 
 
 class NoAssistance(Arbitration):
@@ -85,6 +112,9 @@ class NoAssistance(Arbitration):
 
     def __call__(self, c: float) -> float:
         return 0.0
+
+    def _params(self) -> tuple[float, ...]:
+        return ()
 
     def __repr__(self) -> str:
         return "NoAssistance()"
@@ -108,6 +138,9 @@ class Timid(Arbitration):
             return self.alpha_max
         return self._slope * c if c > 0.0 else 0.0
 
+    def _params(self) -> tuple[float, ...]:
+        return (self.alpha_max, self.saturation)
+
     def __repr__(self) -> str:
         return f"Timid(alpha_max={self.alpha_max}, saturation={self.saturation})"
 
@@ -124,6 +157,9 @@ class Aggressive(Arbitration):
 
     def __call__(self, c: float) -> float:
         return self.alpha_high if c >= self.threshold else 0.0
+
+    def _params(self) -> tuple[float, ...]:
+        return (self.threshold, self.alpha_high)
 
     def __repr__(self) -> str:
         return f"Aggressive(threshold={self.threshold}, alpha_high={self.alpha_high})"
@@ -145,6 +181,9 @@ class Linear(Arbitration):
     def __call__(self, c: float) -> float:
         c = 0.0 if c < 0.0 else (1.0 if c > 1.0 else c)
         return self.alpha_min + (self.alpha_max - self.alpha_min) * c
+
+    def _params(self) -> tuple[float, ...]:
+        return (self.alpha_min, self.alpha_max)
 
     def __repr__(self) -> str:
         return f"Linear(alpha_min={self.alpha_min}, alpha_max={self.alpha_max})"
@@ -188,6 +227,9 @@ class PiecewiseLinear(Arbitration):
             i += 1
         t = (c - cs[i - 1]) / (cs[i] - cs[i - 1])
         return al[i - 1] + t * (al[i] - al[i - 1])
+
+    def _params(self) -> tuple[float, ...]:
+        return (*self._c, *self._a)
 
     def __repr__(self) -> str:
         return f"PiecewiseLinear(points={list(self.points)})"

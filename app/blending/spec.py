@@ -17,7 +17,8 @@ and range); :func:`build` checks, fills defaults and calls the factory with a
 :class:`BuildContext`; an error is a :class:`ConfigError` whose ``key`` is the full key path
 (``modes.timid.arbitration.alpha_max``) and whose ``category`` says whether the key was
 ``missing``, ``unknown``, of the wrong ``type`` or out of range (``value``). Every built
-arbitration, whatever its kind, must pass :func:`check_arbitration` (alpha in [0, 1], never
+arbitration, whatever its kind, must pass :func:`check_arbitration` (once per stock kind and
+parameters: :func:`~app.blending.arbitration.check_once`; alpha in [0, 1], never
 decreasing in confidence; stateful kinds with their state frozen).
 """
 
@@ -27,7 +28,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from .arbitration import check_arbitration
+from .arbitration import check_once
 from .errors import BlendingError, ConfigError
 from .params import ParamProblem, ParamType, type_name
 
@@ -205,7 +206,7 @@ def build(role: str, cfg: Any, ctx: BuildContext) -> Any:
     try:
         obj = kind.factory(params, ctx)
         if role == "arbitration":
-            check_arbitration(obj, name=kind.name, extra=getattr(obj, "_breakpoints", ()))
+            check_once(obj, name=kind.name, extra=getattr(obj, "_breakpoints", ()))
     except ConfigError:
         raise
     except BlendingError as exc:

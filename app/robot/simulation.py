@@ -109,8 +109,9 @@ class Simulation:
             self._part_of_body[self.model.body(name).id] = k
         self._object_of_body = np.full(nbody, -1, dtype=np.int64)
         self._object_of_body[self._object_bodies] = np.arange(len(self._object_bodies))
-        self._part_of_geom = self._part_of_body[self._body_of_geom]
-        self._object_of_geom = self._object_of_body[self._body_of_geom]
+        # geom id -> the same, as lists (``arm_contacts`` looks them up one by one)
+        self._part_of_geom: list[int] = self._part_of_body[self._body_of_geom].tolist()
+        self._object_of_geom: list[int] = self._object_of_body[self._body_of_geom].tolist()
         self._off_z = scene.spec.table.top_z - OFF_TABLE_M
         self.reset()
 
@@ -234,27 +235,29 @@ class Simulation:
         ncon = self.data.ncon
         if ncon == 0:
             return []
-        geoms = self.data.contact.geom[:ncon]
-        part = self._part_of_geom[geoms]
-        if part.max() < 0:  # no arm part in any contact (objects on the table): nothing to sort
-            return []
-        obj = self._object_of_geom[geoms]
-        # a pair is arm-object when one side is an arm part and the other an object
-        hit = ((part[:, 0] >= 0) & (obj[:, 1] >= 0)) | ((part[:, 1] >= 0) & (obj[:, 0] >= 0))
-        if not hit.any():
-            return []
+        contact = self.data.contact
+        # in scalars (a grasp's ticks have 8-30 points; numpy's calls on arrays that small
+        # cost more than the loop): the pairs' arm part and object by geom, from lists
+        part, obj = self._part_of_geom, self._object_of_geom
         out = []
-        adr = self.data.contact.efc_address
-        for i in np.flatnonzero(hit).tolist():
-            a = 0 if part[i, 0] >= 0 else 1
-            force = float(self.data.efc_force[adr[i]]) if adr[i] >= 0 else 0.0
-            out.append((int(part[i, a]), int(obj[i, 1 - a]), max(force, 0.0)))
+        adr: list[int] = []
+        efc = self.data.efc_force
+        for i, (g1, g2) in enumerate(contact.geom[:ncon].tolist()):
+            p1, p2 = part[g1], part[g2]
+            # a pair is arm-object when one side is an arm part and the other an object
+            if (p1 >= 0 and obj[g2] >= 0) or (p2 >= 0 and obj[g1] >= 0):
+                if not adr:
+                    adr = contact.efc_address[:ncon].tolist()
+                a = adr[i]
+                force = max(float(efc[a]), 0.0) if a >= 0 else 0.0
+                out.append((p1, obj[g2], force) if p1 >= 0 else (p2, obj[g1], force))
         return out
 
     def objects_off_table(self) -> list[int]:
         """Indices of the objects whose centre fell below the table top (pushed off)."""
-        z = self.data.xpos[self._object_bodies, 2]
-        return [int(k) for k in np.flatnonzero(z < self._off_z)]
+        off_z = self._off_z
+        z = self.data.xpos[self._object_bodies, 2].tolist()
+        return [k for k, zk in enumerate(z) if zk < off_z]
 
     def objects_near(self, point: np.ndarray, radius: float) -> list[int]:
         """Indices of the objects whose centre lies within ``radius`` of ``point`` in the xy plane."""

@@ -114,7 +114,7 @@ class Accidents:
         events: list[TrialEvent] = []
         outcome: str | None = None
         off = set(sim.objects_off_table())
-        tilts = sim.object_tilts()
+        tilts = sim.object_tilts().tolist()  # Python floats: compared one by one below
         for k, name in enumerate(self.names):
             down = self._down.get(k)
             if k in off and (down is None or down.reason is not EventKind.PUSHED_OFF):

@@ -113,6 +113,9 @@ class Trial:
         self._object_positions = self.sim.object_positions()
         self._objects_key: tuple[bytes, object] = (b"", None)  # what they were refreshed from
         self._grasp_points = self.scene.goals.positions
+        # the goals over GOAL_MOVED_M off their grasp points, and the arrays that told it
+        # (neither is written to: a change is a new array)
+        self._far_seen: tuple[object, object, list[int]] = (None, None, [])
         self.steering = Steering(
             self.scene, reach_below=reach_below(self.scene.hand), floor=self._reach_box[0][2]
         )
@@ -254,9 +257,15 @@ class Trial:
         top-down grasp there) until it is stood up again.
         """
         goals = self.blender.goals
-        off = np.linalg.norm(self._grasp_points - goals.positions, axis=1)
+        points, seen = self._grasp_points, self._far_seen
+        if points is seen[0] and goals.positions is seen[1]:  # nothing moved since last time
+            far = seen[2]
+        else:
+            off = np.linalg.norm(points - goals.positions, axis=1)
+            far = np.flatnonzero(off > GOAL_MOVED_M).tolist()
+            self._far_seen = (points, goals.positions, far)
         moves = {}
-        for k in np.flatnonzero(off > GOAL_MOVED_M).tolist():
+        for k in far:
             if self.accidents.lying(k):
                 continue
             position = self._grasp_points[k].copy()
