@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 from playwright.sync_api import sync_playwright
 
-from tests.browser.harness import FrameLog, launch
+from tests.browser.harness import FrameLog, launch, new_context
 from tests.browser.page import SCREENSHOTS
 
 
@@ -26,7 +26,7 @@ def browser() -> Iterator[Any]:
 
 @pytest.fixture
 def context(browser: Any) -> Iterator[Any]:
-    ctx = browser.new_context(viewport={"width": 1100, "height": 720})
+    ctx = new_context(browser, viewport={"width": 1100, "height": 720})
     ctx.set_default_timeout(60_000)  # software WebGL under load: a first draw can take 20 s
     try:
         yield ctx
@@ -41,7 +41,7 @@ def small(browser: Any) -> Iterator[Any]:
     the cores to the server and the other pytest worker (the tests' own times are set by what
     they wait for: no faster within the noise of a shared machine). Wide enough for viser's
     desktop layout (its phone layout starts below 576 px)."""
-    ctx = browser.new_context(viewport={"width": 800, "height": 600})
+    ctx = new_context(browser, viewport={"width": 800, "height": 600})
     ctx.set_default_timeout(60_000)
     try:
         yield ctx
@@ -52,7 +52,7 @@ def small(browser: Any) -> Iterator[Any]:
 @pytest.fixture
 def wide(browser: Any) -> Iterator[Any]:
     """A 1366 x 768 window, a common laptop screen: the size the page is tried at."""
-    ctx = browser.new_context(viewport={"width": 1366, "height": 768})
+    ctx = new_context(browser, viewport={"width": 1366, "height": 768})
     ctx.set_default_timeout(120_000)  # a first draw of the scene on a loaded machine
     try:
         yield ctx

@@ -8,6 +8,7 @@ size), the zstd-compressed msgpack ``{"messages": [...], ...}``, then raw binary
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from collections.abc import Iterator
@@ -33,6 +34,54 @@ CHROMIUM_ARGS = [
     "--no-first-run",
     "--disable-sync",
 ]
+
+
+FRAME_CAP_FPS = float(os.environ.get("TEST_FRAME_CAP", "10"))
+"""Frames a second the tests' pages draw at most (``TEST_FRAME_CAP=0``: no cap). Software WebGL
+draws as fast as the CPU lets it while the arm moves, near a core a page, CPU the suite's other
+workers need (issue 24.4). 10 a second is what a weak laptop draws the page at (9-15 measured
+under load), so every test's behaviour is one a participant can meet; the page's own frame
+rate is measured uncapped by ``benchmarks/page_fps.py``. Measured in one session, paired runs:
+``test_depth_and_limits.py`` Chromium 80.9 -> 50.7 CPU s, ``test_keys_and_pause.py`` 19.7 ->
+14.9; both browser lanes (``-n 2``, helpers' jobs on the machine) 345 -> 287 CPU s of
+Chromium."""
+
+FRAME_CAP_JS = """
+(() => {
+  const period = 1000 / __FPS__;
+  if (!(period > 0) || !isFinite(period)) return;
+  const frame = window.requestAnimationFrame.bind(window);
+  const queue = new Map();
+  let next = 1, asked = false, last = -1e9;
+  const run = (t) => {
+    if (t - last < period - 2) { frame(run); return; }
+    asked = false;
+    last = t;
+    const due = [...queue.values()];
+    queue.clear();
+    for (const cb of due) {
+      try { cb(t); } catch (e) { queueMicrotask(() => { throw e; }); }
+    }
+  };
+  window.requestAnimationFrame = (cb) => {
+    const id = next++;
+    queue.set(id, cb);
+    if (!asked) { asked = true; frame(run); }
+    return id;
+  };
+  window.cancelAnimationFrame = (id) => { queue.delete(id); };
+})();
+"""
+
+
+def new_context(browser: Any, **options: Any) -> Any:
+    """``browser.new_context(**options)`` whose pages draw at most :data:`FRAME_CAP_FPS` frames
+    a second: ``requestAnimationFrame`` callbacks wait for the frame after a period has passed
+    (viser's drawing, the page script's resends and the tests' own frame waits alike)."""
+    ctx = browser.new_context(**options)
+    if FRAME_CAP_FPS > 0:
+        ctx.add_init_script(FRAME_CAP_JS.replace("__FPS__", repr(FRAME_CAP_FPS)))
+    return ctx
 
 
 def launch(playwright: Any) -> Any:

@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 from study.server.forwarded import trusted_networks
-from tests.browser.harness import RunningServer, start_server, wait_until
+from tests.browser.harness import RunningServer, new_context, start_server, wait_until
 from tests.browser.page import AGREE, hold, screenshot
 
 pytestmark = pytest.mark.browser
@@ -203,7 +203,7 @@ def test_a_participant_behind_the_tls_proxy_at_150_ms(
     behind_proxy: tuple[RunningServer, int], browser: Any, screenshots: Path
 ) -> None:
     rs, port = behind_proxy
-    ctx = browser.new_context(viewport={"width": 1100, "height": 720}, ignore_https_errors=True)
+    ctx = new_context(browser, viewport={"width": 1100, "height": 720}, ignore_https_errors=True)
     ctx.set_default_timeout(60_000)
     try:
         page = ctx.new_page()
