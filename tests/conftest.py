@@ -54,9 +54,12 @@ misses it (its renderer and GPU processes are not waited for): sampled from /pro
 tests used 591 CPU s in that run (Chromium 456, the two workers 110, Playwright's node 18), not
 the 197 once measured. Chromium draws on demand, about 0.1 CPU s a second for a still page,
 but while the arm moves it draws as fast as the CPU lets it, near a core a page at any window
-size (1366 x 768: 9 frames/s, 800 x 600: 14, both 0.85 CPU s a second). A third lane (tried:
-409-470 s each beside jobs at load 17-21, 675 CPU s) adds a third such page against the
-other workers: the CPU does not allow it."""
+size (1366 x 768: 9 frames/s, 800 x 600: 14, both 0.85 CPU s a second); the tests' pages now
+draw at most 10 frames a second (``tests.browser.harness.FRAME_CAP_FPS``: both lanes 412 -> 364
+CPU s in a paired run, twelfth session). A third lane (tried: 409-470 s each beside jobs at load
+17-21, 675 CPU s; again with the cap and four workers, beside a helper's attack runs: 7 min 53 s
+against 7 min 43 s for two lanes and three workers, and two starvation failures) adds a third
+such page against the other workers: the CPU does not allow it."""
 
 
 def _group(nodeid: str) -> str:
