@@ -65,15 +65,18 @@ def _peer_gone(connection: Any) -> bool:
     peer reset it, or closed its side without a websocket close). While a frame is held the
     connection's reads are paused, so asyncio never hears of the loss: a flooder's sockets,
     reset mid-hold, kept their slots and had their queued frames handed to viser at the share's
-    pace for 30 s after the flooder was gone. ``False`` where the state cannot be read."""
+    pace for 30 s after the flooder was gone. ``False`` where the state cannot be read (not
+    TCP, or not Linux)."""
     transport = getattr(connection, "transport", None)
     sock = None if transport is None else transport.get_extra_info("socket")
     if sock is None or not hasattr(socket, "TCP_INFO"):
         return False
+    if sock.family not in (socket.AF_INET, socket.AF_INET6):
+        return False
     try:
         state = sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_INFO, 1)
-    except OSError:
-        return True  # its descriptor is gone
+    except OSError:  # its descriptor is closed: the transport reports the loss itself
+        return False
     return state[0] != _TCP_ESTABLISHED
 
 
