@@ -738,3 +738,44 @@ def test_frames_below_a_message_are_bounded_and_the_honest_tab_goes_on(
     assert fragments == 1009, fragments  # message too big: closed, nothing more kept
     assert pinged == 1008 and pings < 200, (pinged, pings)
     assert srv.firewall.closed_connections >= 2
+
+
+def test_a_flood_that_hangs_up_while_held_back_frees_its_slots_at_once(
+    study: RunningServer,
+) -> None:
+    """Eight sockets from one address each push 500 camera messages (far past their share,
+    so their reads are held back with hundreds of frames queued) and hang up. The server's reads
+    of them are paused, so asyncio never hears of the hang-up: their slots stayed for the whole
+    queue, its frames handed to viser at the share's pace for 20-30 s after the flooder was
+    gone. The kernel's view of a held connection is looked at now: the slots go within seconds
+    and nothing more of theirs reaches viser."""
+    srv = study.server
+    fw = srv.firewall
+
+    async def flood_and_hang_up() -> int:
+        sockets = []
+        for _ in range(8):
+            ws = await websockets.connect(
+                f"ws://127.0.0.1:{srv.participant_port}",
+                subprotocols=[SUBPROTOCOL],
+                local_addr=("127.0.0.2", 0),
+                ping_interval=None,
+            )
+            sockets.append(ws)
+        for ws in sockets:
+            for _ in range(500):
+                await ws.send(CAMERA)
+        await asyncio.sleep(1.0)  # what they sent is at the server (about 130 KiB each)
+        held = sum(s.held for s in fw.slots)
+        for ws in sockets:
+            ws.transport.abort()  # the socket closed: what the kernel holds, then a FIN
+        return held
+
+    held = run_async(flood_and_hang_up())
+    assert held >= 4, f"the flood was not held back ({held} held)"
+    assert wait_until(lambda: len(fw.slots) == 0, timeout=5), (
+        f"{len(fw.slots)} slots of a flooder that hung up are still held"
+    )
+    passed = fw.passed
+    time.sleep(1.0)
+    assert fw.passed == passed, "frames of connections that were gone still reached viser"

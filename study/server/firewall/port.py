@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import socket
 import threading
 import time
 import weakref
@@ -54,17 +55,51 @@ from study.server.firewall.slots import Slot, Slots, close_slot
 SWEEP_EVERY_S = 1.0
 
 
+LOST_POLL_S = 0.25
+"""How often a held frame's connection is looked at in the kernel (:func:`_peer_gone`)."""
+_TCP_ESTABLISHED = 1
+
+
+def _peer_gone(connection: Any) -> bool:
+    """Whether the kernel no longer holds ``connection``'s TCP connection as established (the
+    peer reset it, or closed its side without a websocket close). While a frame is held the
+    connection's reads are paused, so asyncio never hears of the loss: a flooder's sockets,
+    reset mid-hold, kept their slots and had their queued frames handed to viser at the share's
+    pace for 30 s after the flooder was gone. ``False`` where the state cannot be read (not
+    TCP, or not Linux)."""
+    transport = getattr(connection, "transport", None)
+    sock = None if transport is None else transport.get_extra_info("socket")
+    if sock is None or not hasattr(socket, "TCP_INFO"):
+        return False
+    if sock.family not in (socket.AF_INET, socket.AF_INET6):
+        return False
+    try:
+        state = sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_INFO, 1)
+    except OSError:  # its descriptor is closed: the transport reports the loss itself
+        return False
+    return state[0] != _TCP_ESTABLISHED
+
+
 async def _unless_lost(connection: Any, seconds: float) -> None:
     """Wait ``seconds``, unless ``connection`` is lost first: then raise its
     ``ConnectionClosed``, so a frame held back for its share is never handed to viser after its
     connection is gone (websockets' ``recv`` still returns frames queued before), and the
-    connection's handler ends with it instead of when the wait would have."""
+    connection's handler ends with it instead of when the wait would have. The kernel's view
+    of the connection is looked at every ``LOST_POLL_S`` (:func:`_peer_gone`); a lost one is
+    aborted, which is what ends the wait."""
     lost = getattr(connection, "connection_lost_waiter", None)  # a websockets connection's
     if lost is None:
         await asyncio.sleep(seconds)
         return
-    if not lost.done():
-        await asyncio.wait((lost,), timeout=seconds)  # never cancels ``lost``
+    end = asyncio.get_running_loop().time() + seconds
+    while not lost.done():
+        left = end - asyncio.get_running_loop().time()
+        if left <= 0.0:
+            break
+        await asyncio.wait((lost,), timeout=min(left, LOST_POLL_S))  # never cancels ``lost``
+        if not lost.done() and _peer_gone(connection):
+            connection.transport.abort()  # connection_lost follows on the next turn
+            await asyncio.wait((lost,), timeout=1.0)
     if lost.done():
         raise connection.protocol.close_exc
 
