@@ -18,9 +18,11 @@ from hypothesis import strategies as st
 from scipy import stats
 from statsmodels.stats.anova import AnovaRM, anova_lm
 
+from analysis.__main__ import main as analysis_main
 from analysis.anova import covariate_anova, factorial_anova
 from analysis.errors import DesignError, SchemaError
 from analysis.rm_anova import rm_anova
+from tests.support.cli import Ran, run_main
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -331,7 +333,17 @@ def _cli(*args: str) -> subprocess.CompletedProcess[str]:
     )
 
 
-def test_cli_prints_effect_rows_and_reports_problems(tmp_path: Path) -> None:
+def _cli_here(capsys: pytest.CaptureFixture[str], *args: str) -> Ran:
+    """``python -m analysis anova``'s ``main`` in this process (exit code and what it printed,
+    without an interpreter's start-up and imports, about 1.4 CPU s a command)."""
+    return run_main(analysis_main, ["anova", *args], capsys)
+
+
+def test_cli_prints_effect_rows_and_reports_problems(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The first command runs as a user runs it (a new process: the table on stdout, the note
+    on stderr); the others call the same ``main`` here."""
     d = _paper_shaped().rename(columns={"mode": "C"})
     d = pd.concat([d, d.iloc[:3]], ignore_index=True)  # repeated rows -> averaged, with a note
     path = tmp_path / "long.csv"
@@ -353,7 +365,8 @@ def test_cli_prints_effect_rows_and_reports_problems(tmp_path: Path) -> None:
     assert list(out.columns[:6]) == ["effect", "df1", "df2", "F", "p", "np2"]
     assert len(out) == 7 and set(out.df2) == {7}
     assert "averaged" in ok.stderr
-    js = _cli(
+    js = _cli_here(
+        capsys,
         "--csv",
         str(path),
         "--dv",
@@ -373,13 +386,22 @@ def test_cli_prints_effect_rows_and_reports_problems(tmp_path: Path) -> None:
     )
     rows = json.loads(js.stdout)
     assert {r["df2"] for r in rows} == {53.0} and rows[0]["effect"] == "difficulty"
-    bad = _cli(
-        "--csv", str(path), "--dv", "C", "--subject", "participant", "--within", "difficulty"
+    bad = _cli_here(
+        capsys,
+        "--csv",
+        str(path),
+        "--dv",
+        "C",
+        "--subject",
+        "participant",
+        "--within",
+        "difficulty",
     )
     assert bad.returncode == 2 and "must be numeric" in bad.stderr
     assert "Traceback" not in bad.stderr
     d.iloc[4:].to_csv(path, index=False)  # P0 now lacks cells
-    miss = _cli(
+    miss = _cli_here(
+        capsys,
         "--csv",
         str(path),
         "--dv",
@@ -392,7 +414,15 @@ def test_cli_prints_effect_rows_and_reports_problems(tmp_path: Path) -> None:
         "C",
     )
     assert miss.returncode == 2 and "P0 lacks" in miss.stderr and "Traceback" not in miss.stderr
-    gone = _cli(
-        "--csv", str(tmp_path / "absent.csv"), "--dv", "y", "--subject", "s", "--within", "a"
+    gone = _cli_here(
+        capsys,
+        "--csv",
+        str(tmp_path / "absent.csv"),
+        "--dv",
+        "y",
+        "--subject",
+        "s",
+        "--within",
+        "a",
     )
     assert gone.returncode == 2 and "not found" in gone.stderr

@@ -19,8 +19,10 @@ import statsmodels.formula.api as smf
 from scipy import stats
 from statsmodels.regression.mixed_linear_model import MixedLM
 
+from analysis.__main__ import main as analysis_main
 from analysis.errors import DesignError
 from analysis.mixed import _fit_variances, _Stats, mixed_anova, profiled_reml, satterthwaite_df
+from tests.support.cli import run_main
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -128,7 +130,7 @@ def test_within_effect_p_matches_f_distribution_and_errors_are_typed() -> None:
         mixed_anova(d.assign(c=1.0), dv="y", subject="sub", factors=["a"], covariates=["c"])
 
 
-def test_cli_mixed_option(tmp_path: Path) -> None:
+def test_cli_mixed_option(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     d = _balanced(n=8, seed=2)
     path = tmp_path / "long.csv"
     d.to_csv(path, index=False)
@@ -163,29 +165,9 @@ def test_cli_mixed_option(tmp_path: Path) -> None:
     assert set(rows) == {"a", "b", "a:b", "z"}
     assert rows["z"]["df2"] == pytest.approx(6, rel=1e-3)
     assert "Satterthwaite" in proc.stderr
-    bad = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "analysis",
-            "anova",
-            "--csv",
-            str(path),
-            "--dv",
-            "y",
-            "--subject",
-            "sub",
-            "--within",
-            "a",
-            "--mixed",
-            "--model",
-            "factorial",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    # the same command line's main here: --mixed with another model is refused in one line
+    argv = ["anova", "--csv", str(path), "--dv", "y", "--subject", "sub", "--within", "a"]
+    bad = run_main(analysis_main, [*argv, "--mixed", "--model", "factorial"], capsys)
     assert bad.returncode == 2 and "--mixed" in bad.stderr
 
 

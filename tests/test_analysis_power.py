@@ -15,6 +15,7 @@ import pytest
 from scipy import stats
 from statsmodels.stats.proportion import proportion_confint
 
+from analysis.__main__ import main as analysis_main
 from analysis.anova import covariate_anova
 from analysis.errors import DesignError
 from analysis.load import from_frames, task_cells
@@ -33,6 +34,7 @@ from analysis.power import (
 )
 from analysis.rm_anova import rm_anova
 from analysis.synthetic import synthetic_tables
+from tests.support.cli import run_main
 
 ROOT = Path(__file__).resolve().parents[1]
 HARD_RIGHT = (CELLS.index(("hard", "right", "aggressive")), CELLS.index(("hard", "right", "timid")))
@@ -141,7 +143,9 @@ def test_errors_say_what_to_do(study_cells: pd.DataFrame) -> None:
         pilot_cells(study_cells[study_cells.difficulty == "easy"])
 
 
-def test_cli_writes_table_json_and_figure(tmp_path: Path) -> None:
+def test_cli_writes_table_json_and_figure(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     t = synthetic_tables(6, seed=3, rate_hz=5.0)
     export = tmp_path / "export"
     export.mkdir()
@@ -174,23 +178,11 @@ def test_cli_writes_table_json_and_figure(tmp_path: Path) -> None:
     assert {r["n"] for r in doc["power"]} == {6, 10}
     assert (out / "power_curve.png").stat().st_size > 10_000 and (out / "power.csv").exists()
     assert "n80" in proc.stdout
-    bad = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "analysis",
-            "power",
-            "--export-dir",
-            str(export),
-            "--out",
-            str(out),
-            "--b",
-            "3",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=300,
+    # the same command line's main here: a refused --b is exit 2 with a message
+    bad = run_main(
+        analysis_main,
+        ["power", "--export-dir", str(export), "--out", str(out), "--b", "3"],
+        capsys,
     )
     assert bad.returncode == 2 and "at least 100" in bad.stderr
 

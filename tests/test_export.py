@@ -9,11 +9,13 @@ import sys
 import pandas as pd
 import pytest
 
+from study.__main__ import main as study_main
 from study.codebook import CodebookError, codebook
 from study.export import TRIAL_COLUMNS, ExportError, tidy_tables
 from study.protocol import load_protocol
 from study.retention import RetentionError, record_retention
 from study.store import Store
+from tests.support.cli import run_main
 from tests.support.exports import PAPER, ROOT, build_store
 
 
@@ -221,23 +223,11 @@ def test_export_cli_writes_csv_parquet_and_codebook(store_path, tmp_path) -> Non
     assert meta["rows"] == summary["rows"]
 
 
-def test_export_cli_reports_a_missing_store(tmp_path) -> None:
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "study",
-            "export",
-            "--db",
-            str(tmp_path / "none.sqlite"),
-            "--out",
-            str(tmp_path / "out"),
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+def test_export_cli_reports_a_missing_store(tmp_path, capsys: pytest.CaptureFixture[str]) -> None:
+    # the export command line's main in this process (the command that writes files above is a
+    # new process, as a user runs it)
+    argv = ["export", "--db", str(tmp_path / "none.sqlite"), "--out", str(tmp_path / "out")]
+    proc = run_main(study_main, argv, capsys)
     assert proc.returncode == 2 and "no store at" in proc.stderr
     assert not (tmp_path / "out").exists()
 

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import os
 import re
-import subprocess
-import sys
 import threading
 from pathlib import Path
 
@@ -21,13 +19,13 @@ import pytest
 from app.files import InputFileError, check_input_file, read_text_file
 from app.robot.arm import load_arm
 from app.robot.scene_spec import JOINT_LIMITS
+from study.__main__ import main as study_main
 from study.protocol import ProtocolError, load_protocol
 from study.protocol.preflight import check_scenes
 from study.simulated import PopulationError
 from study.simulated.population import load_population
 from tests.protocol_copies import PAPER_PROTOCOL
-
-ROOT = Path(__file__).resolve().parents[1]
+from tests.support.cli import run_main
 
 
 @pytest.fixture
@@ -142,7 +140,9 @@ def test_scene_values_are_bounded_and_objects_on_the_table_and_apart(
         load_protocol(edited(tmp_path, pattern, replacement))
 
 
-def test_an_object_out_of_reach_is_found_before_a_session_starts(tmp_path: Path) -> None:
+def test_an_object_out_of_reach_is_found_before_a_session_starts(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """IK needs the arm: the commands that start sessions build every scene first."""
     path = edited(tmp_path, r"position = \[0.64, 0.06, 0.035\]", "position = [0.9, 0.06, 0.035]")
     protocol = load_protocol(path)  # the layout alone is fine
@@ -150,23 +150,8 @@ def test_an_object_out_of_reach_is_found_before_a_session_starts(tmp_path: Path)
         check_scenes(protocol)
     assert info.value.key == "scenes.easy" and "cannot be grasped" in info.value.problem
     db = tmp_path / "study.db"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "study",
-            "run",
-            "--protocol",
-            str(path),
-            "--db",
-            str(db),
-            "--participant",
-            "P01",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    # the run command line's main in this process: refused before a store is opened
+    argv = ["run", "--protocol", str(path), "--db", str(db), "--participant", "P01"]
+    proc = run_main(study_main, argv, capsys)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert "scenes.easy" in proc.stderr and not db.exists()  # nothing written

@@ -15,6 +15,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from study.__main__ import main as study_main
 from study.protocol import load_protocol
 from study.schedule import (
     Design,
@@ -25,6 +26,7 @@ from study.schedule import (
     schedule,
     williams_square,
 )
+from tests.support.cli import Ran, run_main
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "protocols" / "dragan2013.toml"
@@ -186,7 +188,15 @@ def run_cli(*args: str) -> subprocess.CompletedProcess:
     )
 
 
-def test_cli_csv_and_json(paper) -> None:
+def run_here(capsys: pytest.CaptureFixture[str], *args: str) -> Ran:
+    """``python -m study schedule``'s ``main`` in this process: what it returns and prints,
+    without an interpreter's start-up and imports (about 1.2 CPU s a command). The first
+    command of :func:`test_cli_csv_and_json` and the one run from another folder stay new
+    processes, as a user runs them."""
+    return run_main(study_main, ["schedule", *args], capsys)
+
+
+def test_cli_csv_and_json(paper, capsys: pytest.CaptureFixture[str]) -> None:
     out = run_cli("--protocol", str(PAPER), "--participants", "8", "--format", "csv")
     assert out.returncode == 0, out.stderr
     rows = list(csv.DictReader(io.StringIO(out.stdout)))
@@ -196,24 +206,24 @@ def test_cli_csv_and_json(paper) -> None:
     assert [(r["participant"], int(r["position"]), r["task"], r["mode"]) for r in rows] == [
         (t.participant, t.position, t.task, t.mode) for t in expected
     ]
-    out = run_cli("--protocol", str(PAPER), "--participants", "8", "--format", "json")
+    out = run_here(capsys, "--protocol", str(PAPER), "--participants", "8", "--format", "json")
     assert out.returncode == 0, out.stderr
     records = json.loads(out.stdout)
     assert records == [{k: r[k] if k != "position" else int(r[k]) for k in r} for r in rows]
 
 
-def test_cli_defaults_to_the_planned_sample_size() -> None:
-    out = run_cli("--protocol", str(PAPER))
+def test_cli_defaults_to_the_planned_sample_size(capsys: pytest.CaptureFixture[str]) -> None:
+    out = run_here(capsys, "--protocol", str(PAPER))
     assert out.returncode == 0, out.stderr
     assert len(out.stdout.strip().splitlines()) == 1 + 64
 
 
-def test_cli_reports_bad_input(tmp_path: Path) -> None:
-    out = run_cli("--protocol", str(PAPER), "--participants", "0")
+def test_cli_reports_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = run_here(capsys, "--protocol", str(PAPER), "--participants", "0")
     assert out.returncode == 2 and "--participants: must be 1..10000, got 0" in out.stderr
     bad = tmp_path / "bad.toml"
     bad.write_text(PAPER.read_text().replace("runs = 3", "runs = 'three'"))
-    out = run_cli("--protocol", str(bad), "--participants", "8")
+    out = run_here(capsys, "--protocol", str(bad), "--participants", "8")
     assert out.returncode == 2
     assert f"{bad}: training.runs: expected an integer" in out.stderr
 

@@ -21,7 +21,7 @@ from tests.support.simulated_runs import content, shared_reference
 pytestmark = pytest.mark.slow
 
 PARTICIPANTS = 3
-SEED = 4
+SEED = 7  # the resume and Dask tests' too (branch lead): one reference run serves all three
 
 
 def same_data(db: Path) -> dict[str, Any]:

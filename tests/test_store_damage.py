@@ -14,18 +14,17 @@ import hashlib
 import json
 import os
 import sqlite3
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
+from study.__main__ import main as study_main
 from study.session.sample_writer import sample_row
 from study.store import NotAStoreError, Store, StoreDamagedError
 from study.store.salvage import salvage
+from tests.support.cli import Ran, run_main
 from tests.support.stores import enrol, new_trial, open_store, tick
 
-ROOT = Path(__file__).resolve().parents[1]
 PAGE = 4096
 TICKS = 1500
 
@@ -129,17 +128,20 @@ def test_a_store_whose_header_is_garbage_is_not_called_a_store(store_file: Path)
         open_store(store_file)
 
 
-def test_commands_refuse_a_damaged_store_in_one_line(tmp_path: Path, short_protocol: Path) -> None:
+def test_commands_refuse_a_damaged_store_in_one_line(
+    tmp_path: Path, short_protocol: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """``run`` writes a session; after 64 KiB of garbage, ``run``, ``simulate --resume`` and
     ``export`` stop at once with the salvage hint (exit 2, no traceback); salvage then gives a
-    store that ``export`` reads."""
+    store that ``export`` reads. Each command is ``python -m study``'s ``main`` in this process
+    (all that the module does besides ``sys.exit``): an exception it let through would fail
+    the test as a traceback would, without five interpreters' start-up and imports."""
     db = tmp_path / "study.db"
-    study = (sys.executable, "-m", "study")
-    common = {"cwd": ROOT, "capture_output": True, "text": True, "timeout": 180}
-    done = subprocess.run(
-        [*study, "run", "--protocol", str(short_protocol), "--db", str(db), "--participant", "P01"],
-        **common,
-    )
+
+    def study(*argv: str) -> Ran:
+        return run_main(study_main, argv, capsys)
+
+    done = study("run", "--protocol", str(short_protocol), "--db", str(db), "--participant", "P01")
     assert done.returncode == 0, done.stderr
     with sqlite3.connect(db) as conn:
         conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
@@ -160,15 +162,13 @@ def test_commands_refuse_a_damaged_store_in_one_line(tmp_path: Path, short_proto
         ],
         ["export", "--db", str(db), "--out", str(tmp_path / "export")],
     ):
-        done = subprocess.run([*study, *argv], **common)
+        done = study(*argv)
         assert done.returncode == 2, (argv, done.stderr)
         assert "Traceback" not in done.stderr and "study salvage" in done.stderr, done.stderr
     assert digest(db) == before
     out = tmp_path / "salvaged.db"
-    done = subprocess.run([*study, "salvage", "--db", str(db), "--out", str(out)], **common)
+    done = study("salvage", "--db", str(db), "--out", str(out))
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout)["tables"]["trials"]["copied"] >= 1
-    done = subprocess.run(
-        [*study, "export", "--db", str(out), "--out", str(tmp_path / "e")], **common
-    )
+    done = study("export", "--db", str(out), "--out", str(tmp_path / "e"))
     assert done.returncode == 0, done.stderr

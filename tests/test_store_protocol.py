@@ -5,16 +5,16 @@ from __future__ import annotations
 
 import json
 import sqlite3
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
+from study.__main__ import main as study_main
 from study.export import export_metadata, resolve_protocol, tidy_tables
 from study.protocol import StoredProtocolError, load_protocol, protocol_from_store
 from study.session import Session, open_store
 from study.store import SAMPLE_COLUMNS, SCHEMA_VERSION, ProtocolMismatchError, Store
+from tests.support.cli import run_main
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "protocols" / "dragan2013.toml"
@@ -54,7 +54,7 @@ def test_store_keeps_the_protocol_text_and_rebuilds_it(study: tuple[Path, Path, 
 
 
 def test_export_uses_the_stored_protocol_after_the_file_changed(
-    study: tuple[Path, Path, str], tmp_path: Path
+    study: tuple[Path, Path, str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     db, path, text = study
     edit(path)
@@ -67,13 +67,8 @@ def test_export_uses_the_stored_protocol_after_the_file_changed(
     # an empty store: only the protocol can name the item columns (nothing to infer them from)
     assert set(LIKERT) <= set(tables["trials"].columns)
     out = tmp_path / "out"
-    proc = subprocess.run(
-        [sys.executable, "-m", "study", "export", "--db", str(db), "--out", str(out)],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    # the export command line's main in this process (what it writes and says is checked)
+    proc = run_main(study_main, ["export", "--db", str(db), "--out", str(out)], capsys)
     assert proc.returncode == 0, proc.stderr
     assert "note:" not in proc.stderr
     assert (out / "protocol.toml").read_text() == text

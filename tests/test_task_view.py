@@ -133,7 +133,9 @@ def _render_pixels(scene: Scene, view: TaskView) -> Pixels:
                         if geom.objtype == mujoco.mjtObj.mjOBJ_GEOM and geom.objid in arm_geoms:
                             geom.pos[:] = (0.0, 0.0, -100.0)
                 seg = renderer.render()
-                is_geom = seg[:, :, 1] == mujoco.mjtObj.mjOBJ_GEOM
+                # an int: numpy compares an array with mujoco's enum object one pixel at a
+                # time in Python (0.12 s a frame, nearly all of this module's CPU)
+                is_geom = seg[:, :, 1] == int(mujoco.mjtObj.mjOBJ_GEOM)
                 for j, gid in enumerate(scene.object_geom_ids):
                     mask = is_geom & (seg[:, :, 0] == gid)
                     if arm:

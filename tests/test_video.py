@@ -107,13 +107,12 @@ def test_replay_from_store_rows(config, tmp_path) -> None:
     assert max(seen) < 1e-6
 
 
-def test_render_cli_replays_a_trial_from_a_study_store(repo_root, tmp_path) -> None:
+def test_render_cli_replays_a_trial_from_a_study_store(repo_root, tmp_path, capsys) -> None:
     db = tmp_path / "study.sqlite"
-    run = subprocess.run(
-        [sys.executable, "-m", "study", "run", "--db", str(db), "--participant", "P01",
-         "--seed", "1"],
-        cwd=repo_root, capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
+    # the store is the render's input, not what is tested: ``run``'s main in this process
+    run = run_main(
+        study_main, ["run", "--db", str(db), "--participant", "P01", "--seed", "1"], capsys
+    )
     assert run.returncode == 0, run.stderr
     store = Store.open_readonly(db)
     trial = next(t for t in store.trials() if t.phase == "task" and t.success)
