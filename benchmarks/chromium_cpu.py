@@ -29,6 +29,7 @@ from collections import defaultdict
 from dataclasses import dataclass
 
 TICK = os.sysconf("SC_CLK_TCK")
+ENDED = "(ended: command line gone)"
 
 
 @dataclass(frozen=True)
@@ -79,7 +80,7 @@ def kind(title: str) -> str:
     program's name and first argument."""
     words = title.split()
     if not words:
-        return "(ended: command line gone)"
+        return ENDED
     program = os.path.basename(words[0])
     if program == "chromium":
         typ = next((w[7:] for w in words if w.startswith("--type=")), "browser")
@@ -121,6 +122,8 @@ def main() -> None:
             if p is None:
                 continue
             k = kind(p.title)
+            if pid in last and k == ENDED:  # an ended process keeps the kind it was seen as
+                k = last[pid][1]
             last[pid] = (max(last.get(pid, (0.0, k))[0], p.cpu_s), k)
             if k.startswith("chromium:"):
                 for name, cpu in threads(pid).items():
