@@ -34,6 +34,16 @@ CHROMIUM_ARGS = [
     "--no-first-run",
     "--disable-sync",
 ]
+"""Chromium's flags. None that keeps the picture cuts its CPU (measured 2026-12-04 with
+``benchmarks/chromium_cpu.py`` and a page held in a run, the arm steered by held keys, 15 s
+windows, paired runs): while the arm moves 50 % of Chromium's CPU is SwiftShader running the
+page's shaders (``gpu / Thread<NN>``, 69 % of the GPU process in JIT code by ``perf``; it
+scales with the canvas's pixels: 29 % of them -> 48 %), not spinning: one SwiftShader thread
+instead of two (``SwiftShader.ini`` beside the Chromium binary) does the same work, 4.5-5.6 CPU s
+against 4.6-5.6 (Chromium 9.2-10.8 against 9.5-10.4, 4 pairs). ``--in-process-gpu``: 9.5-10.5
+against 9.1-10.7 (3 pairs); GPU compositing through SwiftShader (no ``--disable-gpu``,
+``--use-angle=swiftshader``): 16.1 against 9.5 (one pair). An idle page draws about once a
+second (on demand), so pages left open cost little."""
 
 
 FRAME_CAP_FPS = float(os.environ.get("TEST_FRAME_CAP", "10"))
