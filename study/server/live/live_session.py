@@ -314,8 +314,14 @@ class LiveSession:
             return None
         return run.config.time_limit_s - run.trial.t
 
-    def _end_run(self) -> None:
+    def _end_run(self, run: TrialRun) -> None:
+        """Stop ``run``'s ticking and tell its outcome -- unless another run has begun since the
+        page thread saw ``run`` over (Start pressed meanwhile: ending "the current run" then
+        stopped the new run's ticks after one or two, and it froze until the experimenter
+        stepped in)."""
         with self._lock:
+            if self.trial_run.run is not run:
+                return  # its control loop ended with it; the new run's begin replaced the rest
             page = self.page
             self.trial_run.end()
             outcome = self.trial_run.outcome
@@ -340,7 +346,7 @@ class LiveSession:
     def _sync(self) -> None:
         run = self.trial_run.run
         if run is not None and run.over and self.trial_run.control is not None:
-            self._end_run()
+            self._end_run(run)
         if self.closed and not self._closed_notified:
             self._closed_notified = True
             self.ended_at = datetime.now(UTC)
