@@ -43,10 +43,11 @@ pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parents[1]
 PARTICIPANTS = 3  # one more than workers: one is written while both workers are busy, so a
 # worker can be killed (or the client interrupted) with a participant stored and two in flight
-SEED = 7  # the resume tests' too: one reference run serves both modules. Its first participant
-# is the shortest (62, 81 and 80 simulated s): participants are merged in order, so the first is
-# stored while the third is still in flight unless its worker runs 2.6x slower than the other
-# (seed 4's 96, 77, 87: a 1.7x difference, seen once on a busy machine, left none in flight)
+SEED = 7  # the resume and worker tests' too: one reference run serves the three modules. Its
+# first participant is the shortest (62, 81 and 80 simulated s): participants are merged in
+# order, so the first is stored while the third is still in flight unless its worker runs 2.6x
+# slower than the other (seed 4's 96, 77, 87: a 1.7x difference, seen once in a full suite run
+# on a quiet machine, left none in flight)
 
 
 def same_data(db: Path) -> dict[str, Any]:
