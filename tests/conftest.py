@@ -97,18 +97,26 @@ LONGEST_FIRST = (
     "tests/test_simulate_dask.py",
     "tests/test_port_attacks.py",
     "tests/test_port_hostile_clients.py",
+    "tests/test_analysis_report.py",
     "tests/test_sweep.py",
-    "tests/test_simulate_resume.py",
-    "tests/test_adaptive_protocol.py",
+    "tests/test_factor_protocols_simulated.py",
     "tests/test_examples.py",
+    "tests/test_simulate_resume.py",
     "tests/test_simulate_workers.py",
+    "tests/test_crash.py",
+    "tests/test_adaptive_protocol.py",
+    "tests/test_server_layout.py",
+    "tests/test_cli_arguments.py",
+    "tests/test_finished_sessions.py",
 )
-"""The groups that take longest (``--durations`` of a full run, 2 cores, 2026-12-03: Dask 168 s,
-the port attacks 143 s and hostile clients 90 s before their stops were fixed -- about 100 and
-65 s after --, the sweep 39 s, resume 31 s, adaptive 25 s, examples 22 s, workers 18 s), handed
-out first: the browser lanes must not wait behind short modules, and a long module must not
-start last (xdist otherwise starts the groups with the most tests first). Order only: a group
-missing here runs after these, in xdist's order."""
+"""The groups that take longest, longest first (wall time in a full run on four workers, 2
+cores, 2026-12-04: Dask 116 s, the port attacks 107, hostile clients 77, the analysis report
+30, the sweep 26, the factor protocols 22, examples 22, resume 21, workers 20, the kill -9
+test 18, adaptive 17, server layout 16, CLI arguments 14, finished sessions 12), handed out
+first: the browser lanes must not wait behind short modules, and a long module must not start
+last (xdist otherwise starts the groups with the most tests first: the kill -9 test's 18 s of
+waiting on its subprocess began after both lanes had ended and was the run's last 15 s). Order
+only: a group missing here runs after these, in xdist's order."""
 
 
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
