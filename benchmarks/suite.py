@@ -1,0 +1,199 @@
+"""Time the whole test suite as CI runs it, side by side for revisions and worker counts.
+
+Issue 24.4: the README's test command within 6 minutes on 2 cores. Each run starts from what a
+clean clone has: a detached worktree of the revision (``git worktree add``), emptied of every
+untracked file (``git clean -fdx``: no bytecode, no numba cache, no pytest cache), then what
+``.ci/setup`` does after installing (``python -m app.warm_up``: the control tick's kernels
+compiled once), then ``python -m pytest -n N --maxprocesses=N``, with the Python that runs
+this script (from the worktree it imports the worktree's code; the packages are this one's).
+While pytest runs, ``/proc/stat`` is read every second: how busy both cores were.
+
+Runs alternate (revision by revision, worker count by worker count, ``--runs`` rounds), so
+versions compared share the same minutes of a shared machine. Prints one row a run, a summary
+per revision and worker count (median and worst), and as its last line one JSON object::
+
+    .venv/bin/python benchmarks/suite.py --rev main --rev HEAD --workers 3 --workers 4 --runs 2
+
+``--` separates extra pytest arguments (``-- -m "not browser"``). The worktrees are made
+under a temporary folder and removed at the end.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PYTHON = Path(sys.executable)
+"""The Python that runs this script runs the suite (``.venv/bin/python``: the project's)."""
+SUMMARY = re.compile(r"=+ (.*) in ([0-9.]+)s")
+
+
+@dataclass(frozen=True)
+class Run:
+    rev: str
+    commit: str
+    workers: int
+    setup_s: float
+    wall_s: float
+    pytest_s: float | None
+    """The time pytest printed (its session, without interpreter start-up)."""
+    busy: float
+    """Share of both cores busy while pytest ran (0..1)."""
+    outcome: str
+    exit_code: int
+    load_before: float
+
+
+class CpuSampler:
+    """How busy the machine's cores were, from ``/proc/stat`` once a second."""
+
+    def __init__(self) -> None:
+        self._stop = threading.Event()
+        self._busy = 0
+        self._total = 0
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    @staticmethod
+    def _read() -> tuple[int, int]:
+        with open("/proc/stat", encoding="ascii") as f:
+            fields = [int(x) for x in f.readline().split()[1:]]
+        idle = fields[3] + fields[4]  # idle + iowait
+        return sum(fields), idle
+
+    def _run(self) -> None:
+        total0, idle0 = self._read()
+        while not self._stop.wait(1.0):
+            total, idle = self._read()
+            self._total += total - total0
+            self._busy += (total - total0) - (idle - idle0)
+            total0, idle0 = total, idle
+
+    def __enter__(self) -> CpuSampler:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    @property
+    def busy(self) -> float:
+        return self._busy / self._total if self._total else 0.0
+
+
+def git(*args: str, cwd: Path = ROOT) -> str:
+    return subprocess.run(
+        ["git", *args], cwd=cwd, check=True, capture_output=True, text=True
+    ).stdout.strip()
+
+
+def run_once(tree: Path, rev: str, workers: int, extra: list[str], log: Path) -> Run:
+    """One run in ``tree`` (a worktree at ``rev``) from a clean clone's state."""
+    git("clean", "-fdxq", cwd=tree)
+    load = os.getloadavg()[0]
+    start = time.perf_counter()
+    subprocess.run([str(PYTHON), "-m", "app.warm_up"], cwd=tree, check=True, capture_output=True)
+    setup_s = time.perf_counter() - start
+    command = [str(PYTHON), "-m", "pytest", "-n", str(workers), f"--maxprocesses={workers}"]
+    with log.open("w") as out, CpuSampler() as cpu:
+        start = time.perf_counter()
+        done = subprocess.run(
+            [*command, *extra], cwd=tree, stdout=out, stderr=subprocess.STDOUT, check=False
+        )
+        wall_s = time.perf_counter() - start
+    lines = log.read_text(errors="replace").splitlines()
+    match = next((m for m in map(SUMMARY.search, reversed(lines)) if m), None)
+    return Run(
+        rev=rev,
+        commit=git("rev-parse", "--short", "HEAD", cwd=tree),
+        workers=workers,
+        setup_s=round(setup_s, 1),
+        wall_s=round(wall_s, 1),
+        pytest_s=None if match is None else float(match[2]),
+        busy=round(cpu.busy, 3),
+        outcome="no summary line" if match is None else match[1],
+        exit_code=done.returncode,
+        load_before=round(load, 2),
+    )
+
+
+def minutes(seconds: float) -> str:
+    return f"{int(seconds // 60)} min {seconds % 60:04.1f} s"
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--rev", action="append", help="revision (repeat; default HEAD)")
+    parser.add_argument("--workers", type=int, action="append", help="pytest-xdist workers")
+    parser.add_argument("--runs", type=int, default=1, help="rounds over every combination")
+    parser.add_argument("--logs", type=Path, help="keep each run's pytest output here")
+    parser.add_argument("pytest_args", nargs="*", help="after --: extra pytest arguments")
+    args = parser.parse_args()
+    revs, counts = args.rev or ["HEAD"], args.workers or [3]
+    if args.runs < 1 or min(counts) < 1:
+        parser.error("--runs and --workers must be at least 1")
+    base = Path(tempfile.mkdtemp(prefix="suite-"))
+    logs = args.logs or base / "logs"
+    logs.mkdir(parents=True, exist_ok=True)
+    trees = {}
+    runs: list[Run] = []
+    try:
+        for k, rev in enumerate(revs):
+            trees[rev] = base / f"tree{k}"
+            git("worktree", "add", "--detach", "-f", str(trees[rev]), rev)
+        print(
+            f"{'rev':>10} {'commit':>9} {'n':>2} {'setup':>6} {'pytest':>14} {'busy':>5}  outcome"
+        )
+        for _ in range(args.runs):
+            for rev in revs:
+                for n in counts:
+                    log = logs / f"{len(runs):02d}-{rev.replace('/', '_')}-n{n}.txt"
+                    run = run_once(trees[rev], rev, n, args.pytest_args, log)
+                    runs.append(run)
+                    took = minutes(run.pytest_s if run.pytest_s is not None else run.wall_s)
+                    print(
+                        f"{rev:>10} {run.commit:>9} {n:>2} {run.setup_s:5.1f}s {took:>14}"
+                        f" {run.busy:5.0%}  {run.outcome} (load {run.load_before} before)",
+                        flush=True,
+                    )
+    finally:
+        for tree in trees.values():
+            subprocess.run(["git", "worktree", "remove", "--force", str(tree)], cwd=ROOT)
+        if args.logs is None:
+            shutil.rmtree(base, ignore_errors=True)
+    summary = {}
+    print("\nper revision and worker count: pytest's time, median (worst); cores busy")
+    for rev in revs:
+        for n in counts:
+            mine = [r for r in runs if r.rev == rev and r.workers == n]
+            times = [r.pytest_s if r.pytest_s is not None else r.wall_s for r in mine]
+            failed = [r.outcome for r in mine if r.exit_code != 0]
+            summary[f"{rev} n={n}"] = {
+                "median_s": statistics.median(times),
+                "worst_s": max(times),
+                "busy": statistics.median(r.busy for r in mine),
+                "failed_runs": len(failed),
+            }
+            print(
+                f"  {rev} with {n} workers: {minutes(statistics.median(times))}"
+                f" ({minutes(max(times))}), busy {statistics.median(r.busy for r in mine):.0%},"
+                f" {len(failed)} of {len(mine)} runs failed"
+            )
+    print(json.dumps({"runs": [asdict(r) for r in runs], "summary": summary}))
+    return 0 if all(r.exit_code == 0 for r in runs) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
