@@ -161,8 +161,8 @@ class ParticipantInput:
             self._dragging = False
 
     def place(self, position: np.ndarray) -> None:
-        """The handle is put at ``position`` (3,) without a drag (after a pause, the gripper):
-        absolute, the target is there; relative, nothing moves and nothing is pending."""
+        """The handle is put at ``position`` (3,) without a drag: absolute, the target is there;
+        relative, nothing moves and nothing is pending."""
         if not self.relative:
             self.set_target(position)
             return
@@ -171,6 +171,17 @@ class ParticipantInput:
             self._handle = pose
             self._pending[:] = 0.0
             self._dragging = False
+
+    def resume_at(self, gripper: np.ndarray) -> np.ndarray:
+        """Where the handle goes when a pause ends, the ``gripper`` (3,) where the pause left it.
+        Absolute: on the participant's own target, unchanged -- while the robot helped, or
+        wrongly took over, it moved the gripper, never their input, and the prediction must go
+        on reading what they asked for, not where the robot was going. Relative: on the
+        gripper, nothing pending (``place``). Before the run's first tick: on the gripper."""
+        if self.relative or self.last_target is None:
+            self.place(gripper)
+            return checked_position(gripper)
+        return self.last_target.copy()
 
     def handle_position(self, gripper: np.ndarray | None) -> np.ndarray | None:
         """Where the page should draw the handle now, or ``None`` to leave it. Absolute: where

@@ -2,7 +2,9 @@
 
 The gizmo, the steering keys and the grasp (button or G) feed one ``ParticipantInput``. Any
 pause (the experimenter, a lost tab, a control fault) freezes it and hides the handle; on
-resume the target is the gripper and the handle is back on it, shown. Whether the input is
+resume the handle is back, shown: on the participant's own target in the absolute mapping (a
+pause leaves it where they put it, wherever the robot took the gripper), on the gripper in the
+relative one (``ParticipantInput.resume_at``). Whether the input is
 frozen is the input's own state (``ParticipantInput.frozen``); whether the session is paused is
 the session's (``Session.paused``): nothing here keeps a second copy.
 
@@ -56,17 +58,19 @@ class LiveInput:
             page.show_gizmo(False)
 
     def thaw(self, page: ParticipantPage | None, gripper: np.ndarray) -> None:
-        """Thaw the input with the target at ``gripper``, the handle back on it and shown."""
+        """Thaw the input, the ``gripper`` where the pause left it; the handle back where
+        ``ParticipantInput.resume_at`` says and shown."""
         source = self.source
         if source is None:
             return
         source.thaw()
+        at = gripper
         try:
-            source.place(gripper)
+            at = source.resume_at(gripper)
         except (InputFrozen, TeleopError):
-            LOGGER.debug("could not put the target on the gripper", exc_info=True)
+            LOGGER.debug("could not put the handle back", exc_info=True)
         if page is not None:
-            page.move_gizmo(gripper)
+            page.move_gizmo(at)
             page.show_gizmo(True)
 
     # ---- viser callbacks ----------------------------------------------------------------------

@@ -1,0 +1,85 @@
+"""A pause ends with the participant's input where they left it, not where the robot took the arm.
+
+A participant testing the robot saw it (easy-wrong, aggressive, a reload mid-run): the robot had
+taken the gripper onto the bottle while their handle was 15 cm away over the box; after the
+pause their target had jumped onto the bottle, the prediction read the bottle with confidence
+1.00, and they had to steer back. In the absolute mapping the handle is the participant's input
+and a pause must not move it; in the relative one the handle goes back on the gripper.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from app.teleop import ParticipantInput
+from app.trial import Trial
+from study.protocol import trial_config_from_protocol
+from study.server.live.controls import LiveInput
+
+
+class Page:
+    """What the live input asks of the participant's page: where the handle is drawn."""
+
+    def __init__(self) -> None:
+        self.handle: np.ndarray | None = None
+        self.shown = True
+
+    def move_gizmo(self, at: np.ndarray) -> None:
+        self.handle = np.array(at, dtype=float)
+
+    def show_gizmo(self, visible: bool) -> None:
+        self.shown = visible
+
+
+def _paused_and_resumed(protocol_path, mapping: str) -> tuple[Trial, LiveInput, Page, dict]:
+    """easy-wrong / aggressive: the participant's handle held over the box while the robot
+    takes the gripper toward the bottle; then a pause (freeze) and its end (thaw)."""
+    config = trial_config_from_protocol(protocol_path, "easy-wrong", "aggressive")
+    source = ParticipantInput(mapping=mapping)
+    trial = Trial(dataclasses.replace(config, time_limit_s=30), source)
+    live = LiveInput(code="TEST01", record=lambda kind, detail: True)
+    live.source = source
+    goals, right = trial.scene.goals.positions, trial.scene.target_index
+    start = trial.poses().gripper.copy()
+    wanted = start + 0.5 * (goals[right] - start)  # halfway to the box, at the start height
+    wanted[2] = start[2]
+    for _ in range(400):
+        if mapping == "absolute":
+            source.set_target(wanted)  # the handle held there
+        trial.tick()
+    before = {
+        "target": np.array(trial.user_target, float),
+        "gripper": trial.poses().gripper.copy(),
+        "decoy": goals[1 - right],
+    }
+    page = Page()
+    live.freeze(page)  # a reload, the experimenter's pause, a control fault
+    live.thaw(page, before["gripper"])
+    trial.tick()
+    live.close()
+    return trial, live, page, before
+
+
+def test_a_pause_leaves_the_absolute_target_where_the_participant_put_it(protocol_path) -> None:
+    trial, _, page, before = _paused_and_resumed(protocol_path, "absolute")
+    apart = float(np.linalg.norm(before["gripper"] - before["target"]))
+    assert apart > 0.03, f"the robot did not take the gripper away from the target ({apart:.3f})"
+    after = np.array(trial.user_target, float)
+    assert np.allclose(after, before["target"], atol=1e-9), (
+        f"the target moved {np.linalg.norm(after - before['target']):.3f} m over the pause"
+    )
+    assert page.shown and page.handle is not None
+    assert np.allclose(page.handle, before["target"], atol=1e-9)  # drawn where they left it
+
+
+def test_a_pause_puts_the_relative_handle_back_on_the_gripper(protocol_path) -> None:
+    trial, _, page, before = _paused_and_resumed(protocol_path, "relative")
+    assert page.shown and page.handle is not None
+    assert np.allclose(page.handle, before["gripper"], atol=1e-9)
+    # nothing pending: the first tick holds the gripper where it was
+    assert float(np.linalg.norm(trial.user_target - before["gripper"])) == pytest.approx(
+        0.0, abs=1e-3
+    )
