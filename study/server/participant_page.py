@@ -340,7 +340,10 @@ class ParticipantPage:
         on_submit: Callable[[dict[str, object]], None],
     ) -> int:
         """Each item's prompt (a Likert item's with its anchors) and its field
-        (:mod:`study.server.answer_fields`); Continue needs every required answer, valid."""
+        (:mod:`study.server.answer_fields`); Continue needs every required answer, valid, and
+        submits them once: viser runs clicks in a thread pool, and a second click read with
+        the first would otherwise submit a copy that answers the next screen's item of the
+        same id (a failed submit redraws the screen, with a Continue of its own)."""
         with self._lock:
             screen = self._new_screen("questions:" + heading)
             self._header(progress)
@@ -369,6 +372,7 @@ class ParticipantPage:
                 self._md(prompt)
                 add_answer_field(self, item, current=lambda: self._current(screen), report=report)
             submit = self._button("Continue", disabled=not complete())
+            claimed = threading.Lock()  # the first complete submit on this screen wins, once
 
             @submit.on_click
             def _(_: object) -> None:
@@ -377,6 +381,8 @@ class ParticipantPage:
                 if not complete():
                     self.reject("not every item has an answer")
                     return
+                if not claimed.acquire(blocking=False):
+                    return  # a second click of the same screen: its answers are on their way
                 submit.disabled = True
                 on_submit({i.id: answers.get(i.id) for i in items})
 
