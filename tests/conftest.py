@@ -81,13 +81,16 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 
 def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
-    """``-n auto``: two workers a core (``--maxprocesses`` caps it: 3 on 2 cores since four
-    starved the browser lanes and the port tests in 2 of 3 full runs). Many tests wait -- on paced
-    control loops, attack scripts' seconds, subprocesses -- so twice as many workers as cores
-    keep the cores busier (2 -> 4 workers: 12:41 -> 11:31 on 2 cores). The suite as a whole is
-    nearly CPU-bound on 2 cores: about 345 CPU s outside the browsers (``-m "not browser"``, a
-    quiet machine, 2026-12-03: 197 s of wall on three workers, the tests' own times summing to
-    520 s) and 590 in the browser lanes, Chromium's drawing most of it (:data:`BROWSER_LANES`)."""
+    """``-n auto``: two workers a core, at most four (``--maxprocesses``). Three from 2026-12-03,
+    when four starved the browser lanes and the port tests in 2 of 3 full runs; four again from
+    2026-12-04, once those tests were hardened and the long modules handed out longest first
+    (:data:`LONGEST_FIRST`): with setup's compiled kernels, from a clean clone, 2 cores
+    (``benchmarks/suite.py``): 5 min 39 s on four workers, cores 93 % busy, against 6 min 21 s
+    on three, 84 % busy: a fourth worker is work for the cores while three wait. Many tests
+    wait -- on paced control loops, attack scripts' seconds, subprocesses -- so twice as many
+    workers as cores keep the cores busier (2 -> 4 workers: 12:41 -> 11:31 on 2 cores). The
+    suite as a whole is nearly CPU-bound on 2 cores: about 640-680 CPU s, Chromium's drawing
+    about 265 of them (:data:`BROWSER_LANES`)."""
     return 2 * (os.cpu_count() or 1)
 
 
