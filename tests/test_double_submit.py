@@ -17,10 +17,9 @@ from typing import Any
 import viser
 
 from study.protocol import load_protocol
-from study.server.participant_page import ParticipantPage
 from tests.browser.harness import run_async
 from tests.protocol_copies import PAPER_PROTOCOL
-from tests.support.raw_client import RawClient
+from tests.support.raw_client import RawClient, bare_page
 
 
 def test_two_clicks_on_continue_read_together_submit_the_answers_once() -> None:
@@ -38,12 +37,7 @@ def test_two_clicks_on_continue_read_together_submit_the_answers_once() -> None:
 
     async def run() -> None:
         async with RawClient(server.get_port()) as tab:
-            for _ in range(100):
-                if server.get_clients():
-                    break
-                await asyncio.sleep(0.05)
-            (client,) = server.get_clients().values()
-            page = ParticipantPage(client, title="Robot arm study", words=protocol.condition_words)
+            page = await bare_page(server, words=protocol.condition_words)
             loop = asyncio.get_running_loop()
             await loop.run_in_executor(
                 None,

@@ -29,7 +29,7 @@ from study.session.answers import ScriptedAnswers
 from study.session.headless import run_headless
 from tests.browser.harness import run_async
 from tests.protocol_copies import PAPER_PROTOCOL, STUDY_PROTOCOLS
-from tests.support.raw_client import RawClient
+from tests.support.raw_client import RawClient, bare_page
 from tests.support.sessions import enrol, stub_factory, to_step
 
 NUMBER_WORDS = {2: "two", 3: "three", 4: "four", 8: "eight", 12: "twelve", 16: "sixteen"}
@@ -155,12 +155,7 @@ def _frames(build: Any) -> list[dict[str, Any]]:
 
     async def run() -> list[dict[str, Any]]:
         async with RawClient(server.get_port()) as tab:
-            for _ in range(100):
-                if server.get_clients():
-                    break
-                await asyncio.sleep(0.05)
-            (client,) = server.get_clients().values()
-            page = ParticipantPage(client, title="Robot arm study", words=words)
+            page = await bare_page(server, words=words)
             await asyncio.get_running_loop().run_in_executor(None, build, page)
             seen, quiet_since = -1, time.monotonic()  # until nothing new for 0.5 s (under
             while time.monotonic() - quiet_since < 0.5:  # load a fixed 0.5 s missed some)

@@ -6,12 +6,14 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
+from collections.abc import Iterable
 from typing import Any
 
 import msgspec
 import viser
 import websockets
 
+from study.server.participant_page import ParticipantPage
 from tests.browser.harness import decode_frame
 from tests.browser.page import AGREE
 
@@ -109,3 +111,16 @@ class RawClient:
             for m in self.messages
             if m.get("type") == "NotificationShowMessage" and "ignored" in str(m).lower()
         )
+
+
+async def bare_page(
+    server: viser.ViserServer, *, words: Iterable[str], title: str = "Robot arm study"
+) -> ParticipantPage:
+    """The participant page of the one tab connected to ``server`` (a plain viser server, no
+    study session behind it), once that tab is there."""
+    for _ in range(100):
+        if server.get_clients():
+            break
+        await asyncio.sleep(0.05)
+    (client,) = server.get_clients().values()
+    return ParticipantPage(client, title=title, words=words)
