@@ -40,14 +40,20 @@ BROWSER_LANES = {
     "tests/browser/test_open_link.py": "browser-1",
     "tests/browser/test_participant_page.py": "browser-1",
     "tests/browser/test_missed_grasp.py": "browser-1",
-    "tests/browser/test_relative_handle.py": "browser-1",
     "tests/browser/test_key_state.py": "browser-1",
-    "tests/browser/test_questionnaire.py": "browser-1",
-    "tests/browser/test_tls_proxy.py": "browser-1",
-    "tests/browser/test_join_and_console.py": "browser-1",
+    "tests/browser/test_intent_display.py": "browser-1",
+    "tests/browser/test_relative_handle.py": "browser-3",
+    "tests/browser/test_questionnaire.py": "browser-3",
+    "tests/browser/test_tls_proxy.py": "browser-3",
+    "tests/browser/test_join_and_console.py": "browser-3",
+    "tests/browser/test_handle_pace.py": "browser-3",
 }
-"""The browser tests' two lanes, each run by one worker one test after another; a module not
-listed runs in ``browser-2`` (blinding, participant flow, console day, keys and pause, intent).
+"""The browser tests' lanes, each run by one worker one test after another; a module not
+listed runs in ``browser-2`` (blinding, participant flow, console day, keys and pause).
+``browser-3`` holds five short, light modules (about 46 s together), handed out after the long
+non-browser modules: with four workers the two long lanes set the run's end (one ran alone for
+its last 35 s), so they were shortened (2026-12-04); a third page is open beside the lanes for
+those 46 s only.
 Balanced by ``--durations`` of both lanes run together (`-n 2`, 2 cores, other jobs at load
 5-15, December 2026): 422 and 431 s. Chromium's CPU is most of theirs and ``/usr/bin/time``
 misses it (its renderer and GPU processes are not waited for): sampled from /proc, the 22
@@ -100,6 +106,7 @@ LONGEST_FIRST = (
     "tests/test_simulate_dask.py",
     "tests/test_port_attacks.py",
     "tests/test_port_hostile_clients.py",
+    "browser-3",
     "tests/test_analysis_report.py",
     "tests/test_sweep.py",
     "tests/test_factor_protocols_simulated.py",
