@@ -51,9 +51,10 @@ BROWSER_LANES = {
 """The browser tests' lanes, each run by one worker one test after another; a module not
 listed runs in ``browser-2`` (blinding, participant flow, console day, keys and pause).
 ``browser-3`` holds five short, light modules (about 46 s together), handed out after the long
-non-browser modules: with four workers the two long lanes set the run's end (one ran alone for
-its last 35 s), so they were shortened (2026-12-04); a third page is open beside the lanes for
-those 46 s only.
+non-browser modules: with four workers the lanes set the run's end (2026-12-04: the second
+lane ended at 336 s, 30 s after the three other workers, the first at 284 s), so intent moved
+to the first lane and five short modules out of both; a third page is open beside the lanes
+for about 50 s.
 Balanced by ``--durations`` of both lanes run together (`-n 2`, 2 cores, other jobs at load
 5-15, December 2026): 422 and 431 s. Chromium's CPU is most of theirs and ``/usr/bin/time``
 misses it (its renderer and GPU processes are not waited for): sampled from /proc, the 22

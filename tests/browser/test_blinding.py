@@ -33,10 +33,14 @@ TIME_LIMIT_S = 2.0
 def _answer_items(page: Any) -> None:
     """Answer every row of an items screen with its first point, then Continue."""
     none_yet = page.get_by_text("Your answer: none yet")
+    ones = page.get_by_role("button", name="1", exact=True)  # one in each unanswered row
     none_yet.first.wait_for(timeout=30_000)
     while left := none_yet.count():
-        page.get_by_role("button", name="1", exact=True).first.click()
-        expect(none_yet).to_have_count(left - 1)  # the answer shown: on to the next row
+        ones.first.click()
+        expect(none_yet).to_have_count(left - 1)  # the answer shown
+        # and marked "[1]" on its row (a second update, which a loaded page can draw a frame
+        # later): only then is the first "1" the next row's, not this one's again
+        expect(ones).to_have_count(left - 1)
     page.get_by_role("button", name="Continue").click()
 
 
