@@ -50,7 +50,7 @@ BROWSER_LANES = {
 }
 """The browser tests' lanes, each run by one worker one test after another; a module not
 listed runs in ``browser-2`` (blinding, participant flow, console day, keys and pause).
-``browser-3`` holds five short, light modules (about 46 s together), handed out after the long
+``browser-3`` holds five short, light modules (about 50 s together), handed out after the long
 non-browser modules: with four workers the lanes set the run's end (2026-12-04: the second
 lane ended at 336 s, 30 s after the three other workers, the first at 284 s), so intent moved
 to the first lane and five short modules out of both; a third page is open beside the lanes
@@ -66,7 +66,8 @@ draw at most 10 frames a second (``tests.browser.harness.FRAME_CAP_FPS``: both l
 CPU s in a paired run, twelfth session). A third lane (tried: 409-470 s each beside jobs at load
 17-21, 675 CPU s; again with the cap and four workers, beside a helper's attack runs: 7 min 53 s
 against 7 min 43 s for two lanes and three workers, and two starvation failures) adds a third
-such page against the other workers: the CPU does not allow it."""
+such page against the other workers for the whole run: the CPU does not allow it; the short
+third group does it for 50 s (5 min 25 s, cores 97 % busy, against 5 min 51 s without it)."""
 
 
 def _group(nodeid: str) -> str:
@@ -123,11 +124,12 @@ LONGEST_FIRST = (
 """The groups that take longest, longest first (wall time in a full run on four workers, 2
 cores, 2026-12-04: Dask 116 s, the port attacks 107, hostile clients 77, the analysis report
 30, the sweep 26, the factor protocols 22, examples 22, resume 21, workers 20, the kill -9
-test 18, adaptive 17, server layout 16, CLI arguments 14, finished sessions 12), handed out
-first: the browser lanes must not wait behind short modules, and a long module must not start
-last (xdist otherwise starts the groups with the most tests first: the kill -9 test's 18 s of
-waiting on its subprocess began after both lanes had ended and was the run's last 15 s). Order
-only: a group missing here runs after these, in xdist's order."""
+test 18, adaptive 17, server layout 16, CLI arguments 14, finished sessions 12; the third
+browser group, about 50 s, after the port tests), handed out first: the browser lanes must
+not wait behind short modules, and a long module must not start last (xdist otherwise starts
+the groups with the most tests first: the kill -9 test's 18 s of waiting on its subprocess
+began after both lanes had ended and was the run's last 15 s). Order only: a group missing
+here runs after these, in xdist's order."""
 
 
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
