@@ -83,3 +83,30 @@ def test_a_pause_puts_the_relative_handle_back_on_the_gripper(protocol_path) -> 
     assert float(np.linalg.norm(trial.user_target - before["gripper"])) == pytest.approx(
         0.0, abs=1e-3
     )
+
+
+def test_a_pose_sent_just_before_the_pause_is_where_the_handle_is_drawn(protocol_path) -> None:
+    """The handle's last pose arrived between two ticks and the pause came before the second:
+    after the pause the page draws the handle where the next tick's target is, that pose."""
+    config = trial_config_from_protocol(protocol_path, "easy-wrong", "aggressive")
+    source = ParticipantInput(mapping="absolute")
+    trial = Trial(dataclasses.replace(config, time_limit_s=30), source)
+    live = LiveInput(code="TEST01", record=lambda kind, detail: True)
+    live.source = source
+    start = trial.poses().gripper.copy()
+    for _ in range(50):
+        source.set_target(start)
+        trial.tick()
+    late = start + np.array([0.0, 0.03, 0.0])  # the drag's last pose, not yet used by a tick
+    source.set_target(late)
+    page = Page()
+    live.freeze(page)
+    live.thaw(page, trial.poses().gripper.copy())
+    trial.tick()
+    live.close()
+    assert page.handle is not None
+    assert np.allclose(trial.user_target, late, atol=1e-9)
+    assert np.allclose(page.handle, trial.user_target, atol=1e-9), (
+        f"the handle is drawn {np.linalg.norm(page.handle - trial.user_target) * 100:.1f} cm "
+        "from the target the robot is steered to"
+    )

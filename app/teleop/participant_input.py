@@ -177,11 +177,14 @@ class ParticipantInput:
         Absolute: on the participant's own target, unchanged -- while the robot helped, or
         wrongly took over, it moved the gripper, never their input, and the prediction must go
         on reading what they asked for, not where the robot was going. Relative: on the
-        gripper, nothing pending (``place``). Before the run's first tick: on the gripper."""
+        gripper, nothing pending (``place``). Before the run's first tick: on the gripper.
+        Absolute, the handle's last pose wins over the last tick's target: a pose that arrived
+        just before the pause is what the next tick commands, so the handle is drawn there."""
         if self.relative or self.last_target is None:
             self.place(gripper)
             return checked_position(gripper)
-        return self.last_target.copy()
+        held = self.gizmo.target
+        return self.last_target.copy() if held is None else held
 
     def handle_position(self, gripper: np.ndarray | None) -> np.ndarray | None:
         """Where the page should draw the handle now, or ``None`` to leave it. Absolute: where
