@@ -29,9 +29,11 @@ import pytest
 import viser
 import websockets
 
+from study.server import viser_door
 from study.server.firewall import Firewall, FirewallConfig
 from study.server.live.live_run import KEY_STATE_MAX_AGE_S
 from study.server.page_script import KEY_RESEND_MS
+from study.server.participant_page import DEAF_LIMIT_S
 from tests.attacker import CAMERA
 from tests.browser.harness import RunningServer, run_async, start_server
 from tests.support.raw_client import AGREE, RawClient
@@ -373,6 +375,43 @@ def test_held_keys_are_a_state_resent_and_let_go_when_it_stops(study: RunningSer
     events = {e.kind: e for e in study.store.events()}
     assert events["keys_expired"].detail == {"keys": "w"}
     assert "handle position" in str(events["input_dropped"].detail)
+
+
+def test_held_keys_stay_while_the_server_is_behind_and_go_when_it_stays_deaf(
+    study: RunningServer,
+) -> None:
+    """A tab that resends its held key on time keeps it while the server's event loop is behind
+    (seen under a 40-address flood on a loaded machine: the resent states waited in the
+    server's backlog and the key was let go under the honest participant); a tab that stops
+    resending loses it ``DEAF_LIMIT_S`` after its last state even if the loop stays behind."""
+    srv = study.server
+    code = srv.enrol("P01")
+    srv.act(code, "start")
+    live = srv.session(code)
+    loop = viser_door.event_loop(srv.participant)
+
+    async def scenario() -> float:
+        async with RawClient(srv.participant_port) as client:
+            honest = Honest(client, live)
+            await honest.start(code)
+            source = live.participant_input
+            await honest.keys("w")
+            assert await until(lambda: source.keyboard.held == frozenset("w"), timeout=2.0)
+            loop.call_soon_threadsafe(time.sleep, 1.6)  # the port's loop behind for 1.6 s
+            for _ in range(10):  # 2.5 s of resends on time, the first 1.6 s into the backlog
+                await asyncio.sleep(KEY_RESEND_MS / 1000)
+                await honest.keys("w")
+                assert source.keyboard.held == frozenset("w"), "let go while resent on time"
+            await asyncio.sleep(0.2)  # the last state heard; then silence, the loop behind
+            stalled = time.monotonic()
+            loop.call_soon_threadsafe(time.sleep, DEAF_LIMIT_S + 1.5)
+            assert await until(lambda: not source.keyboard.moving, timeout=DEAF_LIMIT_S + 2)
+            return time.monotonic() - stalled
+
+    gone_after = run_async(scenario())
+    assert DEAF_LIMIT_S - 0.3 < gone_after < DEAF_LIMIT_S + 0.5
+    kinds = [e.kind for e in study.store.events()]
+    assert kinds.count("keys_expired") == 1 and "pause" not in kinds
 
 
 # -- the second pass's attacks on the merged whole (open link, rejoin cookie, text floods) ----

@@ -13,8 +13,9 @@ up/down; G grasps, V brings back the task view. The keys travel through the page
 text element: ``"<seq> <held keys>"``, resent every 250 ms while a key is held (and for a
 second after each change), so a lost message costs at most one period; :meth:`ParticipantPage._on_key_state`
 turns each new value into key-down and key-up calls, and :meth:`ParticipantPage.expire_keys`
-lets go of keys whose state has not been heard for a while (a stalled connection never leaves
-the arm moving).
+lets go of keys whose state has not been heard for a while the server listened on time
+(:mod:`study.server.listening`: a stalled connection never leaves the arm moving, a slow
+server never lets go of an honest participant's key).
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from study.protocol import Item, LikertItem
 from study.server import viser_door
 from study.server.answer_fields import add_answer_field
 from study.server.blinding_guard import check_text
+from study.server.listening import ListeningClock
 from study.server.page_handle import TeleopHandle
 from study.server.page_inputs import (
     InputRejected,
@@ -65,6 +67,10 @@ GRIPPER_CLOSED_LABEL = "Gripper closed"
 greyed, so that a participant sees at once that the key or the click was taken."""
 INSET_SIZE = (320, 240)
 """Width and height (pixels) of the view from above on the trial screen."""
+DEAF_LIMIT_S = 3.0
+"""Held keys go this long after their last state even while the server was behind: a stalled
+tab on a starved server must not move the arm for longer (``expire_keys``)."""
+
 DECLINE = "I do not wish to take part"
 
 
@@ -76,8 +82,18 @@ def message_screen(heading: str) -> str:
 class ParticipantPage:
     """What one participant's browser tab shows."""
 
-    def __init__(self, client: viser.ClientHandle, *, title: str, words: Iterable[str]) -> None:
+    def __init__(
+        self,
+        client: viser.ClientHandle,
+        *,
+        title: str,
+        words: Iterable[str],
+        listening: ListeningClock | None = None,
+    ) -> None:
         self.client = client
+        self.listening = listening
+        """The port's event loop on time or behind: silence is counted while it listened
+        (``expire_keys``); ``None`` counts wall time."""
         self.words = tuple(words)
         """The blinded vocabulary every text shown is checked against."""
         self.title = check_text(title, words=self.words)
@@ -134,13 +150,23 @@ class ParticipantPage:
             self.on_keys(down, up)  # in arrival order: a key's up never overtakes its down
 
     def expire_keys(self, max_age_s: float) -> frozenset[str]:
-        """Let go of the held keys if their state was last heard more than ``max_age_s`` ago
-        (the page resends it every 250 ms while a key is held); returns the keys let go. A
-        later state that still holds them presses them again."""
+        """Let go of the held keys if the page has been silent for more than ``max_age_s``
+        (it resends their state every 250 ms while a key is held); returns the keys let go. A
+        later state that still holds them presses them again. Silent: while the server
+        listened (``listening``): a state waiting in the server's own backlog was sent on
+        time; past ``DEAF_LIMIT_S`` since the last state they go whatever the server's lag."""
         if not self._keys_held:
             return frozenset()
         with self._keys_lock:
-            if time.monotonic() - self._keys_heard_at <= max_age_s:
+            heard, now = self._keys_heard_at, time.monotonic()
+            age = now - heard
+            if age <= max_age_s:
+                return frozenset()
+            if (
+                self.listening is not None
+                and age <= DEAF_LIMIT_S
+                and self.listening.silent_s(heard, now) <= max_age_s
+            ):
                 return frozenset()
             held, self._keys_held = self._keys_held, frozenset()
             return held

@@ -129,7 +129,12 @@ class ParticipantTabs:
         return self.server.firewall.client_host(connection)
 
     def connected(self, client: viser.ClientHandle) -> None:
-        page = ParticipantPage(client, title=PAGE_TITLE, words=self.server.guard.words)
+        page = ParticipantPage(
+            client,
+            title=PAGE_TITLE,
+            words=self.server.guard.words,
+            listening=self.server.listening,
+        )
         page.address = self.address(client.client_id)
         try:
             frame_task(client.camera, look_at=(0.45, 0.0, 0.15))

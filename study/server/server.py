@@ -56,6 +56,7 @@ from study.server.firewall import LOOPBACK_NAMES
 from study.server.forwarded import Network
 from study.server.join import JoinThrottle, new_join_code, new_token
 from study.server.link_places import LINK_IDLE_S, SWEEP_S, PlaceSweeper, idle_link_sessions
+from study.server.listening import ListeningClock
 from study.server.live import LiveSession, SessionFactory
 from study.server.live.progress import study_progress
 from study.server.live.texts import (
@@ -189,6 +190,8 @@ class StudyServer:
         self.participant = firewall.start_server(
             self.firewall, host=host, port=port, verbose=verbose
         )
+        self.listening = ListeningClock(viser_door.event_loop(self.participant))
+        """The participant port's loop on time or behind (held keys' silence is counted by it)."""
         self.guard = blinding_guard.install(self.participant, words=words)
         _check_page_is_blind(self.guard.words)
         firewall.install(self.participant, self.firewall)
@@ -241,6 +244,7 @@ class StudyServer:
         # reset, on the loops that run them (Firewall.before_stop)
         self.firewall.before_stop()
         self.experimenter_firewall.before_stop()
+        self.listening.stop()
         ended = viser_door.stop_server(self.participant)
         ended = viser_door.stop_server(self.experimenter) and ended
         blinding_guard.uninstall(self.participant)
