@@ -8,7 +8,9 @@ pose once (``benchmarks/page_drag.py``) -- while the pointer's own events still 
 every frame and move the handle on the screen. The arm stood still while the handle moved.
 
 This script sends the handle's newest pose from the page's frames when viser's sender is
-overdue: while a handle is dragged (between viser's drag-start and drag-end messages), each
+overdue: while a handle is dragged (from viser's drag-start message until its drag-end or the
+pointer's button going up anywhere on the page -- a pause hides the handle mid-drag, and viser
+then never ends the drag), each
 frame (``requestAnimationFrame``: frames are the page's own pace, and the browser hands it the
 pointer's events at the start of each frame, so the handle has moved already), if no pose of
 it went out for :data:`HANDLE_OVERDUE_MS` and the pose the page shows differs from the last one
@@ -72,6 +74,14 @@ _TEMPLATE = r"""
     }
     return inner(msg);
   };
+  // the drag ends when the button goes up anywhere, whether or not viser saw it: a pause hides
+  // the handle mid-drag and viser's drag-end never comes (the page then resent the handle's
+  // drawn pose every frame after the pause, pulling the held keys' target back)
+  const over = () => { drag.name = null; };
+  window.addEventListener("pointerup", over, true);
+  window.addEventListener("pointercancel", over, true);
+  window.addEventListener("blur", over);
+  window.addEventListener("pointermove", (ev) => { if (ev.buttons === 0) over(); }, true);
   Object.defineProperty(m, "sendMessage", {
     configurable: true,
     enumerable: true,

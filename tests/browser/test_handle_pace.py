@@ -11,16 +11,20 @@ the target is where the handle was let go.
 
 from __future__ import annotations
 
+import threading
+import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
+from app.teleop.keyboard import KEY_SPEED_M_S
 from study.server.page_handle import HANDLE_OFFSET_M, HANDLE_PX
 from tests.browser.harness import start_server, wait_until
 from tests.browser.page import (
     canvas_box,
+    hold,
     page_pixel,
     pixels_per_m,
     start_first_run,
@@ -52,6 +56,31 @@ def _target(live: Any) -> np.ndarray:
     return np.asarray(live.input.source.last_target, float)
 
 
+def _grab_the_sideways_arrow(page: Any, live: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Press the mouse on the handle's sideways (y) arrow, half-way along it (its drawn length
+    is under HANDLE_PX), as a person does; returns the pixel grabbed and an 8-px step along
+    the arrow."""
+    cam = live.page.client.camera
+    box = canvas_box(page)
+    origin = np.asarray(live.page.handle.gizmo.position, float)
+    o = page_pixel(page, cam, origin, box=box)
+    along = np.array([0.0, HANDLE_PX / pixels_per_m(page, cam, origin, box=box), 0.0])
+    tip = page_pixel(page, cam, origin + along, box=box)
+    grab = o + 0.5 * (tip - o)
+    step = 8.0 * (o - tip) / np.linalg.norm(o - tip)  # 8 px a step against the arrow
+    for _ in range(3):  # a loaded page may pick nothing on a press: a person presses again
+        page.mouse.move(*(grab + np.array([-4.0, 4.0])))
+        page.wait_for_timeout(300)
+        page.mouse.move(*grab)
+        page.wait_for_timeout(300)
+        page.mouse.down()
+        if wait_until(lambda: live.page.dragging, timeout=10):
+            break
+        page.mouse.up()
+    assert live.page.dragging, "the handle was not grabbed"
+    return grab, step
+
+
 @pytest.fixture
 def study(tmp_path: Path) -> Any:
     rs = start_server(tmp_path, time_limit_s=120.0, training_runs=1)
@@ -71,26 +100,8 @@ def test_the_target_follows_the_dragged_handle_when_the_pages_timers_run_late(
     wait_camera_still(live)
     offset = np.array([0.0, 0.0, HANDLE_OFFSET_M])
 
-    # the sideways (y) arrow, grabbed half-way along (its drawn length is under HANDLE_PX)
-    cam = live.page.client.camera
-    box = canvas_box(page)
+    grab, step = _grab_the_sideways_arrow(page, live)
     origin = np.asarray(live.page.handle.gizmo.position, float)
-    o = page_pixel(page, cam, origin, box=box)
-    along = np.array([0.0, HANDLE_PX / pixels_per_m(page, cam, origin, box=box), 0.0])
-    tip = page_pixel(page, cam, origin + along, box=box)
-    grab = o + 0.5 * (tip - o)
-    step = 8.0 * (o - tip) / np.linalg.norm(o - tip)  # 8 px a step against the arrow
-
-    for _ in range(3):  # a loaded page may pick nothing on a press: a person presses again
-        page.mouse.move(*(grab + np.array([-4.0, 4.0])))
-        page.wait_for_timeout(300)
-        page.mouse.move(*grab)
-        page.wait_for_timeout(300)
-        page.mouse.down()
-        if wait_until(lambda: live.page.dragging, timeout=10):
-            break
-        page.mouse.up()
-    assert live.page.dragging, "the handle was not grabbed"
     page.evaluate(f"() => {{ window.__lateMs = {LATE_MS}; }}")
     followed, shown = [], origin - offset
     for k in range(1, 9):
@@ -106,3 +117,51 @@ def test_the_target_follows_the_dragged_handle_when_the_pages_timers_run_late(
     assert all(followed), followed
     assert wait_until(lambda: not live.page.dragging, timeout=10)
     assert np.abs(_target(live) - (_handle_on_page(page) - offset)).max() < 1e-4
+
+
+def test_a_drag_cut_off_by_a_pause_leaves_the_held_keys_alone_after_it(
+    study: Any, small: Any
+) -> None:
+    """A participant found it: the experimenter paused while they dragged the handle, they let
+    go of the mouse during the pause, and after it every held key's motion was pulled back
+    0.7-1.7 cm several times a second (the page went on sending the handle where it had drawn
+    it: viser never ends a drag whose handle a pause hid) -- R held moved the gripper at 40 %
+    of its speed, in that run and the next. Here: the same, then R held for 1.5 s."""
+    page = small.new_page()
+    live = start_first_run(study, page)
+    assert wait_until(lambda: live.page.handle.gizmo is not None)
+    wait_camera_still(live)
+    grab, step = _grab_the_sideways_arrow(page, live)
+    for k in range(1, 4):
+        page.mouse.move(*(grab + k * step))
+        page.wait_for_timeout(150)
+    study.server.act(live.code, "pause")
+    page.get_by_text("Please wait").first.wait_for()
+    page.mouse.up()  # let go during the pause
+    page.wait_for_timeout(500)
+    study.server.act(live.code, "resume")
+    page.get_by_role("button", name="Close the gripper (G)").wait_for()
+    page.wait_for_timeout(500)
+
+    heights: list[float] = []
+    holding = threading.Event()
+    holding.set()
+
+    def sample() -> None:
+        while holding.is_set():
+            heights.append(float(_target(live)[2]))
+            time.sleep(0.01)
+
+    sampler = threading.Thread(target=sample, daemon=True)
+    sampler.start()
+    hold(page, "r", 1.5)
+    holding.clear()
+    sampler.join()
+    rise = np.diff(heights)
+    pulled_back = rise[rise < -1e-3]
+    assert pulled_back.size == 0, (
+        f"the target was pulled back {pulled_back.size} times while R was held "
+        f"(by up to {-pulled_back.min() * 100:.1f} cm)"
+    )
+    # at least half of 1.5 s at the key speed (a loaded page may pass the key-down on late)
+    assert heights[-1] - heights[0] > 0.5 * 1.5 * KEY_SPEED_M_S, heights[-1] - heights[0]
