@@ -110,3 +110,48 @@ def test_a_pose_sent_just_before_the_pause_is_where_the_handle_is_drawn(protocol
         f"the handle is drawn {np.linalg.norm(page.handle - trial.user_target) * 100:.1f} cm "
         "from the target the robot is steered to"
     )
+
+
+def test_a_handle_let_go_past_the_reach_during_a_pause_comes_back_inside(protocol_path) -> None:
+    """Let go past the reach during a pause (a hostile-client pass found the handle redrawn 15 cm
+    outside the frame after the resume, the arm held at its edge): the resume draws it over the
+    point the arm is sent to, as a release outside a pause does, and that is the target."""
+    config = trial_config_from_protocol(protocol_path, "easy-wrong", "aggressive")
+    source = ParticipantInput(mapping="absolute")
+    trial = Trial(dataclasses.replace(config, time_limit_s=30), source)
+    live = LiveInput(code="TEST01", record=lambda kind, detail: True)
+    live.source = source
+    reach = trial.scene.reach
+    start = trial.poses().gripper.copy()
+    past = start + np.array([0.0, 0.6, 0.0])  # dragged far past the side of the frame
+    assert not reach.contains(past)
+    for _ in range(10):
+        source.set_target(past)
+        trial.tick()
+    page = Page()
+    live.freeze(page)
+    live.thaw(page, trial.poses().gripper.copy(), reach=reach)
+    trial.tick()
+    live.close()
+    assert page.handle is not None and reach.contains(page.handle, tol=1e-6)
+    assert np.allclose(page.handle, reach.clamp(past), atol=1e-9)
+    assert np.allclose(trial.user_target, page.handle, atol=1e-9)
+
+
+def test_a_key_a_pause_let_go_of_is_not_recorded_as_expired(protocol_path) -> None:
+    """W held through a pause moves nothing after it until pressed again; when the page then
+    goes silent, no ``keys_expired`` event says the server let go of it (it moved nothing).
+    A key the input still holds is recorded."""
+    recorded: list[tuple[str, dict]] = []
+    source = ParticipantInput(mapping="absolute")
+    live = LiveInput(code="TEST01", record=lambda kind, detail: recorded.append((kind, detail)))
+    live.source = source
+    source.key_down("w")
+    page = Page()
+    live.freeze(page)
+    live.thaw(page, np.array([0.5, 0.0, 0.3]))
+    live.let_go(frozenset("w"))  # the page's last state said W; the pause had let go of it
+    source.key_down("d")
+    live.let_go(frozenset("d"))
+    live.close()
+    assert recorded == [("keys_expired", {"keys": "d"})]

@@ -26,6 +26,7 @@ import numpy as np
 from app.teleop.errors import TeleopError
 from app.teleop.keyboard import KEYMAP
 from app.teleop.participant_input import InputFrozen, ParticipantInput
+from app.teleop.reach import ReachRegion
 from study.server.participant_page import ParticipantPage
 
 LOGGER = logging.getLogger("study.server.live")
@@ -57,9 +58,13 @@ class LiveInput:
         if page is not None:
             page.show_gizmo(False)
 
-    def thaw(self, page: ParticipantPage | None, gripper: np.ndarray) -> None:
+    def thaw(
+        self, page: ParticipantPage | None, gripper: np.ndarray, *, reach: ReachRegion | None = None
+    ) -> None:
         """Thaw the input, the ``gripper`` where the pause left it; the handle back where
-        ``ParticipantInput.resume_at`` says and shown."""
+        ``ParticipantInput.resume_at`` says and shown -- inside the ``reach``: a handle let go
+        past it during the pause goes back over the point the arm is sent to, as a release
+        outside a pause does (the target becomes that point)."""
         source = self.source
         if source is None:
             return
@@ -67,6 +72,9 @@ class LiveInput:
         at = gripper
         try:
             at = source.resume_at(gripper)
+            if reach is not None and not reach.contains(at):
+                at = reach.clamp(at)
+                source.place(at)
         except (InputFrozen, TeleopError):
             LOGGER.debug("could not put the handle back", exc_info=True)
         if page is not None:
@@ -120,13 +128,16 @@ class LiveInput:
 
     def let_go(self, keys: frozenset[str]) -> None:
         """Keys whose state stopped arriving (``ParticipantPage.expire_keys``): released, and
-        recorded as a ``keys_expired`` event."""
+        those the input still held (steering or not) recorded as a ``keys_expired`` event."""
         source = self.source
-        if source is not None:
-            for key in keys & set(KEYMAP):
-                source.key_up(key)
-        with contextlib.suppress(RuntimeError):
-            self._pool.submit(self._record, "keys_expired", {"keys": "".join(sorted(keys))})
+        if source is None:
+            return
+        held = keys & source.keyboard.held  # a key a pause let go of moved nothing since
+        for key in keys & set(KEYMAP):
+            source.key_up(key)
+        if held:
+            with contextlib.suppress(RuntimeError):
+                self._pool.submit(self._record, "keys_expired", {"keys": "".join(sorted(held))})
 
     def dropped(self, reason: str) -> None:
         """The port's firewall refused a message of this session's tab (any thread; recorded

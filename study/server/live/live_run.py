@@ -124,7 +124,13 @@ class LiveRun:
         where it was let go instead of following the gripper.)"""
         self.input.on_release()
         source = self.input.source
-        if self.trial is trial and not trial.done and source is not None and not source.relative:
+        if (
+            self.trial is trial
+            and not trial.done
+            and source is not None
+            and not source.relative
+            and not source.frozen  # let go during a pause: the thaw brings it inside
+        ):
             target = source.last_target
             if target is not None and not trial.scene.reach.contains(target):
                 inside = trial.scene.reach.clamp(target)

@@ -363,7 +363,9 @@ class LiveSession:
             elif (
                 not held and self.input.frozen and (gripper := self.trial_run.gripper()) is not None
             ):
-                self.input.thaw(self.page, gripper)
+                trial = self.trial_run.trial
+                reach = None if trial is None else trial.scene.reach
+                self.input.thaw(self.page, gripper, reach=reach)
         page = self.page
         if page is None:
             return
