@@ -183,8 +183,8 @@ class ParticipantInput:
         if self.relative or self.last_target is None:
             self.place(gripper)
             return checked_position(gripper)
-        held = self.gizmo.target
-        return self.last_target.copy() if held is None else held
+        pose = self.gizmo.target
+        return self.last_target.copy() if pose is None else pose
 
     def handle_position(self, gripper: np.ndarray | None) -> np.ndarray | None:
         """Where the page should draw the handle now, or ``None`` to leave it. Absolute: where

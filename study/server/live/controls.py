@@ -128,7 +128,7 @@ class LiveInput:
 
     def let_go(self, keys: frozenset[str]) -> None:
         """Keys whose state stopped arriving (``ParticipantPage.expire_keys``): released, and
-        those the input still held (steering or not) recorded as a ``keys_expired`` event."""
+        those the input still held recorded as a ``keys_expired`` event."""
         source = self.source
         if source is None:
             return
