@@ -34,14 +34,20 @@ class Page:
         self.shown = visible
 
 
-def _paused_and_resumed(protocol_path, mapping: str) -> tuple[Trial, LiveInput, Page, dict]:
-    """easy-wrong / aggressive: the participant's handle held over the box while the robot
-    takes the gripper toward the bottle; then a pause (freeze) and its end (thaw)."""
+def _trial_with_input(protocol_path, mapping: str) -> tuple[Trial, ParticipantInput, LiveInput]:
+    """easy-wrong / aggressive, 30 s, driven by a participant input behind a live input."""
     config = trial_config_from_protocol(protocol_path, "easy-wrong", "aggressive")
     source = ParticipantInput(mapping=mapping)
     trial = Trial(dataclasses.replace(config, time_limit_s=30), source)
     live = LiveInput(code="TEST01", record=lambda kind, detail: True)
     live.source = source
+    return trial, source, live
+
+
+def _paused_and_resumed(protocol_path, mapping: str) -> tuple[Trial, LiveInput, Page, dict]:
+    """easy-wrong / aggressive: the participant's handle held over the box while the robot
+    takes the gripper toward the bottle; then a pause (freeze) and its end (thaw)."""
+    trial, source, live = _trial_with_input(protocol_path, mapping)
     goals, right = trial.scene.goals.positions, trial.scene.target_index
     start = trial.poses().gripper.copy()
     wanted = start + 0.5 * (goals[right] - start)  # halfway to the box, at the start height
@@ -88,11 +94,7 @@ def test_a_pause_puts_the_relative_handle_back_on_the_gripper(protocol_path) -> 
 def test_a_pose_sent_just_before_the_pause_is_where_the_handle_is_drawn(protocol_path) -> None:
     """The handle's last pose arrived between two ticks and the pause came before the second:
     after the pause the page draws the handle where the next tick's target is, that pose."""
-    config = trial_config_from_protocol(protocol_path, "easy-wrong", "aggressive")
-    source = ParticipantInput(mapping="absolute")
-    trial = Trial(dataclasses.replace(config, time_limit_s=30), source)
-    live = LiveInput(code="TEST01", record=lambda kind, detail: True)
-    live.source = source
+    trial, source, live = _trial_with_input(protocol_path, "absolute")
     start = trial.poses().gripper.copy()
     for _ in range(50):
         source.set_target(start)
@@ -116,11 +118,7 @@ def test_a_handle_let_go_past_the_reach_during_a_pause_comes_back_inside(protoco
     """Let go past the reach during a pause (a hostile-client pass found the handle redrawn 15 cm
     outside the frame after the resume, the arm held at its edge): the resume draws it over the
     point the arm is sent to, as a release outside a pause does, and that is the target."""
-    config = trial_config_from_protocol(protocol_path, "easy-wrong", "aggressive")
-    source = ParticipantInput(mapping="absolute")
-    trial = Trial(dataclasses.replace(config, time_limit_s=30), source)
-    live = LiveInput(code="TEST01", record=lambda kind, detail: True)
-    live.source = source
+    trial, source, live = _trial_with_input(protocol_path, "absolute")
     reach = trial.scene.reach
     start = trial.poses().gripper.copy()
     past = start + np.array([0.0, 0.6, 0.0])  # dragged far past the side of the frame

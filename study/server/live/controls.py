@@ -72,14 +72,28 @@ class LiveInput:
         at = gripper
         try:
             at = source.resume_at(gripper)
-            if reach is not None and not reach.contains(at):
-                at = reach.clamp(at)
-                source.place(at)
         except (InputFrozen, TeleopError):
             LOGGER.debug("could not put the handle back", exc_info=True)
+        if reach is not None:
+            at = self.keep_inside(at, reach)
         if page is not None:
             page.move_gizmo(at)
             page.show_gizmo(True)
+
+    def keep_inside(self, at: np.ndarray, reach: ReachRegion) -> np.ndarray:
+        """An absolute handle left at ``at`` past the ``reach`` goes back over the point the arm
+        is sent to (the reach clamps it), and that point becomes the target; returns where the
+        handle is to be drawn. (A relative handle returns to the gripper, which the reach bounds
+        already; that point sent to it would be a new displacement.)"""
+        source = self.source
+        if source is None or source.relative or reach.contains(at):
+            return at
+        inside = reach.clamp(at)
+        try:
+            source.place(inside)
+        except (InputFrozen, TeleopError) as exc:
+            self._refused(exc)
+        return inside
 
     # ---- viser callbacks ----------------------------------------------------------------------
     def grasp(self) -> None:

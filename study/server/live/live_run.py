@@ -124,18 +124,13 @@ class LiveRun:
         where it was let go instead of following the gripper.)"""
         self.input.on_release()
         source = self.input.source
-        if (
-            self.trial is trial
-            and not trial.done
-            and source is not None
-            and not source.relative
-            and not source.frozen  # let go during a pause: the thaw brings it inside
-        ):
+        # let go during a pause: the thaw brings it inside (``LiveInput.keep_inside`` both)
+        if self.trial is trial and not trial.done and source is not None and not source.frozen:
             target = source.last_target
-            if target is not None and not trial.scene.reach.contains(target):
-                inside = trial.scene.reach.clamp(target)
-                self.input.on_target(inside)
-                page.move_gizmo(inside)
+            if target is not None:
+                inside = self.input.keep_inside(target, trial.scene.reach)
+                if not np.array_equal(inside, target):
+                    page.move_gizmo(inside)
 
     def gripper(self) -> np.ndarray | None:
         return None if self.trial is None else self.trial.poses().gripper
