@@ -406,12 +406,17 @@ def test_held_keys_stay_while_the_server_is_behind_and_go_when_it_stays_deaf(
             stalled = time.monotonic()
             loop.call_soon_threadsafe(time.sleep, DEAF_LIMIT_S + 1.5)
             assert await until(lambda: not source.keyboard.moving, timeout=DEAF_LIMIT_S + 2)
-            return time.monotonic() - stalled
+            gone_after = time.monotonic() - stalled
+            # read while the tab is still there: its leaving pauses the run (tab_lost)
+            def kinds() -> list[str]:
+                return [e.kind for e in study.store.events()]
+
+            assert await until(lambda: "keys_expired" in kinds(), timeout=2.0)
+            assert kinds().count("keys_expired") == 1 and "pause" not in kinds()
+            return gone_after
 
     gone_after = run_async(scenario())
     assert DEAF_LIMIT_S - 0.3 < gone_after < DEAF_LIMIT_S + 0.5
-    kinds = [e.kind for e in study.store.events()]
-    assert kinds.count("keys_expired") == 1 and "pause" not in kinds
 
 
 # -- the second pass's attacks on the merged whole (open link, rejoin cookie, text floods) ----
