@@ -10,15 +10,27 @@ from typing import Any
 import pytest
 from playwright.sync_api import sync_playwright
 
-from tests.browser.harness import FrameLog, launch, new_context
+from tests.browser.harness import (
+    TEST_WEBGL,
+    FrameLog,
+    WebGLUnavailable,
+    launch,
+    new_context,
+    webgl_renderer,
+)
 from tests.browser.page import SCREENSHOTS
 
 
 @pytest.fixture(scope="session")
 def browser() -> Iterator[Any]:
+    """Chromium with the tests' WebGL (``TEST_WEBGL``, llvmpipe unless told), checked once: a
+    page that got another renderer, or none, would fail every test for a reason none names."""
     with sync_playwright() as p:
-        b = launch(p)
+        b = launch(p, webgl=TEST_WEBGL)
         try:
+            renderer = webgl_renderer(b)
+            if TEST_WEBGL.lower() not in renderer.lower():
+                raise WebGLUnavailable(f"asked for {TEST_WEBGL} WebGL, pages got {renderer!r}")
             yield b
         finally:
             b.close()

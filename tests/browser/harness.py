@@ -14,7 +14,7 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import msgspec
 import numpy as np
@@ -94,9 +94,61 @@ def new_context(browser: Any, **options: Any) -> Any:
     return ctx
 
 
-def launch(playwright: Any) -> Any:
-    """Start headless Debian Chromium."""
-    return playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
+MESA_EGL = Path("/usr/share/glvnd/egl_vendor.d/50_mesa.json")
+"""Mesa's EGL (Debian's ``libegl-mesa0``, installed by ``.ci/setup``): llvmpipe behind it."""
+
+LLVMPIPE_ARGS = [
+    *(a for a in CHROMIUM_ARGS if a != "--disable-gpu"),
+    "--use-gl=angle",
+    "--use-angle=gl-egl",
+    "--ignore-gpu-blocklist",
+    "--disable-gpu-compositing",
+]
+"""WebGL drawn by Mesa's llvmpipe (ANGLE on EGL) instead of SwiftShader, the page composited in
+software as with ``--disable-gpu``. The same scene in the same pixels for 29 % less of
+Chromium's CPU at 1366 x 768 (``test_depth_and_limits.py``: GPU process 46.4 -> 22.7 CPU s,
+Chromium 74.8 -> 53.4) and 17-33 % less at 1100 x 720 (``test_keys_and_pause.py``: 22.5 and 27.9
+-> 18.7 twice; measured 2026-12-04 with ``benchmarks/chromium_cpu.py``). GPU compositing through
+llvmpipe too (without ``--disable-gpu-compositing``) cost more: 25.4. The tests' browser (issue
+24.4: Chromium's drawing was 43 % of the suite's CPU); a participant's laptop without a GPU
+draws with SwiftShader, so the page's benchmarks (``page_fps.py``) keep it."""
+
+WebGL = Literal["swiftshader", "llvmpipe"]
+TEST_WEBGL: WebGL = "swiftshader" if os.environ.get("TEST_WEBGL") == "swiftshader" else "llvmpipe"
+"""The tests' WebGL (``TEST_WEBGL=swiftshader``: Chromium's own, as the benchmarks draw)."""
+
+
+class WebGLUnavailable(RuntimeError):
+    """The WebGL asked for cannot be drawn on this machine."""
+
+
+def launch(playwright: Any, *, webgl: WebGL = "swiftshader") -> Any:
+    """Start headless Debian Chromium, its WebGL drawn by SwiftShader (a laptop without a GPU)
+    or by Mesa's llvmpipe (:data:`LLVMPIPE_ARGS`)."""
+    if webgl == "llvmpipe" and not MESA_EGL.exists():
+        raise WebGLUnavailable(
+            f"llvmpipe WebGL needs Mesa's EGL ({MESA_EGL} missing): run `bash .ci/setup` as root"
+            " (installs libegl-mesa0 and libgl1-mesa-dri) or set TEST_WEBGL=swiftshader"
+        )
+    args = LLVMPIPE_ARGS if webgl == "llvmpipe" else CHROMIUM_ARGS
+    return playwright.chromium.launch(executable_path=CHROMIUM, args=args, headless=True)
+
+
+WEBGL_RENDERER_JS = """() => {
+  const gl = document.createElement('canvas').getContext('webgl2');
+  if (!gl) return '';
+  const info = gl.getExtension('WEBGL_debug_renderer_info');
+  return info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER);
+}"""
+
+
+def webgl_renderer(browser: Any) -> str:
+    """The renderer string a page of ``browser`` gets for WebGL 2 ('' when it gets none)."""
+    page = browser.new_page()
+    try:
+        return str(page.evaluate(WEBGL_RENDERER_JS))
+    finally:
+        page.close()
 
 
 def decode_frame(payload: bytes | str) -> list[dict[str, Any]]:
