@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from tests.browser.harness import (
+    TEST_WEBGL,
     FrameLog,
     RunningServer,
     drag_until,
@@ -134,10 +135,11 @@ def test_participant_session_end_to_end(study: RunningServer, context: Any, scre
     live = srv.session(code)
     assert wait_until(lambda: live.scene_view is not None and live.scene_view.frames_sent >= 1)
     text_now()
-    # Debian's Chromium draws WebGL on the CPU here: the 3-D view runs without multisampling
+    # the tests' Chromium draws WebGL on the CPU (llvmpipe, or SwiftShader as a laptop without a
+    # GPU does): the 3-D view runs without multisampling
     # (study.server.software_webgl: +37 % frames/s), and says what drew it
     drawn = page.evaluate(CANVAS_JS)
-    assert "SwiftShader" in drawn["renderer"] and drawn["antialias"] is False, drawn
+    assert TEST_WEBGL in drawn["renderer"].lower() and drawn["antialias"] is False, drawn
 
     run = live.run
     start = np.array(run.trial.user_target, float)
