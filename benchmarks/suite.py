@@ -3,10 +3,11 @@
 Issue 24.4: the README's test command within 6 minutes on 2 cores. Each run starts from what a
 clean clone has: a detached worktree of the revision (``git worktree add``), emptied of every
 untracked file (``git clean -fdx``: no bytecode, no numba cache, no pytest cache), then what
-``.ci/setup`` does after installing (``python -m app.warm_up``: the control tick's kernels
-compiled once), then ``python -m pytest -n N --maxprocesses=N``, with the Python that runs
-this script (from the worktree it imports the worktree's code; the packages are this one's).
-While pytest runs, ``/proc/stat`` is read every second: how busy both cores were.
+``.ci/setup`` does after installing (``.ci/prepare``: the control tick's kernels compiled once,
+the repository's bytecode; ``python -m app.warm_up`` in revisions without it), then ``python -m
+pytest -n N --maxprocesses=N``, with the Python that runs this script (from the worktree it
+imports the worktree's code; the packages are this one's). While pytest runs, ``/proc/stat``
+is read every second: how busy both cores were.
 
 Runs alternate (revision by revision, worker count by worker count, ``--runs`` rounds), so
 versions compared share the same minutes of a shared machine. Prints one row a run, a summary
@@ -104,7 +105,12 @@ def run_once(tree: Path, rev: str, workers: int, extra: list[str], log: Path) ->
     git("clean", "-fdxq", cwd=tree)
     load = os.getloadavg()[0]
     start = time.perf_counter()
-    subprocess.run([str(PYTHON), "-m", "app.warm_up"], cwd=tree, check=True, capture_output=True)
+    if (tree / ".ci" / "prepare").exists():  # what .ci/setup does after installing
+        prepare = ["bash", ".ci/prepare"]
+    else:  # revisions before it: the kernels only
+        prepare = [str(PYTHON), "-m", "app.warm_up"]
+    env = {**os.environ, "PYTHON": str(PYTHON)}
+    subprocess.run(prepare, cwd=tree, env=env, check=True, capture_output=True)
     setup_s = time.perf_counter() - start
     command = [str(PYTHON), "-m", "pytest", "-n", str(workers), f"--maxprocesses={workers}"]
     with log.open("w") as out, CpuSampler() as cpu:
