@@ -9,12 +9,19 @@ from typing import Any
 
 import pytest
 
+from tests.browser import harness as _harness
 from tests.protocol_copies import short_protocol as _short_protocol
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
 
 ROOT = Path(__file__).resolve().parents[1]
+
+# A worker starts hundreds of study servers one after another; each start's full collection
+# before freezing the heap walked the whole worker (~180 ms at 420,000 objects, about 45 CPU s a
+# run). The tests about the port under attack turn it back on: it is what keeps their control
+# loop on time (``study.server.realtime``).
+_harness.SERVER_DEFAULTS["freeze_heap"] = False
 
 
 @pytest.fixture(scope="session")

@@ -35,8 +35,17 @@ from study.server.live.live_run import KEY_STATE_MAX_AGE_S
 from study.server.page_script import KEY_RESEND_MS
 from study.server.participant_page import DEAF_LIMIT_S
 from tests.attacker import CAMERA
+from tests.browser import harness
 from tests.browser.harness import RunningServer, run_async, start_server
 from tests.support.raw_client import AGREE, RawClient
+
+
+@pytest.fixture(autouse=True)
+def _heap_frozen_as_served(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The port under attack as ``serve`` runs it: start-up's heap out of the collector
+    (``study.server.realtime``), so that connections' garbage costs short collections only."""
+    monkeypatch.setitem(harness.SERVER_DEFAULTS, "freeze_heap", True)
+
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -31,8 +31,16 @@ from study.server.join import ALPHABET, CODE_LENGTH
 from study.server.participant_tabs import JOIN_FAILED, JOIN_THROTTLED
 from tests import disk_full
 from tests.attacker import CAMERA, SUBPROTOCOL
+from tests.browser import harness
 from tests.browser.harness import RunningServer, run_async, start_server, wait_until
 from tests.support.raw_client import AGREE, RawClient
+
+
+@pytest.fixture(autouse=True)
+def _heap_frozen_as_served(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The port under attack as ``serve`` runs it: start-up's heap out of the collector
+    (``study.server.realtime``), so that connections' garbage costs short collections only."""
+    monkeypatch.setitem(harness.SERVER_DEFAULTS, "freeze_heap", True)
 
 
 def roomy() -> Firewall:
@@ -563,6 +571,7 @@ def test_the_console_answers_only_to_this_machines_names(study: RunningServer) -
 FLOOD_SCRIPT = """
 import asyncio, sys, time
 import msgspec, viser, websockets
+
 
 port, addresses, per_address, rate, seconds = sys.argv[1:6]
 camera = msgspec.msgpack.encode({

@@ -112,6 +112,7 @@ class StudyServer:
         log_path: Path | None = None,
         link_idle_s: float = LINK_IDLE_S,
         finished_grace_s: float = FINISHED_GRACE_S,
+        freeze_heap: bool = True,
     ) -> None:
         """``open_link``: places of the open-enrolment link (0: off; the console turns it on
         and off); ``public_url``: the participants' address as they reach it (behind a
@@ -122,7 +123,11 @@ class StudyServer:
         (``study.server.logs``), whose disk use the console shows; ``link_idle_s``: how long a
         link session left before consent keeps its place (``study.server.link_places``);
         ``finished_grace_s``: how long a finished session stays once no tab shows it
-        (``study.server.finished_sessions``)."""
+        (``study.server.finished_sessions``); ``freeze_heap``: collect once, then keep what
+        start-up made out of later collections (``study.server.realtime``), as a process that
+        serves one study wants; a process that starts many servers one after another (the
+        tests) may leave it off: each start's full collection walks the whole process, about
+        180 ms at the 420,000 objects of a test worker."""
         self.log_path = log_path
         # the control tick's compiled kernels now, not at a participant's first tick
         LOGGER.info("the control tick's kernels ready in %.2f s", warm_up())
@@ -158,7 +163,9 @@ class StudyServer:
         self._places = PlaceSweeper(
             self._sweep, period_s=min(SWEEP_S, max(0.05, shortest / 4)), name="sweeper"
         )
-        realtime.freeze_heap()  # after start-up: collections never walk it again
+        self._froze_heap = freeze_heap
+        if freeze_heap:
+            realtime.freeze_heap()  # after start-up: collections never walk it again
 
     def _start_experimenter(self, *, host: str, port: int, verbose: bool, share: bool) -> None:
         """The console's viser server: it may use every message type; share links stay off
@@ -250,7 +257,9 @@ class StudyServer:
         blinding_guard.uninstall(self.participant)
         firewall.uninstall(self.participant)
         firewall.uninstall(self.experimenter)
-        realtime.thaw_heap()
+        if self._froze_heap:
+            self._froze_heap = False
+            realtime.thaw_heap()
         return ended
 
     # -- sessions ----------------------------------------------------------------------------

@@ -352,6 +352,11 @@ class RunningServer:
         return ended
 
 
+SERVER_DEFAULTS: dict[str, Any] = {}
+"""``StudyServer`` options :func:`start_server` passes unless ``server_kw`` says otherwise
+(``tests/conftest.py`` sets the tests' own; the benchmarks keep the server's defaults)."""
+
+
 def start_server(
     directory: Any,
     *,
@@ -377,7 +382,7 @@ def start_server(
         host=host,
         port=0,
         experimenter_port=0,
-        **(server_kw or {}),
+        **{**SERVER_DEFAULTS, **(server_kw or {})},
     )
     return RunningServer(server, store, protocol)
 
