@@ -11,6 +11,7 @@ import pytest
 from playwright.sync_api import sync_playwright
 
 from tests.browser.harness import (
+    TEST_CHROMIUM,
     TEST_WEBGL,
     FrameLog,
     WebGLUnavailable,
@@ -23,10 +24,11 @@ from tests.browser.page import SCREENSHOTS
 
 @pytest.fixture(scope="session")
 def browser() -> Iterator[Any]:
-    """Chromium with the tests' WebGL (``TEST_WEBGL``, llvmpipe unless told), checked once: a
-    page that got another renderer, or none, would fail every test for a reason none names."""
+    """Chromium at the priority it is given (:data:`TEST_CHROMIUM`) with the tests' WebGL
+    (``TEST_WEBGL``, llvmpipe unless told), checked once: a page that got another renderer, or
+    none, would fail every test for a reason none names."""
     with sync_playwright() as p:
-        b = launch(p, webgl=TEST_WEBGL)
+        b = launch(p, webgl=TEST_WEBGL, executable=TEST_CHROMIUM)
         try:
             renderer = webgl_renderer(b)
             if TEST_WEBGL.lower() not in renderer.lower():
