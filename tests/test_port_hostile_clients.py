@@ -37,10 +37,13 @@ from tests.support.raw_client import AGREE, RawClient
 
 
 @pytest.fixture(autouse=True)
-def _heap_frozen_as_served(monkeypatch: pytest.MonkeyPatch) -> None:
+def _served_as_serve_runs_it(monkeypatch: pytest.MonkeyPatch) -> None:
     """The port under attack as ``serve`` runs it: start-up's heap out of the collector
-    (``study.server.realtime``), so that connections' garbage costs short collections only."""
+    (``study.server.realtime``), so that connections' garbage costs short collections only,
+    and the server's threads at ``serve``'s default priority (nice -10, where allowed), ahead of
+    the attacker's process and the other tests' work on the machine."""
     monkeypatch.setitem(harness.SERVER_DEFAULTS, "freeze_heap", True)
+    monkeypatch.setattr(harness, "SERVER_NICE", -10)
 
 
 def roomy() -> Firewall:
