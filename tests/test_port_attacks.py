@@ -35,19 +35,11 @@ from study.server.live.live_run import KEY_STATE_MAX_AGE_S
 from study.server.page_script import KEY_RESEND_MS
 from study.server.participant_page import DEAF_LIMIT_S
 from tests.attacker import CAMERA
-from tests.browser import harness
 from tests.browser.harness import RunningServer, run_async, start_server
 from tests.support.raw_client import AGREE, RawClient
+from tests.support.served import served_as_serve_runs_it  # noqa: F401 (the modules' fixture)
 
-
-@pytest.fixture(autouse=True)
-def _served_as_serve_runs_it(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The port under attack as ``serve`` runs it: start-up's heap out of the collector
-    (``study.server.realtime``), so that connections' garbage costs short collections only,
-    and the server's threads at ``serve``'s default priority (nice -10, where allowed), ahead of
-    the attacker's process and the other tests' work on the machine."""
-    monkeypatch.setitem(harness.SERVER_DEFAULTS, "freeze_heap", True)
-    monkeypatch.setattr(harness, "SERVER_NICE", -10)
+pytestmark = pytest.mark.usefixtures("served_as_serve_runs_it")
 
 
 ROOT = Path(__file__).resolve().parents[1]

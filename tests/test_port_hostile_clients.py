@@ -31,19 +31,11 @@ from study.server.join import ALPHABET, CODE_LENGTH
 from study.server.participant_tabs import JOIN_FAILED, JOIN_THROTTLED
 from tests import disk_full
 from tests.attacker import CAMERA, SUBPROTOCOL
-from tests.browser import harness
 from tests.browser.harness import RunningServer, run_async, start_server, wait_until
 from tests.support.raw_client import AGREE, RawClient
+from tests.support.served import served_as_serve_runs_it  # noqa: F401 (the modules' fixture)
 
-
-@pytest.fixture(autouse=True)
-def _served_as_serve_runs_it(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The port under attack as ``serve`` runs it: start-up's heap out of the collector
-    (``study.server.realtime``), so that connections' garbage costs short collections only,
-    and the server's threads at ``serve``'s default priority (nice -10, where allowed), ahead of
-    the attacker's process and the other tests' work on the machine."""
-    monkeypatch.setitem(harness.SERVER_DEFAULTS, "freeze_heap", True)
-    monkeypatch.setattr(harness, "SERVER_NICE", -10)
+pytestmark = pytest.mark.usefixtures("served_as_serve_runs_it")
 
 
 def roomy() -> Firewall:

@@ -1,0 +1,17 @@
+"""The study server as ``serve`` runs it, for the tests of the participant port under attack."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.browser import harness
+
+
+@pytest.fixture
+def served_as_serve_runs_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Servers started by :func:`tests.browser.harness.start_server` with start-up's heap out of
+    the collector (``study.server.realtime``), so that connections' garbage costs short
+    collections only, and their threads at ``serve``'s default priority (nice -10, where
+    allowed), ahead of the attacker's process and the other tests' work on the machine."""
+    monkeypatch.setitem(harness.SERVER_DEFAULTS, "freeze_heap", True)
+    monkeypatch.setattr(harness, "SERVER_NICE", -10)
