@@ -11,7 +11,6 @@ import pytest
 from playwright.sync_api import sync_playwright
 
 from tests.browser.harness import (
-    TEST_CHROMIUM,
     TEST_WEBGL,
     FrameLog,
     WebGLUnavailable,
@@ -24,11 +23,10 @@ from tests.browser.page import SCREENSHOTS
 
 @pytest.fixture(scope="session")
 def browser() -> Iterator[Any]:
-    """Chromium at the priority it is given (:data:`TEST_CHROMIUM`) with the tests' WebGL
-    (``TEST_WEBGL``, llvmpipe unless told), checked once: a page that got another renderer, or
-    none, would fail every test for a reason none names."""
+    """Chromium with the tests' WebGL (``TEST_WEBGL``, llvmpipe unless told), checked once: a
+    page that got another renderer, or none, would fail every test for a reason none names."""
     with sync_playwright() as p:
-        b = launch(p, webgl=TEST_WEBGL, executable=TEST_CHROMIUM)
+        b = launch(p, webgl=TEST_WEBGL)
         try:
             renderer = webgl_renderer(b)
             if TEST_WEBGL.lower() not in renderer.lower():

@@ -26,9 +26,6 @@ from tests.protocol_copies import PAPER_PROTOCOL
 from tests.protocol_copies import short_protocol as copy
 
 CHROMIUM = "/usr/bin/chromium"
-TEST_CHROMIUM = str(Path(__file__).with_name("chromium.sh"))
-"""The tests' Chromium: Debian's, started without the right to raise its priority (as root it
-runs its GPU and compositor threads at nice -8, ahead of the server under test)."""
 CHROMIUM_ARGS = [
     "--no-sandbox",
     "--disable-gpu",
@@ -125,17 +122,16 @@ class WebGLUnavailable(RuntimeError):
     """The WebGL asked for cannot be drawn on this machine."""
 
 
-def launch(playwright: Any, *, webgl: WebGL = "swiftshader", executable: str = CHROMIUM) -> Any:
+def launch(playwright: Any, *, webgl: WebGL = "swiftshader") -> Any:
     """Start headless Debian Chromium, its WebGL drawn by SwiftShader (a laptop without a GPU)
-    or by Mesa's llvmpipe (:data:`LLVMPIPE_ARGS`); ``executable``: :data:`TEST_CHROMIUM` for
-    the tests."""
+    or by Mesa's llvmpipe (:data:`LLVMPIPE_ARGS`)."""
     if webgl == "llvmpipe" and not MESA_EGL.exists():
         raise WebGLUnavailable(
             f"llvmpipe WebGL needs Mesa's EGL ({MESA_EGL} missing): run `bash .ci/setup` as root"
             " (installs libegl-mesa0 and libgl1-mesa-dri) or set TEST_WEBGL=swiftshader"
         )
     args = LLVMPIPE_ARGS if webgl == "llvmpipe" else CHROMIUM_ARGS
-    return playwright.chromium.launch(executable_path=executable, args=args, headless=True)
+    return playwright.chromium.launch(executable_path=CHROMIUM, args=args, headless=True)
 
 
 WEBGL_RENDERER_JS = """() => {
