@@ -356,11 +356,6 @@ SERVER_DEFAULTS: dict[str, Any] = {}
 """``StudyServer`` options :func:`start_server` passes unless ``server_kw`` says otherwise
 (``tests/conftest.py`` sets the tests' own; the benchmarks keep the server's defaults)."""
 
-SERVER_NICE: int | None = None
-"""The nice value :func:`start_server` gives the server's threads, as ``serve --priority`` does
-(-10 by default there; ``None``: the caller's). Threads inherit it from the thread that starts
-them, so it is set on the calling thread for the server's start only (below 0 needs root)."""
-
 
 def start_server(
     directory: Any,
@@ -375,33 +370,21 @@ def start_server(
     first, e.g. ``tests.protocol_copies.with_completion``)."""
     from study.protocol import load_protocol
     from study.server.live import session_factory
-    from study.server.realtime import set_priority
     from study.server.server import StudyServer
     from study.session import open_store
 
     path = short_protocol(directory, **protocol_kw)
     protocol = load_protocol(edit(path) if edit is not None else path)
     store = open_store(Path(directory) / "study.db", protocol)
-    before = _nice() if SERVER_NICE is not None else None
-    try:
-        if SERVER_NICE is not None:
-            set_priority(SERVER_NICE)
-        server = StudyServer(
-            session_factory(store, protocol),
-            condition_words=protocol.condition_words,
-            host=host,
-            port=0,
-            experimenter_port=0,
-            **{**SERVER_DEFAULTS, **(server_kw or {})},
-        )
-    finally:
-        if before is not None:
-            set_priority(before)
+    server = StudyServer(
+        session_factory(store, protocol),
+        condition_words=protocol.condition_words,
+        host=host,
+        port=0,
+        experimenter_port=0,
+        **{**SERVER_DEFAULTS, **(server_kw or {})},
+    )
     return RunningServer(server, store, protocol)
-
-
-def _nice() -> int:
-    return os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
 
 
 def run_async(coro: Any) -> Any:

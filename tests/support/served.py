@@ -11,7 +11,6 @@ from tests.browser import harness
 def served_as_serve_runs_it(monkeypatch: pytest.MonkeyPatch) -> None:
     """Servers started by :func:`tests.browser.harness.start_server` with start-up's heap out of
     the collector (``study.server.realtime``), so that connections' garbage costs short
-    collections only, and their threads at ``serve``'s default priority (nice -10, where
-    allowed), ahead of the attacker's process and the other tests' work on the machine."""
+    collections only. (Not ``serve``'s nice -10 too: a server under a flood at that priority
+    starved another worker's test of its tab's messages for 20 s.)"""
     monkeypatch.setitem(harness.SERVER_DEFAULTS, "freeze_heap", True)
-    monkeypatch.setattr(harness, "SERVER_NICE", -10)
