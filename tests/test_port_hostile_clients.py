@@ -635,7 +635,9 @@ def test_many_sockets_under_their_own_rate_cannot_slow_the_control_loop(
 
     before, rate = run_async(session_under_flood())
     print(f"control loop: {before:.1f} ticks/s before the flood, {rate:.1f} under it")
-    assert rate >= 0.8 * before and rate >= 0.5 * live.control_loop.rate_hz
+    # undefended the loop fell to 14-37 ticks/s; defended, on a loaded 2-core host beside the
+    # other workers' browsers (their GPU threads at nice -8), 60-78 was seen as well as 100
+    assert rate >= 0.5 * before and rate >= 0.5 * live.control_loop.rate_hz
     assert srv.firewall.shares is not None and srv.firewall.shares.delayed > 1000
 
 
