@@ -605,7 +605,7 @@ def test_many_sockets_under_their_own_rate_cannot_slow_the_control_loop(
     """56 sockets from 7 addresses, each under the per-connection rate (about 10,000 messages a
     second in all, from another process): none of them holds a session, so they share the
     unbound budget and wait for it (their frames stay in the kernel), and the 100 Hz control
-    loop keeps the rate it had before the flood.
+    loop keeps at least half the rate it had before the flood (undefended: 14-37 ticks/s).
 
     Compared with the rate just before, as the attack tests do: the flooder shares 2 cores with
     the server and with other tests (CI once saw 89 ticks/s against a fixed bound of 90, the
