@@ -127,4 +127,4 @@ class KeyboardInput:
     def moving(self) -> bool:
         """True while a key is held or a tap's motion is still owed."""
         with self._lock:
-            return bool(self._held) or bool(np.any(self._owed))
+            return bool(self._held) or any(self._owed.tolist())

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,7 +41,8 @@ class ReachRegion:
         x = np.asarray(x, dtype=float).reshape(-1)
         if x.shape != (3,):
             raise InvalidTargetError(f"target must be a 3-vector (x, y, z), got shape {x.shape}")
-        if not np.all(np.isfinite(x)):
+        a, b, c = x.tolist()
+        if not (math.isfinite(a) and math.isfinite(b) and math.isfinite(c)):
             raise InvalidTargetError(f"target must be finite, got {x.tolist()}")
         return np.minimum(np.maximum(x, self.lo), self.hi)
 

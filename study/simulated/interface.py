@@ -39,6 +39,7 @@ import numpy as np
 
 from app.teleop.participant_input import ParticipantInput
 from app.teleop.types import TeleopCommand, TrialObservation
+from study.simulated._vec import norm
 from study.simulated.experience import RunExperience
 from study.simulated.movement import HandNoise, fitts_time, minimum_jerk
 from study.simulated.population import InterfaceParams, ParticipantParams
@@ -118,7 +119,7 @@ class GizmoHand:
             if t < self._next_grab:
                 return
             error = intent - handle_at
-            if float(np.linalg.norm(error)) < self.p.tolerance_m:
+            if norm(error) < self.p.tolerance_m:
                 return
             self._grab(t, handle_at, error)
         assert self.handle is not None
@@ -147,7 +148,7 @@ class GizmoHand:
         mask[list(axes)] = 1.0
         move = error * mask
         depth = self.view * mask  # the viewing direction within the handle's axes
-        size = float(np.linalg.norm(depth))
+        size = norm(depth)
         if size > 1e-6:
             depth /= size
             along = float(move @ depth)
@@ -159,7 +160,7 @@ class GizmoHand:
         self._move = move
         self._t0 = t
         self._length = fitts_time(
-            float(np.linalg.norm(move)), a=self.p.drag_a_s, b=self.p.drag_b_s_per_bit, width=0.02
+            norm(move), a=self.p.drag_a_s, b=self.p.drag_b_s_per_bit, width=0.02
         )
 
 

@@ -21,6 +21,7 @@ relaxer relaxes toward ``relaxer x depth x help x T``, and the fight builds
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -59,12 +60,12 @@ class Trust:
         opposed: float,
         ee: np.ndarray,
         handle: np.ndarray,
-        others: np.ndarray,
+        others: Sequence[np.ndarray],
         knocks: int,
     ) -> None:
         """One tick of what the user saw: how much the robot opposed them, the gripper ``ee``
         and their handle, the grasp points of the objects they do not want (``others``,
-        (n, 3)), and how many objects have been knocked over or off the table so far."""
+        each (3,)), and how many objects have been knocked over or off the table so far."""
         p = self.params
         if opposed > 0.0:
             self.level *= math.exp(-p.opposition_loss_per_s * opposed * dt)

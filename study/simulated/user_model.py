@@ -56,7 +56,7 @@ import math
 import numpy as np
 
 from app.teleop.types import TeleopCommand, TrialObservation
-from study.simulated._vec import clamp_box, norm
+from study.simulated._vec import clamp_box, finite3, norm
 from study.simulated.errors import ObservationError
 from study.simulated.experience import ExperienceLog, RunExperience
 from study.simulated.movement import HandNoise, fitts_time, minimum_jerk
@@ -139,11 +139,11 @@ class SimulatedUser:
     # ---- InputSource -----------------------------------------------------------------------
     def command(self, obs: TrialObservation) -> TeleopCommand:
         """Next target and gripper wish from the observation (see the module docstring)."""
+        goal = self._goal(obs)  # where the object is now: a nudged object is re-aimed at
         if self._view is None:
-            self._goal_point = self._goal(obs)
+            self._goal_point = goal
             self._start(obs)
         assert self._view is not None
-        goal = self._goal(obs)  # where the object is now: a nudged object is re-aimed at
         lo, hi = obs.reach.lo, obs.reach.hi
         dt = 1.0 / obs.rate_hz if self._t_prev is None else max(obs.t - self._t_prev, 0.0)
         self._t_prev = obs.t
@@ -187,6 +187,7 @@ class SimulatedUser:
             err, err_size = np.zeros(3), 0.0
             aim, follow = np.array((aim[0], aim[1], seen.ee[2])), seen.ee
         trust = self.trust
+        points = np.asarray(obs.grasp_points, dtype=float)
         self.reaction.update(
             dt=dt,
             velocity=seen.velocity,
@@ -203,7 +204,7 @@ class SimulatedUser:
             opposed=self.reaction.opposed,
             ee=seen.ee,
             handle=seen.own,
-            others=np.delete(np.asarray(obs.grasp_points, float), obs.target_index, axis=0),
+            others=[p for k, p in enumerate(points) if k != obs.target_index],
             knocks=obs.knocks,
         )
         rho = self.reaction.relax
@@ -362,14 +363,14 @@ class SimulatedUser:
                 f" {list(obs.goal_names)}; the trial must say which object to pick up"
             )
         goal = positions[obs.target_index]
-        if goal.shape != (3,) or not np.all(np.isfinite(goal)):
+        if not finite3(goal):
             raise ObservationError(f"target grasp point must be a finite 3-vector, got {goal}")
         return goal
 
     def _start(self, obs: TrialObservation) -> None:
         self._view = DelayedView(tau=self.params.motor.reaction_delay_s, rate_hz=obs.rate_hz)
         start = np.asarray(obs.user_target, dtype=float)
-        if start.shape != (3,) or not np.all(np.isfinite(start)):
+        if not finite3(start):
             start = np.asarray(obs.ee, dtype=float)
         self._hand = start.copy()
         self._r = start.copy()
