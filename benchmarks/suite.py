@@ -7,7 +7,10 @@ untracked file (``git clean -fdx``: no bytecode, no numba cache, no pytest cache
 the repository's bytecode; ``python -m app.warm_up`` in revisions without it), then ``python -m
 pytest -n N --maxprocesses=N``, with the Python that runs this script (from the worktree it
 imports the worktree's code; the packages are this one's). While pytest runs, ``/proc/stat``
-is read every second: how busy both cores were.
+is read every second: how busy both cores were, and how many CPU seconds the run's processes used
+(pytest, its workers and everything they start, Chromium included: each process's last reading,
+sampled every half second; a process that lives less than that is missed). On a shared machine
+other jobs change the wall time a lot and the CPU seconds little: compare those.
 
 Runs alternate (revision by revision, worker count by worker count, ``--runs`` rounds), so
 versions compared share the same minutes of a shared machine. Prints one row a run, a summary
@@ -39,6 +42,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PYTHON = Path(sys.executable)
 """The Python that runs this script runs the suite (``.venv/bin/python``: the project's)."""
 SUMMARY = re.compile(r"=+ (.*) in ([0-9.]+)s")
+TICK = os.sysconf("SC_CLK_TCK")
 
 
 @dataclass(frozen=True)
@@ -52,6 +56,8 @@ class Run:
     """The time pytest printed (its session, without interpreter start-up)."""
     busy: float
     """Share of both cores busy while pytest ran (0..1)."""
+    cpu_s: float
+    """CPU seconds of pytest's process tree (:class:`TreeCpu`)."""
     outcome: str
     exit_code: int
     load_before: float
@@ -94,6 +100,62 @@ class CpuSampler:
         return self._busy / self._total if self._total else 0.0
 
 
+class TreeCpu:
+    """CPU seconds used by a process and all its descendants, sampled from ``/proc`` every
+    ``interval`` seconds (Chromium's renderers are not waited for by the command, so
+    ``getrusage`` misses them; ``benchmarks/chromium_cpu.py`` splits the same figure by
+    program)."""
+
+    def __init__(self, pid: int, *, interval: float = 0.5) -> None:
+        self.pid = pid
+        self.interval = interval
+        self._last: dict[tuple[int, str], float] = {}  # (pid, start time) -> CPU s
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def _sample(self) -> None:
+        procs: dict[int, tuple[int, str, float]] = {}
+        for name in os.listdir("/proc"):
+            if not name.isdigit():
+                continue
+            try:
+                with open(f"/proc/{name}/stat", encoding="ascii", errors="replace") as f:
+                    rest = f.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            cpu = (int(rest[11]) + int(rest[12])) / TICK
+            procs[int(name)] = (int(rest[1]), rest[19], cpu)
+        children: dict[int, list[int]] = {}
+        for pid, (ppid, _, _) in procs.items():
+            children.setdefault(ppid, []).append(pid)
+        todo, seen = [self.pid], set()
+        while todo:
+            pid = todo.pop()
+            if pid in seen or pid not in procs:
+                continue
+            seen.add(pid)
+            _, start, cpu = procs[pid]
+            self._last[(pid, start)] = max(self._last.get((pid, start), 0.0), cpu)
+            todo.extend(children.get(pid, ()))
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.interval):
+            self._sample()
+
+    def __enter__(self) -> TreeCpu:
+        self._sample()
+        self._thread.start()
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    @property
+    def cpu_s(self) -> float:
+        return sum(self._last.values())
+
+
 def git(*args: str, cwd: Path = ROOT) -> str:
     return subprocess.run(
         ["git", *args], cwd=cwd, check=True, capture_output=True, text=True
@@ -115,9 +177,9 @@ def run_once(tree: Path, rev: str, workers: int, extra: list[str], log: Path) ->
     command = [str(PYTHON), "-m", "pytest", "-n", str(workers), f"--maxprocesses={workers}"]
     with log.open("w") as out, CpuSampler() as cpu:
         start = time.perf_counter()
-        done = subprocess.run(
-            [*command, *extra], cwd=tree, stdout=out, stderr=subprocess.STDOUT, check=False
-        )
+        child = subprocess.Popen([*command, *extra], cwd=tree, stdout=out, stderr=out)
+        with TreeCpu(child.pid) as tree_cpu:
+            child.wait()
         wall_s = time.perf_counter() - start
     lines = log.read_text(errors="replace").splitlines()
     match = next((m for m in map(SUMMARY.search, reversed(lines)) if m), None)
@@ -129,8 +191,9 @@ def run_once(tree: Path, rev: str, workers: int, extra: list[str], log: Path) ->
         wall_s=round(wall_s, 1),
         pytest_s=None if match is None else float(match[2]),
         busy=round(cpu.busy, 3),
+        cpu_s=round(tree_cpu.cpu_s, 1),
         outcome="no summary line" if match is None else match[1],
-        exit_code=done.returncode,
+        exit_code=child.returncode,
         load_before=round(load, 2),
     )
 
@@ -160,7 +223,8 @@ def main() -> int:
             trees[rev] = base / f"tree{k}"
             git("worktree", "add", "--detach", "-f", str(trees[rev]), rev)
         print(
-            f"{'rev':>10} {'commit':>9} {'n':>2} {'setup':>6} {'pytest':>14} {'busy':>5}  outcome"
+            f"{'rev':>10} {'commit':>9} {'n':>2} {'setup':>6} {'pytest':>14} {'busy':>5}"
+            f" {'CPU s':>6}  outcome"
         )
         for _ in range(args.runs):
             for rev in revs:
@@ -171,7 +235,8 @@ def main() -> int:
                     took = minutes(run.pytest_s if run.pytest_s is not None else run.wall_s)
                     print(
                         f"{rev:>10} {run.commit:>9} {n:>2} {run.setup_s:5.1f}s {took:>14}"
-                        f" {run.busy:5.0%}  {run.outcome} (load {run.load_before} before)",
+                        f" {run.busy:5.0%} {run.cpu_s:6.0f}  {run.outcome}"
+                        f" (load {run.load_before} before)",
                         flush=True,
                     )
     finally:
@@ -180,7 +245,7 @@ def main() -> int:
         if args.logs is None:
             shutil.rmtree(base, ignore_errors=True)
     summary = {}
-    print("\nper revision and worker count: pytest's time, median (worst); cores busy")
+    print("\nper revision and worker count: pytest's time, median (worst); cores busy; CPU s")
     for rev in revs:
         for n in counts:
             mine = [r for r in runs if r.rev == rev and r.workers == n]
@@ -190,11 +255,13 @@ def main() -> int:
                 "median_s": statistics.median(times),
                 "worst_s": max(times),
                 "busy": statistics.median(r.busy for r in mine),
+                "cpu_s": statistics.median(r.cpu_s for r in mine),
                 "failed_runs": len(failed),
             }
             print(
                 f"  {rev} with {n} workers: {minutes(statistics.median(times))}"
                 f" ({minutes(max(times))}), busy {statistics.median(r.busy for r in mine):.0%},"
+                f" {statistics.median(r.cpu_s for r in mine):.0f} CPU s (median),"
                 f" {len(failed)} of {len(mine)} runs failed"
             )
     print(json.dumps({"runs": [asdict(r) for r in runs], "summary": summary}))
