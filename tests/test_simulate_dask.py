@@ -261,6 +261,8 @@ def test_a_worker_killed_mid_run_loses_nothing(
 ) -> None:
     db = tmp_path / "sim.db"
     killed: list[int] = []
+    folders: list[Path] = []  # the killed worker's own directory
+    scratch: list[Path] = []  # what it held when it was killed
     ended = threading.Event()
 
     def kill_a_busy_worker() -> None:
@@ -272,7 +274,9 @@ def test_a_worker_killed_mid_run_loses_nothing(
                 # worker is slower, the third participant is in flight from then on
                 done = progress(db)[1] >= 1 or any(client.who_has().values())
                 if busy and done:
-                    pid = client.run(os.getpid, workers=[busy[0]])[busy[0]]
+                    pid, local = client.run(_pid_and_folder, workers=[busy[0]])[busy[0]]
+                    folders.append(Path(local))
+                    scratch.extend(folders[0].glob("simulate-*"))  # the participant in flight
                     os.kill(pid, signal.SIGKILL)
                     killed.append(pid)
                     return
@@ -291,3 +295,10 @@ def test_a_worker_killed_mid_run_loses_nothing(
     with Client(cluster.scheduler_address, timeout=10) as client:
         client.wait_for_workers(2, timeout=60)  # the nanny restarted it: the cluster is whole
         assert killed[0] not in client.run(os.getpid).values()
+    # its half-written scratch store went with it: the next worker purged the dead one's folder
+    assert scratch, f"no participant's scratch store in the killed worker's {folders[0]}"
+    assert not folders[0].exists(), list(folders[0].rglob("*"))
+
+
+def _pid_and_folder(dask_worker: Any) -> tuple[int, str]:
+    return os.getpid(), dask_worker.local_directory

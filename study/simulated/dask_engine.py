@@ -7,7 +7,9 @@ three.
 
 How: every participant is one task (:func:`simulate_remote`). The task receives the protocol
 and population files' *text* (workers need not see the client's files), simulates the
-participant into a private scratch store on the worker, and returns a
+participant into a private scratch store in the worker's own directory (Dask's
+``local_directory``: a killed worker's is purged by the next worker that starts, so no partial
+store is left behind), and returns a
 :class:`~study.simulated.bundle.ParticipantBundle`. The client is the study store's only writer:
 it merges bundles in participant order (a bundle finished early waits on its worker for those
 before it), one transaction each. Hence
@@ -86,7 +88,10 @@ def simulate_remote(job: ParticipantJob, inputs: RunInputs) -> ParticipantBundle
         if worker is not None:
             worker.log_event(PROGRESS_TOPIC, (inputs.run_token, job.participant, trials))
 
-    with tempfile.TemporaryDirectory(prefix=f"simulate-{job.participant}-") as scratch:
+    # in the worker's own directory: one killed mid-participant leaves nothing in the system's
+    # temporary folder (Dask purges a dead worker's directory when the next worker starts)
+    local = None if worker is None else worker.local_directory
+    with tempfile.TemporaryDirectory(prefix=f"simulate-{job.participant}-", dir=local) as scratch:
         folder = Path(scratch)
         protocol_path = folder / inputs.protocol_name
         protocol_path.write_text(inputs.protocol_text, encoding="utf-8")
