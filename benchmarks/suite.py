@@ -37,6 +37,7 @@ import threading
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Self
 
 ROOT = Path(__file__).resolve().parents[1]
 PYTHON = Path(sys.executable)
@@ -63,31 +64,24 @@ class Run:
     load_before: float
 
 
-class CpuSampler:
-    """How busy the machine's cores were, from ``/proc/stat`` once a second."""
+class Sampler:
+    """A thread that calls :meth:`sample` every ``interval`` seconds while in a ``with``
+    block (once on entering)."""
 
-    def __init__(self) -> None:
+    def __init__(self, *, interval: float) -> None:
+        self.interval = interval
         self._stop = threading.Event()
-        self._busy = 0
-        self._total = 0
         self._thread = threading.Thread(target=self._run, daemon=True)
 
-    @staticmethod
-    def _read() -> tuple[int, int]:
-        with open("/proc/stat", encoding="ascii") as f:
-            fields = [int(x) for x in f.readline().split()[1:]]
-        idle = fields[3] + fields[4]  # idle + iowait
-        return sum(fields), idle
+    def sample(self) -> None:
+        raise NotImplementedError
 
     def _run(self) -> None:
-        total0, idle0 = self._read()
-        while not self._stop.wait(1.0):
-            total, idle = self._read()
-            self._total += total - total0
-            self._busy += (total - total0) - (idle - idle0)
-            total0, idle0 = total, idle
+        while not self._stop.wait(self.interval):
+            self.sample()
 
-    def __enter__(self) -> CpuSampler:
+    def __enter__(self) -> Self:
+        self.sample()
         self._thread.start()
         return self
 
@@ -95,25 +89,43 @@ class CpuSampler:
         self._stop.set()
         self._thread.join()
 
+
+class CpuSampler(Sampler):
+    """How busy the machine's cores were, from ``/proc/stat`` once a second."""
+
+    def __init__(self) -> None:
+        super().__init__(interval=1.0)
+        self._busy = 0
+        self._total = 0
+        self._prev: tuple[int, int] | None = None
+
+    def sample(self) -> None:
+        with open("/proc/stat", encoding="ascii") as f:
+            fields = [int(x) for x in f.readline().split()[1:]]
+        total, idle = sum(fields), fields[3] + fields[4]  # idle + iowait
+        if self._prev is not None:
+            total0, idle0 = self._prev
+            self._total += total - total0
+            self._busy += (total - total0) - (idle - idle0)
+        self._prev = total, idle
+
     @property
     def busy(self) -> float:
         return self._busy / self._total if self._total else 0.0
 
 
-class TreeCpu:
+class TreeCpu(Sampler):
     """CPU seconds used by a process and all its descendants, sampled from ``/proc`` every
     ``interval`` seconds (Chromium's renderers are not waited for by the command, so
     ``getrusage`` misses them; ``benchmarks/chromium_cpu.py`` splits the same figure by
     program)."""
 
     def __init__(self, pid: int, *, interval: float = 0.5) -> None:
+        super().__init__(interval=interval)
         self.pid = pid
-        self.interval = interval
         self._last: dict[tuple[int, str], float] = {}  # (pid, start time) -> CPU s
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
 
-    def _sample(self) -> None:
+    def sample(self) -> None:
         procs: dict[int, tuple[int, str, float]] = {}
         for name in os.listdir("/proc"):
             if not name.isdigit():
@@ -137,19 +149,6 @@ class TreeCpu:
             _, start, cpu = procs[pid]
             self._last[(pid, start)] = max(self._last.get((pid, start), 0.0), cpu)
             todo.extend(children.get(pid, ()))
-
-    def _run(self) -> None:
-        while not self._stop.wait(self.interval):
-            self._sample()
-
-    def __enter__(self) -> TreeCpu:
-        self._sample()
-        self._thread.start()
-        return self
-
-    def __exit__(self, *_: object) -> None:
-        self._stop.set()
-        self._thread.join()
 
     @property
     def cpu_s(self) -> float:
