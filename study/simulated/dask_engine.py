@@ -8,8 +8,9 @@ three.
 How: every participant is one task (:func:`simulate_remote`). The task receives the protocol
 and population files' *text* (workers need not see the client's files), simulates the
 participant into a private scratch store in the worker's own directory (Dask's
-``local_directory``: a killed worker's is purged by the next worker that starts, so no partial
-store is left behind), and returns a
+``local_directory``: with Dask's file locking on, as by default, a killed worker's is purged by
+the next worker that starts on that host, so no partial store is left behind; put it on a local
+disk, as Dask advises, not a network file system: SQLite writes there), and returns a
 :class:`~study.simulated.bundle.ParticipantBundle`. The client is the study store's only writer:
 it merges bundles in participant order (a bundle finished early waits on its worker for those
 before it), one transaction each. Hence
