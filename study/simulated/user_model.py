@@ -100,7 +100,6 @@ class SimulatedUser:
         self.grasp_closed = False
         self.seen_handle: np.ndarray | None = None  # the handle as seen tau ago
         self._view: DelayedView | None = None
-        self._goal_point = np.zeros(3)
         self._t_prev: float | None = None
         self._phase_t = 0.0
         self._r0 = np.zeros(3)
@@ -141,7 +140,6 @@ class SimulatedUser:
         """Next target and gripper wish from the observation (see the module docstring)."""
         goal = self._goal(obs)  # where the object is now: a nudged object is re-aimed at
         if self._view is None:
-            self._goal_point = goal
             self._start(obs)
         assert self._view is not None
         lo, hi = obs.reach.lo, obs.reach.hi
