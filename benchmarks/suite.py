@@ -9,7 +9,8 @@ pytest -n N --maxprocesses=N``, with the Python that runs this script (from the 
 imports the worktree's code; the packages are this one's). While pytest runs, ``/proc/stat``
 is read every second: how busy both cores were, and how many CPU seconds the run's processes used
 (pytest, its workers and everything they start, Chromium included: each process's last reading,
-sampled every half second; a process that lives less than that is missed). On a shared machine
+sampled every half second, so up to half a second of each process's end is missed, and a process
+that lives less than that entirely: a small bias, alike for revisions that start alike). On a shared machine
 other jobs change the wall time a lot and the CPU seconds little: compare those.
 
 Runs alternate (revision by revision, worker count by worker count, ``--runs`` rounds), so
@@ -78,7 +79,10 @@ class Sampler:
 
     def _run(self) -> None:
         while not self._stop.wait(self.interval):
-            self.sample()
+            try:
+                self.sample()
+            except OSError:  # /proc unreadable for a moment: the next sample counts
+                continue
 
     def __enter__(self) -> Self:
         self.sample()
@@ -176,9 +180,13 @@ def run_once(tree: Path, rev: str, workers: int, extra: list[str], log: Path) ->
     command = [str(PYTHON), "-m", "pytest", "-n", str(workers), f"--maxprocesses={workers}"]
     with log.open("w") as out, CpuSampler() as cpu:
         start = time.perf_counter()
-        child = subprocess.Popen([*command, *extra], cwd=tree, stdout=out, stderr=out)
-        with TreeCpu(child.pid) as tree_cpu:
-            child.wait()
+        with subprocess.Popen([*command, *extra], cwd=tree, stdout=out, stderr=out) as child:
+            try:
+                with TreeCpu(child.pid) as tree_cpu:
+                    child.wait()
+            except BaseException:  # Ctrl-C or a sampler error: no pytest left running
+                child.kill()
+                raise
         wall_s = time.perf_counter() - start
     lines = log.read_text(errors="replace").splitlines()
     match = next((m for m in map(SUMMARY.search, reversed(lines)) if m), None)
