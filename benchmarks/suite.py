@@ -36,6 +36,7 @@ import sys
 import tempfile
 import threading
 import time
+from abc import ABC, abstractmethod
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Self
@@ -65,7 +66,7 @@ class Run:
     load_before: float
 
 
-class Sampler:
+class Sampler(ABC):
     """A thread that calls :meth:`sample` every ``interval`` seconds while in a ``with``
     block (once on entering)."""
 
@@ -74,8 +75,9 @@ class Sampler:
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
+    @abstractmethod
     def sample(self) -> None:
-        raise NotImplementedError
+        """Read what the sampler measures once."""
 
     def _run(self) -> None:
         while not self._stop.wait(self.interval):
