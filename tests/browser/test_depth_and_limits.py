@@ -54,6 +54,19 @@ CLOCK = re.compile(r"Time left: (\d+):(\d\d)")
 HELD_RUN_S = 2 * TIME_WARNING_S + 1
 """The run held to its end: the shortest that still shows the 10-seconds-left notice (shown
 only in runs longer than twice its 10 s)."""
+WATCH_TEXT_JS = """(text) => {
+  window.__studyTextSeen = false;
+  const look = () => {
+    if (!window.__studyTextSeen && document.body.textContent.includes(text)) {
+      window.__studyTextSeen = true;
+    }
+  };
+  new MutationObserver(look).observe(document.body, {
+    childList: true, subtree: true, characterData: true,
+  });
+  look();
+}"""
+"""Notes, in the page, whether ``text`` was ever put on it (a notice that closes by itself)."""
 
 
 def _press_drag(page: Any, start: np.ndarray, end: np.ndarray, *, steps: int = 10) -> None:
@@ -275,6 +288,10 @@ def test_a_run_that_ends_while_the_handle_is_held_says_why(tmp_path: Path, wide:
             raise AssertionError("the handle was not grabbed")
         first = _clock(page)
         assert first <= HELD_RUN_S
+        # the notice closes itself after 3 s; a loaded machine's page answered a read of its
+        # text more than 3 s apart once: the page itself notes when the notice was put up
+        page.evaluate(WATCH_TEXT_JS, TIME_WARNING)
+        assert page.evaluate("() => window.__studyTextSeen") is False  # not on the page yet
         p, warned, lowest = grab + 20 * direction, False, first
         while not live.run.over:
             p = p + 1 * direction
@@ -288,6 +305,7 @@ def test_a_run_that_ends_while_the_handle_is_held_says_why(tmp_path: Path, wide:
         # the countdown ran while the handle was held (read all along: a loaded machine's page
         # once showed the same second 2.5 s after the grab)
         assert lowest < first - 5, (first, lowest)
+        warned = warned or page.evaluate("() => window.__studyTextSeen === true")
         assert warned, "ten seconds before the end, a notice said so"
         assert live.run.summary.outcome == "timeout" and live.page is not None
         page.get_by_text("Time is up.").first.wait_for(timeout=15_000)
