@@ -277,7 +277,9 @@ def test_idle_sockets_cannot_lock_a_new_tab_or_a_reload_out(tmp_path: Path) -> N
             assert await until(lambda: srv.session(code).page is None, timeout=5.0)
             assert attack.process.poll() is None, "the attack ended before the reload was seen"
             result = await asyncio.get_running_loop().run_in_executor(None, attack.stop)
-            assert result["opened"] >= 24
+            # the port's 24 slots were theirs (above); the newcomer took one of them, which on a
+            # loaded machine can go before the attacker has read its handshake (23 seen once)
+            assert result["opened"] >= 23
 
     try:
         run_async(scenario())
