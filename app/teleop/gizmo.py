@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import math
 import threading
 
 import numpy as np
 
 from app.teleop.errors import InvalidTargetError
+from app.teleop.reach import finite3
 from app.teleop.types import TeleopCommand, TrialObservation
 
 
@@ -50,6 +50,6 @@ def checked_position(target: np.ndarray) -> np.ndarray:
     """``target`` as a fresh (3,) float array; ``InvalidTargetError`` if it is not 3 finite
     numbers."""
     arr = np.asarray(target, dtype=float).reshape(-1)
-    if arr.shape != (3,) or not all(map(math.isfinite, arr.tolist())):
+    if not finite3(arr):
         raise InvalidTargetError(f"gizmo target must be 3 finite numbers, got {target!r}")
     return arr.copy()

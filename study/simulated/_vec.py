@@ -1,6 +1,6 @@
 """Small fast helpers for 3-vectors on the simulated user's per-tick path (called ~15 times a
-tick, where ``numpy.linalg.norm``, ``np.all(np.isfinite(...))`` and ``ReachRegion.clamp``'s
-validation would dominate)."""
+tick, where ``numpy.linalg.norm`` and ``ReachRegion.clamp``'s validation would dominate; finite
+checks: ``app.teleop.reach.finite3``)."""
 
 from __future__ import annotations
 
@@ -13,14 +13,6 @@ def norm(v: np.ndarray) -> float:
     """``|v|`` (Euclidean): the same dot product as ``v @ v`` and ``numpy.linalg.norm``, bit for
     bit, at half the call's cost."""
     return math.sqrt(v.dot(v))
-
-
-def finite3(v: np.ndarray) -> bool:
-    """``v`` is a (3,) array of finite numbers (a tenth of ``np.all(np.isfinite(v))``'s cost)."""
-    if v.shape != (3,):
-        return False
-    x, y, z = v.tolist()
-    return math.isfinite(x) and math.isfinite(y) and math.isfinite(z)
 
 
 def clamp_box(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

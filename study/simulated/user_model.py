@@ -55,8 +55,9 @@ import math
 
 import numpy as np
 
+from app.teleop.reach import finite3
 from app.teleop.types import TeleopCommand, TrialObservation
-from study.simulated._vec import clamp_box, finite3, norm
+from study.simulated._vec import clamp_box, norm
 from study.simulated.errors import ObservationError
 from study.simulated.experience import ExperienceLog, RunExperience
 from study.simulated.movement import HandNoise, fitts_time, minimum_jerk
