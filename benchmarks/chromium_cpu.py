@@ -37,12 +37,14 @@ class Proc:
     ppid: int
     cpu_s: float
     title: str
+    start: int
+    """When it started (clock ticks after boot): with the pid, which process it is."""
 
 
-def _stat_cpu(text: str) -> tuple[int, float]:
-    """(ppid, user + system CPU seconds) from a ``/proc/.../stat`` line."""
+def _stat_cpu(text: str) -> tuple[int, float, int]:
+    """(ppid, user + system CPU seconds, start time) from a ``/proc/.../stat`` line."""
     rest = text.rsplit(")", 1)[1].split()
-    return int(rest[1]), (int(rest[11]) + int(rest[12])) / TICK
+    return int(rest[1]), (int(rest[11]) + int(rest[12])) / TICK, int(rest[19])
 
 
 def snapshot() -> dict[int, Proc]:
@@ -52,12 +54,12 @@ def snapshot() -> dict[int, Proc]:
             continue
         try:
             with open(f"/proc/{name}/stat") as f:
-                ppid, cpu = _stat_cpu(f.read())
+                ppid, cpu, start = _stat_cpu(f.read())
             with open(f"/proc/{name}/cmdline") as f:
                 title = f.read().replace("\0", " ").strip()
         except OSError:
             continue
-        procs[int(name)] = Proc(ppid, cpu, title)
+        procs[int(name)] = Proc(ppid, cpu, title, start)
     return procs
 
 

@@ -42,10 +42,13 @@ from pathlib import Path
 from typing import Self
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from benchmarks.chromium_cpu import descendants, snapshot  # noqa: E402
+
 PYTHON = Path(sys.executable)
 """The Python that runs this script runs the suite (``.venv/bin/python``: the project's)."""
 SUMMARY = re.compile(r"=+ (.*) in ([0-9.]+)s")
-TICK = os.sysconf("SC_CLK_TCK")
 
 
 @dataclass(frozen=True)
@@ -129,32 +132,15 @@ class TreeCpu(Sampler):
     def __init__(self, pid: int, *, interval: float = 0.5) -> None:
         super().__init__(interval=interval)
         self.pid = pid
-        self._last: dict[tuple[int, str], float] = {}  # (pid, start time) -> CPU s
+        self._last: dict[tuple[int, int], float] = {}  # (pid, start time) -> CPU s
 
     def sample(self) -> None:
-        procs: dict[int, tuple[int, str, float]] = {}
-        for name in os.listdir("/proc"):
-            if not name.isdigit():
-                continue
-            try:
-                with open(f"/proc/{name}/stat", encoding="ascii", errors="replace") as f:
-                    rest = f.read().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            cpu = (int(rest[11]) + int(rest[12])) / TICK
-            procs[int(name)] = (int(rest[1]), rest[19], cpu)
-        children: dict[int, list[int]] = {}
-        for pid, (ppid, _, _) in procs.items():
-            children.setdefault(ppid, []).append(pid)
-        todo, seen = [self.pid], set()
-        while todo:
-            pid = todo.pop()
-            if pid in seen or pid not in procs:
-                continue
-            seen.add(pid)
-            _, start, cpu = procs[pid]
-            self._last[(pid, start)] = max(self._last.get((pid, start), 0.0), cpu)
-            todo.extend(children.get(pid, ()))
+        procs = snapshot()
+        for pid in descendants(self.pid, procs):
+            p = procs.get(pid)
+            if p is not None:
+                key = (pid, p.start)
+                self._last[key] = max(self._last.get(key, 0.0), p.cpu_s)
 
     @property
     def cpu_s(self) -> float:
