@@ -47,6 +47,7 @@ from study.session import open_store
 from study.simulated.bundle import ParticipantBundle, merge_bundle, read_bundle_file
 from study.simulated.errors import SchedulerUnreachableError, SimulationRunError
 from study.simulated.job import run_participant
+from study.simulated.warm_start import dask_forkserver
 from study.store import StoreWriteError
 
 if TYPE_CHECKING:
@@ -126,10 +127,12 @@ def _current_worker() -> Any:
 
 def connect(*, scheduler: str | None, workers: int, stack: ExitStack) -> Client:
     """A client on the scheduler at ``scheduler``, or on a new ``LocalCluster`` of ``workers``
-    single-threaded processes (the simulation holds the GIL); closed with ``stack``."""
+    single-threaded processes (the simulation holds the GIL; started warm,
+    :func:`~study.simulated.warm_start.dask_forkserver`); closed with ``stack``."""
     from distributed import Client, LocalCluster
 
     if scheduler is None:
+        dask_forkserver()
         cluster = stack.enter_context(
             LocalCluster(
                 n_workers=workers,

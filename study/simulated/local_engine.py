@@ -1,7 +1,8 @@
-"""The local engine: simulated participants in this process, or in ``workers`` spawned processes
+"""The local engine: simulated participants in this process, or in ``workers`` worker processes
 writing the same store.
 
-Workers (``workers > 1``): processes (``spawn``), each opening its own connection to the same
+Workers (``workers > 1``): processes forked warm from a server that imported the simulation
+once (:mod:`study.simulated.warm_start`), each opening its own connection to the same
 SQLite WAL store. The store serialises writers with ``BEGIN IMMEDIATE`` and a busy timeout, and
 samples are batched by each session's ``SampleWriter``, so concurrent sessions are safe. The
 Dask engine beside it (:mod:`study.simulated.dask_engine`) writes the same data.
@@ -9,7 +10,6 @@ Dask engine beside it (:mod:`study.simulated.dask_engine`) writes the same data.
 
 from __future__ import annotations
 
-import multiprocessing as mp
 import queue
 import sys
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -22,6 +22,7 @@ from tqdm import tqdm
 from study.protocol import load_protocol
 from study.session import open_store
 from study.simulated.job import ParticipantJob, ParticipantResult, run_participant
+from study.simulated.warm_start import LOCAL, forkserver
 from study.store import StoreWriteError
 
 if TYPE_CHECKING:
@@ -32,7 +33,7 @@ if TYPE_CHECKING:
 @dataclass(frozen=True)
 class LocalRun:
     """What a run's participants are made from and written to; a worker process rebuilds its
-    protocol, store and population from it (paths and numbers: it crosses ``spawn``)."""
+    protocol, store and population from it (paths and numbers: it crosses to a new process)."""
 
     protocol_path: Path
     db: Path
@@ -111,7 +112,7 @@ def _run_pool(
     """Run ``jobs`` in worker processes, appending to ``results``; returns the store fault that
     stopped the run (queued participants are then not started), else ``None``."""
 
-    ctx = mp.get_context("spawn")
+    ctx = forkserver(LOCAL)
     ticks = ctx.Queue()
     fault: str | None = None
     with ProcessPoolExecutor(

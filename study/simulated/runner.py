@@ -22,7 +22,7 @@ A store that stops taking writes (full disk, read-only: ``StoreWriteError``) end
 no further participant is started, the report carries the error, and ``resume`` continues once
 the disk is fixed.
 
-Engines: the local one (this process or spawned worker processes sharing the store,
+Engines: the local one (this process or worker processes sharing the store,
 :mod:`study.simulated.local_engine`) and the Dask one (:mod:`study.simulated.dask_engine`).
 """
 
@@ -55,7 +55,7 @@ if TYPE_CHECKING:
 
 
 ENGINES = ("local", "dask")
-"""``local``: this process or spawned processes sharing the store; ``dask``: a Dask cluster
+"""``local``: this process or worker processes sharing the store; ``dask``: a Dask cluster
 returning participants to this process, the store's only writer."""
 
 
@@ -211,7 +211,7 @@ def simulate(
     """Simulate ``participants`` people through the protocol into the store at ``db``;
     ``resume`` continues a killed run with the same arguments (see module docstring).
 
-    ``engine="local"`` runs in this process (``workers == 1``) or in ``workers`` spawned
+    ``engine="local"`` runs in this process (``workers == 1``) or in ``workers`` worker
     processes sharing the store; ``engine="dask"`` runs on the Dask scheduler at ``scheduler``
     or, without one, on a new ``LocalCluster`` of ``workers`` processes, with this process the
     store's only writer (``study.simulated.dask_engine``). Both write the same data.
