@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from study.server.draw_rate import scene_hz
 from tests.browser.harness import run_async, start_server, wait_until
 from tests.support.raw_client import AGREE, RawClient
 
@@ -65,6 +66,20 @@ def test_malformed_client_messages_are_rejected_and_the_server_keeps_running(
                     live.participant_input.gizmo.target is None
                     or (live.participant_input.gizmo.target == good).all()
                 )
+                # The page's drawing rate (study.server.draw_rate): anything but a whole number
+                # 1..1000 is refused and changes nothing; a good one paces this tab's updates.
+                fps = await c.wait_for(
+                    lambda m: m.get("type") == "GuiTextMessage" and m["props"]["label"] == "fps"
+                )
+                page = live.page
+                rejected = len(page.rejected)
+                for value in ("0", "1001", "abc", "1e3", "12.5", "-4", "\u0661\u0662", "9" * 500):
+                    await c.send("GuiUpdateMessage", uuid=fps["uuid"], updates={"value": value})
+                await c.send("GuiUpdateMessage", uuid=fps["uuid"], updates={"value": "12"})
+                assert wait_until(lambda: page.draw_hz == 12.0, timeout=5)
+                assert len(page.rejected) == rejected + 8, list(page.rejected)[rejected:]
+                assert scene_hz(page.draw_hz, render_hz=srv.render_hz) == 24.0
+
                 # A valid pose still works afterwards; the control loop never stopped.
                 await c.pose((0.5, 0.1, 0.35), owner=owner)
                 assert wait_until(

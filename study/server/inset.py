@@ -16,7 +16,8 @@ the table straight from above, rendered by MuJoCo's offscreen renderer (``MUJOCO
 * 320 x 240 pixels, no multisampling, no shadows or reflections (about 6-10 ms a frame in
   software GL on these machines), JPEG at quality 80 (5-8 kB);
 * at most ``rate_hz`` frames a second (15, so that a loaded machine still shows 10 or more),
-  and only when something moved or the page's screen changed: a still arm costs nothing.
+  and no more than the page draws (``InsetJob.most_hz``, :mod:`study.server.draw_rate`), and
+  only when something moved or the page's screen changed: a still arm costs nothing.
 
 :class:`InsetLoop` runs in its own thread with its own model copy, ``MjData`` and GL context
 (a context belongs to the thread that made it): the control thread only hands over the pose
@@ -43,6 +44,7 @@ import numpy as np
 
 from app.robot import BodyPoses, Scene
 from study.errors import StudyError
+from study.server.draw_rate import Pacer
 from study.server.loop import PacedLoop
 
 LOGGER = logging.getLogger("study.server.inset")
@@ -334,6 +336,8 @@ class InsetJob:
     view_azimuth_deg: float
     poses: BodyPoses
     words: tuple[str, ...]
+    most_hz: float = INSET_HZ
+    """Pictures a second the page can use (``study.server.draw_rate.inset_hz``)."""
 
 
 class InsetLoop:
@@ -365,6 +369,7 @@ class InsetLoop:
         self.dropped = 0
         """Pictures not sent: no JPEG quality avoided a condition word (a word spelt by the
         JPEG format's own tables, such as "cdefghij", would drop them all)."""
+        self._pacer = Pacer()
         self._loop = PacedLoop(self._step, rate_hz=rate_hz, name=name)
 
     def start(self) -> InsetLoop:
@@ -392,6 +397,8 @@ class InsetLoop:
             return False
         job = self._job()
         if job is None or job.key == self._done:
+            return True
+        if not self._pacer.due(time.monotonic(), job.most_hz):
             return True
         t = time.perf_counter()
         try:

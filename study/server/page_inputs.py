@@ -11,6 +11,7 @@ import re
 import numpy as np
 
 from study.errors import StudyError
+from study.server.draw_rate import MAX_DRAW_HZ
 from study.server.firewall import MAX_POSITION_M
 from study.server.page_script import ARROW_KEYCODES, MAX_KEY_MESSAGE, STEERING_CODES
 
@@ -56,3 +57,15 @@ def parse_key_state(value: object) -> tuple[int, frozenset[str]]:
     if match is None or not set(match[2]) <= KEY_LETTERS:
         raise InputRejected("key state is not '<number> <keys>'")
     return int(match[1]), frozenset(match[2])
+
+
+def parse_draw_rate(value: object) -> float:
+    """The page's frames a second, ``"<1..MAX_DRAW_HZ>"`` (digits only), else
+    :class:`InputRejected`."""
+    text = str(value)
+    if not (0 < len(text) <= len(str(MAX_DRAW_HZ)) and text.isascii() and text.isdigit()):
+        raise InputRejected("draw rate is not a whole number of frames a second")
+    hz = int(text)
+    if not 1 <= hz <= MAX_DRAW_HZ:
+        raise InputRejected(f"draw rate {hz} is outside 1..{MAX_DRAW_HZ}")
+    return float(hz)

@@ -36,10 +36,12 @@ from study.protocol import Item, LikertItem
 from study.server import viser_door
 from study.server.answer_fields import add_answer_field
 from study.server.blinding_guard import check_text
+from study.server.draw_rate import draw_rate_script
 from study.server.listening import ListeningClock
 from study.server.page_handle import TeleopHandle
 from study.server.page_inputs import (
     InputRejected,
+    parse_draw_rate,
     parse_key_state,
 )
 from study.server.page_script import page_script
@@ -124,13 +126,29 @@ class ParticipantPage:
         self._keys_lock = threading.Lock()
         self._keys = client.gui.add_text("keys", initial_value="", visible=False)
         self._keys.on_update(self._on_key_state)
+        self.draw_hz: float | None = None
+        """Frames a second the page draws, as it last said (:mod:`study.server.draw_rate`);
+        ``None`` until it does."""
+        self._draw_rate = client.gui.add_text("fps", initial_value="", visible=False)
+        self._draw_rate.on_update(self._on_draw_rate)
         client.gui.set_panel_label(self.title)
         keys_uuid = viser_door.element_uuid(self._keys)
-        self.run_script(page_script(keys_uuid=keys_uuid, title=self.title))
+        self.run_script(
+            page_script(keys_uuid=keys_uuid, title=self.title)
+            + draw_rate_script(uuid=viser_door.element_uuid(self._draw_rate))
+        )
 
     def run_script(self, source: str) -> None:
         """Run ``source`` (JavaScript) in this tab once (checked for condition words too)."""
         viser_door.run_javascript(self.client, check_text(source, words=self.words))
+
+    async def _on_draw_rate(self, _event: object) -> None:
+        """The page's drawing rate (frames a second) from the page script (async: parsed on
+        the event loop, no thread per message; a refusal is recorded off it)."""
+        try:
+            self.draw_hz = parse_draw_rate(self._draw_rate.value)
+        except InputRejected as exc:
+            asyncio.get_running_loop().run_in_executor(None, self.reject, str(exc), False)
 
     async def _on_key_state(self, _event: object) -> None:
         """A new key state from the page script (async: in arrival order, never reordered)."""

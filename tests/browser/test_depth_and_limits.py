@@ -23,10 +23,12 @@ from PIL import Image
 
 from app.robot.scene import grasp_position
 from study.server import viser_door
-from study.server.inset import TopDownCamera
+from study.server.draw_rate import inset_hz, scene_hz
+from study.server.inset import INSET_HZ, TopDownCamera
 from study.server.live.texts import AT_REACH_LIMIT, TIME_WARNING, TIME_WARNING_S
 from study.server.page_handle import HANDLE_OFFSET_M, HANDLE_PX
 from tests.browser.harness import (
+    FRAME_CAP_FPS,
     FrameLog,
     RunningServer,
     decode_frame,
@@ -200,9 +202,11 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     uuid = viser_door.element_uuid(live.page._inset)
     inset = live.view.inset
     before = len(_inset_frames(frames, uuid))
+    scene_frames = live.scene_view.frames_sent
     t0 = time.monotonic()
     hold(page, "s", 2.0)
     t1 = time.monotonic()
+    scene_rate = (live.scene_view.frames_sent - scene_frames) / (t1 - t0)
     # from the first picture of the move (keys arrive late on a loaded machine) to the release
     sent = [t for t in inset.sent_at if t0 < t <= t1]
     rate = (len(sent) - 1) / (sent[-1] - sent[0])
@@ -215,6 +219,17 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     )
     assert rate >= 5.0, rate
     assert got >= 3.0, got
+    # The page said how fast it draws (these pages at most FRAME_CAP_FPS), and the server sent
+    # it no more than it can show (study.server.draw_rate): a picture a frame and two poses a
+    # frame, not its own 15 and 60 a second.
+    draw = live.page.draw_hz
+    print(f"the page draws {draw} frames/s; the server sent {scene_rate:.1f} scene frames/s")
+    assert draw is not None and (FRAME_CAP_FPS <= 0 or draw <= FRAME_CAP_FPS + 1), draw
+    assert rate <= 1.3 * inset_hz(draw, most_hz=INSET_HZ) + 1, (rate, draw)
+    assert scene_rate <= 1.3 * scene_hz(draw, render_hz=study.server.render_hz) + 2, (
+        scene_rate,
+        draw,
+    )
     pictures = _inset_frames(frames, uuid)[before:]
     a, b = (np.asarray(Image.open(io.BytesIO(j)), float) for _, j in (pictures[0], pictures[-1]))
     assert np.abs(a - b).mean() > 0.5, "the picture from above did not change"

@@ -1,8 +1,8 @@
 """``LiveView``: the participant tab's 3-D view of the current run, drawn by its own loop.
 
 The control thread hands over a snapshot of the run's body poses after each tick that moved
-something (``snap``); the render loop (``step``, up to ``render_hz``) sends the newest snapshot
-to the tab, but only while the view shows that run (``frame_key``): never an earlier run's end
+something (``snap``); the render loop (``step``, up to ``render_hz``, and no faster than the
+tab draws: :mod:`study.server.draw_rate`) sends the newest snapshot to the tab, but only while the view shows that run (``frame_key``): never an earlier run's end
 pose on the next ready screen, whose preview (``draw_preview``) shows the next run's start.
 The render loop also carries the page's live notices (the held one of
 :mod:`study.server.live.notices`: the input held past the reach, a finger resting on an object,
@@ -25,7 +25,8 @@ import numpy as np
 
 from app.robot import BodyPoses, Scene
 from app.teleop.participant_input import ParticipantInput
-from study.server.inset import InsetJob, InsetLoop
+from study.server.draw_rate import Pacer, inset_hz, scene_hz
+from study.server.inset import INSET_HZ, InsetJob, InsetLoop
 from study.server.intent_cue import IntentGoals, ring_opacity
 from study.server.live.notices import HeldNotices
 from study.server.live.texts import TIME_WARNING, TIME_WARNING_S
@@ -77,6 +78,8 @@ class LiveView:
         self._snapshot: Snapshot | None = None
         self._frame_key: object = None
         self._rendered_seq = -1
+        self._pacer = Pacer()
+        """Scene updates no faster than the tab draws them (:mod:`study.server.draw_rate`)."""
         self._lock = threading.Lock()
         """One frame at a time: the render loop's against a preview draw or a view rebuild."""
         self._loop: PacedLoop | None = None
@@ -179,7 +182,15 @@ class LiveView:
         view, snap = self.view, self._snapshot
         if page is not None:
             self._notices(page)
-        if view is not None and snap is not None and snap.seq != self._rendered_seq:
+        if (
+            view is not None
+            and snap is not None
+            and snap.seq != self._rendered_seq
+            and self._pacer.due(
+                time.monotonic(),
+                scene_hz(None if page is None else page.draw_hz, render_hz=self.render_hz),
+            )
+        ):
             with self._lock:
                 if snap.key is self._frame_key and view is self.view:
                     self._rendered_seq = snap.seq
@@ -237,6 +248,7 @@ class LiveView:
             view_azimuth_deg=self._azimuth,
             poses=snap.poses,
             words=page.words,
+            most_hz=inset_hz(page.draw_hz, most_hz=INSET_HZ),
         )
 
     def _inset_frame(self, jpeg: bytes) -> None:
