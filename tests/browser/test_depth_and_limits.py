@@ -195,10 +195,12 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
         assert cosine > np.cos(np.radians(30)), (name, on_screen, direction)
 
     # The view from above is redrawn while the arm moves (keys held for seconds): the server
-    # makes pictures all along, and the page gets them (viser merges two pictures queued within
-    # one send window, so a loaded machine shows fewer, the newest each time). 10-15 a second on
-    # a quiet machine; the bound is half of that: a full run beside other jobs made 5.7 (the
-    # rate itself is a benchmark's figure, benchmarks/page_fps.py, not this test's).
+    # makes pictures all along, a picture a frame the page draws (study.server.draw_rate: the
+    # page says how fast it draws; these pages at most FRAME_CAP_FPS), and the page gets them
+    # (viser merges two pictures queued within one send window, so a loaded machine shows
+    # fewer, the newest each time). The bounds are half the promised rate (the rate itself is a
+    # benchmark's figure, benchmarks/page_fps.py, not this test's). Scene poses: two a frame,
+    # not the server's own 60 a second.
     uuid = viser_door.element_uuid(live.page._inset)
     inset = live.view.inset
     before = len(_inset_frames(frames, uuid))
@@ -207,25 +209,21 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     hold(page, "s", 2.0)
     t1 = time.monotonic()
     scene_rate = (live.scene_view.frames_sent - scene_frames) / (t1 - t0)
+    draw = live.page.draw_hz
     # from the first picture of the move (keys arrive late on a loaded machine) to the release
     sent = [t for t in inset.sent_at if t0 < t <= t1]
     rate = (len(sent) - 1) / (sent[-1] - sent[0])
     page.wait_for_timeout(1500)
     got = (len(_inset_frames(frames, uuid)) - before) / (sent[-1] - sent[0])
     print(
-        f"view from above: made {rate:.1f}/s while the arm moved (render"
-        f" {1e3 * float(np.median(inset.render_s)):.1f} ms median), the page got at least"
-        f" {got:.1f}/s"
+        f"the page draws {draw} frames/s; view from above: made {rate:.1f}/s while the arm"
+        f" moved (render {1e3 * float(np.median(inset.render_s)):.1f} ms median), the page got"
+        f" at least {got:.1f}/s; {scene_rate:.1f} scene frames/s sent"
     )
-    assert rate >= 5.0, rate
-    assert got >= 3.0, got
-    # The page said how fast it draws (these pages at most FRAME_CAP_FPS), and the server sent
-    # it no more than it can show (study.server.draw_rate): a picture a frame and two poses a
-    # frame, not its own 15 and 60 a second.
-    draw = live.page.draw_hz
-    print(f"the page draws {draw} frames/s; the server sent {scene_rate:.1f} scene frames/s")
     assert draw is not None and (FRAME_CAP_FPS <= 0 or draw <= FRAME_CAP_FPS + 1), draw
-    assert rate <= 1.3 * inset_hz(draw, most_hz=INSET_HZ) + 1, (rate, draw)
+    promised = inset_hz(draw, most_hz=INSET_HZ)
+    assert 0.5 * promised <= rate <= 1.3 * promised + 1, (rate, draw)
+    assert got >= 0.4 * promised, (got, draw)
     assert scene_rate <= 1.3 * scene_hz(draw, render_hz=study.server.render_hz) + 2, (
         scene_rate,
         draw,
