@@ -8,10 +8,11 @@ moves, ``benchmarks/page_fps.py``) cannot show more than it draws: each update i
 still costs it a decode and an apply on the main thread it draws with, and the server its
 encoding.
 
-So the page script measures how many frames a second the page draws while it draws (three.js
-renders of viser's scene in runs of frames less than :data:`IDLE_GAP_MS` apart: viser draws on
-demand, and a gap means it had nothing to draw, not that it was slow) over about a second of
-drawing, and sends it, rounded, when it changed by :data:`REPORT_CHANGE` or more (a hidden text
+So the page script measures how many frames a second the page draws while it draws: three.js
+renders of viser's scene in an unbroken second of frames less than :data:`IDLE_GAP_MS` apart
+(viser draws on demand: a longer gap means it had nothing to draw, not that it was slow, and
+a still arm's scattered redraws -- a quarter second of frames after each message, a heartbeat
+each second -- never fill a second, so they say nothing), and sends it, rounded, when it changed by :data:`REPORT_CHANGE` or more (a hidden text
 element, ``ParticipantPage.draw_hz``). The server then sends that tab
 
 * scene updates at most :data:`UPDATES_PER_FRAME` times that rate (each frame shows a pose at
@@ -58,7 +59,7 @@ IDLE_GAP_MS = 500.0
 """Frames further apart than this are not a run of drawing (viser's own adaptive resolution
 reads them the same way)."""
 MEASURE_MS = 1000.0
-"""Drawing time a measurement spans."""
+"""Unbroken drawing a measurement spans."""
 REPORT_CHANGE = 0.1
 """A measured rate is sent when it differs from the last one sent by this fraction or more."""
 
@@ -120,13 +121,14 @@ _TEMPLATE = r"""
   st.uuid = cfg.uuid;
   if (st.installed) return;
   st.installed = true;
-  // each render of viser's scene: a run of frames closer than cfg.gap is drawing at the page's
-  // pace; after cfg.span of it, the rate goes out if it changed by cfg.change or more
+  // each render of viser's scene: an unbroken run of frames closer than cfg.gap is drawing at
+  // the page's pace (a longer gap: nothing to draw, and the run starts again); after cfg.span
+  // of it, the rate goes out if it changed by cfg.change or more
   const drawn = () => {
     const now = performance.now();
     const gap = now - st.last;
     st.last = now;
-    if (gap > cfg.gap) return;
+    if (gap > cfg.gap) { st.frames = 0; st.busy = 0; return; }
     st.frames += 1;
     st.busy += gap;
     if (st.busy < cfg.span) return;
