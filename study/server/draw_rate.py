@@ -10,10 +10,11 @@ encoding.
 
 So the page script measures how many frames a second the page draws while it draws: three.js
 renders of viser's scene in an unbroken second of frames less than :data:`IDLE_GAP_MS` apart
-(viser draws on demand: a longer gap means it had nothing to draw, not that it was slow, and
-a still arm's scattered redraws -- a quarter second of frames after each message, a heartbeat
-each second -- never fill a second, so they say nothing), and sends it, rounded, when it changed by :data:`REPORT_CHANGE` or more (a hidden text
-element, ``ParticipantPage.draw_hz``). The server then sends that tab
+(viser draws on demand: a longer gap means it had nothing to draw, not that it was slow, and a
+still arm's scattered redraws -- a quarter second of frames after each message, a heartbeat
+each second -- never fill a second, so they say nothing). It sends the rate, rounded, when it
+changed by :data:`REPORT_CHANGE` or more (a hidden text element, ``ParticipantPage.draw_hz``).
+The server then sends that tab
 
 * scene updates at most :data:`UPDATES_PER_FRAME` times that rate (each frame shows a pose at
   most half a frame old; sent at the same rate, pose and frame would beat), never below

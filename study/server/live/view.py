@@ -2,8 +2,9 @@
 
 The control thread hands over a snapshot of the run's body poses after each tick that moved
 something (``snap``); the render loop (``step``, up to ``render_hz``, and no faster than the
-tab draws: :mod:`study.server.draw_rate`) sends the newest snapshot to the tab, but only while the view shows that run (``frame_key``): never an earlier run's end
-pose on the next ready screen, whose preview (``draw_preview``) shows the next run's start.
+tab draws: :mod:`study.server.draw_rate`) sends the newest snapshot to the tab, but only while
+the view shows that run (``frame_key``): never an earlier run's end pose on the next ready
+screen, whose preview (``draw_preview``) shows the next run's start.
 The render loop also carries the page's live notices (the held one of
 :mod:`study.server.live.notices`: the input held past the reach, a finger resting on an object,
 a missed grasp; and ten seconds left), the trial screen's countdown and the handle following
