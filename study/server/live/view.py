@@ -80,7 +80,9 @@ class LiveView:
         self._frame_key: object = None
         self._rendered_seq = -1
         self._pacer = Pacer()
-        """Scene updates no faster than the tab draws them (:mod:`study.server.draw_rate`)."""
+        self._handle_pacer = Pacer()
+        """Scene updates and the handle's moves no faster than the tab draws them
+        (:mod:`study.server.draw_rate`)."""
         self._lock = threading.Lock()
         """One frame at a time: the render loop's against a preview draw or a view rebuild."""
         self._loop: PacedLoop | None = None
@@ -202,8 +204,15 @@ class LiveView:
                         )
                     except Exception:  # a tab closing mid-frame; the next tab gets the next
                         LOGGER.debug("render failed", exc_info=True)
-        if page is not None and source is not None:
-            # the handle follows the keys (absolute), or the gripper when let go (relative)
+        if (
+            page is not None
+            and source is not None
+            and self._handle_pacer.due(
+                time.monotonic(), scene_hz(page.draw_hz, render_hz=self.render_hz)
+            )
+        ):
+            # the handle follows the keys (absolute), or the gripper when let go (relative), at
+            # the scene's pace (a key's move not yet sent waits for the next due step)
             at = source.handle_position(None if snap is None else snap.poses.gripper)
             if at is not None:
                 page.move_gizmo(at)
