@@ -228,7 +228,10 @@ def test_eight_sockets_from_seven_addresses_cannot_drop_a_key_release(
     study: RunningServer,
 ) -> None:
     under_attack(study, "flood", addresses=7, tasks=8, rate=190)
-    assert study.server.firewall.shares.delayed > 1000
+    # the shares held the flood back (none are delayed with them off): each delayed message
+    # blocks its socket, so the count follows how fast the loaded server reads, at most the
+    # shares' 400 a second (1,300-1,600 in 5 s on a quiet machine, 996 beside a busy suite)
+    assert study.server.firewall.shares.delayed > 300
 
 
 def test_a_reconnect_storm_is_turned_away_before_it_costs_the_server(

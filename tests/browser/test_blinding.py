@@ -37,10 +37,12 @@ def _answer_items(page: Any) -> None:
     none_yet.first.wait_for(timeout=30_000)
     while left := none_yet.count():
         ones.first.click()
-        expect(none_yet).to_have_count(left - 1)  # the answer shown
+        # awaited, with time for a loaded machine (expect's own default is 5 s: a run beside
+        # a busy suite once took longer)
+        expect(none_yet).to_have_count(left - 1, timeout=30_000)  # the answer shown
         # and marked "[1]" on its row (a second update, which a loaded page can draw a frame
         # later): only then is the first "1" the next row's, not this one's again
-        expect(ones).to_have_count(left - 1)
+        expect(ones).to_have_count(left - 1, timeout=30_000)
     page.get_by_role("button", name="Continue").click()
 
 
