@@ -185,14 +185,13 @@ class LiveView:
         view, snap = self.view, self._snapshot
         if page is not None:
             self._notices(page)
+        now = time.monotonic()
+        hz = scene_hz(None if page is None else page.draw_hz, render_hz=self.render_hz)
         if (
             view is not None
             and snap is not None
             and snap.seq != self._rendered_seq
-            and self._pacer.due(
-                time.monotonic(),
-                scene_hz(None if page is None else page.draw_hz, render_hz=self.render_hz),
-            )
+            and self._pacer.due(now, hz)
         ):
             with self._lock:
                 if snap.key is self._frame_key and view is self.view:
@@ -204,13 +203,7 @@ class LiveView:
                         )
                     except Exception:  # a tab closing mid-frame; the next tab gets the next
                         LOGGER.debug("render failed", exc_info=True)
-        if (
-            page is not None
-            and source is not None
-            and self._handle_pacer.due(
-                time.monotonic(), scene_hz(page.draw_hz, render_hz=self.render_hz)
-            )
-        ):
+        if page is not None and source is not None and self._handle_pacer.due(now, hz):
             # the handle follows the keys (absolute), or the gripper when let go (relative), at
             # the scene's pace (a key's move not yet sent waits for the next due step)
             at = source.handle_position(None if snap is None else snap.poses.gripper)
