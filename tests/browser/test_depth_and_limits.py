@@ -56,6 +56,17 @@ CLOCK = re.compile(r"Time left: (\d+):(\d\d)")
 HELD_RUN_S = 2 * TIME_WARNING_S + 1
 """The run held to its end: the shortest that still shows the 10-seconds-left notice (shown
 only in runs longer than twice its 10 s)."""
+SURFACES_JS = """() => {
+  let meshes = 0, catchers = 0;
+  window.__viserMutable.scene.traverse((o) => {
+    if (!o.isMesh || !o.visible) return;
+    meshes += 1;
+    if (o.material && o.material.type === "ShadowMaterial") catchers += 1;
+  });
+  return [meshes, catchers];
+}"""
+"""The page's drawn meshes, and how many of them only catch shadows."""
+
 WATCH_TEXT_JS = """(text) => {
   window.__studyTextSeen = false;
   const look = () => {
@@ -164,6 +175,10 @@ def test_each_axis_moves_the_gripper_across_the_screen_with_depth_and_limits_sho
     first = _clock(page)
     assert 200 <= first <= 240, first
     screenshot(page, screenshots, "11-depth-start")
+    # Each surface is drawn once a frame: no light casts shadows, so no shadow-catching overlay
+    # (invisible, it shaded every table pixel a second time in software WebGL)
+    meshes, catchers = page.evaluate(SURFACES_JS)
+    assert meshes > 10 and catchers == 0, (meshes, catchers)
 
     # The handle floats over the gripper, its arrows pointing up the screen: not over the mug.
     cam = live.page.client.camera
