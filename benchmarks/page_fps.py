@@ -65,6 +65,11 @@ FPS_JS = """(ms) => new Promise((done) => {
 })"""
 
 
+CANVAS_JS = """() => Math.max(0, ...[...document.querySelectorAll("canvas")].map(
+  (c) => c.width * c.height))"""
+"""The pixels of the page's largest canvas (the 3-D view) as drawn now."""
+
+
 def _busy(cdp) -> dict[str, float]:
     """The page's main-thread time so far (s): all tasks, and script alone (CDP metrics)."""
     metrics = {m["name"]: m["value"] for m in cdp.send("Performance.getMetrics")["metrics"]}
@@ -117,6 +122,13 @@ def main() -> int:
     parser.add_argument("--protocol", default=None, help="protocol TOML (default: the paper's)")
     parser.add_argument("--mode", default=None, help="measure the first run in this mode")
     parser.add_argument("--viewport", default="1100x720", help="page size, WxH (CSS pixels)")
+    parser.add_argument(
+        "--dpr",
+        type=float,
+        default=None,
+        help="draw at this fixed pixel ratio (viser's ?fixedDpr=); default: viser's own, which"
+        " drops to 0.75 while the page draws slowly, so a faster page may draw more pixels",
+    )
     parser.add_argument(
         "--center",
         default="0.45,0,0.3",
@@ -198,7 +210,7 @@ def _measure(args: argparse.Namespace, browser) -> int:
         page.set_default_timeout(120_000)
         cdp = page.context.new_cdp_session(page)
         cdp.send("Performance.enable")
-        page.goto(rs.url)
+        page.goto(rs.url if args.dpr is None else f"{rs.url}?fixedDpr={args.dpr:g}")
         wait_connected(page)
         join(page, code)
         page.get_by_role("button", name=AGREE).click()
@@ -233,6 +245,7 @@ def _measure(args: argparse.Namespace, browser) -> int:
             else:
                 moving.append(_window(page, live, args.seconds, cdp))
         result["main_thread_ms_per_s_moving"] = list(BUSY)
+        result["canvas_px_moving"] = page.evaluate(CANVAS_JS)
         periods = live.control_loop.periods() * 1e3
         result["control_tick_period_ms_moving"] = {
             "median": round(float(np.median(periods)), 2),
@@ -287,6 +300,7 @@ def _measure(args: argparse.Namespace, browser) -> int:
             " ticks/s"
         )
     print(f"control tick periods while moving (ms): {result['control_tick_period_ms_moving']}")
+    print(f"3-D view drawn at {result['canvas_px_moving']} pixels while moving")
     print(
         "page main thread busy (ms/s; all tasks, script): moving"
         f" {result['main_thread_ms_per_s_moving']}, still {result['main_thread_ms_per_s_still']}"
